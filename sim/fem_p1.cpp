@@ -1,0 +1,76 @@
+// fem_p1.cpp - P1 tetrahedral assembly (see fem_p1.h).
+#include "sim/fem_p1.h"
+
+#include <Eigen/Dense>
+
+namespace esim {
+
+std::vector<TetGeometry> tetGeometry(const TetMesh& mesh) {
+  std::vector<TetGeometry> geo(mesh.tets.size());
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    const Tet& t = mesh.tets[e];
+    const Vec3& p0 = mesh.nodes[t[0]];
+    Eigen::Matrix3d j;  // columns: edges from p0
+    j.col(0) = mesh.nodes[t[1]] - p0;
+    j.col(1) = mesh.nodes[t[2]] - p0;
+    j.col(2) = mesh.nodes[t[3]] - p0;
+    const double det = j.determinant();
+    geo[e].volume = det / 6.0;
+    if (det == 0) {
+      geo[e].grad.setZero();
+      continue;
+    }
+    // grad N_{1..3} are the rows of J^-1; grad N_0 = -(sum of the others)
+    const Eigen::Matrix3d jinv = j.inverse();
+    geo[e].grad.row(1) = jinv.row(0);
+    geo[e].grad.row(2) = jinv.row(1);
+    geo[e].grad.row(3) = jinv.row(2);
+    geo[e].grad.row(0) = -(jinv.row(0) + jinv.row(1) + jinv.row(2));
+  }
+  return geo;
+}
+
+SparseMatrix assembleStiffness(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
+                               const std::vector<double>& coeff) {
+  std::vector<Eigen::Triplet<double>> trip;
+  trip.reserve(static_cast<size_t>(mesh.numAlive()) * 16);
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    if (!mesh.isAlive(e)) continue;
+    const Eigen::Matrix4d ke = coeff[e] * geo[e].volume * geo[e].grad * geo[e].grad.transpose();
+    const Tet& t = mesh.tets[e];
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 4; ++b) trip.emplace_back(t[a], t[b], ke(a, b));
+  }
+  SparseMatrix k(mesh.numNodes(), mesh.numNodes());
+  k.setFromTriplets(trip.begin(), trip.end());
+  return k;
+}
+
+SparseMatrix assembleMass(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
+                          const std::vector<double>& coeff) {
+  std::vector<Eigen::Triplet<double>> trip;
+  trip.reserve(static_cast<size_t>(mesh.numAlive()) * 16);
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    if (!mesh.isAlive(e)) continue;
+    const double m = coeff[e] * geo[e].volume / 20.0;
+    const Tet& t = mesh.tets[e];
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 4; ++b) trip.emplace_back(t[a], t[b], a == b ? 2 * m : m);
+  }
+  SparseMatrix mm(mesh.numNodes(), mesh.numNodes());
+  mm.setFromTriplets(trip.begin(), trip.end());
+  return mm;
+}
+
+Eigen::VectorXd lumpedMass(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
+                           const std::vector<double>& coeff) {
+  Eigen::VectorXd m = Eigen::VectorXd::Zero(mesh.numNodes());
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    if (!mesh.isAlive(e)) continue;
+    const double q = coeff[e] * geo[e].volume / 4.0;
+    for (int v : mesh.tets[e]) m[v] += q;
+  }
+  return m;
+}
+
+}  // namespace esim

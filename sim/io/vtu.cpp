@@ -1,0 +1,289 @@
+// vtu.cpp - VTK XML unstructured grid writer and reader (see vtu.h).
+#include "sim/io/vtu.h"
+
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "sim/core_error.h"
+
+namespace esim {
+
+namespace {
+
+constexpr char kB64[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+
+std::string base64Encode(const std::vector<std::uint8_t>& in) {
+  std::string out;
+  out.reserve((in.size() + 2) / 3 * 4);
+  size_t i = 0;
+  for (; i + 2 < in.size(); i += 3) {
+    const std::uint32_t v = (in[i] << 16) | (in[i + 1] << 8) | in[i + 2];
+    out += kB64[(v >> 18) & 63];
+    out += kB64[(v >> 12) & 63];
+    out += kB64[(v >> 6) & 63];
+    out += kB64[v & 63];
+  }
+  if (i < in.size()) {
+    std::uint32_t v = in[i] << 16;
+    if (i + 1 < in.size()) v |= in[i + 1] << 8;
+    out += kB64[(v >> 18) & 63];
+    out += kB64[(v >> 12) & 63];
+    out += i + 1 < in.size() ? kB64[(v >> 6) & 63] : '=';
+    out += '=';
+  }
+  return out;
+}
+
+std::vector<std::uint8_t> base64Decode(const std::string& in) {
+  int table[256];
+  for (int& t : table) t = -1;
+  for (int k = 0; k < 64; ++k) table[static_cast<unsigned char>(kB64[k])] = k;
+  std::vector<std::uint8_t> out;
+  std::uint32_t acc = 0;
+  int bits = 0;
+  for (unsigned char c : in) {
+    if (table[c] < 0) continue;  // whitespace and '=' padding
+    acc = (acc << 6) | table[c];
+    bits += 6;
+    if (bits >= 8) {
+      bits -= 8;
+      out.push_back(static_cast<std::uint8_t>((acc >> bits) & 0xff));
+    }
+  }
+  return out;
+}
+
+// base64 of [uint64 byte count][raw little-endian data]
+template <typename T>
+std::string encodeArray(const std::vector<T>& data) {
+  const std::uint64_t bytes = data.size() * sizeof(T);
+  std::vector<std::uint8_t> raw(sizeof(bytes) + bytes);
+  std::memcpy(raw.data(), &bytes, sizeof(bytes));
+  if (bytes) std::memcpy(raw.data() + sizeof(bytes), data.data(), bytes);
+  return base64Encode(raw);
+}
+
+void writeDataArray(std::ostream& os, const char* type, const std::string& name, int components,
+                    const std::string& payload) {
+  os << "        <DataArray type=\"" << type << "\" Name=\"" << name
+     << "\" NumberOfComponents=\"" << components << "\" format=\"binary\">\n          "
+     << payload << "\n        </DataArray>\n";
+}
+
+std::string attribute(const std::string& tag, const std::string& key) {
+  const std::string pat = key + "=\"";
+  const size_t p = tag.find(pat);
+  if (p == std::string::npos) return "";
+  const size_t q = tag.find('"', p + pat.size());
+  return tag.substr(p + pat.size(), q - p - pat.size());
+}
+
+// decodes one DataArray body into doubles
+std::vector<double> decodeArray(const std::string& type, const std::string& format,
+                                const std::string& body, const std::string& path) {
+  std::vector<double> out;
+  if (format == "ascii") {
+    std::istringstream is(body);
+    double v;
+    while (is >> v) out.push_back(v);
+    return out;
+  }
+  ESIM_VERIFY(format == "binary", path + ": DataArray format '" + format +
+                                      "' is not supported; expected 'binary' or 'ascii'");
+  const auto raw = base64Decode(body);
+  ESIM_VERIFY(raw.size() >= 8, path + ": DataArray is truncated");
+  std::uint64_t bytes;
+  std::memcpy(&bytes, raw.data(), 8);
+  ESIM_VERIFY(raw.size() >= 8 + bytes, path + ": DataArray is shorter than its header says");
+  const std::uint8_t* p = raw.data() + 8;
+  auto read = [&](auto tag) {
+    using T = decltype(tag);
+    const size_t n = bytes / sizeof(T);
+    out.resize(n);
+    for (size_t i = 0; i < n; ++i) {
+      T v;
+      std::memcpy(&v, p + i * sizeof(T), sizeof(T));
+      out[i] = static_cast<double>(v);
+    }
+  };
+  if (type == "Float64") read(double{});
+  else if (type == "Float32") read(float{});
+  else if (type == "Int64") read(std::int64_t{});
+  else if (type == "Int32") read(std::int32_t{});
+  else if (type == "UInt8") read(std::uint8_t{});
+  else if (type == "UInt64") read(std::uint64_t{});
+  else throw Error(path + ": DataArray type '" + type + "' is not supported");
+  return out;
+}
+
+}  // namespace
+
+const VtuField* VtuData::findPointField(const std::string& name) const {
+  for (const auto& f : pointData)
+    if (f.name == name) return &f;
+  return nullptr;
+}
+
+const VtuField* VtuData::findCellField(const std::string& name) const {
+  for (const auto& f : cellData)
+    if (f.name == name) return &f;
+  return nullptr;
+}
+
+void writeVtu(const std::string& path, const TetMesh& mesh, const std::vector<VtuField>& pointData,
+              const std::vector<VtuField>& cellData) {
+  // ---- validate field sizes ----
+  for (const auto& f : pointData)
+    ESIM_VERIFY(f.values.size() == static_cast<size_t>(f.components) * mesh.numNodes(),
+                path + ": point field '" + f.name + "' has " + std::to_string(f.values.size()) +
+                    " values; expected " + std::to_string(f.components * mesh.numNodes()));
+  for (const auto& f : cellData)
+    ESIM_VERIFY(f.values.size() == static_cast<size_t>(f.components) * mesh.numTets(),
+                path + ": cell field '" + f.name + "' has " + std::to_string(f.values.size()) +
+                    " values; expected " + std::to_string(f.components * mesh.numTets()));
+  std::vector<int> cells;
+  for (int e = 0; e < mesh.numTets(); ++e)
+    if (mesh.isAlive(e)) cells.push_back(e);
+
+  // ---- arrays ----
+  std::vector<double> points(3 * mesh.nodes.size());
+  for (int i = 0; i < mesh.numNodes(); ++i)
+    for (int c = 0; c < 3; ++c) points[3 * i + c] = mesh.nodes[i][c];
+  std::vector<std::int64_t> conn, offsets;
+  std::vector<std::uint8_t> types(cells.size(), 10);
+  std::vector<double> tet_id;
+  for (int e : cells) {
+    for (int v : mesh.tets[e]) conn.push_back(v);
+    offsets.push_back(static_cast<std::int64_t>(conn.size()));
+    tet_id.push_back(e);
+  }
+
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream os(tmp, std::ios::binary);
+    ESIM_VERIFY(os.good(), path + ": cannot open for writing");
+    os << "<?xml version=\"1.0\"?>\n"
+       << "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" "
+          "header_type=\"UInt64\">\n"
+       << "  <UnstructuredGrid>\n"
+       << "    <Piece NumberOfPoints=\"" << mesh.numNodes() << "\" NumberOfCells=\"" << cells.size()
+       << "\">\n";
+    os << "      <Points>\n";
+    writeDataArray(os, "Float64", "Points", 3, encodeArray(points));
+    os << "      </Points>\n      <Cells>\n";
+    writeDataArray(os, "Int64", "connectivity", 1, encodeArray(conn));
+    writeDataArray(os, "Int64", "offsets", 1, encodeArray(offsets));
+    writeDataArray(os, "UInt8", "types", 1, encodeArray(types));
+    os << "      </Cells>\n      <PointData>\n";
+    for (const auto& f : pointData)
+      writeDataArray(os, "Float64", f.name, f.components, encodeArray(f.values));
+    os << "      </PointData>\n      <CellData>\n";
+    writeDataArray(os, "Float64", "tet_id", 1, encodeArray(tet_id));
+    for (const auto& f : cellData) {
+      std::vector<double> alive_values;
+      alive_values.reserve(cells.size() * f.components);
+      for (int e : cells)
+        for (int c = 0; c < f.components; ++c) alive_values.push_back(f.values[e * f.components + c]);
+      writeDataArray(os, "Float64", f.name, f.components, encodeArray(alive_values));
+    }
+    os << "      </CellData>\n    </Piece>\n  </UnstructuredGrid>\n</VTKFile>\n";
+    os.close();
+    if (!os) {
+      std::remove(tmp.c_str());
+      throw Error(path + ": write failed (disk full?)");
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  ESIM_VERIFY(!ec, path + ": cannot rename temporary file: " + ec.message());
+}
+
+VtuData readVtu(const std::string& path) {
+  std::ifstream is(path, std::ios::binary);
+  ESIM_VERIFY(is.good(), path + ": file not found or not readable");
+  std::stringstream ss;
+  ss << is.rdbuf();
+  const std::string text = ss.str();
+  ESIM_VERIFY(text.find("type=\"UnstructuredGrid\"") != std::string::npos,
+              path + ": not a VTK XML UnstructuredGrid file");
+  ESIM_VERIFY(text.find("compressor=") == std::string::npos,
+              path + ": compressed VTU is not supported; write it uncompressed");
+  const std::string header_type = attribute(text.substr(0, text.find('>', text.find("<VTKFile"))),
+                                            "header_type");
+  ESIM_VERIFY(header_type.empty() || header_type == "UInt64",
+              path + ": header_type '" + header_type + "' is not supported; expected UInt64");
+
+  VtuData data;
+  std::vector<double> conn, offsets;
+  // walk the sections in order, tracking which block each DataArray is in
+  enum class Block { None, Points, Cells, PointData, CellData } block = Block::None;
+  size_t pos = 0;
+  while (true) {
+    const size_t lt = text.find('<', pos);
+    if (lt == std::string::npos) break;
+    const size_t gt = text.find('>', lt);
+    ESIM_VERIFY(gt != std::string::npos, path + ": truncated XML");
+    const std::string tag = text.substr(lt, gt - lt + 1);
+    pos = gt + 1;
+    if (tag.rfind("<Points", 0) == 0) block = Block::Points;
+    else if (tag.rfind("<Cells", 0) == 0) block = Block::Cells;
+    else if (tag.rfind("<PointData", 0) == 0) block = Block::PointData;
+    else if (tag.rfind("<CellData", 0) == 0) block = Block::CellData;
+    else if (tag.rfind("</", 0) == 0 && tag.find("DataArray") == std::string::npos) block = Block::None;
+    if (tag.rfind("<DataArray", 0) != 0) continue;
+    const size_t end = text.find("</DataArray>", pos);
+    ESIM_VERIFY(end != std::string::npos, path + ": DataArray without closing tag");
+    const std::string name = attribute(tag, "Name");
+    const std::string comps = attribute(tag, "NumberOfComponents");
+    const int components = comps.empty() ? 1 : std::stoi(comps);
+    auto values = decodeArray(attribute(tag, "type"), attribute(tag, "format"),
+                              text.substr(pos, end - pos), path);
+    pos = end + 12;
+    switch (block) {
+      case Block::Points:
+        ESIM_VERIFY(values.size() % 3 == 0, path + ": Points must have 3 components");
+        for (size_t i = 0; i < values.size(); i += 3)
+          data.points.emplace_back(values[i], values[i + 1], values[i + 2]);
+        break;
+      case Block::Cells:
+        if (name == "connectivity") conn = std::move(values);
+        else if (name == "offsets") offsets = std::move(values);
+        else if (name == "types")
+          for (double t : values)
+            ESIM_VERIFY(t == 10, path + ": cell type " + std::to_string(static_cast<int>(t)) +
+                                     " found; only tetrahedra (VTK type 10) are supported");
+        break;
+      case Block::PointData:
+        data.pointData.push_back({name, components, std::move(values)});
+        break;
+      case Block::CellData:
+        data.cellData.push_back({name, components, std::move(values)});
+        break;
+      case Block::None:
+        break;
+    }
+  }
+  size_t prev = 0;
+  for (double o : offsets) {
+    const size_t off = static_cast<size_t>(o);
+    ESIM_VERIFY(off == prev + 4 && off <= conn.size(),
+                path + ": cell offsets are not those of tetrahedra (4 nodes per cell)");
+    Tet t;
+    for (int k = 0; k < 4; ++k) {
+      const double v = conn[prev + k];
+      ESIM_VERIFY(v >= 0 && v < static_cast<double>(data.points.size()),
+                  path + ": cell refers to node " + std::to_string(static_cast<long>(v)) +
+                      " outside the " + std::to_string(data.points.size()) + " points");
+      t[k] = static_cast<int>(v);
+    }
+    data.tets.push_back(t);
+    prev = off;
+  }
+  return data;
+}
+
+}  // namespace esim

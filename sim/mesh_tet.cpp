@@ -1,0 +1,282 @@
+// mesh_tet.cpp - tetrahedral mesh queries (see mesh_tet.h).
+#include "sim/mesh_tet.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "sim/core_error.h"
+
+namespace esim {
+
+namespace {
+
+// local faces opposite vertex 0..3, outward for a positively oriented tet
+constexpr int kFaceLocal[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+
+// builds a CSR from (row, id) pairs; rows sorted and unique
+Adjacency buildCsr(int rows, std::vector<std::pair<int, int>>& pairs) {
+  std::sort(pairs.begin(), pairs.end());
+  pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+  Adjacency adj;
+  adj.offsets.assign(rows + 1, 0);
+  for (const auto& p : pairs) adj.offsets[p.first + 1]++;
+  for (int i = 0; i < rows; ++i) adj.offsets[i + 1] += adj.offsets[i];
+  adj.ids.reserve(pairs.size());
+  for (const auto& p : pairs) adj.ids.push_back(p.second);
+  return adj;
+}
+
+}  // namespace
+
+int TetMesh::numAlive() const {
+  if (alive.empty()) return numTets();
+  int n = 0;
+  for (auto a : alive) n += a != 0;
+  return n;
+}
+
+double tetSignedVolume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+  return (b - a).dot((c - a).cross(d - a)) / 6.0;
+}
+
+double tetVolume(const TetMesh& mesh, int tet) {
+  const Tet& t = mesh.tets[tet];
+  return tetSignedVolume(mesh.nodes[t[0]], mesh.nodes[t[1]], mesh.nodes[t[2]], mesh.nodes[t[3]]);
+}
+
+double meshVolume(const TetMesh& mesh) {
+  // Neumaier-compensated sum: exact to ~1e-16 relative even for millions of tets
+  double sum = 0, comp = 0;
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    if (!mesh.isAlive(e)) continue;
+    const double v = tetVolume(mesh, e), t = sum + v;
+    comp += std::abs(sum) >= std::abs(v) ? (sum - t) + v : (v - t) + sum;
+    sum = t;
+  }
+  return sum + comp;
+}
+
+std::vector<BoundaryFace> boundaryFaces(const TetMesh& mesh) {
+  // key: sorted node triple; value: tet * 4 + local face
+  struct Entry {
+    Tri key;
+    int where;
+  };
+  std::vector<Entry> entries;
+  entries.reserve(static_cast<size_t>(mesh.numAlive()) * 4);
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    if (!mesh.isAlive(e)) continue;
+    for (int f = 0; f < 4; ++f) {
+      Tri key = {mesh.tets[e][kFaceLocal[f][0]], mesh.tets[e][kFaceLocal[f][1]],
+                 mesh.tets[e][kFaceLocal[f][2]]};
+      std::sort(key.begin(), key.end());
+      entries.push_back({key, e * 4 + f});
+    }
+  }
+  std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) {
+    return a.key != b.key ? a.key < b.key : a.where < b.where;
+  });
+  std::vector<int> boundary;
+  for (size_t i = 0; i < entries.size();) {
+    size_t j = i + 1;
+    while (j < entries.size() && entries[j].key == entries[i].key) ++j;
+    if (j - i == 1) boundary.push_back(entries[i].where);
+    i = j;
+  }
+  std::sort(boundary.begin(), boundary.end());
+  std::vector<BoundaryFace> faces;
+  faces.reserve(boundary.size());
+  for (int w : boundary) {
+    const int e = w / 4, f = w % 4;
+    const Tet& t = mesh.tets[e];
+    faces.push_back({{t[kFaceLocal[f][0]], t[kFaceLocal[f][1]], t[kFaceLocal[f][2]]}, e});
+  }
+  return faces;
+}
+
+double surfaceArea(const TetMesh& mesh, const std::vector<BoundaryFace>& faces) {
+  double area = 0;
+  for (const auto& f : faces) {
+    const Vec3& a = mesh.nodes[f.nodes[0]];
+    area += 0.5 * (mesh.nodes[f.nodes[1]] - a).cross(mesh.nodes[f.nodes[2]] - a).norm();
+  }
+  return area;
+}
+
+std::vector<int> boundaryNodes(const TetMesh& mesh, const std::vector<BoundaryFace>& faces) {
+  std::vector<std::uint8_t> mark(mesh.nodes.size(), 0);
+  for (const auto& f : faces)
+    for (int v : f.nodes) mark[v] = 1;
+  std::vector<int> ids;
+  for (int i = 0; i < mesh.numNodes(); ++i)
+    if (mark[i]) ids.push_back(i);
+  return ids;
+}
+
+Adjacency nodeAdjacency(const TetMesh& mesh) {
+  std::vector<std::pair<int, int>> pairs;
+  pairs.reserve(static_cast<size_t>(mesh.numAlive()) * 12);
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    if (!mesh.isAlive(e)) continue;
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 4; ++b)
+        if (a != b) pairs.emplace_back(mesh.tets[e][a], mesh.tets[e][b]);
+  }
+  return buildCsr(mesh.numNodes(), pairs);
+}
+
+Adjacency nodeTets(const TetMesh& mesh) {
+  std::vector<std::pair<int, int>> pairs;
+  pairs.reserve(static_cast<size_t>(mesh.numAlive()) * 4);
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    if (!mesh.isAlive(e)) continue;
+    for (int a = 0; a < 4; ++a) pairs.emplace_back(mesh.tets[e][a], e);
+  }
+  return buildCsr(mesh.numNodes(), pairs);
+}
+
+Adjacency tetNeighbours(const TetMesh& mesh) {
+  struct Entry {
+    Tri key;
+    int tet;
+  };
+  std::vector<Entry> entries;
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    if (!mesh.isAlive(e)) continue;
+    for (int f = 0; f < 4; ++f) {
+      Tri key = {mesh.tets[e][kFaceLocal[f][0]], mesh.tets[e][kFaceLocal[f][1]],
+                 mesh.tets[e][kFaceLocal[f][2]]};
+      std::sort(key.begin(), key.end());
+      entries.push_back({key, e});
+    }
+  }
+  std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) {
+    return a.key != b.key ? a.key < b.key : a.tet < b.tet;
+  });
+  std::vector<std::pair<int, int>> pairs;
+  for (size_t i = 0; i + 1 < entries.size(); ++i) {
+    if (entries[i].key == entries[i + 1].key) {
+      pairs.emplace_back(entries[i].tet, entries[i + 1].tet);
+      pairs.emplace_back(entries[i + 1].tet, entries[i].tet);
+    }
+  }
+  return buildCsr(mesh.numTets(), pairs);
+}
+
+MeshQuality meshQuality(const TetMesh& mesh) {
+  MeshQuality q;
+  q.minDihedralDeg = 180;
+  q.maxDihedralDeg = 0;
+  q.minVolume = INFINITY;
+  bool any = false;
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    if (!mesh.isAlive(e)) continue;
+    any = true;
+    const Tet& t = mesh.tets[e];
+    Vec3 p[4];
+    for (int i = 0; i < 4; ++i) p[i] = mesh.nodes[t[i]];
+    const double vol = tetSignedVolume(p[0], p[1], p[2], p[3]);
+    q.totalVolume += vol;
+    q.minVolume = std::min(q.minVolume, vol);
+    // outward face normals (face opposite vertex k)
+    Vec3 n[4];
+    for (int k = 0; k < 4; ++k) {
+      const Vec3& a = p[kFaceLocal[k][0]];
+      n[k] = (p[kFaceLocal[k][1]] - a).cross(p[kFaceLocal[k][2]] - a).normalized();
+    }
+    // dihedral angle at the edge shared by the faces opposite k and l
+    for (int k = 0; k < 4; ++k)
+      for (int l = k + 1; l < 4; ++l) {
+        const double c = std::clamp(-n[k].dot(n[l]), -1.0, 1.0);
+        const double deg = std::acos(c) * 180.0 / M_PI;
+        q.minDihedralDeg = std::min(q.minDihedralDeg, deg);
+        q.maxDihedralDeg = std::max(q.maxDihedralDeg, deg);
+      }
+    // circumradius / shortest edge
+    Eigen::Matrix3d a;
+    Eigen::Vector3d b;
+    for (int i = 0; i < 3; ++i) {
+      const Vec3 d = p[i + 1] - p[0];
+      a.row(i) = d.transpose();
+      b[i] = 0.5 * d.squaredNorm();
+    }
+    const double radius = a.fullPivLu().solve(b).norm();
+    double shortest = INFINITY;
+    for (int i = 0; i < 4; ++i)
+      for (int j = i + 1; j < 4; ++j) shortest = std::min(shortest, (p[i] - p[j]).norm());
+    q.maxRadiusEdgeRatio = std::max(q.maxRadiusEdgeRatio, radius / shortest);
+  }
+  if (!any) q = MeshQuality{};
+  return q;
+}
+
+void validateMesh(const TetMesh& mesh, const std::string& source) {
+  ESIM_VERIFY(mesh.numNodes() > 0 && mesh.numAlive() > 0,
+              source + ": mesh is empty (" + std::to_string(mesh.numNodes()) + " nodes, " +
+                  std::to_string(mesh.numAlive()) + " tetrahedra); expected at least one tetrahedron");
+  ESIM_VERIFY(mesh.alive.empty() || mesh.alive.size() == mesh.tets.size(),
+              source + ": alive flags have " + std::to_string(mesh.alive.size()) +
+                  " entries for " + std::to_string(mesh.tets.size()) + " tetrahedra");
+  for (int i = 0; i < mesh.numNodes(); ++i) {
+    ESIM_VERIFY(mesh.nodes[i].allFinite(),
+                source + ": node " + std::to_string(i) + " has a non-finite coordinate");
+  }
+  double mean_abs = 0;
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    for (int v : mesh.tets[e]) {
+      ESIM_VERIFY(v >= 0 && v < mesh.numNodes(),
+                  source + ": tetrahedron " + std::to_string(e) + " refers to node " +
+                      std::to_string(v) + " but the mesh has " + std::to_string(mesh.numNodes()) +
+                      " nodes");
+    }
+    if (mesh.isAlive(e)) mean_abs += std::abs(tetVolume(mesh, e));
+  }
+  mean_abs /= mesh.numAlive();
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    if (!mesh.isAlive(e)) continue;
+    const double vol = tetVolume(mesh, e);
+    std::ostringstream msg;
+    msg << source << ": tetrahedron " << e << " (nodes " << mesh.tets[e][0] << " "
+        << mesh.tets[e][1] << " " << mesh.tets[e][2] << " " << mesh.tets[e][3] << ") ";
+    if (vol < 0 && std::abs(vol) > 1e-10 * mean_abs) {
+      msg << "is inverted (signed volume " << vol
+          << " m^3); expected positive orientation";
+      throw Error(msg.str());
+    }
+    if (!(std::abs(vol) > 1e-10 * mean_abs)) {
+      msg << "has zero volume (" << vol << " m^3); expected a non-degenerate tetrahedron";
+      throw Error(msg.str());
+    }
+  }
+}
+
+TetMesh compactMesh(const TetMesh& mesh, std::vector<int>* node_map) {
+  std::vector<int> map(mesh.nodes.size(), -1);
+  for (int e = 0; e < mesh.numTets(); ++e)
+    if (mesh.isAlive(e))
+      for (int v : mesh.tets[e]) map[v] = 0;
+  TetMesh out;
+  for (int i = 0; i < mesh.numNodes(); ++i) {
+    if (map[i] < 0) continue;
+    map[i] = out.numNodes();
+    out.nodes.push_back(mesh.nodes[i]);
+  }
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    if (!mesh.isAlive(e)) continue;
+    const Tet& t = mesh.tets[e];
+    out.tets.push_back({map[t[0]], map[t[1]], map[t[2]], map[t[3]]});
+  }
+  out.alive.assign(out.tets.size(), 1);
+  for (const auto& [name, ids] : mesh.nodeSets) {
+    std::vector<int> kept;
+    for (int v : ids)
+      if (map[v] >= 0) kept.push_back(map[v]);
+    out.nodeSets[name] = kept;  // stays sorted: the map is monotone
+  }
+  if (node_map) *node_map = std::move(map);
+  return out;
+}
+
+}  // namespace esim

@@ -1,0 +1,98 @@
+// mesh_tet.h - tetrahedral mesh: nodes [m], tets, alive flags, boundary, adjacency.
+//
+// A TetMesh owns its arrays by value. Tets list 4 node ids with positive
+// orientation: (p1-p0) . ((p2-p0) x (p3-p0)) > 0, i.e. signed volume > 0.
+// Element removal is designed in: `alive[e] == 0` marks a removed tet. Functions
+// that take a mesh see only alive tets unless they say otherwise; `compactMesh`
+// drops dead tets and orphan nodes and returns the old->new node map.
+// Node sets are named, sorted lists of node ids (e.g. "top", "bottom").
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <array>
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace esim {
+
+using Vec3 = Eigen::Vector3d;
+using Tet = std::array<int, 4>;
+using Tri = std::array<int, 3>;
+
+struct TetMesh {
+  std::vector<Vec3> nodes;                              // positions [m]
+  std::vector<Tet> tets;                                // node ids, positive orientation
+  std::vector<std::uint8_t> alive;                      // per tet: 1 alive, 0 removed
+  std::map<std::string, std::vector<int>> nodeSets;     // named sorted node ids
+
+  int numNodes() const { return static_cast<int>(nodes.size()); }
+  int numTets() const { return static_cast<int>(tets.size()); }
+  int numAlive() const;                                  // number of alive tets
+  bool isAlive(int tet) const { return alive.empty() || alive[tet] != 0; }
+};
+
+// A triangle on the boundary of the alive tets, oriented with outward normal.
+struct BoundaryFace {
+  Tri nodes;  // outward orientation (right-hand rule)
+  int tet;    // the alive tet it belongs to
+};
+
+// Compressed sparse rows: the neighbours of item i are ids[offsets[i]..offsets[i+1]).
+struct Adjacency {
+  std::vector<int> offsets;
+  std::vector<int> ids;
+  int count(int i) const { return offsets[i + 1] - offsets[i]; }
+  const int* begin(int i) const { return ids.data() + offsets[i]; }
+  const int* end(int i) const { return ids.data() + offsets[i + 1]; }
+};
+
+struct MeshQuality {
+  double minDihedralDeg = 0;      // smallest dihedral angle [deg]
+  double maxDihedralDeg = 0;      // largest dihedral angle [deg]
+  double maxRadiusEdgeRatio = 0;  // circumradius / shortest edge (regular tet: 0.612)
+  double minVolume = 0;           // smallest tet volume [m^3]
+  double totalVolume = 0;         // [m^3]
+};
+
+// signed volume of tet (a,b,c,d) [m^3]; positive for positive orientation
+double tetSignedVolume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);
+
+// signed volume of tet e of the mesh [m^3]
+double tetVolume(const TetMesh& mesh, int tet);
+
+// total volume of the alive tets [m^3]
+double meshVolume(const TetMesh& mesh);
+
+// boundary faces of the alive tets, sorted by (tet, local face) for determinism
+std::vector<BoundaryFace> boundaryFaces(const TetMesh& mesh);
+
+// total area of the given faces [m^2]
+double surfaceArea(const TetMesh& mesh, const std::vector<BoundaryFace>& faces);
+
+// sorted ids of the nodes on the given faces
+std::vector<int> boundaryNodes(const TetMesh& mesh, const std::vector<BoundaryFace>& faces);
+
+// node-node adjacency through alive tets (sorted, without the node itself)
+Adjacency nodeAdjacency(const TetMesh& mesh);
+
+// node -> alive tets containing it (sorted)
+Adjacency nodeTets(const TetMesh& mesh);
+
+// tet -> alive tets sharing a face (sorted)
+Adjacency tetNeighbours(const TetMesh& mesh);
+
+// quality of the alive tets
+MeshQuality meshQuality(const TetMesh& mesh);
+
+// Checks a mesh: non-empty, ids in range, every alive tet with volume > rel_tol * mean.
+// Throws esim::Error "<source>: <what is wrong>" naming the first bad tet.
+void validateMesh(const TetMesh& mesh, const std::string& source);
+
+// Drops removed tets and nodes no alive tet uses; node sets follow. If node_map is
+// given, it receives old id -> new id (-1 for dropped nodes).
+TetMesh compactMesh(const TetMesh& mesh, std::vector<int>* node_map = nullptr);
+
+}  // namespace esim

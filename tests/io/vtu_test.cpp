@@ -1,0 +1,87 @@
+// Tests for sim/io/vtu.cpp: write and read back nodes, tets and fields.
+#include "sim/io/vtu.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "sim/core_error.h"
+#include "sim/mesh_slab.h"
+
+namespace esim {
+namespace {
+
+std::string tempPath(const std::string& name) {
+  return (std::filesystem::temp_directory_path() / ("esim_vtu_test_" + name)).string();
+}
+
+TEST(Vtu, RoundTripNodesTetsAndFields) {
+  SlabSpec s;
+  s.targetNodes = 200;
+  const TetMesh m = makeSlab(s);
+  VtuField temp{"temperature", 1, {}}, disp{"displacement", 3, {}}, sigma{"conductivity", 1, {}};
+  for (int i = 0; i < m.numNodes(); ++i) {
+    temp.values.push_back(37.0 + m.nodes[i].x() * 1000.0 + 1e-9 * i);
+    for (int c = 0; c < 3; ++c) disp.values.push_back(m.nodes[i][c] * 1e-3);
+  }
+  for (int e = 0; e < m.numTets(); ++e) sigma.values.push_back(0.144 + e * 1e-6);
+  const std::string path = tempPath("roundtrip.vtu");
+  writeVtu(path, m, {temp, disp}, {sigma});
+  EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
+  const VtuData d = readVtu(path);
+  ASSERT_EQ(d.points.size(), m.nodes.size());
+  for (int i = 0; i < m.numNodes(); ++i) EXPECT_EQ(d.points[i], m.nodes[i]);  // bit-exact
+  EXPECT_EQ(d.tets, m.tets);
+  ASSERT_NE(d.findPointField("temperature"), nullptr);
+  EXPECT_EQ(d.findPointField("temperature")->values, temp.values);
+  EXPECT_EQ(d.findPointField("displacement")->components, 3);
+  EXPECT_EQ(d.findPointField("displacement")->values, disp.values);
+  EXPECT_EQ(d.findCellField("conductivity")->values, sigma.values);
+  std::filesystem::remove(path);
+}
+
+TEST(Vtu, RemovedTetsAreLeftOutWithTheirIds) {
+  SlabSpec s;
+  s.targetNodes = 100;
+  TetMesh m = makeSlab(s);
+  m.alive[3] = 0;
+  VtuField f{"alive", 1, std::vector<double>(m.numTets(), 1.0)};
+  f.values[3] = 0;
+  const std::string path = tempPath("removed.vtu");
+  writeVtu(path, m, {}, {f});
+  const VtuData d = readVtu(path);
+  EXPECT_EQ(d.tets.size(), m.tets.size() - 1);
+  const auto* ids = d.findCellField("tet_id");
+  ASSERT_NE(ids, nullptr);
+  EXPECT_EQ(ids->values[2], 2.0);
+  EXPECT_EQ(ids->values[3], 4.0);
+  for (double a : d.findCellField("alive")->values) EXPECT_EQ(a, 1.0);
+  std::filesystem::remove(path);
+}
+
+TEST(Vtu, BadInputNamesTheFile) {
+  try {
+    readVtu("/nonexistent/x.vtu");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "/nonexistent/x.vtu: file not found or not readable");
+  }
+  const std::string path = tempPath("garbage.vtu");
+  std::ofstream(path) << "hello";
+  try {
+    readVtu(path);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), path + ": not a VTK XML UnstructuredGrid file");
+  }
+  std::filesystem::remove(path);
+  SlabSpec s;
+  s.targetNodes = 50;
+  const TetMesh m = makeSlab(s);
+  EXPECT_THROW(writeVtu(tempPath("short.vtu"), m, {{"t", 1, {1.0, 2.0}}}, {}), Error);
+  EXPECT_FALSE(std::filesystem::exists(tempPath("short.vtu")));
+}
+
+}  // namespace
+}  // namespace esim

@@ -1,0 +1,122 @@
+// Tests for sim/mesh_tet.cpp: volumes, boundary, adjacency, validation, compaction.
+#include "sim/mesh_tet.h"
+
+#include <gtest/gtest.h>
+
+#include "sim/core_error.h"
+
+namespace esim {
+namespace {
+
+// two tets sharing face (1,2,3): nodes 0..4
+TetMesh twoTets() {
+  TetMesh m;
+  m.nodes = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0, 0, 1), Vec3(1, 1, 1)};
+  m.tets = {{0, 1, 2, 3}, {1, 4, 2, 3}};
+  m.alive = {1, 1};
+  return m;
+}
+
+TEST(MeshTet, VolumeOfTwoTets) {
+  const TetMesh m = twoTets();
+  EXPECT_NEAR(tetVolume(m, 0), 1.0 / 6.0, 1e-15);
+  EXPECT_GT(tetVolume(m, 1), 0.0);
+  // second tet: (1,4,2,3) with p1=(1,0,0): edges (0,1,1),(-1,1,0),(-1,0,1) -> det 2 -> 1/3
+  EXPECT_NEAR(tetVolume(m, 1), 1.0 / 3.0, 1e-15);
+  EXPECT_NEAR(meshVolume(m), 0.5, 1e-15);
+}
+
+TEST(MeshTet, NodeAdjacencyByHand) {
+  const Adjacency adj = nodeAdjacency(twoTets());
+  // node 0 touches 1,2,3; node 4 touches 1,2,3; nodes 1,2,3 touch all others
+  ASSERT_EQ(adj.offsets.size(), 6u);
+  EXPECT_EQ(std::vector<int>(adj.begin(0), adj.end(0)), (std::vector<int>{1, 2, 3}));
+  EXPECT_EQ(std::vector<int>(adj.begin(1), adj.end(1)), (std::vector<int>{0, 2, 3, 4}));
+  EXPECT_EQ(std::vector<int>(adj.begin(2), adj.end(2)), (std::vector<int>{0, 1, 3, 4}));
+  EXPECT_EQ(std::vector<int>(adj.begin(3), adj.end(3)), (std::vector<int>{0, 1, 2, 4}));
+  EXPECT_EQ(std::vector<int>(adj.begin(4), adj.end(4)), (std::vector<int>{1, 2, 3}));
+  const Adjacency nt = nodeTets(twoTets());
+  EXPECT_EQ(nt.count(0), 1);
+  EXPECT_EQ(nt.count(1), 2);
+  const Adjacency tn = tetNeighbours(twoTets());
+  EXPECT_EQ(std::vector<int>(tn.begin(0), tn.end(0)), (std::vector<int>{1}));
+  EXPECT_EQ(std::vector<int>(tn.begin(1), tn.end(1)), (std::vector<int>{0}));
+}
+
+TEST(MeshTet, BoundaryFacesAreOutwardAndClosed) {
+  const TetMesh m = twoTets();
+  const auto faces = boundaryFaces(m);
+  ASSERT_EQ(faces.size(), 6u);  // 8 faces, the shared one is interior
+  // divergence theorem: sum over faces of (centroid . n) * area / 3 = volume
+  double vol = 0;
+  for (const auto& f : faces) {
+    const Vec3 &a = m.nodes[f.nodes[0]], &b = m.nodes[f.nodes[1]], &c = m.nodes[f.nodes[2]];
+    vol += a.dot((b - a).cross(c - a)) / 6.0;
+  }
+  EXPECT_NEAR(vol, 0.5, 1e-15);
+  EXPECT_EQ(boundaryNodes(m, faces), (std::vector<int>{0, 1, 2, 3, 4}));
+}
+
+TEST(MeshTet, RemovalChangesBoundaryAndCompacts) {
+  TetMesh m = twoTets();
+  m.nodeSets["apex"] = {4};
+  m.nodeSets["origin"] = {0};
+  m.alive[0] = 0;
+  EXPECT_EQ(m.numAlive(), 1);
+  EXPECT_EQ(boundaryFaces(m).size(), 4u);
+  std::vector<int> map;
+  const TetMesh c = compactMesh(m, &map);
+  EXPECT_EQ(c.numNodes(), 4);
+  EXPECT_EQ(c.numTets(), 1);
+  EXPECT_EQ(map, (std::vector<int>{-1, 0, 1, 2, 3}));
+  EXPECT_EQ(c.nodeSets.at("apex"), (std::vector<int>{3}));
+  EXPECT_TRUE(c.nodeSets.at("origin").empty());
+  EXPECT_NEAR(meshVolume(c), 1.0 / 3.0, 1e-15);
+}
+
+TEST(MeshTet, QualityOfRegularTet) {
+  TetMesh m;
+  m.nodes = {Vec3(1, 1, 1), Vec3(1, -1, -1), Vec3(-1, 1, -1), Vec3(-1, -1, 1)};
+  m.tets = {{0, 1, 2, 3}};
+  if (tetVolume(m, 0) < 0) std::swap(m.tets[0][2], m.tets[0][3]);
+  const MeshQuality q = meshQuality(m);
+  const double dihedral = std::acos(1.0 / 3.0) * 180.0 / M_PI;  // 70.53 deg
+  EXPECT_NEAR(q.minDihedralDeg, dihedral, 1e-9);
+  EXPECT_NEAR(q.maxDihedralDeg, dihedral, 1e-9);
+  EXPECT_NEAR(q.maxRadiusEdgeRatio, std::sqrt(6.0) / 4.0, 1e-12);
+  EXPECT_NEAR(q.minVolume, 8.0 / 3.0, 1e-12);
+}
+
+// the message thrown by validateMesh, or "" when it passes
+std::string validationMessage(const TetMesh& m, const std::string& source) {
+  try {
+    validateMesh(m, source);
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(MeshTet, ValidateNamesTheProblem) {
+  EXPECT_EQ(validationMessage(twoTets(), "ok.vtu"), "");
+  EXPECT_EQ(validationMessage(TetMesh{}, "empty.vtu"),
+            "empty.vtu: mesh is empty (0 nodes, 0 tetrahedra); expected at least one tetrahedron");
+  TetMesh inverted = twoTets();
+  std::swap(inverted.tets[1][0], inverted.tets[1][1]);
+  EXPECT_EQ(validationMessage(inverted, "inv.vtu").rfind(
+                "inv.vtu: tetrahedron 1 (nodes 4 1 2 3) is inverted (signed volume -0.333", 0),
+            0u)
+      << validationMessage(inverted, "inv.vtu");
+  TetMesh flat = twoTets();
+  flat.nodes[4] = Vec3(0.5, 0.5, 0);  // coplanar with nodes 1, 2 ... and 3? make it degenerate:
+  flat.nodes[4] = Vec3(1.0 / 3, 1.0 / 3, 1.0 / 3);  // on the face (1,2,3): zero volume
+  EXPECT_NE(validationMessage(flat, "flat.vtu").find("flat.vtu: tetrahedron 1"), std::string::npos);
+  EXPECT_NE(validationMessage(flat, "flat.vtu").find("has zero volume"), std::string::npos);
+  TetMesh bad_id = twoTets();
+  bad_id.tets[0][3] = 9;
+  EXPECT_EQ(validationMessage(bad_id, "id.vtu"),
+            "id.vtu: tetrahedron 0 refers to node 9 but the mesh has 5 nodes");
+}
+
+}  // namespace
+}  // namespace esim

@@ -1,0 +1,48 @@
+// command.h - registry of `esim` sub-commands.
+//
+// Each command lives in its own file under tools/esim/ and registers itself with
+// a static ESIM_COMMAND object, so main.cpp never changes when a command is added:
+//
+//   static esim::cli::Registrar reg({"bench", "electric"}, "Electric solver benchmark",
+//     [](CLI::App& app) -> esim::cli::Runner {
+//       auto opt = std::make_shared<Options>();
+//       app.add_option("--frames", opt->frames, "frames per run");
+//       return [opt] { return benchElectric(*opt); };   // returns the exit code
+//     });
+//
+// A runner returns the process exit code; it reports bad input by throwing
+// esim::Error, which main prints as "esim: error: <message>" and exits with 2.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace esim::cli {
+
+using Runner = std::function<int()>;
+using Setup = std::function<Runner(CLI::App&)>;
+
+struct CommandSpec {
+  std::vector<std::string> path;  // e.g. {"bench", "electric"}
+  std::string description;
+  Setup setup;
+};
+
+// all registered commands, in registration order
+std::vector<CommandSpec>& commandRegistry();
+
+struct Registrar {
+  Registrar(std::vector<std::string> path, std::string description, Setup setup) {
+    commandRegistry().push_back({std::move(path), std::move(description), std::move(setup)});
+  }
+};
+
+// exit codes (documented in README)
+constexpr int kExitOk = 0;
+constexpr int kExitFailure = 1;    // the run failed (solver diverged, output could not be written)
+constexpr int kExitBadInput = 2;   // bad scenario, mesh file or option
+constexpr int kExitMismatch = 3;   // compare/hash-check found differences
+
+}  // namespace esim::cli
