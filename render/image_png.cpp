@@ -1,0 +1,118 @@
+// image_png.cpp - PNG encode/decode with libavcodec (see image_png.h).
+#include "render/image_png.h"
+
+extern "C" {
+#include <libavcodec/avcodec.h>
+#include <libavutil/imgutils.h>
+#include <libswscale/swscale.h>
+}
+
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+
+#include "sim/core_error.h"
+
+namespace esim {
+namespace {
+
+std::string avError(int code) {
+  char buf[AV_ERROR_MAX_STRING_SIZE] = {0};
+  av_strerror(code, buf, sizeof buf);
+  return buf;
+}
+
+struct CodecCtxFree {
+  void operator()(AVCodecContext* c) const { avcodec_free_context(&c); }
+};
+struct FrameFree {
+  void operator()(AVFrame* f) const { av_frame_free(&f); }
+};
+struct PacketFree {
+  void operator()(AVPacket* p) const { av_packet_free(&p); }
+};
+
+}  // namespace
+
+void writePng(const std::string& path, const std::vector<std::uint8_t>& rgb, int width,
+              int height) {
+  ESIM_VERIFY(width > 0 && height > 0 && rgb.size() == static_cast<size_t>(width) * height * 3,
+              "writePng(" + path + "): image has " + std::to_string(rgb.size()) +
+                  " bytes, expected " + std::to_string(width) + "x" + std::to_string(height) + "x3");
+  const AVCodec* codec = avcodec_find_encoder(AV_CODEC_ID_PNG);
+  ESIM_VERIFY(codec, "writePng(" + path + "): libavcodec has no PNG encoder");
+  std::unique_ptr<AVCodecContext, CodecCtxFree> ctx(avcodec_alloc_context3(codec));
+  ctx->width = width;
+  ctx->height = height;
+  ctx->pix_fmt = AV_PIX_FMT_RGB24;
+  ctx->time_base = AVRational{1, 1};
+  ctx->flags |= AV_CODEC_FLAG_BITEXACT;  // no software tag: same image, same bytes
+  int rc = avcodec_open2(ctx.get(), codec, nullptr);
+  ESIM_VERIFY(rc >= 0, "writePng(" + path + "): cannot open PNG encoder: " + avError(rc));
+  std::unique_ptr<AVFrame, FrameFree> frame(av_frame_alloc());
+  frame->format = AV_PIX_FMT_RGB24;
+  frame->width = width;
+  frame->height = height;
+  // the frame borrows the caller's bytes (the encoder only reads them)
+  frame->data[0] = const_cast<std::uint8_t*>(rgb.data());
+  frame->linesize[0] = width * 3;
+  std::unique_ptr<AVPacket, PacketFree> pkt(av_packet_alloc());
+  rc = avcodec_send_frame(ctx.get(), frame.get());
+  ESIM_VERIFY(rc >= 0, "writePng(" + path + "): encoding failed: " + avError(rc));
+  rc = avcodec_receive_packet(ctx.get(), pkt.get());
+  ESIM_VERIFY(rc >= 0, "writePng(" + path + "): encoding failed: " + avError(rc));
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    ESIM_VERIFY(out.good(), "writePng(" + path + "): cannot open " + tmp + " for writing");
+    out.write(reinterpret_cast<const char*>(pkt->data), pkt->size);
+    ESIM_VERIFY(out.good(), "writePng(" + path + "): write failed");
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    std::filesystem::remove(tmp, ec);
+    throw Error("writePng(" + path + "): cannot rename the temporary file");
+  }
+}
+
+RgbImage readPng(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  ESIM_VERIFY(in.good(), "readPng(" + path + "): cannot open the file");
+  std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                                  std::istreambuf_iterator<char>());
+  ESIM_VERIFY(bytes.size() > 8 && std::memcmp(bytes.data(), "\x89PNG", 4) == 0,
+              "readPng(" + path + "): not a PNG file");
+  const AVCodec* codec = avcodec_find_decoder(AV_CODEC_ID_PNG);
+  ESIM_VERIFY(codec, "readPng(" + path + "): libavcodec has no PNG decoder");
+  std::unique_ptr<AVCodecContext, CodecCtxFree> ctx(avcodec_alloc_context3(codec));
+  int rc = avcodec_open2(ctx.get(), codec, nullptr);
+  ESIM_VERIFY(rc >= 0, "readPng(" + path + "): cannot open PNG decoder: " + avError(rc));
+  std::unique_ptr<AVPacket, PacketFree> pkt(av_packet_alloc());
+  bytes.resize(bytes.size() + AV_INPUT_BUFFER_PADDING_SIZE, 0);
+  pkt->data = bytes.data();
+  pkt->size = static_cast<int>(bytes.size() - AV_INPUT_BUFFER_PADDING_SIZE);
+  rc = avcodec_send_packet(ctx.get(), pkt.get());
+  ESIM_VERIFY(rc >= 0, "readPng(" + path + "): decoding failed: " + avError(rc));
+  avcodec_send_packet(ctx.get(), nullptr);
+  std::unique_ptr<AVFrame, FrameFree> frame(av_frame_alloc());
+  rc = avcodec_receive_frame(ctx.get(), frame.get());
+  ESIM_VERIFY(rc >= 0, "readPng(" + path + "): decoding failed: " + avError(rc));
+  RgbImage img;
+  img.width = frame->width;
+  img.height = frame->height;
+  img.rgb.resize(static_cast<size_t>(img.width) * img.height * 3);
+  SwsContext* sws = sws_getContext(img.width, img.height, static_cast<AVPixelFormat>(frame->format),
+                                   img.width, img.height, AV_PIX_FMT_RGB24, SWS_POINT, nullptr,
+                                   nullptr, nullptr);
+  ESIM_VERIFY(sws, "readPng(" + path + "): unsupported pixel format");
+  std::uint8_t* dst[4] = {img.rgb.data(), nullptr, nullptr, nullptr};
+  int dstStride[4] = {img.width * 3, 0, 0, 0};
+  sws_scale(sws, frame->data, frame->linesize, 0, img.height, dst, dstStride);
+  sws_freeContext(sws);
+  return img;
+}
+
+}  // namespace esim

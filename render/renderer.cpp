@@ -1,0 +1,978 @@
+// renderer.cpp - GL 3.3 core drawing of a SurfaceSnapshot (see renderer.h).
+#include "render/renderer.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+
+#include "render/bitmap_font.h"
+#include "render/colormap.h"
+#include "render/gl_context.h"
+#include "sim/core_error.h"
+
+namespace esim {
+namespace {
+
+// ---- small vector/matrix helpers (float, column-major 4x4 as OpenGL wants) ----
+
+using V3 = std::array<float, 3>;
+using M4 = std::array<float, 16>;
+
+V3 sub(V3 a, V3 b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
+V3 add(V3 a, V3 b) { return {a[0] + b[0], a[1] + b[1], a[2] + b[2]}; }
+V3 mul(V3 a, float s) { return {a[0] * s, a[1] * s, a[2] * s}; }
+float dot(V3 a, V3 b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+V3 cross(V3 a, V3 b) {
+  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
+float norm(V3 a) { return std::sqrt(dot(a, a)); }
+V3 normalized(V3 a) {
+  const float n = norm(a);
+  return n > 0 ? mul(a, 1.0f / n) : V3{0, 0, 1};
+}
+
+M4 matMul(const M4& a, const M4& b) {
+  M4 r{};
+  for (int c = 0; c < 4; ++c)
+    for (int rr = 0; rr < 4; ++rr) {
+      float s = 0;
+      for (int k = 0; k < 4; ++k) s += a[k * 4 + rr] * b[c * 4 + k];
+      r[c * 4 + rr] = s;
+    }
+  return r;
+}
+
+M4 lookAt(V3 eye, V3 target, V3 up) {
+  const V3 f = normalized(sub(target, eye));
+  const V3 s = normalized(cross(f, up));
+  const V3 u = cross(s, f);
+  return {s[0], u[0], -f[0], 0, s[1], u[1], -f[1], 0, s[2], u[2], -f[2], 0,
+          -dot(s, eye), -dot(u, eye), dot(f, eye), 1};
+}
+
+M4 perspective(float fovYDeg, float aspect, float nearM, float farM) {
+  const float f = 1.0f / std::tan(fovYDeg * 3.14159265358979f / 360.0f);
+  M4 m{};
+  m[0] = f / aspect;
+  m[5] = f;
+  m[10] = (farM + nearM) / (nearM - farM);
+  m[11] = -1;
+  m[14] = 2 * farM * nearM / (nearM - farM);
+  return m;
+}
+
+// rotation by a unit quaternion (w,x,y,z) then translation, as a 4x4
+M4 poseMatrix(const std::array<float, 4>& q, V3 t) {
+  float w = q[0], x = q[1], y = q[2], z = q[3];
+  const float n = std::sqrt(w * w + x * x + y * y + z * z);
+  if (n > 0) { w /= n; x /= n; y /= n; z /= n; } else { w = 1; }
+  return {1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y), 0,
+          2 * (x * y - w * z), 1 - 2 * (x * x + z * z), 2 * (y * z + w * x), 0,
+          2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y), 0,
+          t[0], t[1], t[2], 1};
+}
+
+// ---- shaders ----
+
+// a triangle covering the viewport (background and MSAA resolve passes)
+const char* kFullScreenVs = R"(#version 330 core
+void main() {
+  vec2 p = vec2((gl_VertexID == 1) ? 3.0 : -1.0, (gl_VertexID == 2) ? 3.0 : -1.0);
+  gl_Position = vec4(p, 0.0, 1.0);
+})";
+
+// the gradient must match backgroundColor() on the CPU: top kBgTop, bottom kBgBottom
+const char* kBackgroundFs = R"(#version 330 core
+uniform vec2 uSize;
+out vec4 fragColor;
+void main() {
+  float fromTop = (uSize.y - gl_FragCoord.y) / uSize.y;   // 0 at the top edge
+  vec3 top = vec3(104.0, 110.0, 120.0) / 255.0;
+  vec3 bottom = vec3(38.0, 40.0, 46.0) / 255.0;
+  fragColor = vec4(mix(top, bottom, fromTop), 1.0);
+})";
+
+// MSAA resolve as a full-screen pass (llvmpipe runs it on all its threads; the
+// blit path is several times slower): the mean of the samples, like a box resolve
+const char* kResolveFs = R"(
+uniform sampler2DMS uSamples;
+out vec4 fragColor;
+void main() {
+  ivec2 p = ivec2(gl_FragCoord.xy);
+  vec4 sum = vec4(0.0);
+  for (int i = 0; i < SAMPLES; ++i) sum += texelFetch(uSamples, p, i);
+  fragColor = sum / float(SAMPLES);
+})";
+
+// the electrode's soft shadow is evaluated per vertex (it is smooth on the scale
+// of the mesh, and llvmpipe would pay for it on every pixel)
+const char* kSurfaceVs = R"(
+layout(location = 0) in vec3 aPos;
+layout(location = 1) in vec3 aNormal;
+layout(location = 2) in vec4 aState;
+uniform mat4 uViewProj;
+uniform mat4 uModel;
+uniform vec3 uKeyDir;         // towards the key light
+uniform vec3 uTipM;           // electrode tip [m]
+uniform vec3 uToolAxis;       // unit axis, tip to handle
+uniform vec3 uToolSizes;      // shaft length [m], shaft radius [m], handle radius [m]
+out vec3 vPos;
+out vec3 vNormal;
+out vec4 vState;
+out float vShadow;            // 1 lit, 0.25 fully in the electrode's shadow
+
+#if SHADOW
+// distance between the ray p + s L (s >= 0, |L| = 1) and the segment [a, b]:
+// closest points of the two lines, segment parameter clamped, ray parameter
+// re-projected and clamped
+float raySegmentDistance(vec3 p, vec3 L, vec3 a, vec3 b) {
+  vec3 v = b - a;
+  vec3 w = p - a;
+  float B = dot(L, v), C = dot(v, v), D = dot(L, w), E = dot(v, w);
+  float den = max(C - B * B, 1e-12 * C);
+  float t = clamp((E - B * D) / den, 0.0, 1.0);
+  float s = max(dot(a + t * v - p, L), 0.0);
+  return length(p + s * L - (a + t * v));
+}
+
+// analytic soft shadow of the electrode (two capsules: shaft with blade, handle)
+float toolShadow(vec3 p) {
+  vec3 shaftEnd = uTipM + uToolAxis * uToolSizes.x;
+  vec3 handleEnd = shaftEnd + uToolAxis * 0.09;
+  float d1 = raySegmentDistance(p, uKeyDir, uTipM, shaftEnd);
+  float d2 = raySegmentDistance(p, uKeyDir, shaftEnd, handleEnd);
+  float lit1 = smoothstep(0.5 * uToolSizes.y, 1.8 * uToolSizes.y, d1);
+  float lit2 = smoothstep(0.6 * uToolSizes.z, 1.6 * uToolSizes.z, d2);
+  return mix(1.0, min(lit1, lit2), 0.75);
+}
+#else
+float toolShadow(vec3 p) { return 1.0; }
+#endif
+
+void main() {
+  vec4 world = uModel * vec4(aPos, 1.0);
+  vPos = world.xyz;
+  vNormal = mat3(uModel) * aNormal;
+  vState = aState;
+  vShadow = toolShadow(vPos);
+  gl_Position = uViewProj * world;
+})";
+
+// Specialised by the preprocessor (llvmpipe runs both sides of a branch on a
+// uniform, so one program per variant is several times faster):
+//   LOOK 0 temperature, 1 tissue, 2 tool (vState = albedo rgb, material id)
+//   LIT 0/1 lighting, SHADOW 0/1 the electrode's shadow on the tissue
+const char* kSurfaceFs = R"(
+in vec3 vPos;
+in vec3 vNormal;
+in vec4 vState;
+in float vShadow;
+uniform sampler1D uColormap;
+uniform vec2 uTempRange;      // tMinC, tMaxC
+uniform vec3 uHalfDir;        // Blinn-Phong half vector of key light and view (infinite viewer)
+uniform vec3 uKeyDir;         // towards the key light
+uniform vec3 uFillDir;        // towards the fill light
+uniform vec3 uTipM;           // electrode tip [m]
+uniform float uGlow;          // 1 while the generator is on
+out vec4 fragColor;
+
+// Blinn-Phong lobe x^shininess by repeated squaring (pow costs ~20 operations
+// per pixel on llvmpipe): 24 for the temperature look, 55 for tissue
+float specLobe(float x) {
+  float x2 = x * x, x4 = x2 * x2, x8 = x4 * x4, x16 = x8 * x8;
+#if LOOK == 0
+  return x16 * x8;
+#else
+  return x16 * x16 * x16 * x4 * x2 * x;
+#endif
+}
+
+#if LOOK == 1
+// tileable value noise (64^2 lattice, bilinear) for the tissue's mottling; the
+// depth shifts the lookup so vertical cut walls are mottled too
+uniform sampler2D uNoise;
+#endif
+
+void main() {
+  vec3 albedo;
+  vec3 emissive = vec3(0.0);
+  float specStrength;
+  float shininess;
+  bool metal = false;
+#if LOOK == 0
+  float t = clamp((vState.x - uTempRange.x) / (uTempRange.y - uTempRange.x), 0.0, 1.0);
+  albedo = texture(uColormap, t * (255.0 / 256.0) + 0.5 / 256.0).rgb;
+  specStrength = 0.18;
+  shininess = 24.0;
+#elif LOOK == 1
+  float coag = clamp(vState.y, 0.0, 1.0);
+  float dry = clamp(vState.z, 0.0, 1.0);
+  float wall = clamp(vState.w, 0.0, 1.0);
+  vec3 fresh = vec3(0.74, 0.33, 0.31);       // pink-red liver
+  vec3 cutFresh = vec3(0.56, 0.17, 0.15);    // exposed parenchyma: darker, redder
+  vec3 cooked = vec3(0.86, 0.79, 0.72);      // coagulated: whitish tan
+  vec3 brown = vec3(0.50, 0.31, 0.17);       // desiccated
+  vec3 charred = vec3(0.09, 0.07, 0.06);     // carbonised
+  vec3 mm = vPos * 1000.0;
+  vec2 uv = mm.xy + mm.z * vec2(0.61, 0.83);
+  float mottle = 0.65 * texture(uNoise, uv * (0.8 / 64.0)).r +
+                 0.35 * texture(uNoise, uv * (2.3 / 64.0) + vec2(0.37, 0.61)).r;
+  albedo = mix(fresh, cutFresh, wall) * (0.90 + 0.18 * mottle);
+  albedo = mix(albedo, cooked * (0.95 + 0.08 * mottle), smoothstep(0.0, 1.0, coag));
+  albedo = mix(albedo, brown, smoothstep(0.0, 0.55, dry));
+  albedo = mix(albedo, charred, smoothstep(0.5, 1.0, dry));
+  specStrength = 0.38 * (1.0 - dry) * (1.0 - 0.4 * coag);   // wet capsule shine
+  shininess = 55.0;
+  float dTip = length(vPos - uTipM) * 1000.0;                // [mm]
+  emissive = uGlow * vec3(1.0, 0.55, 0.20) * 0.85 * exp(-dTip * dTip / 1.2);
+#else
+  albedo = vState.rgb;
+  metal = vState.w < 0.5;
+  specStrength = metal ? 0.85 : (vState.w < 1.5 ? 0.35 : 0.25);
+  shininess = metal ? 70.0 : 30.0;
+  float dTip = length(vPos - uTipM) * 1000.0;                // [mm]
+  emissive = (metal ? uGlow : 0.0) * vec3(1.0, 0.62, 0.28) * 0.9 * exp(-dTip / 1.5);
+#endif
+#if LIT == 0
+  fragColor = vec4(clamp(albedo + emissive, 0.0, 1.0), 1.0);
+#else
+  vec3 n = normalize(vNormal);
+  if (!gl_FrontFacing) n = -n;
+  float shadow = vShadow;
+  float key = max(dot(n, uKeyDir), 0.0) * shadow;
+  float fill = max(dot(n, uFillDir), 0.0);
+  float ambient = metal ? 0.38 : 0.30;
+  vec3 color = albedo * (ambient + 0.78 * key + 0.22 * fill);
+#if LOOK == 0
+  // a faint grey diffuse sheen, so that the shape of tissue at the dark end of
+  // the map (inferno is black at tMin) stays readable
+  color += vec3(0.10) * (key + 0.3 * fill);
+#endif
+  float nh = max(dot(n, uHalfDir), 0.0);
+#if LOOK == 2
+  float spec = specStrength * pow(nh, shininess);
+#else
+  float spec = specStrength * specLobe(nh);
+#endif
+  spec *= step(0.0, dot(n, uKeyDir)) * shadow;
+  color += (metal ? mix(vec3(1.0), albedo, 0.4) : vec3(1.0)) * spec;
+  fragColor = vec4(clamp(color + emissive, 0.0, 1.0), 1.0);
+#endif
+})";
+
+GLuint compileShader(const GlFunctions& gl, GLenum type, const char* src, const char* what) {
+  const GLuint s = gl.CreateShader(type);
+  gl.ShaderSource(s, 1, &src, nullptr);
+  gl.CompileShader(s);
+  GLint ok = 0;
+  gl.GetShaderiv(s, GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    char log[2048] = {0};
+    gl.GetShaderInfoLog(s, sizeof log, nullptr, log);
+    gl.DeleteShader(s);
+    throw Error(std::string("renderer: shader '") + what + "' failed to compile: " + log);
+  }
+  return s;
+}
+
+GLuint linkProgram(const GlFunctions& gl, const char* vs, const char* fs, const char* what) {
+  const GLuint v = compileShader(gl, GL_VERTEX_SHADER, vs, what);
+  const GLuint f = compileShader(gl, GL_FRAGMENT_SHADER, fs, what);
+  const GLuint p = gl.CreateProgram();
+  gl.AttachShader(p, v);
+  gl.AttachShader(p, f);
+  gl.LinkProgram(p);
+  gl.DeleteShader(v);
+  gl.DeleteShader(f);
+  GLint ok = 0;
+  gl.GetProgramiv(p, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    char log[2048] = {0};
+    gl.GetProgramInfoLog(p, sizeof log, nullptr, log);
+    gl.DeleteProgram(p);
+    throw Error(std::string("renderer: program '") + what + "' failed to link: " + log);
+  }
+  return p;
+}
+
+// ---- geometry ----
+
+constexpr int kFloatsPerVertex = 10;  // position 3, normal 3, state 4
+constexpr float kHandleRadiusM = 0.0045f;  // pencil handle radius [m]
+
+void pushVertex(std::vector<float>& out, V3 p, V3 n, const std::array<float, 4>& s) {
+  out.insert(out.end(), {p[0], p[1], p[2], n[0], n[1], n[2], s[0], s[1], s[2], s[3]});
+}
+
+// indexed triangle list with crease-limited smooth normals (see renderer.h): a
+// vertex is split only where its corners get different normals (creases), so a
+// smooth surface keeps one GPU vertex per snapshot vertex
+void buildSurfaceVertices(const SurfaceSnapshot& snap, float tDefaultC, std::vector<float>& out,
+                          std::vector<std::uint32_t>& indices, std::vector<V3>& faceNormal,
+                          std::vector<int>& offsets, std::vector<int>& incident,
+                          std::vector<int>& firstCopy, std::vector<int>& nextCopy) {
+  const int nv = snap.numVertices();
+  const int nt = snap.numTriangles();
+  const float* P = snap.positionsM.data();
+  auto pos = [&](std::uint32_t v) { return V3{P[3 * v], P[3 * v + 1], P[3 * v + 2]}; };
+  // 1. area-weighted face normals (|cross| = 2 area)
+  faceNormal.resize(nt);
+  for (int t = 0; t < nt; ++t) {
+    const std::uint32_t* tri = &snap.triangles[3 * t];
+    faceNormal[t] = cross(sub(pos(tri[1]), pos(tri[0])), sub(pos(tri[2]), pos(tri[0])));
+  }
+  // 2. vertex -> incident triangles (CSR, ascending triangle ids)
+  offsets.assign(nv + 1, 0);
+  for (std::uint32_t v : snap.triangles) ++offsets[v + 1];
+  for (int v = 0; v < nv; ++v) offsets[v + 1] += offsets[v];
+  incident.resize(snap.triangles.size());
+  std::vector<int> fill(offsets.begin(), offsets.end() - 1);
+  for (int t = 0; t < nt; ++t)
+    for (int k = 0; k < 3; ++k) incident[fill[snap.triangles[3 * t + k]]++] = t;
+  // 3. per corner: sum of the incident face normals within the crease angle; corners
+  //    of a vertex with bit-identical normals share one GPU vertex (the sums run over
+  //    the same faces in the same order, so equal face sets give equal bits)
+  const float cosCrease = static_cast<float>(std::cos(kCreaseAngleDeg * 3.14159265358979 / 180.0));
+  auto state = [&](std::uint32_t v) {
+    return std::array<float, 4>{
+        snap.temperatureC.empty() ? tDefaultC : snap.temperatureC[v],
+        snap.coagulation.empty() ? 0.0f : snap.coagulation[v],
+        snap.desiccation.empty() ? 0.0f : snap.desiccation[v],
+        snap.cutWall.empty() ? 0.0f : snap.cutWall[v]};
+  };
+  out.clear();
+  out.reserve(static_cast<size_t>(nv) * kFloatsPerVertex * 5 / 4);
+  indices.resize(snap.triangles.size());
+  firstCopy.assign(nv, -1);  // first GPU vertex of each snapshot vertex
+  nextCopy.clear();          // chain of further copies (crease splits)
+  for (int t = 0; t < nt; ++t) {
+    const V3 nf = normalized(faceNormal[t]);
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t v = snap.triangles[3 * t + k];
+      V3 sum{0, 0, 0};
+      for (int i = offsets[v]; i < offsets[v + 1]; ++i) {
+        const V3& ng = faceNormal[incident[i]];
+        const float len = norm(ng);
+        if (len > 0 && dot(ng, nf) >= cosCrease * len) sum = add(sum, ng);
+      }
+      const V3 n = norm(sum) > 0 ? normalized(sum) : nf;
+      int found = -1;
+      int* link = &firstCopy[v];
+      for (int c = *link; c >= 0; link = &nextCopy[c], c = *link) {
+        const float* q = &out[static_cast<size_t>(c) * kFloatsPerVertex + 3];
+        if (q[0] == n[0] && q[1] == n[1] && q[2] == n[2]) {
+          found = c;
+          break;
+        }
+      }
+      if (found < 0) {
+        found = static_cast<int>(nextCopy.size());
+        *link = found;
+        nextCopy.push_back(-1);
+        pushVertex(out, pos(v), n, state(v));
+      }
+      indices[3 * t + k] = static_cast<std::uint32_t>(found);
+    }
+  }
+}
+
+// tool parts in the tool frame (z = axis from tip to handle), metres
+struct ToolMeshBuilder {
+  std::vector<float> out;
+  static constexpr std::array<float, 4> kMetal{0.70f, 0.71f, 0.73f, 0.0f};
+  static constexpr std::array<float, 4> kInsulation{0.13f, 0.13f, 0.14f, 1.0f};
+  static constexpr std::array<float, 4> kHandle{0.80f, 0.81f, 0.79f, 2.0f};
+
+  void tri(V3 a, V3 b, V3 c, V3 na, V3 nb, V3 nc, const std::array<float, 4>& m) {
+    pushVertex(out, a, na, m);
+    pushVertex(out, b, nb, m);
+    pushVertex(out, c, nc, m);
+  }
+  // frustum of a cone along z from (z0, r0) to (z1, r1), with end caps
+  void cone(float z0, float r0, float z1, float r1, const std::array<float, 4>& m, int seg = 24) {
+    const float slope = (r0 - r1) / std::max(1e-9f, z1 - z0);
+    for (int i = 0; i < seg; ++i) {
+      const float a0 = 2 * 3.14159265f * i / seg, a1 = 2 * 3.14159265f * (i + 1) / seg;
+      const V3 d0{std::cos(a0), std::sin(a0), 0}, d1{std::cos(a1), std::sin(a1), 0};
+      const V3 n0 = normalized({d0[0], d0[1], slope}), n1 = normalized({d1[0], d1[1], slope});
+      const V3 p00{r0 * d0[0], r0 * d0[1], z0}, p01{r0 * d1[0], r0 * d1[1], z0};
+      const V3 p10{r1 * d0[0], r1 * d0[1], z1}, p11{r1 * d1[0], r1 * d1[1], z1};
+      tri(p00, p01, p11, n0, n1, n1, m);
+      tri(p00, p11, p10, n0, n1, n0, m);
+      tri({0, 0, z0}, p01, p00, {0, 0, -1}, {0, 0, -1}, {0, 0, -1}, m);
+      tri({0, 0, z1}, p10, p11, {0, 0, 1}, {0, 0, 1}, {0, 0, 1}, m);
+    }
+  }
+  void sphere(float r, const std::array<float, 4>& m, int seg = 24, int rings = 16) {
+    auto at = [&](int i, int j) {
+      const float th = 3.14159265f * j / rings, ph = 2 * 3.14159265f * i / seg;
+      return V3{std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph), std::cos(th)};
+    };
+    for (int j = 0; j < rings; ++j)
+      for (int i = 0; i < seg; ++i) {
+        const V3 a = at(i, j), b = at(i + 1, j), c = at(i + 1, j + 1), d = at(i, j + 1);
+        tri(mul(a, r), mul(d, r), mul(c, r), a, d, c, m);
+        tri(mul(a, r), mul(c, r), mul(b, r), a, c, b, m);
+      }
+  }
+  // flat spatula: rounded front (half disc of radius w/2) at z = 0, straight to
+  // z = len, thickness 2*halfT in y
+  void blade(float w, float halfT, float len, const std::array<float, 4>& m) {
+    const int arc = 12;
+    std::vector<std::array<float, 2>> outline;  // (x, z), counter-clockwise seen from +y
+    const float r = w / 2;
+    for (int i = 0; i <= arc; ++i) {
+      const float a = 3.14159265f * (1.0f + static_cast<float>(i) / arc);  // pi..2pi
+      outline.push_back({r * std::cos(a), r + r * std::sin(a)});
+    }
+    outline.push_back({r, len});
+    outline.push_back({-r, len});
+    const int n = static_cast<int>(outline.size());
+    const V3 centre{0, 0, 0.5f * (r + len)};
+    for (int i = 0; i < n; ++i) {
+      const auto& p = outline[i];
+      const auto& q = outline[(i + 1) % n];
+      const V3 pf{p[0], halfT, p[1]}, qf{q[0], halfT, q[1]};
+      const V3 pb{p[0], -halfT, p[1]}, qb{q[0], -halfT, q[1]};
+      // faces (+y and -y), fans from the centre
+      tri({centre[0], halfT, centre[2]}, qf, pf, {0, 1, 0}, {0, 1, 0}, {0, 1, 0}, m);
+      tri({centre[0], -halfT, centre[2]}, pb, qb, {0, -1, 0}, {0, -1, 0}, {0, -1, 0}, m);
+      // rim: outward normal in the x-z plane (smooth round the arc)
+      auto rimNormal = [&](const std::array<float, 2>& s, int idx) {
+        if (idx <= arc) return normalized({s[0], 0, s[1] - r});
+        return V3{0, 0, 1};
+      };
+      V3 np = rimNormal(p, i), nq = rimNormal(q, (i + 1) % n);
+      if (i == arc) { np = {1, 0, 0}; nq = {1, 0, 0}; }        // right straight side
+      if (i == arc + 1) { np = {0, 0, 1}; nq = {0, 0, 1}; }    // back end
+      if (i == arc + 2) { np = {-1, 0, 0}; nq = {-1, 0, 0}; }  // left straight side
+      tri(pf, qf, qb, np, nq, nq, m);
+      tri(pf, qb, pb, np, nq, np, m);
+    }
+  }
+};
+
+std::vector<float> buildToolVertices(const ToolSnapshot& tool) {
+  ToolMeshBuilder b;
+  const float L = std::max(tool.lengthM, 1e-3f);
+  const float handleR = kHandleRadiusM, handleLen = 0.09f;
+  if (tool.kind == ElectrodeKind::Blade) {
+    const float w = std::max(tool.widthM, 2 * tool.radiusM);
+    const float bladeLen = 0.45f * L;
+    const float shaftR = 0.55f * w;  // covers the blade's back end
+    b.blade(w, std::max(tool.radiusM, 1e-5f), bladeLen, ToolMeshBuilder::kMetal);
+    b.cone(0.9f * bladeLen, shaftR, L, shaftR, ToolMeshBuilder::kInsulation);
+    b.cone(L, shaftR, L + 0.012f, handleR, ToolMeshBuilder::kHandle);
+    b.cone(L + 0.012f, handleR, L + handleLen, handleR, ToolMeshBuilder::kHandle);
+  } else {
+    const float r = std::max(tool.radiusM, 1e-5f);
+    const float neckR = std::max(0.35f * r, 3e-4f);
+    b.sphere(r, ToolMeshBuilder::kMetal);
+    b.cone(0.5f * r, neckR, 0.35f * L, neckR, ToolMeshBuilder::kMetal);
+    b.cone(0.35f * L, 1.6f * neckR, L, 1.6f * neckR, ToolMeshBuilder::kInsulation);
+    b.cone(L, 1.6f * neckR, L + 0.012f, handleR, ToolMeshBuilder::kHandle);
+    b.cone(L + 0.012f, handleR, L + handleLen, handleR, ToolMeshBuilder::kHandle);
+  }
+  return std::move(b.out);
+}
+
+// ---- overlay ----
+
+void fillRect(std::vector<std::uint8_t>& rgb, int w, int h, int x0, int y0, int rw, int rh,
+              std::array<std::uint8_t, 3> c) {
+  for (int y = std::max(0, y0); y < std::min(h, y0 + rh); ++y)
+    for (int x = std::max(0, x0); x < std::min(w, x0 + rw); ++x)
+      std::memcpy(&rgb[(static_cast<size_t>(y) * w + x) * 3], c.data(), 3);
+}
+
+// tick step from {1, 2, 5} x 10^k giving 3..7 ticks over the range
+double niceStep(double range) {
+  const double raw = range / 5.0;
+  const double p = std::pow(10.0, std::floor(std::log10(raw)));
+  for (double m : {1.0, 2.0, 5.0, 10.0})
+    if (m * p >= raw * 0.75) return m * p;
+  return 10 * p;
+}
+
+std::string formatNumber(double v, double step) {
+  char buf[32];
+  const int decimals = step >= 1 ? 0 : static_cast<int>(std::ceil(-std::log10(step) - 1e-9));
+  std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
+  return buf;
+}
+
+}  // namespace
+
+// ---- validation ----
+
+void validateRenderOptions(const RenderOptions& o) {
+  ESIM_VERIFY(o.width >= 16 && o.width <= 8192 && o.height >= 16 && o.height <= 8192,
+              "render.width/height: " + std::to_string(o.width) + "x" + std::to_string(o.height) +
+                  " is out of range, expected 16..8192 pixels each");
+  ESIM_VERIFY(o.look == "temperature" || o.look == "tissue",
+              "render.look: '" + o.look + "' is unknown, expected 'temperature' or 'tissue'");
+  colormapLut(o.colormap);  // throws for an unknown map
+  ESIM_VERIFY(std::isfinite(o.tMinC) && std::isfinite(o.tMaxC) && o.tMaxC > o.tMinC,
+              "render.t_min_c/t_max_c: need finite tMinC < tMaxC, got " + std::to_string(o.tMinC) +
+                  " and " + std::to_string(o.tMaxC));
+  ESIM_VERIFY(o.fovDeg > 1 && o.fovDeg < 170,
+              "render.fov_deg: " + std::to_string(o.fovDeg) + " is out of range (1, 170)");
+  const V3 view = sub(o.targetM, o.eyeM);
+  ESIM_VERIFY(norm(view) > 0, "render.eye/target: the camera eye and target coincide");
+  ESIM_VERIFY(norm(cross(normalized(view), o.up)) > 1e-3,
+              "render.up: the up vector is zero or parallel to the viewing direction");
+  ESIM_VERIFY(o.msaaSamples == 0 || o.msaaSamples == 2 || o.msaaSamples == 4,
+              "render.msaa_samples: " + std::to_string(o.msaaSamples) + ", expected 0, 2 or 4");
+  ESIM_VERIFY(o.backend == "osmesa" || o.backend == "egl",
+              "render.backend: '" + o.backend + "' is unknown, expected 'osmesa' or 'egl'");
+}
+
+void validateSnapshot(const SurfaceSnapshot& s) {
+  ESIM_VERIFY(s.positionsM.size() % 3 == 0,
+              "snapshot.positionsM: size " + std::to_string(s.positionsM.size()) +
+                  " is not a multiple of 3");
+  ESIM_VERIFY(s.triangles.size() % 3 == 0, "snapshot.triangles: size " +
+                                               std::to_string(s.triangles.size()) +
+                                               " is not a multiple of 3");
+  const size_t nv = static_cast<size_t>(s.numVertices());
+  auto checkField = [&](const std::vector<float>& f, const char* name) {
+    ESIM_VERIFY(f.empty() || f.size() == nv, std::string("snapshot.") + name + ": " +
+                                                 std::to_string(f.size()) + " values for " +
+                                                 std::to_string(nv) +
+                                                 " vertices, expected one per vertex (or none)");
+    for (float v : f)
+      ESIM_VERIFY(std::isfinite(v), std::string("snapshot.") + name + ": non-finite value");
+  };
+  checkField(s.temperatureC, "temperatureC");
+  checkField(s.coagulation, "coagulation");
+  checkField(s.desiccation, "desiccation");
+  checkField(s.cutWall, "cutWall");
+  for (float v : s.positionsM) ESIM_VERIFY(std::isfinite(v), "snapshot.positionsM: non-finite value");
+  for (std::uint32_t v : s.triangles)
+    ESIM_VERIFY(v < nv, "snapshot.triangles: vertex index " + std::to_string(v) +
+                            " out of range (" + std::to_string(nv) + " vertices)");
+}
+
+std::array<std::uint8_t, 3> backgroundColor(int row, int height) {
+  // pixel centre of the row, same arithmetic as the background shader
+  const float fromTop = (static_cast<float>(row) + 0.5f) / static_cast<float>(height);
+  const float top[3] = {104, 110, 120}, bottom[3] = {38, 40, 46};
+  std::array<std::uint8_t, 3> c{};
+  for (int k = 0; k < 3; ++k)
+    c[k] = static_cast<std::uint8_t>(std::lround(top[k] + (bottom[k] - top[k]) * fromTop));
+  return c;
+}
+
+// ---- Renderer ----
+
+struct Renderer::Impl {
+  RenderOptions opt;
+  std::unique_ptr<GlContext> ctx;
+  // one surface program per variant: the look's with and without the tool's
+  // shadow, and the tool's own
+  struct SurfaceProgram {
+    GLuint id = 0;
+    GLint uViewProj = -1, uModel = -1, uColormap = -1, uTempRange = -1, uHalfDir = -1, uKeyDir = -1,
+          uFillDir = -1, uTipM = -1, uGlow = -1, uToolAxis = -1, uToolSizes = -1, uNoise = -1;
+  };
+  SurfaceProgram lookProgram[2], toolProgram;  // lookProgram[shadow]
+  GLuint noiseTex = 0;
+  GLuint bgProgram = 0, bgVao = 0, resolveProgram = 0;  // bgVao: empty, full-screen passes
+  GLint uSize = -1;
+  GLuint surfVao = 0, surfVbo = 0, toolVao = 0, toolVbo = 0, lutTex = 0;
+  GLuint msFbo = 0, msColor = 0, msDepth = 0, fbo = 0, color = 0, depth = 0;
+  int toolVertexCount = 0;
+  ToolSnapshot toolCached;
+  bool toolBuilt = false;
+  std::vector<float> vertices;
+  std::vector<std::uint32_t> indices;
+  std::vector<int> firstCopy, nextCopy;
+  GLuint surfIbo = 0;
+  std::vector<V3> faceNormal;
+  std::vector<int> offsets, incident;
+  std::vector<std::uint8_t> readBuf, frame;
+  RenderTimings timings;
+
+  SurfaceProgram makeSurfaceProgram(int look, bool shadow);
+  void init();
+  void destroy();
+  void drawOverlay(const SurfaceSnapshot& snap);
+};
+
+Renderer::Impl::SurfaceProgram Renderer::Impl::makeSurfaceProgram(int look, bool shadow) {
+  const GlFunctions& gl = ctx->gl();
+  const std::string fs = std::string("#version 330 core\n#define LOOK ") + std::to_string(look) +
+                         "\n#define LIT " + std::to_string(opt.lighting ? 1 : 0) +
+                         "\n#define SHADOW " + std::to_string(shadow ? 1 : 0) + "\n" + kSurfaceFs;
+  SurfaceProgram p;
+  const std::string header = "#version 330 core\n#define LOOK " + std::to_string(look) +
+                             "\n#define LIT " + std::to_string(opt.lighting ? 1 : 0) +
+                             "\n#define SHADOW " + std::to_string(shadow ? 1 : 0) + "\n";
+  const std::string vs = header + kSurfaceVs;
+  p.id = linkProgram(gl, vs.c_str(), fs.c_str(), "surface");
+  auto loc = [&](const char* n) { return gl.GetUniformLocation(p.id, n); };
+  p.uViewProj = loc("uViewProj");
+  p.uModel = loc("uModel");
+  p.uColormap = loc("uColormap");
+  p.uTempRange = loc("uTempRange");
+  p.uHalfDir = loc("uHalfDir");
+  p.uKeyDir = loc("uKeyDir");
+  p.uFillDir = loc("uFillDir");
+  p.uTipM = loc("uTipM");
+  p.uGlow = loc("uGlow");
+  p.uToolAxis = loc("uToolAxis");
+  p.uToolSizes = loc("uToolSizes");
+  p.uNoise = loc("uNoise");
+  return p;
+}
+
+void Renderer::Impl::init() {
+  const GlFunctions& gl = ctx->gl();
+  bgProgram = linkProgram(gl, kFullScreenVs, kBackgroundFs, "background");
+  uSize = gl.GetUniformLocation(bgProgram, "uSize");
+  const int look = opt.look == "temperature" ? 0 : 1;
+  lookProgram[0] = makeSurfaceProgram(look, false);
+  lookProgram[1] = makeSurfaceProgram(look, opt.lighting);
+  toolProgram = makeSurfaceProgram(2, false);
+
+  gl.GenVertexArrays(1, &bgVao);
+  // vertex arrays: position, normal, state (interleaved floats)
+  auto makeVao = [&](GLuint& vao, GLuint& vbo) {
+    gl.GenVertexArrays(1, &vao);
+    gl.GenBuffers(1, &vbo);
+    gl.BindVertexArray(vao);
+    gl.BindBuffer(GL_ARRAY_BUFFER, vbo);
+    const GLsizei stride = kFloatsPerVertex * sizeof(float);
+    gl.VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<void*>(0));
+    gl.VertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, stride,
+                           reinterpret_cast<void*>(3 * sizeof(float)));
+    gl.VertexAttribPointer(2, 4, GL_FLOAT, GL_FALSE, stride,
+                           reinterpret_cast<void*>(6 * sizeof(float)));
+    for (GLuint i = 0; i < 3; ++i) gl.EnableVertexAttribArray(i);
+    gl.BindVertexArray(0);
+  };
+  makeVao(surfVao, surfVbo);
+  gl.GenBuffers(1, &surfIbo);
+  gl.BindVertexArray(surfVao);
+  gl.BindBuffer(GL_ELEMENT_ARRAY_BUFFER, surfIbo);  // recorded in the vertex array
+  gl.BindVertexArray(0);
+  makeVao(toolVao, toolVbo);
+
+  // colour map as a 1D texture: exactly the CPU table
+  const ColormapLut& lut = colormapLut(opt.colormap);
+  gl.GenTextures(1, &lutTex);
+  gl.BindTexture(GL_TEXTURE_1D, lutTex);
+  gl.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
+  gl.TexImage1D(GL_TEXTURE_1D, 0, GL_RGB8, 256, 0, GL_RGB, GL_UNSIGNED_BYTE, lut.data());
+  gl.TexParameteri(GL_TEXTURE_1D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+  gl.TexParameteri(GL_TEXTURE_1D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  gl.TexParameteri(GL_TEXTURE_1D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+
+  // tissue mottling: 64^2 lattice of hashed values (integer hash: identical everywhere)
+  {
+    constexpr int n = 64;
+    std::vector<std::uint8_t> noise(n * n);
+    for (int i = 0; i < n * n; ++i) {
+      std::uint32_t h = static_cast<std::uint32_t>(i) * 2654435761u + 0x9e3779b9u;
+      h ^= h >> 15;
+      h *= 0x2c1b3c6du;
+      h ^= h >> 12;
+      h *= 0x297a2d39u;
+      h ^= h >> 15;
+      noise[i] = static_cast<std::uint8_t>(h >> 24);
+    }
+    gl.GenTextures(1, &noiseTex);
+    gl.ActiveTexture(GL_TEXTURE1);
+    gl.BindTexture(GL_TEXTURE_2D, noiseTex);
+    gl.TexImage2D(GL_TEXTURE_2D, 0, GL_R8, n, n, 0, GL_RED, GL_UNSIGNED_BYTE, noise.data());
+    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
+    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_REPEAT);
+    gl.ActiveTexture(GL_TEXTURE0);
+  }
+
+  // framebuffers: optional multisampled one, resolved into a plain one
+  auto makeFbo = [&](GLuint& f, GLuint& c, GLuint& d, int samples) {
+    gl.GenFramebuffers(1, &f);
+    gl.GenRenderbuffers(1, &c);
+    gl.GenRenderbuffers(1, &d);
+    gl.BindRenderbuffer(GL_RENDERBUFFER, c);
+    gl.RenderbufferStorageMultisample(GL_RENDERBUFFER, samples, GL_RGBA8, opt.width, opt.height);
+    gl.BindRenderbuffer(GL_RENDERBUFFER, d);
+    gl.RenderbufferStorageMultisample(GL_RENDERBUFFER, samples, GL_DEPTH_COMPONENT24, opt.width,
+                                      opt.height);
+    gl.BindFramebuffer(GL_FRAMEBUFFER, f);
+    gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, c);
+    gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, d);
+    const GLenum status = gl.CheckFramebufferStatus(GL_FRAMEBUFFER);
+    ESIM_VERIFY(status == GL_FRAMEBUFFER_COMPLETE,
+                "renderer: framebuffer (" + std::to_string(samples) +
+                    " samples) incomplete, status 0x" + std::to_string(status));
+  };
+  makeFbo(fbo, color, depth, 0);
+  if (opt.msaaSamples > 0) {
+    GLint maxSamples = 0;
+    gl.GetIntegerv(GL_MAX_SAMPLES, &maxSamples);
+    ESIM_VERIFY(opt.msaaSamples <= maxSamples,
+                "render.msaa_samples: " + std::to_string(opt.msaaSamples) +
+                    " exceeds the driver's GL_MAX_SAMPLES " + std::to_string(maxSamples));
+    // colour in a multisample texture (resolved by kResolveFs), depth in a renderbuffer
+    gl.GenFramebuffers(1, &msFbo);
+    gl.GenTextures(1, &msColor);
+    gl.GenRenderbuffers(1, &msDepth);
+    gl.BindTexture(GL_TEXTURE_2D_MULTISAMPLE, msColor);
+    gl.TexImage2DMultisample(GL_TEXTURE_2D_MULTISAMPLE, opt.msaaSamples, GL_RGBA8, opt.width,
+                             opt.height, GL_TRUE);
+    gl.BindTexture(GL_TEXTURE_2D_MULTISAMPLE, 0);
+    gl.BindRenderbuffer(GL_RENDERBUFFER, msDepth);
+    gl.RenderbufferStorageMultisample(GL_RENDERBUFFER, opt.msaaSamples, GL_DEPTH_COMPONENT24,
+                                      opt.width, opt.height);
+    gl.BindFramebuffer(GL_FRAMEBUFFER, msFbo);
+    gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D_MULTISAMPLE,
+                            msColor, 0);
+    gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, msDepth);
+    const GLenum status = gl.CheckFramebufferStatus(GL_FRAMEBUFFER);
+    ESIM_VERIFY(status == GL_FRAMEBUFFER_COMPLETE,
+                "renderer: multisampled framebuffer incomplete, status 0x" + std::to_string(status));
+    const std::string fs = "#version 330 core\n#define SAMPLES " +
+                           std::to_string(opt.msaaSamples) + "\n" + kResolveFs;
+    resolveProgram = linkProgram(gl, kFullScreenVs, fs.c_str(), "msaa resolve");
+  }
+  const GLenum err = gl.GetError();
+  ESIM_VERIFY(err == GL_NO_ERROR, "renderer: GL error 0x" + std::to_string(err) + " at setup");
+}
+
+void Renderer::Impl::destroy() {
+  if (!ctx) return;
+  try {
+    ctx->makeCurrent();
+  } catch (const Error&) {
+    return;
+  }
+  const GlFunctions& gl = ctx->gl();
+  gl.DeleteProgram(bgProgram);
+  gl.DeleteProgram(lookProgram[0].id);
+  gl.DeleteProgram(lookProgram[1].id);
+  gl.DeleteProgram(toolProgram.id);
+  GLuint vaos[] = {bgVao, surfVao, toolVao};
+  gl.DeleteVertexArrays(3, vaos);
+  GLuint bufs[] = {surfVbo, toolVbo, surfIbo};
+  gl.DeleteBuffers(3, bufs);
+  gl.DeleteTextures(1, &lutTex);
+  gl.DeleteTextures(1, &noiseTex);
+  gl.DeleteTextures(1, &msColor);
+  gl.DeleteProgram(resolveProgram);
+  GLuint fbos[] = {fbo, msFbo};
+  gl.DeleteFramebuffers(2, fbos);
+  GLuint rbs[] = {color, depth, msDepth};
+  gl.DeleteRenderbuffers(3, rbs);
+}
+
+void Renderer::Impl::drawOverlay(const SurfaceSnapshot& snap) {
+  const int w = opt.width, h = opt.height;
+  const int scale = std::max(1, static_cast<int>(std::lround(h / 240.0)));
+  const int margin = std::max(4, h / 30);
+  const std::array<std::uint8_t, 3> white{236, 236, 236};
+  if (opt.showTime) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "t = %.2f s", snap.timeS);
+    drawText(frame, w, h, margin, margin, buf, scale, white);
+  }
+  if (opt.look != "temperature" || !opt.showColorBar) return;
+  // vertical bar at the right: hot at the top, ticks and labels to its left
+  const ColormapLut& lut = colormapLut(opt.colormap);
+  const int barW = std::max(4, h / 36);
+  const int barH = static_cast<int>(std::lround(0.55 * h));
+  const int barX = w - margin - barW;
+  const int barY = (h - barH) / 2 + scale * kFontCellH / 2;
+  fillRect(frame, w, h, barX - 1, barY - 1, barW + 2, barH + 2, {200, 200, 200});
+  for (int y = 0; y < barH; ++y) {
+    const double t = 1.0 - static_cast<double>(y) / (barH - 1);
+    const auto& c = lut[static_cast<int>(std::lround(t * 255.0))];
+    fillRect(frame, w, h, barX, barY + y, barW, 1, c);
+  }
+  const std::string unit = "\xC2\xB0" "C";
+  drawText(frame, w, h, barX + barW / 2 - textWidthPx(unit, scale) / 2,
+           barY - 1 - (kFontCellH + 1) * scale, unit, scale, white);
+  const double step = niceStep(opt.tMaxC - opt.tMinC);
+  const int tickLen = std::max(3, barW / 2);
+  for (double v = std::ceil(opt.tMinC / step - 1e-9) * step; v <= opt.tMaxC + 1e-9 * step;
+       v += step) {
+    const double t = (v - opt.tMinC) / (opt.tMaxC - opt.tMinC);
+    const int y = barY + static_cast<int>(std::lround((1.0 - t) * (barH - 1)));
+    fillRect(frame, w, h, barX - 1 - tickLen, y - scale / 2, tickLen, std::max(1, scale / 2 + 1),
+             {200, 200, 200});
+    const std::string label = formatNumber(v, step);
+    drawText(frame, w, h, barX - 1 - tickLen - scale * 2 - textWidthPx(label, scale),
+             y - (7 * scale) / 2, label, scale, white);
+  }
+}
+
+Renderer::Renderer(const RenderOptions& options) : impl_(std::make_unique<Impl>()) {
+  validateRenderOptions(options);
+  impl_->opt = options;
+  impl_->ctx = createGlContext(options.backend);
+  impl_->init();
+}
+
+Renderer::~Renderer() { impl_->destroy(); }
+
+std::string Renderer::glRenderer() const { return impl_->ctx->glRenderer(); }
+std::string Renderer::glVersion() const { return impl_->ctx->glVersion(); }
+std::string Renderer::glPlatform() const { return impl_->ctx->platform(); }
+const RenderOptions& Renderer::options() const { return impl_->opt; }
+const RenderTimings& Renderer::lastTimings() const { return impl_->timings; }
+
+const std::vector<std::uint8_t>& Renderer::render(const SurfaceSnapshot& snap) {
+  using Clock = std::chrono::steady_clock;
+  auto msSince = [](Clock::time_point t) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+  };
+  const auto tStart = Clock::now();
+  validateSnapshot(snap);
+  Impl& m = *impl_;
+  const RenderOptions& o = m.opt;
+  m.ctx->makeCurrent();
+  const GlFunctions& gl = m.ctx->gl();
+
+  // 1. camera: clip planes from the camera distance (the tool may come close)
+  const float dist = norm(sub(o.targetM, o.eyeM));
+  float farM = 20 * dist;
+  for (int v = 0; v < snap.numVertices(); ++v) {
+    const V3 p{snap.positionsM[3 * v], snap.positionsM[3 * v + 1], snap.positionsM[3 * v + 2]};
+    farM = std::max(farM, 1.5f * norm(sub(p, o.eyeM)));
+  }
+  const M4 view = lookAt(o.eyeM, o.targetM, o.up);
+  const M4 proj = perspective(o.fovDeg, static_cast<float>(o.width) / o.height, 0.02f * dist, farM);
+  const M4 viewProj = matMul(proj, view);
+  const V3 fwd = normalized(sub(o.targetM, o.eyeM));
+  const V3 right = normalized(cross(fwd, o.up));
+  const V3 camUp = cross(right, fwd);
+  const V3 keyDir = normalized(add(add(mul(right, -0.45f), mul(camUp, 0.65f)), mul(fwd, -0.60f)));
+  const V3 fillDir = normalized(add(add(mul(right, 0.70f), mul(camUp, 0.10f)), mul(fwd, -0.50f)));
+  const V3 halfDir = normalized(sub(keyDir, fwd));  // towards the light + towards the viewer
+
+  // 2. target framebuffer and background (a full-screen pass: llvmpipe turns
+  //    scissored clears into draws, so one pass is cheaper than a clear per band)
+  gl.BindFramebuffer(GL_FRAMEBUFFER, o.msaaSamples > 0 ? m.msFbo : m.fbo);
+  gl.Viewport(0, 0, o.width, o.height);
+  gl.ClearColor(0, 0, 0, 1);
+  gl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  gl.Disable(GL_DEPTH_TEST);
+  gl.DepthMask(GL_FALSE);
+  gl.UseProgram(m.bgProgram);
+  gl.Uniform2f(m.uSize, static_cast<float>(o.width), static_cast<float>(o.height));
+  gl.BindVertexArray(m.bgVao);
+  gl.DrawArrays(GL_TRIANGLES, 0, 3);
+  gl.Enable(GL_DEPTH_TEST);
+  gl.DepthMask(GL_TRUE);
+  gl.DepthFunc(GL_LESS);
+
+  // 3. surface
+  static const M4 identity{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  const ToolSnapshot& tool = snap.tool;
+  const M4 toolPose = poseMatrix(tool.orientationWxyz, tool.tipM);
+  const V3 toolAxis{toolPose[8], toolPose[9], toolPose[10]};  // local +z in world
+  const float shaftR = tool.kind == ElectrodeKind::Blade
+                           ? 0.5f * std::max(tool.widthM, 2 * tool.radiusM)
+                           : std::max(tool.radiusM, 3e-4f);
+  const V3 toolSizes{std::max(tool.lengthM, 1e-3f), shaftR, kHandleRadiusM};
+  auto useProgram = [&](const Impl::SurfaceProgram& p, const M4& model) {
+    gl.UseProgram(p.id);
+    gl.UniformMatrix4fv(p.uViewProj, 1, GL_FALSE, viewProj.data());
+    gl.UniformMatrix4fv(p.uModel, 1, GL_FALSE, model.data());
+    gl.Uniform1i(p.uColormap, 0);
+    gl.Uniform1i(p.uNoise, 1);
+    gl.Uniform2f(p.uTempRange, o.tMinC, o.tMaxC);
+    gl.Uniform3fv(p.uHalfDir, 1, halfDir.data());
+    gl.Uniform3fv(p.uKeyDir, 1, keyDir.data());
+    gl.Uniform3fv(p.uFillDir, 1, fillDir.data());
+    gl.Uniform3fv(p.uTipM, 1, tool.tipM.data());
+    gl.Uniform1f(p.uGlow, tool.present && tool.generatorOn ? 1.0f : 0.0f);
+    gl.Uniform3fv(p.uToolAxis, 1, toolAxis.data());
+    gl.Uniform3fv(p.uToolSizes, 1, toolSizes.data());
+  };
+  gl.ActiveTexture(GL_TEXTURE1);
+  gl.BindTexture(GL_TEXTURE_2D, m.noiseTex);
+  gl.ActiveTexture(GL_TEXTURE0);
+  gl.BindTexture(GL_TEXTURE_1D, m.lutTex);
+  double prepareMs = 0;
+  if (snap.numTriangles() > 0) {
+    const auto tPrep = Clock::now();
+    buildSurfaceVertices(snap, o.tMinC, m.vertices, m.indices, m.faceNormal, m.offsets,
+                         m.incident, m.firstCopy, m.nextCopy);
+    prepareMs = msSince(tPrep);
+    useProgram(m.lookProgram[tool.present ? 1 : 0], identity);
+    gl.BindVertexArray(m.surfVao);
+    gl.BindBuffer(GL_ARRAY_BUFFER, m.surfVbo);
+    gl.BufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(m.vertices.size() * sizeof(float)),
+                  m.vertices.data(), GL_STREAM_DRAW);
+    gl.BufferData(GL_ELEMENT_ARRAY_BUFFER,
+                  static_cast<GLsizeiptr>(m.indices.size() * sizeof(std::uint32_t)),
+                  m.indices.data(), GL_STREAM_DRAW);
+    // a closed surface, counter-clockwise from outside: its back faces are hidden
+    if (o.cullBackFaces) gl.Enable(GL_CULL_FACE);
+    gl.DrawElements(GL_TRIANGLES, static_cast<GLsizei>(m.indices.size()), GL_UNSIGNED_INT,
+                    nullptr);
+    gl.Disable(GL_CULL_FACE);
+  }
+
+  // 4. electrode (mesh rebuilt only when its shape changes)
+  if (tool.present) {
+    if (!m.toolBuilt || tool.kind != m.toolCached.kind || tool.radiusM != m.toolCached.radiusM ||
+        tool.lengthM != m.toolCached.lengthM || tool.widthM != m.toolCached.widthM) {
+      const std::vector<float> verts = buildToolVertices(tool);
+      gl.BindBuffer(GL_ARRAY_BUFFER, m.toolVbo);
+      gl.BufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(verts.size() * sizeof(float)),
+                    verts.data(), GL_STATIC_DRAW);
+      m.toolVertexCount = static_cast<int>(verts.size() / kFloatsPerVertex);
+      m.toolCached = tool;
+      m.toolBuilt = true;
+    }
+    useProgram(m.toolProgram, toolPose);
+    gl.BindVertexArray(m.toolVao);
+    gl.DrawArrays(GL_TRIANGLES, 0, m.toolVertexCount);
+  }
+  gl.BindVertexArray(0);
+
+  // 5. resolve and read back (GL rows are bottom-up)
+  gl.Finish();
+  m.timings.drawMs = msSince(tStart) - prepareMs;
+  const auto tRead = Clock::now();
+  gl.BindFramebuffer(GL_FRAMEBUFFER, m.fbo);
+  if (o.msaaSamples > 0) {
+    gl.Disable(GL_DEPTH_TEST);
+    gl.UseProgram(m.resolveProgram);
+    gl.ActiveTexture(GL_TEXTURE2);
+    gl.BindTexture(GL_TEXTURE_2D_MULTISAMPLE, m.msColor);
+    gl.Uniform1i(gl.GetUniformLocation(m.resolveProgram, "uSamples"), 2);
+    gl.BindVertexArray(m.bgVao);
+    gl.DrawArrays(GL_TRIANGLES, 0, 3);
+    gl.BindVertexArray(0);
+    gl.ActiveTexture(GL_TEXTURE0);
+  }
+  gl.ReadBuffer(GL_COLOR_ATTACHMENT0);
+  gl.PixelStorei(GL_PACK_ALIGNMENT, 1);
+  const size_t rowBytes = static_cast<size_t>(o.width) * 3;
+  m.readBuf.resize(rowBytes * o.height);
+  m.frame.resize(rowBytes * o.height);
+  gl.ReadPixels(0, 0, o.width, o.height, GL_RGB, GL_UNSIGNED_BYTE, m.readBuf.data());
+  const GLenum err = gl.GetError();
+  ESIM_VERIFY(err == GL_NO_ERROR, "renderer: GL error 0x" + std::to_string(err) + " while drawing");
+  for (int y = 0; y < o.height; ++y)
+    std::memcpy(&m.frame[rowBytes * y], &m.readBuf[rowBytes * (o.height - 1 - y)], rowBytes);
+
+  m.timings.readbackMs = msSince(tRead);
+  // 6. overlay on the CPU
+  const auto tOverlay = Clock::now();
+  m.drawOverlay(snap);
+  m.timings.overlayMs = msSince(tOverlay);
+  m.timings.prepareMs = prepareMs;
+  m.timings.totalMs = msSince(tStart);
+  return m.frame;
+}
+
+}  // namespace esim

@@ -1,0 +1,106 @@
+// renderer.h - off-screen OpenGL drawing of a SurfaceSnapshot into RGB24 frames.
+//
+// Renderer owns a headless GL context (gl_context.h) and draws, per call:
+//   1. a vertical grey gradient background (backgroundColor()),
+//   2. the tissue surface with smooth per-vertex normals (area-weighted face
+//      normals; faces meeting at more than kCreaseAngleDeg = 65 deg keep separate
+//      normals so the slab's box edges and cut walls stay crisp); back faces are
+//      culled (the snapshot is closed and counter-clockwise from outside),
+//   3. the electrode from ToolSnapshot (blade: rounded flat spatula of widthM and
+//      thickness 2 radiusM, its edge at tipM; sphere: a ball of radiusM centred at
+//      tipM; each on an insulated shaft ending at lengthM and a pencil handle;
+//      metallic grey, an orange glow at the tip while generatorOn),
+// into its own framebuffer object (multisampled when msaaSamples > 0, resolved
+// by a full-screen pass into a plain one) and reads it back; then 4. the overlay
+// (colour bar with ticks in deg C, simulated time) is drawn on the CPU with the
+// built-in 5x7 font (bitmap_font.h).
+// Looks: "temperature" colours T with a perceptual map (colormap.h) between
+// tMinC and tMaxC (clamped); "tissue" shows pink liver-like tissue, whitening with
+// coagulation, browning then charring with desiccation, darker on cut walls, with
+// a faint mottling (a hashed value-noise texture).
+// Lighting: a key light from the upper left of the camera, a weak fill light from
+// the right and ambient; Blinn-Phong specular with an infinite viewer; the
+// electrode casts a soft analytic shadow of the key light (two capsules,
+// evaluated per vertex). Shaders are specialised per look with the preprocessor
+// (llvmpipe pays for both sides of a branch). Everything is deterministic: the
+// same snapshot and options give the same bytes on the same driver, whatever
+// the backend (osmesa or egl) and LP_NUM_THREADS.
+// Units: positions in metres, temperatures in deg C, time in seconds.
+// Ownership: render() returns a reference to an internal buffer (RGB24, top row
+// first, width*height*3 bytes) that stays valid until the next render() call.
+// A Renderer is used from one thread (the GL context is current on it).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "sim/snapshot.h"
+
+namespace esim {
+
+constexpr double kCreaseAngleDeg = 65.0;
+
+struct RenderOptions {
+  int width = 1280, height = 720;          // frame size [px]
+  std::string look = "temperature";        // "temperature" or "tissue"
+  std::array<float, 3> eyeM{0.0f, -0.085f, 0.095f};    // camera position [m]
+  std::array<float, 3> targetM{0.0f, 0.0f, 0.006f};    // point looked at [m]
+  std::array<float, 3> up{0.0f, 0.0f, 1.0f};            // world up direction
+  float fovDeg = 35;                       // vertical field of view [deg]
+  float tMinC = 37, tMaxC = 120;           // colour map range [C]
+  std::string colormap = "inferno";        // "inferno" or "viridis"
+  bool showColorBar = true;                // temperature look only
+  bool showTime = true;                    // "t = 1.25 s" at the top left
+  std::string backend = "osmesa";          // "osmesa" or "egl"
+  int msaaSamples = 4;                     // 0 (off), 2 or 4
+  bool lighting = true;                    // false: flat albedo (tests, colour checks)
+  bool cullBackFaces = true;               // skip triangles seen from behind (closed
+                                           // surfaces; false for open ones)
+};
+
+// wall-clock split of the last render() call [ms]
+struct RenderTimings {
+  double prepareMs = 0;   // CPU: checks, normals, vertex buffer
+  double drawMs = 0;      // upload and GL drawing until glFinish (excluding prepare)
+  double readbackMs = 0;  // MSAA resolve, glReadPixels, row flip
+  double overlayMs = 0;   // colour bar and text on the CPU
+  double totalMs = 0;
+};
+
+// background colour (RGB24) at the given image row, top row 0 (the gradient)
+std::array<std::uint8_t, 3> backgroundColor(int row, int height);
+
+class Renderer {
+ public:
+  // creates the GL context and resources; throws esim::Error on bad options or
+  // when the backend cannot give an OpenGL 3.3 core context
+  explicit Renderer(const RenderOptions& options);
+  ~Renderer();
+  Renderer(const Renderer&) = delete;
+  Renderer& operator=(const Renderer&) = delete;
+
+  // draws the snapshot; returns RGB24, top row first (valid until the next call);
+  // throws esim::Error naming the field when the snapshot is inconsistent
+  const std::vector<std::uint8_t>& render(const SurfaceSnapshot& snapshot);
+
+  std::string glRenderer() const;   // GL_RENDERER, e.g. "llvmpipe (LLVM 15.0.6, 256 bits)"
+  std::string glVersion() const;    // GL_VERSION, e.g. "4.5 (Core Profile) Mesa 22.3.6"
+  std::string glPlatform() const;   // "OSMesa", "EGL surfaceless (...)"
+  const RenderOptions& options() const;
+  const RenderTimings& lastTimings() const;  // of the last render() call
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// checks options (sizes, look, colour map, range, camera); throws esim::Error
+void validateRenderOptions(const RenderOptions& options);
+
+// checks the snapshot's array sizes, indices and finiteness; throws esim::Error
+void validateSnapshot(const SurfaceSnapshot& snapshot);
+
+}  // namespace esim

@@ -1,0 +1,309 @@
+// video_encoder.cpp - threaded libx264/MP4 encoder (see video_encoder.h).
+#include "render/video_encoder.h"
+
+extern "C" {
+#include <libavcodec/avcodec.h>
+#include <libavformat/avformat.h>
+#include <libavutil/log.h>
+#include <libavutil/opt.h>
+#include <libswscale/swscale.h>
+}
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+
+#include "sim/core_error.h"
+
+namespace esim {
+namespace {
+
+std::string avError(int code) {
+  char buf[AV_ERROR_MAX_STRING_SIZE] = {0};
+  av_strerror(code, buf, sizeof buf);
+  return buf;
+}
+
+std::int64_t nowNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+std::string version(const char* name, unsigned v) {
+  return std::string(name) + " " + std::to_string(AV_VERSION_MAJOR(v)) + "." +
+         std::to_string(AV_VERSION_MINOR(v)) + "." + std::to_string(AV_VERSION_MICRO(v));
+}
+
+}  // namespace
+
+struct VideoEncoder::Av {
+  AVFormatContext* fmt = nullptr;
+  AVCodecContext* codec = nullptr;
+  AVStream* stream = nullptr;
+  SwsContext* sws = nullptr;
+  AVFrame* frame = nullptr;
+  AVPacket* packet = nullptr;
+  std::int64_t nextPts = 0;
+  bool headerWritten = false;
+
+  ~Av() {
+    sws_freeContext(sws);
+    av_frame_free(&frame);
+    av_packet_free(&packet);
+    avcodec_free_context(&codec);
+    if (fmt) {
+      if (fmt->pb) avio_closep(&fmt->pb);
+      avformat_free_context(fmt);
+    }
+  }
+};
+
+VideoEncoder::VideoEncoder() = default;
+
+VideoEncoder::~VideoEncoder() {
+  if (!isOpen()) return;
+  try {
+    close();
+  } catch (const std::exception& e) {
+    std::cerr << "esim: video " << opt_.path << " could not be finished: " << e.what() << "\n";
+  }
+}
+
+std::string VideoEncoder::libraryVersions() {
+  return version("libavcodec", avcodec_version()) + ", " +
+         version("libavformat", avformat_version()) + ", " +
+         version("libswscale", swscale_version());
+}
+
+void VideoEncoder::open(const Options& o) {
+  ESIM_VERIFY(!isOpen(), "video: open() called on an encoder that is already open");
+  ESIM_VERIFY(!o.path.empty(), "video.path: empty output path");
+  ESIM_VERIFY(o.width >= 16 && o.height >= 16 && o.width % 2 == 0 && o.height % 2 == 0,
+              "video.width/height: " + std::to_string(o.width) + "x" + std::to_string(o.height) +
+                  ", expected even sizes >= 16 (yuv420p halves the chroma)");
+  ESIM_VERIFY(o.fps >= 1 && o.fps <= 240,
+              "video.fps: " + std::to_string(o.fps) + ", expected 1..240");
+  ESIM_VERIFY(o.crf >= 0 && o.crf <= 51, "video.crf: " + std::to_string(o.crf) + ", expected 0..51");
+  ESIM_VERIFY(o.queueCapacity >= 1, "video.queue_capacity: must be at least 1");
+  opt_ = o;
+  // libx264 and the muxer log every file at "info" level; keep stderr for warnings
+  // unless the application chose a level itself
+  if (av_log_get_level() == AV_LOG_INFO) av_log_set_level(AV_LOG_WARNING);
+  av_ = std::make_unique<Av>();
+  Av& a = *av_;
+  codecName_.clear();
+  notes_.clear();
+  encodeNs_ = convertNs_ = pushWaitNs_ = 0;
+  framesEncoded_ = 0;
+  closing_ = false;
+  error_ = nullptr;
+  queue_.clear();
+
+  // 1. encoder, with the documented fallback chain
+  const AVCodec* codec = avcodec_find_encoder_by_name(o.codec.c_str());
+  if (!codec) {
+    const std::string missing = "video: encoder '" + o.codec + "' is not available in this FFmpeg "
+                                "build (libavcodec " + std::to_string(LIBAVCODEC_VERSION_MAJOR) + ")";
+    ESIM_VERIFY(o.allowFallback, missing + "; install an FFmpeg with " + o.codec +
+                                     " (Debian: libavcodec59 with libx264) or allow the fallback");
+    for (const char* name : {"libopenh264", "mpeg4"}) {
+      if ((codec = avcodec_find_encoder_by_name(name)) != nullptr) break;
+    }
+    ESIM_VERIFY(codec, missing + ", and neither libopenh264 nor mpeg4 is available");
+    notes_ = missing + "; falling back to '" + codec->name + "'" +
+             (std::string(codec->name) == "mpeg4" ? " (MPEG-4 Part 2, not H.264)" : "");
+    std::cerr << "esim: warning: " << notes_ << "\n";
+  }
+  codecName_ = codec->name;
+  a.codec = avcodec_alloc_context3(codec);
+  ESIM_VERIFY(a.codec, "video: out of memory allocating the codec context");
+  AVCodecContext* c = a.codec;
+  c->width = o.width;
+  c->height = o.height;
+  c->pix_fmt = AV_PIX_FMT_YUV420P;
+  c->time_base = AVRational{1, o.fps};
+  c->framerate = AVRational{o.fps, 1};
+  c->sample_aspect_ratio = AVRational{1, 1};
+  c->color_primaries = AVCOL_PRI_BT709;
+  c->color_trc = AVCOL_TRC_BT709;
+  c->colorspace = AVCOL_SPC_BT709;
+  c->color_range = AVCOL_RANGE_MPEG;
+  c->gop_size = 2 * o.fps;
+  c->thread_count = o.reproducible ? 1 : 0;
+  if (o.reproducible) c->flags |= AV_CODEC_FLAG_BITEXACT;
+  if (codecName_ == "libx264") {
+    av_opt_set(c->priv_data, "preset", o.preset.c_str(), 0);
+    av_opt_set_double(c->priv_data, "crf", o.crf, 0);
+  } else if (codecName_ == "libopenh264") {
+    c->bit_rate = static_cast<std::int64_t>(o.width) * o.height * o.fps / 8;  // ~0.125 bit/px
+  } else {  // mpeg4 and others: constant quantiser from crf (crf 20 -> q 3)
+    c->flags |= AV_CODEC_FLAG_QSCALE;
+    c->global_quality = FF_QP2LAMBDA * std::clamp(o.crf / 6, 2, 31);
+  }
+
+  // 2. container on the temporary name
+  tmpPath_ = o.path + ".partial";
+  int rc = avformat_alloc_output_context2(&a.fmt, nullptr, "mp4", tmpPath_.c_str());
+  ESIM_VERIFY(rc >= 0 && a.fmt, "video: cannot create an MP4 muxer: " + avError(rc));
+  if (o.reproducible) a.fmt->flags |= AVFMT_FLAG_BITEXACT;
+  if (a.fmt->oformat->flags & AVFMT_GLOBALHEADER) c->flags |= AV_CODEC_FLAG_GLOBAL_HEADER;
+  rc = avcodec_open2(c, codec, nullptr);
+  ESIM_VERIFY(rc >= 0, "video: cannot open encoder '" + codecName_ + "' (preset '" + o.preset +
+                           "', crf " + std::to_string(o.crf) + "): " + avError(rc));
+  a.stream = avformat_new_stream(a.fmt, nullptr);
+  ESIM_VERIFY(a.stream, "video: cannot add a stream to the MP4 muxer");
+  a.stream->time_base = c->time_base;
+  a.stream->avg_frame_rate = c->framerate;
+  rc = avcodec_parameters_from_context(a.stream->codecpar, c);
+  ESIM_VERIFY(rc >= 0, "video: codec parameters: " + avError(rc));
+  rc = avio_open(&a.fmt->pb, tmpPath_.c_str(), AVIO_FLAG_WRITE);
+  ESIM_VERIFY(rc >= 0, "video.path: cannot open '" + tmpPath_ + "' for writing: " + avError(rc));
+  AVDictionary* muxOpts = nullptr;
+  av_dict_set(&muxOpts, "movflags", "+faststart", 0);
+  rc = avformat_write_header(a.fmt, &muxOpts);
+  av_dict_free(&muxOpts);
+  if (rc < 0) {
+    av_.reset();
+    std::error_code ec;
+    std::filesystem::remove(tmpPath_, ec);
+    throw Error("video: cannot write the MP4 header to '" + tmpPath_ + "': " + avError(rc));
+  }
+  a.headerWritten = true;
+
+  // 3. colour conversion RGB24 (full range) -> YUV420P (limited), BT.709 matrix
+  a.sws = sws_getContext(o.width, o.height, AV_PIX_FMT_RGB24, o.width, o.height,
+                         AV_PIX_FMT_YUV420P,
+                         SWS_BILINEAR | SWS_ACCURATE_RND | (o.reproducible ? SWS_BITEXACT : 0),
+                         nullptr, nullptr, nullptr);
+  ESIM_VERIFY(a.sws, "video: cannot create the RGB -> YUV420P converter");
+  const int* bt709 = sws_getCoefficients(SWS_CS_ITU709);
+  sws_setColorspaceDetails(a.sws, bt709, 1, bt709, 0, 0, 1 << 16, 1 << 16);
+  a.frame = av_frame_alloc();
+  a.packet = av_packet_alloc();
+  ESIM_VERIFY(a.frame && a.packet, "video: out of memory allocating frames");
+  a.frame->format = AV_PIX_FMT_YUV420P;
+  a.frame->width = o.width;
+  a.frame->height = o.height;
+  a.frame->color_primaries = AVCOL_PRI_BT709;
+  a.frame->color_trc = AVCOL_TRC_BT709;
+  a.frame->colorspace = AVCOL_SPC_BT709;
+  a.frame->color_range = AVCOL_RANGE_MPEG;
+  rc = av_frame_get_buffer(a.frame, 0);
+  ESIM_VERIFY(rc >= 0, "video: cannot allocate a frame: " + avError(rc));
+
+  // 4. the encoder thread
+  thread_ = std::thread([this] { run(); });
+}
+
+void VideoEncoder::push(std::vector<std::uint8_t> rgb) {
+  ESIM_VERIFY(isOpen(), "video: push() on an encoder that is not open");
+  ESIM_VERIFY(rgb.size() == static_cast<size_t>(opt_.width) * opt_.height * 3,
+              "video: frame has " + std::to_string(rgb.size()) + " bytes, expected " +
+                  std::to_string(opt_.width) + "x" + std::to_string(opt_.height) + "x3 (RGB24)");
+  std::unique_lock<std::mutex> lock(mutex_);
+  const std::int64_t t0 = nowNs();
+  notFull_.wait(lock, [&] {
+    return error_ || static_cast<int>(queue_.size()) < opt_.queueCapacity;
+  });
+  pushWaitNs_ += nowNs() - t0;
+  if (error_) {
+    lock.unlock();
+    close();  // joins, removes the partial file and rethrows
+    return;
+  }
+  queue_.push_back(std::move(rgb));
+  notEmpty_.notify_one();
+}
+
+void VideoEncoder::close() {
+  if (!isOpen()) return;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    closing_ = true;
+  }
+  notEmpty_.notify_one();
+  thread_.join();
+  std::exception_ptr err = error_;
+  if (!err) {
+    // the trailer was written by the thread; close the file and publish it
+    avio_closep(&av_->fmt->pb);
+    std::error_code ec;
+    std::filesystem::rename(tmpPath_, opt_.path, ec);
+    if (ec) err = std::make_exception_ptr(Error("video.path: cannot rename '" + tmpPath_ +
+                                                "' to '" + opt_.path + "': " + ec.message()));
+  }
+  av_.reset();
+  if (err) {
+    std::error_code ec;
+    std::filesystem::remove(tmpPath_, ec);
+    std::rethrow_exception(err);
+  }
+}
+
+void VideoEncoder::fail() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  error_ = std::current_exception();
+  queue_.clear();
+  notFull_.notify_all();
+}
+
+// sends the current frame (or the flush) and writes all packets that come out
+void VideoEncoder::encodeFrame(bool flush) {
+  Av& a = *av_;
+  int rc = avcodec_send_frame(a.codec, flush ? nullptr : a.frame);
+  ESIM_VERIFY(rc >= 0, "video: encoder '" + codecName_ + "' rejected a frame: " + avError(rc));
+  while (true) {
+    rc = avcodec_receive_packet(a.codec, a.packet);
+    if (rc == AVERROR(EAGAIN) || rc == AVERROR_EOF) break;
+    ESIM_VERIFY(rc >= 0, "video: encoding failed: " + avError(rc));
+    if (a.packet->duration <= 0) a.packet->duration = 1;  // one frame, in 1/fps
+    av_packet_rescale_ts(a.packet, a.codec->time_base, a.stream->time_base);
+    a.packet->stream_index = a.stream->index;
+    rc = av_interleaved_write_frame(a.fmt, a.packet);
+    ESIM_VERIFY(rc >= 0, "video: writing '" + tmpPath_ + "' failed: " + avError(rc));
+  }
+}
+
+void VideoEncoder::run() {
+  Av& a = *av_;
+  try {
+    while (true) {
+      std::vector<std::uint8_t> rgb;
+      {
+        std::unique_lock<std::mutex> lock(mutex_);
+        notEmpty_.wait(lock, [&] { return closing_ || !queue_.empty(); });
+        if (queue_.empty()) break;  // closing and drained
+        rgb = std::move(queue_.front());
+        queue_.pop_front();
+        notFull_.notify_one();
+      }
+      // colour conversion
+      const std::int64_t t0 = nowNs();
+      int rc = av_frame_make_writable(a.frame);
+      ESIM_VERIFY(rc >= 0, "video: frame not writable: " + avError(rc));
+      const std::uint8_t* src[4] = {rgb.data(), nullptr, nullptr, nullptr};
+      const int srcStride[4] = {opt_.width * 3, 0, 0, 0};
+      sws_scale(a.sws, src, srcStride, 0, opt_.height, a.frame->data, a.frame->linesize);
+      a.frame->pts = a.nextPts++;
+      a.frame->pkt_duration = 1;
+      const std::int64_t t1 = nowNs();
+      convertNs_ += t1 - t0;
+      // encode and mux
+      encodeFrame(false);
+      encodeNs_ += nowNs() - t1;
+      ++framesEncoded_;
+    }
+    const std::int64_t t0 = nowNs();
+    encodeFrame(true);
+    const int rc = av_write_trailer(a.fmt);
+    ESIM_VERIFY(rc >= 0, "video: finishing '" + tmpPath_ + "' failed: " + avError(rc));
+    encodeNs_ += nowNs() - t0;
+  } catch (...) {
+    fail();
+  }
+}
+
+}  // namespace esim

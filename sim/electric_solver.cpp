@@ -1,0 +1,272 @@
+// electric_solver.cpp - strategy names, factory and the parts the strategies share
+// (node classes, reduced matrices, the CHOLMOD factorization). See electric_solver.h.
+#include "sim/electric_solver.h"
+
+#include <cblas.h>
+#include <cholmod.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "sim/core_error.h"
+
+namespace esim {
+
+ElectricSolver::~ElectricSolver() = default;
+
+// ---- names ----
+
+ElectricStrategy parseElectricStrategy(const std::string& name) {
+  if (name == "refactor") return ElectricStrategy::Refactor;
+  if (name == "dense-inverse") return ElectricStrategy::DenseInverse;
+  if (name == "capacitance") return ElectricStrategy::Capacitance;
+  if (name == "pcg") return ElectricStrategy::Pcg;
+  throw Error("electric solver: unknown strategy '" + name +
+              "'; valid names: refactor, dense-inverse, capacitance, pcg");
+}
+
+const char* electricStrategyName(ElectricStrategy strategy) {
+  switch (strategy) {
+    case ElectricStrategy::Refactor: return "refactor";
+    case ElectricStrategy::DenseInverse: return "dense-inverse";
+    case ElectricStrategy::Capacitance: return "capacitance";
+    case ElectricStrategy::Pcg: return "pcg";
+  }
+  return "?";
+}
+
+std::unique_ptr<ElectricSolver> makeElectricSolver(const ElectricSolverOptions& options) {
+  ESIM_VERIFY(options.threads >= 1, "electric solver: threads must be >= 1");
+  ESIM_VERIFY(options.pcgTolerance > 0 && std::isfinite(options.pcgTolerance),
+              "electric solver: pcgTolerance must be a positive number");
+  ESIM_VERIFY(options.pcgMaxIterations >= 1, "electric solver: pcgMaxIterations must be >= 1");
+  switch (options.strategy) {
+    case ElectricStrategy::Refactor: return electric_detail::makeRefactorSolver(options);
+    case ElectricStrategy::DenseInverse: return electric_detail::makeDenseInverseSolver(options);
+    case ElectricStrategy::Capacitance: return electric_detail::makeCapacitanceSolver(options);
+    case ElectricStrategy::Pcg: return electric_detail::makePcgSolver(options);
+  }
+  throw Error("electric solver: bad strategy value");
+}
+
+void setBlasThreads(int threads) { openblas_set_num_threads(std::max(1, threads)); }
+
+namespace electric_detail {
+
+// ---- node classes ----
+
+void NodeClasses::build(const SparseMatrix& K, const std::vector<int>& grounded) {
+  ESIM_VERIFY(K.rows() == K.cols(), "electric solver: the stiffness matrix must be square");
+  n = static_cast<int>(K.rows());
+  for (Eigen::Index k = 0; k < K.nonZeros(); ++k)
+    ESIM_VERIFY(std::isfinite(K.valuePtr()[k]),
+                "electric solver: the stiffness matrix has a non-finite entry (a NaN or "
+                "infinite conductivity?)");
+  ESIM_VERIFY(!grounded.empty(),
+              "electric solver: no grounded node (the return electrode touches no mesh node); "
+              "the potential would be undefined");
+  isGrounded.assign(n, 0);
+  for (size_t k = 0; k < grounded.size(); ++k) {
+    const int g = grounded[k];
+    ESIM_VERIFY(g >= 0 && g < n, "electric solver: grounded node id " + std::to_string(g) +
+                                     " out of range [0, " + std::to_string(n) + ")");
+    ESIM_VERIFY(k == 0 || grounded[k - 1] < g,
+                "electric solver: grounded node ids must be sorted and unique");
+    isGrounded[g] = 1;
+  }
+  // breadth-first search from the grounded nodes over the nonzeros of K
+  std::vector<std::uint8_t> reached(n, 0);
+  std::vector<int> queue(grounded.begin(), grounded.end());
+  for (int g : grounded) reached[g] = 1;
+  for (size_t head = 0; head < queue.size(); ++head) {
+    const int j = queue[head];
+    for (SparseMatrix::InnerIterator it(K, j); it; ++it) {
+      const int i = static_cast<int>(it.row());
+      if (!reached[i] && it.value() != 0.0) {
+        reached[i] = 1;
+        queue.push_back(i);
+      }
+    }
+  }
+  freeNodes.clear();
+  freeIndex.assign(n, -1);
+  for (int i = 0; i < n; ++i) {
+    if (reached[i] && !isGrounded[i]) {
+      freeIndex[i] = static_cast<int>(freeNodes.size());
+      freeNodes.push_back(i);
+    }
+  }
+}
+
+std::vector<int> NodeClasses::contactFreeIndices(const std::vector<int>& contact) const {
+  std::vector<int> out;
+  out.reserve(contact.size());
+  for (size_t k = 0; k < contact.size(); ++k) {
+    const int c = contact[k];
+    ESIM_VERIFY(c >= 0 && c < n, "electric solver: contact node id " + std::to_string(c) +
+                                     " out of range [0, " + std::to_string(n) + ")");
+    ESIM_VERIFY(k == 0 || contact[k - 1] < c,
+                "electric solver: contact node ids must be sorted and unique");
+    ESIM_VERIFY(!isGrounded[c],
+                "electric solver: short circuit: the tool touches node " + std::to_string(c) +
+                    ", which belongs to the return electrode (grounded)");
+    if (freeIndex[c] >= 0) out.push_back(freeIndex[c]);
+  }
+  return out;
+}
+
+SparseMatrix restrictToFree(const SparseMatrix& K, const NodeClasses& classes) {
+  const int nf = classes.numFree();
+  SparseMatrix A(nf, nf);
+  std::vector<int> counts(nf, 0);
+  for (int jf = 0; jf < nf; ++jf) {
+    for (SparseMatrix::InnerIterator it(K, classes.freeNodes[jf]); it; ++it)
+      if (classes.freeIndex[it.row()] >= 0) ++counts[jf];
+  }
+  A.reserve(counts);
+  for (int jf = 0; jf < nf; ++jf) {
+    for (SparseMatrix::InnerIterator it(K, classes.freeNodes[jf]); it; ++it) {
+      const int i = classes.freeIndex[it.row()];
+      if (i >= 0) A.insert(i, jf) = it.value();  // rows ascend: freeIndex is monotone
+    }
+  }
+  A.makeCompressed();
+  return A;
+}
+
+void scatterPotential(const NodeClasses& classes, const Eigen::VectorXd& freeValues,
+                      const std::vector<int>& contactFree, double voltageV,
+                      Eigen::VectorXd& potential) {
+  potential.setZero(classes.n);
+  for (int i = 0; i < classes.numFree(); ++i) potential[classes.freeNodes[i]] = freeValues[i];
+  for (int c : contactFree) potential[classes.freeNodes[c]] = voltageV;
+}
+
+void dirichletSystem(const SparseMatrix& Kff, const std::vector<int>& contactFree,
+                     double voltageV, SparseMatrix& A, Eigen::VectorXd& b) {
+  const int nf = static_cast<int>(Kff.rows());
+  std::vector<std::uint8_t> isContact(nf, 0);
+  for (int c : contactFree) isContact[c] = 1;
+  b.setZero(nf);
+  const int* outer = Kff.outerIndexPtr();
+  const int* inner = Kff.innerIndexPtr();
+  const double* kv = Kff.valuePtr();
+  double* av = A.valuePtr();
+  for (int j = 0; j < nf; ++j) {
+    for (int p = outer[j]; p < outer[j + 1]; ++p) {
+      const int i = inner[p];
+      if (isContact[j] || isContact[i]) {
+        av[p] = (i == j) ? 1.0 : 0.0;
+        if (isContact[j] && !isContact[i]) b[i] -= kv[p] * voltageV;
+      } else {
+        av[p] = kv[p];
+      }
+    }
+  }
+  for (int c : contactFree) b[c] = voltageV;
+}
+
+// ---- CHOLMOD ----
+
+struct CholmodFactor::Impl {
+  cholmod_common common;
+  cholmod_factor* factor = nullptr;
+  cholmod_dense* x = nullptr;
+  cholmod_dense* y = nullptr;
+  cholmod_dense* e = nullptr;
+};
+
+namespace {
+cholmod_sparse viewLower(const SparseMatrix& A) {
+  cholmod_sparse s{};
+  s.nrow = A.rows();
+  s.ncol = A.cols();
+  s.nzmax = A.nonZeros();
+  s.p = const_cast<int*>(A.outerIndexPtr());
+  s.i = const_cast<int*>(A.innerIndexPtr());
+  s.x = const_cast<double*>(A.valuePtr());
+  s.stype = -1;  // symmetric, lower triangle used
+  s.itype = CHOLMOD_INT;
+  s.xtype = CHOLMOD_REAL;
+  s.dtype = CHOLMOD_DOUBLE;
+  s.sorted = 1;
+  s.packed = 1;
+  return s;
+}
+}  // namespace
+
+CholmodFactor::CholmodFactor() : impl_(new Impl) {
+  cholmod_start(&impl_->common);
+  impl_->common.supernodal = CHOLMOD_SUPERNODAL;
+  impl_->common.print = 0;
+  impl_->common.error_handler = nullptr;
+}
+
+CholmodFactor::~CholmodFactor() {
+  cholmod_common* c = &impl_->common;
+  if (impl_->factor) cholmod_free_factor(&impl_->factor, c);
+  if (impl_->x) cholmod_free_dense(&impl_->x, c);
+  if (impl_->y) cholmod_free_dense(&impl_->y, c);
+  if (impl_->e) cholmod_free_dense(&impl_->e, c);
+  cholmod_finish(c);
+  delete impl_;
+}
+
+void CholmodFactor::analyze(const SparseMatrix& A) {
+  ESIM_VERIFY(A.isCompressed(), "CholmodFactor: matrix must be compressed");
+  cholmod_common* c = &impl_->common;
+  if (impl_->factor) cholmod_free_factor(&impl_->factor, c);
+  factorized_ = false;
+  cholmod_sparse s = viewLower(A);
+  impl_->factor = cholmod_analyze(&s, c);
+  ESIM_VERIFY(impl_->factor != nullptr, "electric solver: CHOLMOD symbolic analysis failed "
+                                        "(out of memory?)");
+}
+
+void CholmodFactor::factorize(const SparseMatrix& A, const char* what) {
+  ESIM_VERIFY(impl_->factor != nullptr, "CholmodFactor: analyze before factorize");
+  cholmod_common* c = &impl_->common;
+  cholmod_sparse s = viewLower(A);
+  const int ok = cholmod_factorize(&s, impl_->factor, c);
+  factorized_ = ok && c->status == CHOLMOD_OK && impl_->factor->minor == impl_->factor->n;
+  ESIM_VERIFY(factorized_, std::string(what) +
+                               ": the matrix is not positive definite (CHOLMOD status " +
+                               std::to_string(c->status) + ", column " +
+                               std::to_string(impl_->factor->minor) +
+                               "); a conductivity <= 0 or a NaN in K?");
+}
+
+void CholmodFactor::solve(const double* b, double* x, int ncols) {
+  ESIM_VERIFY(factorized_, "CholmodFactor: solve before a successful factorization");
+  cholmod_common* c = &impl_->common;
+  const int n = size();
+  cholmod_dense bd{};
+  bd.nrow = n;
+  bd.ncol = ncols;
+  bd.nzmax = static_cast<size_t>(n) * ncols;
+  bd.d = n;
+  bd.x = const_cast<double*>(b);
+  bd.xtype = CHOLMOD_REAL;
+  bd.dtype = CHOLMOD_DOUBLE;
+  const int ok = cholmod_solve2(CHOLMOD_A, impl_->factor, &bd, nullptr, &impl_->x, nullptr,
+                                &impl_->y, &impl_->e, c);
+  ESIM_VERIFY(ok, "electric solver: CHOLMOD solve failed (out of memory?)");
+  std::copy_n(static_cast<const double*>(impl_->x->x), static_cast<size_t>(n) * ncols, x);
+}
+
+int CholmodFactor::size() const {
+  return impl_->factor ? static_cast<int>(impl_->factor->n) : 0;
+}
+
+double CholmodFactor::memoryBytes() const {
+  const cholmod_factor* f = impl_->factor;
+  if (!f) return 0;
+  double bytes = 8.0 * static_cast<double>(f->xsize) + 4.0 * static_cast<double>(f->n) * 3;
+  if (f->is_super) bytes += 4.0 * static_cast<double>(f->ssize + 4 * f->nsuper);
+  else bytes += 4.0 * static_cast<double>(f->nzmax + 4 * f->n);
+  return bytes;
+}
+
+}  // namespace electric_detail
+}  // namespace esim

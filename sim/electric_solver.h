@@ -1,0 +1,195 @@
+// electric_solver.h - the electric potential with a moving tool: one interface,
+// four strategies, the same discrete answer.
+//
+// Equation: P1 FEM for div(sigma grad V) = 0, i.e. K u = 0 at the free nodes,
+// with u = 0 [V] at the grounded nodes (return electrode) and u = voltageV at the
+// contact nodes (tool). K is the n x n stiffness of the whole mesh (conductivity
+// [S/m] inside, entries [S]). Insulated (natural) boundary elsewhere.
+//
+// Node classes (fixed by setMatrix):
+//   grounded  - the ids passed to setMatrix, held at 0 V;
+//   floating  - nodes with no path to a grounded node through the nonzeros of K
+//               (nodes with no alive element, islands cut off by removal): their
+//               potential is undefined, so they are held at 0 V, carry no
+//               current and are never part of a factorized matrix; a contact on a
+//               floating node is ignored (it touches an isolated island);
+//   free (f)  - all others. K_ff is SPD.
+// Per frame the contact nodes c (subset of f) are held at voltageV, the others
+// o = f \ c are solved.
+//
+// Strategies (and what setMatrix costs, i.e. when K changes: conductivity
+// feedback, removed elements):
+//   refactor      - the conventional method (paper eq. 6-7): K_ff with the
+//                   contact rows/columns replaced by the identity (same pattern
+//                   for every contact set, so the symbolic analysis is done once
+//                   per setMatrix) is factorized numerically (CHOLMOD supernodal)
+//                   again whenever the contact set changes. setMatrix: a new
+//                   symbolic analysis; the next solve refactors.
+//   dense-inverse - the paper's method (eq. 8-13): L = K_ff^-1 precomputed
+//                   (n_f^2 * 8 bytes, refused above denseMemoryLimitBytes);
+//                   per frame f_c = L_cc^-1 u_c, u_o = L_oc f_c (BLAS).
+//                   setMatrix: the whole inverse is recomputed.
+//   capacitance   - one CHOLMOD factorization of K_ff; per contact set the
+//                   columns z_i = K_ff^-1 e_i of the contact nodes (cached across
+//                   frames: a new contact node costs one solve, or one block
+//                   solve for its patch of neighbouring surface nodes when
+//                   setContactCandidates was given; least recently used columns
+//                   are evicted above cacheMemoryLimitBytes), the small system
+//                   Z_cc f = u_c, then u = Z f. setMatrix: a new factorization
+//                   and the cache is emptied.
+//   pcg           - conjugate gradients on the reduced system, warm-started from
+//                   the input potential, Jacobi or incomplete-Cholesky
+//                   preconditioner, stopping at ||r|| <= pcgTolerance ||b||.
+//                   setMatrix: only the matrix is replaced (the warm start stays).
+// All strategies run with explicit thread counts (OpenBLAS set to `threads`,
+// Eigen single-threaded) and are deterministic for a given input.
+// Ownership: a solver owns copies of what it needs; K is not referenced after
+// setMatrix returns.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <exception>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "sim/fem_p1.h"
+
+namespace esim {
+
+enum class ElectricStrategy { Refactor, DenseInverse, Capacitance, Pcg };
+
+enum class PcgPreconditioner { Jacobi, IncompleteCholesky };
+
+// "refactor", "dense-inverse", "capacitance", "pcg"; throws Error listing the valid names
+ElectricStrategy parseElectricStrategy(const std::string& name);
+
+// the name parseElectricStrategy accepts
+const char* electricStrategyName(ElectricStrategy strategy);
+
+struct ElectricSolverOptions {
+  ElectricStrategy strategy = ElectricStrategy::Capacitance;
+  double pcgTolerance = 1e-8;           // relative residual ||b - A x|| / ||b||
+  int pcgMaxIterations = 5000;
+  PcgPreconditioner pcgPreconditioner = PcgPreconditioner::Jacobi;  // or IncompleteCholesky
+  double denseMemoryLimitBytes = 2e9;   // dense-inverse refuses above this
+  double cacheMemoryLimitBytes = 1e9;   // capacitance column cache cap (LRU eviction)
+  int capacitancePatchNodes = 16;       // capacitance: candidates solved together
+  int threads = 1;                      // BLAS threads (CHOLMOD supernodal uses BLAS)
+};
+
+struct ElectricSolveStats {
+  bool refactored = false;  // refactor: the matrix was factorized in this solve
+  int newColumns = 0;       // capacitance: columns computed in this solve
+  int iterations = 0;       // pcg: iterations
+  double residual = 0;      // pcg: relative residual reached
+};
+
+class ElectricSolver {
+ public:
+  virtual ~ElectricSolver();
+  // K: n x n stiffness of the whole mesh (conductivity inside); grounded: sorted ids
+  // held at 0 V (at least one). Pre-processing. Throws Error on bad input.
+  virtual void setMatrix(const SparseMatrix& K, const std::vector<int>& grounded) = 0;
+  // contact: sorted ids held at voltageV (disjoint from grounded, else Error "short
+  // circuit"); potential: size n, in: warm start (pcg), out: the solution.
+  // Empty contact -> potential 0 everywhere.
+  virtual ElectricSolveStats solve(const std::vector<int>& contact, double voltageV,
+                                   Eigen::VectorXd& potential) = 0;
+  // precompute what solves for these contact nodes need (capacitance: their columns;
+  // others: nothing). Lets a caller spend idle time on nodes the tool will touch.
+  virtual void prefetch(const std::vector<int>& /*nodes*/) {}
+  // the nodes the tool can touch (the surface nodes); capacitance groups them into
+  // patches solved together (see electric_capacitance.cpp); others ignore it. Kept
+  // across setMatrix; call again after the surface changes.
+  virtual void setContactCandidates(const std::vector<int>& /*nodes*/) {}
+  // bytes held by factorizations, inverses, caches
+  virtual double memoryBytes() const = 0;
+  virtual const char* name() const = 0;
+};
+
+std::unique_ptr<ElectricSolver> makeElectricSolver(const ElectricSolverOptions& options);
+
+// sets the OpenBLAS thread count (CHOLMOD supernodal and dense BLAS calls)
+void setBlasThreads(int threads);
+
+// ---- shared internals of the strategies (sim/electric_solver.cpp) ----
+namespace electric_detail {
+
+// the node classes of one (K, grounded) pair, see the header comment
+struct NodeClasses {
+  int n = 0;
+  std::vector<int> freeNodes;           // sorted node ids of the free nodes
+  std::vector<int> freeIndex;           // node -> index in freeNodes, -1 if not free
+  std::vector<std::uint8_t> isGrounded;  // per node
+
+  // throws Error for a non-square K, empty/unsorted/out-of-range grounded
+  void build(const SparseMatrix& K, const std::vector<int>& grounded);
+  // checks contact (sorted, in range, not grounded) and returns the free indices of
+  // its free nodes (floating ones dropped), ascending
+  std::vector<int> contactFreeIndices(const std::vector<int>& contact) const;
+  int numFree() const { return static_cast<int>(freeNodes.size()); }
+};
+
+// Forgets the node classes if setMatrix throws, so that a failed setMatrix leaves the
+// solver unusable ("setMatrix must be called before solve") instead of half-built.
+class ResetOnThrow {
+ public:
+  explicit ResetOnThrow(NodeClasses& classes)
+      : classes_(classes), exceptions_(std::uncaught_exceptions()) {}
+  ~ResetOnThrow() {
+    if (std::uncaught_exceptions() > exceptions_) classes_ = NodeClasses{};
+  }
+
+ private:
+  NodeClasses& classes_;
+  int exceptions_;
+};
+
+// K restricted to the free nodes (both triangles), compressed
+SparseMatrix restrictToFree(const SparseMatrix& K, const NodeClasses& classes);
+
+// scatters free values into a full-size potential (fixed and floating nodes: 0,
+// contact: voltage)
+void scatterPotential(const NodeClasses& classes, const Eigen::VectorXd& freeValues,
+                      const std::vector<int>& contactFree, double voltageV,
+                      Eigen::VectorXd& potential);
+
+// A_ff with the rows/columns of `contactFree` replaced by the identity (pattern kept,
+// values rewritten in place from Kff), and the right-hand side b (b_c = V, b_o =
+// -K_oc V). `A` must have Kff's pattern.
+void dirichletSystem(const SparseMatrix& Kff, const std::vector<int>& contactFree,
+                     double voltageV, SparseMatrix& A, Eigen::VectorXd& b);
+
+// RAII supernodal LL^T factorization with CHOLMOD (int indices, double)
+class CholmodFactor {
+ public:
+  CholmodFactor();
+  ~CholmodFactor();
+  CholmodFactor(const CholmodFactor&) = delete;
+  CholmodFactor& operator=(const CholmodFactor&) = delete;
+  // symbolic analysis (fill-reducing ordering) of a symmetric matrix (lower part used)
+  void analyze(const SparseMatrix& A);
+  // numeric factorization; throws Error naming `what` if A is not positive definite
+  void factorize(const SparseMatrix& A, const char* what);
+  // x = A^-1 b for `ncols` column-major right-hand sides of length n
+  void solve(const double* b, double* x, int ncols = 1);
+  int size() const;
+  double memoryBytes() const;
+  bool factorized() const { return factorized_; }
+
+ private:
+  struct Impl;
+  Impl* impl_;
+  bool factorized_ = false;
+};
+
+// the strategies (one file each)
+std::unique_ptr<ElectricSolver> makeRefactorSolver(const ElectricSolverOptions& options);
+std::unique_ptr<ElectricSolver> makeDenseInverseSolver(const ElectricSolverOptions& options);
+std::unique_ptr<ElectricSolver> makeCapacitanceSolver(const ElectricSolverOptions& options);
+std::unique_ptr<ElectricSolver> makePcgSolver(const ElectricSolverOptions& options);
+
+}  // namespace electric_detail
+}  // namespace esim

@@ -1,0 +1,281 @@
+// mesh_import.cpp - assimp surface reading, surface checks, Mesh_3 front end.
+//
+// 1. readSurface: assimp -> concatenated triangles, vertices welded by exact position.
+// 2. checkSurface: topology checks in plain C++ (sorted edge lists), then the CGAL
+//    self-intersection test (mesh_cgal.cpp).
+// 3. tetrahedralize: option checks and a size guard, Mesh_3, validateMesh.
+#include "sim/io/mesh_import.h"
+
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+
+#include <algorithm>
+#include <assimp/Importer.hpp>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <sstream>
+
+#include "sim/core_error.h"
+#include "sim/io/mesh_cgal.h"
+
+namespace esim {
+namespace {
+
+std::string formatPoint(const Vec3& p) {
+  std::ostringstream s;
+  s.precision(6);
+  s << "(" << p.x() << ", " << p.y() << ", " << p.z() << ")";
+  return s.str();
+}
+
+std::string formatEdge(const SurfaceMesh& surface, int a, int b) {
+  return "the edge from " + formatPoint(surface.vertices[a]) + " to " +
+         formatPoint(surface.vertices[b]) + " m";
+}
+
+// one directed use of an undirected edge (lo < hi) by a triangle
+struct EdgeUse {
+  int lo, hi;
+  bool forward;  // the triangle runs lo -> hi
+  int triangle;
+  bool operator<(const EdgeUse& o) const {
+    return std::tie(lo, hi, triangle) < std::tie(o.lo, o.hi, o.triangle);
+  }
+};
+
+}  // namespace
+
+// ---- reading ----
+SurfaceMesh readSurface(const std::string& path, double scaleToMetres) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  ESIM_VERIFY(fs::exists(path, ec), path + ": file not found");
+  ESIM_VERIFY(fs::is_regular_file(path, ec),
+              path + ": cannot read surface mesh: not a regular file");
+  ESIM_VERIFY(std::isfinite(scaleToMetres) && scaleToMetres > 0,
+              path + ": scale to metres must be a positive number");
+
+  Assimp::Importer importer;
+  const unsigned flags = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
+                         aiProcess_PreTransformVertices | aiProcess_SortByPType;
+  const aiScene* scene = importer.ReadFile(path, flags);
+  ESIM_VERIFY(scene != nullptr,
+              path + ": cannot read surface mesh: " + std::string(importer.GetErrorString()));
+  ESIM_VERIFY(!(scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) && scene->mNumMeshes > 0,
+              path +
+                  ": cannot read surface mesh: the file holds no mesh (unsupported or "
+                  "damaged file?); expected OBJ, STL, PLY or glTF/GLB with triangles");
+
+  // concatenate all meshes; weld equal positions (STL and split OBJ groups repeat them)
+  SurfaceMesh surface;
+  std::map<std::array<double, 3>, int> idOfPosition;
+  for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+    const aiMesh* mesh = scene->mMeshes[m];
+    std::vector<int> ids(mesh->mNumVertices);
+    for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
+      const aiVector3D& p = mesh->mVertices[v];
+      const std::array<double, 3> key{p.x * scaleToMetres, p.y * scaleToMetres,
+                                      p.z * scaleToMetres};
+      ESIM_VERIFY(std::isfinite(key[0]) && std::isfinite(key[1]) && std::isfinite(key[2]),
+                  path + ": vertex " + std::to_string(v) + " of mesh " + std::to_string(m) +
+                      " has a non-finite coordinate");
+      auto [it, inserted] = idOfPosition.emplace(key, static_cast<int>(surface.vertices.size()));
+      if (inserted) surface.vertices.emplace_back(key[0], key[1], key[2]);
+      ids[v] = it->second;
+    }
+    for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+      const aiFace& face = mesh->mFaces[f];
+      if (face.mNumIndices != 3) continue;  // points and lines are not surface
+      surface.triangles.push_back(
+          {ids[face.mIndices[0]], ids[face.mIndices[1]], ids[face.mIndices[2]]});
+    }
+  }
+  ESIM_VERIFY(!surface.triangles.empty(),
+              path + ": surface mesh has no triangles (" + std::to_string(scene->mNumMeshes) +
+                  " meshes of points or lines only); expected a closed triangulated surface");
+  return surface;
+}
+
+double enclosedVolume(const SurfaceMesh& surface) {
+  double sixV = 0;
+  for (const Tri& t : surface.triangles) {
+    const Vec3& a = surface.vertices[t[0]];
+    sixV += a.dot(surface.vertices[t[1]].cross(surface.vertices[t[2]]));
+  }
+  return sixV / 6.0;
+}
+
+// ---- checks ----
+void checkSurface(const SurfaceMesh& surface, const std::string& source) {
+  const int nv = static_cast<int>(surface.vertices.size());
+  const int nt = static_cast<int>(surface.triangles.size());
+  ESIM_VERIFY(nt > 0, source + ": surface mesh has no triangles");
+
+  // 1. triangles: ids in range, three distinct vertices, non-zero area
+  for (int t = 0; t < nt; ++t) {
+    const Tri& tri = surface.triangles[t];
+    for (int v : tri) {
+      ESIM_VERIFY(v >= 0 && v < nv, source + ": triangle " + std::to_string(t) +
+                                        " refers to vertex " + std::to_string(v) + " of " +
+                                        std::to_string(nv));
+    }
+    const Vec3& a = surface.vertices[tri[0]];
+    const double area2 = (surface.vertices[tri[1]] - a).cross(surface.vertices[tri[2]] - a).norm();
+    ESIM_VERIFY(tri[0] != tri[1] && tri[1] != tri[2] && tri[0] != tri[2] && area2 > 0,
+                source + ": triangle " + std::to_string(t) + " at " + formatPoint(a) +
+                    " m is degenerate (zero area); expected a clean closed surface");
+  }
+
+  // 2. edges: each undirected edge used exactly twice, in opposite directions
+  std::vector<EdgeUse> uses;
+  uses.reserve(3 * nt);
+  for (int t = 0; t < nt; ++t) {
+    for (int k = 0; k < 3; ++k) {
+      const int a = surface.triangles[t][k], b = surface.triangles[t][(k + 1) % 3];
+      uses.push_back({std::min(a, b), std::max(a, b), a < b, t});
+    }
+  }
+  std::sort(uses.begin(), uses.end());
+  int boundary = 0, nonManifold = 0, flipped = 0;
+  std::string boundaryExample, nonManifoldExample, flippedExample;
+  for (size_t i = 0; i < uses.size();) {
+    size_t j = i;
+    while (j < uses.size() && uses[j].lo == uses[i].lo && uses[j].hi == uses[i].hi) ++j;
+    const int count = static_cast<int>(j - i);
+    const std::string where = formatEdge(surface, uses[i].lo, uses[i].hi);
+    if (count == 1) {
+      if (boundary++ == 0) boundaryExample = where;
+    } else if (count > 2) {
+      if (nonManifold++ == 0) {
+        nonManifoldExample = where + " (in " + std::to_string(count) + " triangles)";
+      }
+    } else if (uses[i].forward == uses[i + 1].forward) {
+      if (flipped++ == 0) {
+        flippedExample = where + " (triangles " + std::to_string(uses[i].triangle) + " and " +
+                         std::to_string(uses[i + 1].triangle) + ")";
+      }
+    }
+    i = j;
+  }
+  ESIM_VERIFY(boundary == 0, source + ": surface is not closed: " + std::to_string(boundary) +
+                                 " boundary edges (used by one triangle only), e.g. " +
+                                 boundaryExample + "; expected a watertight surface");
+  ESIM_VERIFY(nonManifold == 0,
+              source + ": surface is non-manifold: " + std::to_string(nonManifold) +
+                  " edges shared by more than two triangles, e.g. " + nonManifoldExample +
+                  "; expected every edge in exactly two triangles");
+  ESIM_VERIFY(flipped == 0,
+              source + ": surface orientation is inconsistent: " + std::to_string(flipped) +
+                  " edges whose two triangles run the same way, e.g. " + flippedExample +
+                  "; expected all triangles counter-clockwise seen from outside");
+
+  // 3. vertex-manifold: the triangles around each vertex form one fan
+  std::vector<std::vector<std::array<int, 2>>> link(nv);  // per vertex: (next, prev) edges
+  for (const Tri& t : surface.triangles) {
+    for (int k = 0; k < 3; ++k) link[t[k]].push_back({t[(k + 1) % 3], t[(k + 2) % 3]});
+  }
+  for (int v = 0; v < nv; ++v) {
+    auto& fan = link[v];
+    if (fan.empty()) continue;
+    std::sort(fan.begin(), fan.end());
+    // walk next -> prev around the vertex starting at the first triangle
+    int steps = 0, at = fan[0][0];
+    do {
+      const auto it = std::lower_bound(fan.begin(), fan.end(), std::array<int, 2>{at, -1});
+      if (it == fan.end() || (*it)[0] != at) break;
+      at = (*it)[1];
+      ++steps;
+    } while (at != fan[0][0] && steps <= static_cast<int>(fan.size()));
+    ESIM_VERIFY(steps == static_cast<int>(fan.size()),
+                source + ": surface is non-manifold at vertex " + formatPoint(surface.vertices[v]) +
+                    " m (" + std::to_string(fan.size()) +
+                    " triangles meet there in more than one fan); expected a 2-manifold");
+  }
+
+  // 4. no self-intersections (CGAL)
+  cgal::SelfIntersections hits;
+  try {
+    hits = cgal::findSelfIntersections(surface);
+  } catch (const Error& e) {
+    throw Error(source + ": " + e.what());
+  }
+  if (hits.pairCount > 0) {
+    const Tri& ta = surface.triangles[hits.first[0]];
+    const Vec3 centre =
+        (surface.vertices[ta[0]] + surface.vertices[ta[1]] + surface.vertices[ta[2]]) / 3.0;
+    throw Error(source + ": surface self-intersects (" + std::to_string(hits.pairCount) +
+                " pairs of faces), e.g. faces " + std::to_string(hits.first[0]) + " and " +
+                std::to_string(hits.first[1]) + " (face " + std::to_string(hits.first[0]) +
+                " centred at " + formatPoint(centre) +
+                " m); expected a surface that bounds a single volume");
+  }
+
+  // 5. it must enclose something
+  ESIM_VERIFY(std::abs(enclosedVolume(surface)) > 0, source + ": surface encloses zero volume");
+}
+
+void orientOutward(SurfaceMesh& surface) {
+  if (enclosedVolume(surface) >= 0) return;
+  for (Tri& t : surface.triangles) std::swap(t[1], t[2]);
+}
+
+// ---- meshing ----
+TetMesh tetrahedralize(const SurfaceMesh& surface, const MeshingOptions& options,
+                       const std::string& sourceName) {
+  // 1. options, derived sizes
+  MeshingOptions opt = options;
+  auto positive = [](double x) { return std::isfinite(x) && x > 0; };
+  ESIM_VERIFY(positive(opt.cellSizeM),
+              sourceName + ": cell size must be > 0 m (got " + std::to_string(opt.cellSizeM) + ")");
+  if (opt.facetSizeM == 0) opt.facetSizeM = opt.cellSizeM;
+  if (opt.facetDistanceM == 0) opt.facetDistanceM = opt.cellSizeM / 20;
+  if (opt.edgeSizeM == 0) opt.edgeSizeM = opt.facetSizeM;
+  ESIM_VERIFY(positive(opt.facetSizeM) && positive(opt.facetDistanceM) && positive(opt.edgeSizeM),
+              sourceName + ": facet size, facet distance and edge size must be > 0 m");
+  ESIM_VERIFY(opt.facetAngleDeg > 0 && opt.facetAngleDeg <= 30,
+              sourceName +
+                  ": facet angle must be in (0, 30] degrees (Mesh_3 terminates only "
+                  "then), got " +
+                  std::to_string(opt.facetAngleDeg));
+  ESIM_VERIFY(opt.cellRadiusEdgeRatio >= 2,
+              sourceName +
+                  ": cell radius-edge ratio must be >= 2 (Mesh_3 terminates only "
+                  "then), got " +
+                  std::to_string(opt.cellRadiusEdgeRatio));
+  ESIM_VERIFY(opt.featureAngleDeg >= 0 && opt.featureAngleDeg < 180 && opt.sliverBoundDeg >= 0 &&
+                  opt.sliverBoundDeg < 70.5 && opt.lloydIterations >= 0,
+              sourceName + ": feature angle, sliver bound or Lloyd iterations out of range");
+
+  // 2. size guard: a unit mix-up (mm read as m) would otherwise mesh for hours
+  const double volume = std::abs(enclosedVolume(surface));
+  const double regularTetPerR3 = 8.0 / (9.0 * std::sqrt(3.0));  // volume / circumradius^3
+  const double expectedTets = volume / (regularTetPerR3 * std::pow(opt.cellSizeM, 3));
+  if (expectedTets > 2e7) {
+    std::ostringstream msg;
+    msg << sourceName << ": cell size " << opt.cellSizeM << " m would give about " << expectedTets
+        << " tetrahedra for an enclosed volume of " << volume
+        << " m^3; check the units (the surface must be in metres) or use a larger cell size";
+    throw Error(msg.str());
+  }
+
+  // 3. Mesh_3, then checks
+  TetMesh mesh;
+  try {
+    mesh = cgal::generateTets(surface, opt);
+  } catch (const Error& e) {
+    throw Error(sourceName + ": " + e.what());
+  }
+  validateMesh(mesh, sourceName + " (tetrahedralized)");
+  mesh.nodeSets["boundary"] = boundaryNodes(mesh, boundaryFaces(mesh));
+  return mesh;
+}
+
+TetMesh loadTetMesh(const std::string& path, const MeshingOptions& options, double scaleToMetres) {
+  SurfaceMesh surface = readSurface(path, scaleToMetres);
+  checkSurface(surface, path);
+  orientOutward(surface);
+  return tetrahedralize(surface, options, path);
+}
+
+}  // namespace esim

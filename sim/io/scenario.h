@@ -1,0 +1,262 @@
+// scenario.h - a scenario: everything one run needs, read from scenarios/*.yaml.
+//
+// `Scenario` is plain data (no YAML types), every field defaulted to the seed paper's
+// set-up (Table 1 materials, Table 2 boundary conditions: 72 V tool, 40 mm return disc,
+// 100 x 100 x 10 mm slab of 1013 nodes). SI units, the unit is in each name.
+// The schema (key path, type, default, unit, range or choices, description of every
+// field) is one table in scenario.cpp; the loader validates against it and
+// `scenarioReferenceMarkdown()` renders it as docs/scenario-reference.md.
+//
+// Loading: parse YAML -> apply `--set key.path=value` overrides (values parsed as YAML)
+// -> check every key, type and range -> cross-field checks (phase dependencies, tool
+// path times, asset files). Any problem throws esim::Error naming
+// `file:line:column: field.path: what is wrong; what is expected`.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "sim/mesh_slab.h"
+#include "sim/mesh_tet.h"
+#include "sim/tool_path.h"
+
+namespace esim {
+
+// physics phases, in pipeline order
+enum class Phase : int { Electric = 0, Thermal, Boiling, Structural, Rupture };
+
+// ---- mesh ----
+struct ScenarioGrading {
+  bool enabled = false;
+  Vec3 fromM{-0.04, 0.0, 0.01};  // planned cut start [m]
+  Vec3 toM{0.04, 0.0, 0.01};     // planned cut end [m]
+  double ratio = 4.0;            // coarse / fine spacing
+  double widthM = 0.01;          // fine zone half-width [m]
+  bool towardTop = true;         // also refine toward the top face
+  bool operator==(const ScenarioGrading&) const = default;
+};
+
+struct ScenarioSlab {
+  Vec3 sizeM{0.1, 0.1, 0.01};                // Lx, Ly, Lz [m]
+  int nodes = 1013;                          // target node count
+  std::array<int, 3> nodesPerAxis{0, 0, 0};  // explicit grid, zeros = from `nodes`
+  ScenarioGrading grading;
+  bool operator==(const ScenarioSlab&) const = default;
+};
+
+struct ScenarioMeshFile {
+  std::string path;                // as written (relative to the scenario or repo root)
+  double scaleToM = 1.0;           // file units -> metres
+  double cellSizeM = 0.004;        // max tet circumradius [m]
+  double facetSizeM = 0.004;       // max surface triangle circumradius [m]
+  double facetDistanceM = 0.0005;  // max surface approximation error [m]
+  double facetAngleDeg = 25.0;     // min surface triangle angle [deg]
+  double radiusEdgeRatio = 2.5;    // max tet circumradius / shortest edge
+  std::string resolvedPath;        // filled by the loader: the file found (not in YAML)
+  bool operator==(const ScenarioMeshFile&) const = default;
+};
+
+struct ScenarioMesh {
+  std::string source = "slab";  // "slab" | "file"
+  ScenarioSlab slab;
+  ScenarioMeshFile file;
+  bool operator==(const ScenarioMesh&) const = default;
+};
+
+// ---- material (paper Table 1, porcine liver) ----
+struct ScenarioMaterial {
+  double heatCapacityJPerM3K = 3.82e6;       // c*rho
+  double thermalConductivityWPerMK = 0.502;  // lambda
+  double electricConductivitySPerM = 0.144;  // sigma at 37 C
+  double youngsModulusPa = 4.75e4;
+  double poissonRatio = 0.4;
+  double criticalStressPa = 2.45e4;  // von Mises breaking stress
+  double densityKgPerM3 = 1060.0;
+  double waterFraction = 0.78;        // mass fraction of water
+  double latentHeatJPerKg = 2.256e6;  // vaporization of water
+  double boilingTemperatureC = 100.0;
+  double initialTemperatureC = 37.0;
+  double conductivityTempCoeffPerK = 0.02;     // sigma(T) = sigma0 (1 + a (T - T0))
+  double desiccatedConductivityFactor = 0.01;  // sigma multiplier once dried
+  double arrheniusAPerS = 7.39e39;             // damage frequency factor
+  double arrheniusEaJPerMol = 2.577e5;         // damage activation energy
+  bool operator==(const ScenarioMaterial&) const = default;
+};
+
+struct ScenarioReturnElectrode {
+  Vec3 centerM{0.0, 0.0, 0.0};
+  Vec3 normal{0.0, 0.0, -1.0};  // outward normal of the disc (normalized by the user of it)
+  double radiusM = 0.04;
+  double toleranceM = 1e-4;  // boundary nodes within this distance of the disc plane
+  bool operator==(const ScenarioReturnElectrode&) const = default;
+};
+
+// ---- tool ----
+struct ScenarioKeyframe {
+  double timeS = 0.0;
+  Vec3 positionM{0.0, 0.0, 0.0098};    // tip [m]
+  Vec3 orientationDeg{0.0, 0.0, 0.0};  // [rx, ry, rz] fixed-axis XYZ (sim/tool_path.h)
+  bool operator==(const ScenarioKeyframe&) const = default;
+};
+
+struct ScenarioTool {
+  std::string shape = "blade";  // "blade" | "sphere"
+  double radiusM = 0.0005;      // sphere radius / blade edge half-thickness
+  double lengthM = 0.02;
+  double widthM = 0.003;  // blade width
+  double voltageV = 72.0;
+  double contactDistanceM = 0.0008;  // nodes this close to the tool surface are in contact
+  std::vector<ScenarioKeyframe> path{ScenarioKeyframe{}};
+  // [on, off) intervals [s]; the default [[0, inf]] is always on; [] is never on
+  std::vector<std::array<double, 2>> generatorOnS{{0.0, std::numeric_limits<double>::infinity()}};
+  bool operator==(const ScenarioTool&) const = default;
+};
+
+// ---- heat source for thermal scenes without the electric phase ----
+struct ScenarioHeatSource {
+  std::string kind = "none";  // "none" | "gaussian"
+  Vec3 centerM{0.0, 0.0, 0.01};
+  double radiusM = 0.003;           // Gaussian 1/e radius [m]
+  double powerDensityWPerM3 = 1e8;  // peak q [W/m^3]
+  bool operator==(const ScenarioHeatSource&) const = default;
+};
+
+struct ScenarioHotSpot {
+  bool enabled = false;
+  Vec3 centerM{0.0, 0.0, 0.01};
+  double radiusM = 0.003;
+  double temperatureC = 90.0;  // nodes within radius start at this temperature
+  bool operator==(const ScenarioHotSpot&) const = default;
+};
+
+struct ScenarioEffects {
+  bool temperatureDependentConductivity = false;
+  bool thermalDamage = false;
+  double surfaceCoolingHWPerM2K = 0.0;  // convective h on the free surface (0 = insulated)
+  double surfaceCoolingAmbientC = 20.0;
+  bool operator==(const ScenarioEffects&) const = default;
+};
+
+struct ScenarioSolvers {
+  std::string electricStrategy = "capacitance";  // refactor|dense-inverse|capacitance|pcg
+  double electricTolerance = 1e-8;               // pcg relative residual
+  int electricMaxIterations = 5000;
+  int electricDenseMemoryLimitMb = 2048;  // dense-inverse refuses above this
+  int electricThreads = 1;
+  std::string thermalIntegrator = "explicit";  // explicit | backward-euler | crank-nicolson
+  std::string thermalMass = "lumped";                // lumped | consistent
+  bool thermalAllowSubstepping = true;
+  bool operator==(const ScenarioSolvers&) const = default;
+};
+
+struct ScenarioTime {
+  double fps = 30.0;
+  double durationS = 4.0;
+  bool operator==(const ScenarioTime&) const = default;
+};
+
+struct ScenarioCamera {
+  Vec3 eyeM{0.0, -0.13, 0.11};
+  Vec3 targetM{0.0, 0.0, 0.005};
+  Vec3 up{0.0, 0.0, 1.0};
+  double fovDeg = 40.0;  // vertical field of view
+  bool operator==(const ScenarioCamera&) const = default;
+};
+
+struct ScenarioLook {
+  std::string style = "temperature";  // temperature | tissue
+  std::string colormap = "inferno";   // inferno | viridis
+  double tMinC = 37.0;
+  double tMaxC = 120.0;
+  int width = 1280;
+  int height = 720;
+  bool colorBar = true;
+  bool showTime = true;
+  bool operator==(const ScenarioLook&) const = default;
+};
+
+struct ScenarioOutput {
+  bool video = true;
+  int crf = 20;                   // H.264 constant rate factor
+  std::string preset = "medium";  // x264 preset
+  bool reproducible = true;       // single-threaded deterministic encode
+  int pngEvery = 0;               // write every Nth frame as PNG (0 = none)
+  int fieldsEvery = 0;            // write every Nth frame as VTU (0 = none)
+  bool hashes = true;             // hashes.json
+  bool operator==(const ScenarioOutput&) const = default;
+};
+
+struct Scenario {
+  std::string name = "unnamed";
+  std::string description;
+  ScenarioMesh mesh;
+  ScenarioMaterial material;
+  ScenarioReturnElectrode returnElectrode;
+  ScenarioTool tool;
+  std::vector<Phase> physics{Phase::Electric, Phase::Thermal, Phase::Boiling};  // sorted
+  ScenarioHeatSource heatSource;
+  ScenarioHotSpot initialHotSpot;
+  ScenarioEffects effects;
+  ScenarioSolvers solvers;
+  ScenarioTime time;
+  ScenarioCamera camera;
+  ScenarioLook look;
+  ScenarioOutput output;
+  std::string sourceName;  // the file it came from (not in YAML; "" for defaults)
+
+  bool has(Phase p) const;
+  bool operator==(const Scenario&) const = default;
+};
+
+// ---- loading ----
+
+// reads, overrides (`key.path=value`, value parsed as YAML) and validates a scenario file
+Scenario loadScenario(const std::string& path, const std::vector<std::string>& overrides = {});
+
+// same from text; sourceName is used in messages and to resolve relative asset paths
+Scenario parseScenario(const std::string& yamlText, const std::string& sourceName,
+                       const std::vector<std::string>& overrides = {});
+
+// the fully resolved scenario as YAML (every field, in schema order); parse(toYaml(s)) == s
+std::string scenarioToYaml(const Scenario& scenario);
+
+// FNV-1a 64-bit hash of scenarioToYaml (stable across runs and machines)
+std::uint64_t scenarioHash(const Scenario& scenario);
+
+// the schema as a Markdown reference page (docs/scenario-reference.md)
+std::string scenarioReferenceMarkdown();
+
+// one schema row in printable form (what the reference page shows)
+struct ScenarioFieldInfo {
+  std::string path;  // YAML key path, e.g. "tool.voltage_v" ("tool.path[].t_s" for keyframes)
+  std::string type;  // "number", "integer", "bool", "choice", "string", "vector", ...
+  std::string defaultYaml;  // the default as YAML text, e.g. "72", "[0, 0, -1]"
+  std::string unit;         // "V", "m", "" (dimensionless)
+  std::string allowed;      // "[0, 1]", "(0, 0.1]", "blade | sphere"
+  std::string description;  // one line
+};
+
+// every field of the schema, in schema order
+std::vector<ScenarioFieldInfo> scenarioFields();
+
+// ---- derived values for the runner ----
+
+// number of frames: round(duration * fps), at least 1
+int frameCount(const Scenario& scenario);
+
+// phase names: "electric", "thermal", ...
+const char* phaseName(Phase phase);
+
+// the slab generator's spec (mesh.source == "slab")
+SlabSpec makeSlabSpec(const Scenario& scenario);
+
+// keyframes with Euler degrees turned into quaternions, generator intervals in seconds
+ToolPath makeToolPath(const Scenario& scenario);
+
+// one-line summary: "120 frames, physics [electric, thermal], mesh slab 100x100x10 mm ..."
+std::string scenarioSummary(const Scenario& scenario);
+
+}  // namespace esim

@@ -1,0 +1,274 @@
+// simulation.cpp - the frame pipeline (see simulation.h).
+#include "sim/simulation.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "sim/core_error.h"
+#include "sim/electric_phase.h"
+
+namespace esim {
+
+namespace {
+
+constexpr const char* kStageNames[kStageCount] = {
+    "move_tool", "find_contacts", "solve_potential", "heat", "solve_stress",
+    "rupture",   "rebuild",       "snapshot",        "render", "encode_wait"};
+
+}  // namespace
+
+const char* stageName(Stage stage) { return kStageNames[static_cast<int>(stage)]; }
+
+double FrameRecord::physicsMs() const {
+  double sum = 0;
+  for (int s = 0; s <= static_cast<int>(Stage::Snapshot); ++s) sum += ms[s];
+  return sum;
+}
+
+StageTimer::~StageTimer() {
+  const auto end = std::chrono::steady_clock::now();
+  const int s = static_cast<int>(stage_);
+  record_.ms[s] = std::chrono::duration<double, std::milli>(end - start_).count();
+  record_.status[s] = skipped_ ? StageStatus::Skipped : StageStatus::Ran;
+}
+
+Simulation::Simulation(TetMesh mesh, SimulationConfig config)
+    : mesh_(std::move(mesh)), config_(std::move(config)) {
+  const PhaseSet& ph = config_.phases;
+  ESIM_VERIFY(!ph.structural && !ph.rupture,
+              "physics: the structural and rupture phases are not implemented yet; remove them "
+              "from `physics` (available: electric, thermal, boiling)");
+  ESIM_VERIFY(ph.electric || ph.thermal, "physics: the scene lists no phase to simulate");
+  ESIM_VERIFY(config_.frameDtS > 0 && std::isfinite(config_.frameDtS),
+              "time: frame step must be positive (fps > 0)");
+  if (mesh_.alive.empty()) mesh_.alive.assign(mesh_.tets.size(), 1);
+  validateMesh(mesh_, "mesh");
+
+  // ---- model: geometry and surface (shared by every phase) ----
+  geo_ = tetGeometry(mesh_);
+  surface_ = boundaryFaces(mesh_);
+  surfaceNodes_ = boundaryNodes(mesh_, surface_);
+  potential_ = Eigen::VectorXd::Zero(mesh_.numNodes());
+  joule_.assign(mesh_.numTets(), 0.0);
+
+  // ---- electric phase ----
+  if (ph.electric) {
+    ESIM_VERIFY(config_.conductivityS_m > 0 && std::isfinite(config_.conductivityS_m),
+                "material.electric_conductivity_s_per_m must be a positive finite number");
+    ESIM_VERIFY(std::isfinite(config_.toolVoltageV), "tool.voltage_v must be finite");
+    validateToolPath(config_.toolPath);
+    ground_ = returnElectrodeNodes(mesh_, surfaceNodes_, config_.returnElectrode);
+    ESIM_VERIFY(!ground_.empty(),
+                "return_electrode: no mesh node lies on the return electrode disc (centre " +
+                    std::to_string(config_.returnElectrode.centerM.x()) + " " +
+                    std::to_string(config_.returnElectrode.centerM.y()) + " " +
+                    std::to_string(config_.returnElectrode.centerM.z()) + " m, radius " +
+                    std::to_string(config_.returnElectrode.radiusM) +
+                    " m); move it onto the tissue surface or enlarge radius_m/tolerance_m");
+    contactFinder_ = ContactFinder(mesh_, surfaceNodes_);
+    sigma_.assign(mesh_.numTets(), config_.conductivityS_m);
+    sigmaAssembled_ = sigma_;
+    stiffness_ = assembleStiffness(mesh_, geo_, sigma_);
+    electric_ = makeElectricSolver(config_.electricSolver);
+    electric_->setMatrix(stiffness_, ground_);
+  }
+
+  // ---- thermal phase ----
+  if (ph.thermal) {
+    ThermalParams tp = config_.thermal;
+    tp.boiling = ph.boiling;
+    validateThermalParams(tp, "material");
+    std::vector<BoundaryFace> cooled;
+    if (config_.coolTopSurface && tp.convectionW_m2K > 0) {
+      for (const auto& f : surface_) {
+        const Vec3& a = mesh_.nodes[f.nodes[0]];
+        const Vec3 n = (mesh_.nodes[f.nodes[1]] - a).cross(mesh_.nodes[f.nodes[2]] - a);
+        if (n.z() > 0.5 * n.norm()) cooled.push_back(f);
+      }
+    }
+    config_.thermal = tp;
+    thermal_ = std::make_unique<ThermalPhase>(mesh_, geo_, tp, cooled);
+    thermal_->initState(thermalState_);
+    if (config_.hotSpot.enabled) {
+      Eigen::VectorXd t = thermalState_.temperatureC;
+      for (int i = 0; i < mesh_.numNodes(); ++i)
+        if ((mesh_.nodes[i] - config_.hotSpot.centerM).norm() <= config_.hotSpot.radiusM)
+          t[i] = config_.hotSpot.temperatureC;
+      thermal_->setTemperature(thermalState_, t);
+    }
+    if (!ph.electric && config_.heatSource.enabled) {
+      prescribedSource_.assign(mesh_.numTets(), 0.0);
+      const double r2 = config_.heatSource.radiusM * config_.heatSource.radiusM;
+      for (int e = 0; e < mesh_.numTets(); ++e) {
+        Vec3 c = Vec3::Zero();
+        for (int v : mesh_.tets[e]) c += 0.25 * mesh_.nodes[v];
+        prescribedSource_[e] = config_.heatSource.powerDensityW_m3 *
+                               std::exp(-(c - config_.heatSource.centerM).squaredNorm() / r2);
+      }
+    }
+    maxTemperatureC_ = thermalState_.temperatureC.maxCoeff();
+  } else {
+    maxTemperatureC_ = config_.thermal.initialTemperatureC;
+  }
+}
+
+Simulation::~Simulation() = default;
+
+Eigen::VectorXd Simulation::temperatureC() const {
+  if (thermal_) return thermalState_.temperatureC;
+  return Eigen::VectorXd::Constant(mesh_.numNodes(), config_.thermal.initialTemperatureC);
+}
+
+double Simulation::electricMemoryBytes() const {
+  return electric_ ? electric_->memoryBytes() : 0.0;
+}
+
+std::string Simulation::electricSolverName() const {
+  return electric_ ? electric_->name() : "";
+}
+
+void Simulation::refreshConductivity(FrameRecord& /*record*/) {
+  // sigma(T) per tet from the mean nodal temperature; refresh K when it moved enough
+  const double t0 = config_.thermal.initialTemperatureC;
+  const double tb = config_.thermal.boilingTemperatureC;
+  double max_rel = 0;
+  for (int e = 0; e < mesh_.numTets(); ++e) {
+    if (!mesh_.isAlive(e)) continue;
+    double t = 0;
+    for (int v : mesh_.tets[e]) t += 0.25 * thermalState_.temperatureC[v];
+    t = std::min(t, tb);
+    double s = config_.conductivityS_m * (1.0 + config_.conductivityTempCoeffPerK * (t - t0));
+    if (!thermalState_.desiccatedTet.empty() && thermalState_.desiccatedTet[e])
+      s *= config_.desiccatedConductivityFactor;
+    sigma_[e] = std::max(s, 1e-6 * config_.conductivityS_m);
+    max_rel = std::max(max_rel, std::abs(sigma_[e] - sigmaAssembled_[e]) / sigmaAssembled_[e]);
+  }
+  if (max_rel > config_.conductivityRefreshTolerance) {
+    sigmaAssembled_ = sigma_;
+    stiffness_ = assembleStiffness(mesh_, geo_, sigmaAssembled_);
+    electric_->setMatrix(stiffness_, ground_);
+  }
+}
+
+const FrameRecord& Simulation::step() {
+  FrameRecord& rec = record_;
+  rec = FrameRecord{};
+  rec.frame = frame_;
+  rec.timeS = timeS_;
+  const double dt = config_.frameDtS;
+
+  // ---- 1. move the tool ----
+  if (electric_) {
+    StageTimer timer(rec, Stage::MoveTool);
+    pose_ = config_.toolPath.poseAt(timeS_);
+    generatorOn_ = config_.toolPath.generatorOnAt(timeS_);
+  }
+  rec.generatorOn = generatorOn_;
+
+  // ---- 2. contacts ----
+  if (electric_) {
+    StageTimer timer(rec, Stage::FindContacts);
+    if (generatorOn_) {
+      contacts_ = contactFinder_.find(config_.electrode, pose_, config_.contactDistanceM);
+    } else {
+      contacts_.clear();
+      timer.skip();
+    }
+  }
+  rec.contactNodes = static_cast<int>(contacts_.size());
+
+  // ---- 3. potential and Joule heat ----
+  double power_w = 0;
+  if (electric_) {
+    StageTimer timer(rec, Stage::SolvePotential);
+    if (contacts_.empty()) {
+      potential_.setZero();
+      std::fill(joule_.begin(), joule_.end(), 0.0);
+      timer.skip();
+    } else {
+      if (thermal_ && config_.temperatureDependentConductivity) refreshConductivity(rec);
+      electric_->solve(contacts_, config_.toolVoltageV, potential_);
+      // Joule power density, currents and impedance with the assembled conductivity
+      ElectricFields fields = computeElectricFields(mesh_, geo_, sigmaAssembled_, stiffness_,
+                                                    potential_, contacts_, ground_,
+                                                    config_.toolVoltageV);
+      joule_ = std::move(fields.joulePowerW_m3);
+      power_w = fields.powerW;
+      rec.toolCurrentA = fields.toolCurrentA;
+      rec.returnCurrentA = fields.returnCurrentA;
+    }
+  }
+  rec.powerW = power_w;
+  energyJ_ += power_w * dt;
+
+  // ---- 4. heat: Joule (or prescribed) source, conduction, boiling ----
+  if (thermal_) {
+    StageTimer timer(rec, Stage::Heat);
+    const std::vector<double>& source = electric_ ? joule_ : prescribedSource_;
+    const auto stats = thermal_->step(
+        dt, source.empty() ? std::vector<double>(mesh_.numTets(), 0.0) : source, thermalState_);
+    if (stats.skipped) timer.skip();
+    maxTemperatureC_ = std::max(maxTemperatureC_, thermalState_.temperatureC.maxCoeff());
+    rec.maxTemperatureC = thermalState_.temperatureC.maxCoeff();
+  } else {
+    rec.maxTemperatureC = config_.thermal.initialTemperatureC;
+  }
+
+  ++frame_;
+  timeS_ = frame_ * dt;
+  return rec;
+}
+
+SurfaceSnapshot Simulation::snapshot() {
+  StageTimer timer(record_, Stage::Snapshot);
+  SurfaceSnapshot snap;
+  snap.frame = record_.frame;
+  snap.timeS = timeS_;
+  std::vector<int> vertex_of(mesh_.numNodes(), -1);
+  for (int v : surfaceNodes_) {
+    vertex_of[v] = snap.numVertices();
+    for (int c = 0; c < 3; ++c) snap.positionsM.push_back(static_cast<float>(mesh_.nodes[v][c]));
+  }
+  snap.triangles.reserve(surface_.size() * 3);
+  for (const auto& f : surface_)
+    for (int v : f.nodes) snap.triangles.push_back(static_cast<std::uint32_t>(vertex_of[v]));
+  const int nv = snap.numVertices();
+  snap.temperatureC.assign(nv, static_cast<float>(config_.thermal.initialTemperatureC));
+  snap.coagulation.assign(nv, 0.0f);
+  snap.desiccation.assign(nv, 0.0f);
+  snap.cutWall.assign(nv, 0.0f);
+  if (thermal_) {
+    std::vector<float> coag_sum(nv, 0.0f), count(nv, 0.0f);
+    for (const auto& f : surface_) {
+      const float c = thermalState_.coagulationTet.empty()
+                          ? 0.0f
+                          : static_cast<float>(thermalState_.coagulationTet[f.tet]);
+      for (int v : f.nodes) {
+        coag_sum[vertex_of[v]] += c;
+        count[vertex_of[v]] += 1;
+      }
+    }
+    for (int v : surfaceNodes_) {
+      const int i = vertex_of[v];
+      snap.temperatureC[i] = static_cast<float>(thermalState_.temperatureC[v]);
+      snap.desiccation[i] = static_cast<float>(thermalState_.vaporFraction[v]);
+      snap.coagulation[i] = count[i] > 0 ? coag_sum[i] / count[i] : 0.0f;
+    }
+  }
+  if (electric_) {
+    ToolSnapshot& t = snap.tool;
+    t.present = true;
+    t.generatorOn = generatorOn_;
+    t.kind = config_.electrode.kind;
+    for (int c = 0; c < 3; ++c) t.tipM[c] = static_cast<float>(pose_.tipM[c]);
+    const Eigen::Quaterniond q = pose_.orientation.normalized();
+    t.orientationWxyz = {static_cast<float>(q.w()), static_cast<float>(q.x()),
+                         static_cast<float>(q.y()), static_cast<float>(q.z())};
+    t.radiusM = static_cast<float>(config_.electrode.radiusM);
+    t.lengthM = static_cast<float>(config_.electrode.lengthM);
+    t.widthM = static_cast<float>(config_.electrode.widthM);
+  }
+  return snap;
+}
+
+}  // namespace esim

@@ -1,0 +1,197 @@
+// simulation.h - one run of the physics: the fixed pipeline of named, timed stages.
+//
+// A Simulation owns the read-only model (mesh, geometry, surface, electrodes, the
+// phase set and solver choices) and the mutable state (time, tool pose, contacts,
+// potential, thermal state). step() advances one frame of config.frameDtS seconds:
+//
+//   moveTool -> findContacts -> solvePotential -> heat -> [solveStress -> rupture ->
+//   rebuild] -> snapshot
+//
+// Only the phases the scene lists are built: an unlisted phase has no object, no
+// matrix and no stage (its timing is "absent"). A listed stage with nothing to do this
+// frame (generator off, no contact, zero source at rest) records "skipped".
+// The structural phases (structural, rupture) are not implemented yet: asking for
+// them is an Error at construction.
+// Units: SI (m, s, V, A, W, J), temperatures in degrees Celsius.
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "sim/electric_solver.h"
+#include "sim/electrode.h"
+#include "sim/fem_p1.h"
+#include "sim/mesh_tet.h"
+#include "sim/snapshot.h"
+#include "sim/thermal_step.h"
+#include "sim/tool_path.h"
+
+namespace esim {
+
+// ---- stages ----
+enum class Stage : int {
+  MoveTool = 0,
+  FindContacts,
+  SolvePotential,
+  Heat,
+  SolveStress,
+  Rupture,
+  Rebuild,
+  Snapshot,
+  Render,
+  Encode,  // time the frame loop waited on the encoder queue (encoding itself is offline)
+  kCount
+};
+constexpr int kStageCount = static_cast<int>(Stage::kCount);
+
+// "move_tool", "find_contacts", ... (the column names of timing.csv)
+const char* stageName(Stage stage);
+
+enum class StageStatus : std::uint8_t { Absent = 0, Ran, Skipped };
+
+// one row of the timing report
+struct FrameRecord {
+  int frame = 0;
+  double timeS = 0;                                  // simulated time at frame start [s]
+  std::array<double, kStageCount> ms{};              // wall time per stage [ms]
+  std::array<StageStatus, kStageCount> status{};     // absent / ran / skipped
+  int contactNodes = 0;
+  bool generatorOn = false;
+  double toolCurrentA = 0;                           // into the tissue at the tool [A]
+  double returnCurrentA = 0;                         // out at the return electrode [A]
+  double powerW = 0;                                 // Joule power this frame [W]
+  double maxTemperatureC = 0;
+  double physicsMs() const;                          // sum of the simulation stages [ms]
+};
+
+// times one stage into a record (monotonic clock)
+class StageTimer {
+ public:
+  StageTimer(FrameRecord& record, Stage stage)
+      : record_(record), stage_(stage), start_(std::chrono::steady_clock::now()) {}
+  ~StageTimer();
+  void skip() { skipped_ = true; }
+
+ private:
+  FrameRecord& record_;
+  Stage stage_;
+  std::chrono::steady_clock::time_point start_;
+  bool skipped_ = false;
+};
+
+// ---- configuration ----
+struct PhaseSet {
+  bool electric = false, thermal = false, boiling = false, structural = false, rupture = false;
+};
+
+// a prescribed heat source for thermal scenes without the electric phase
+struct HeatSourceSpec {
+  bool enabled = false;
+  Vec3 centerM{0, 0, 0.01};
+  double radiusM = 0.003;            // Gaussian 1/e radius [m]
+  double powerDensityW_m3 = 1e8;     // peak [W/m^3]
+};
+
+struct HotSpotSpec {
+  bool enabled = false;
+  Vec3 centerM{0, 0, 0.01};
+  double radiusM = 0.003;
+  double temperatureC = 90;
+};
+
+struct SimulationConfig {
+  PhaseSet phases;
+  double frameDtS = 1.0 / 30.0;  // simulated time per frame [s]
+
+  // electric
+  double conductivityS_m = 0.144;          // sigma at the initial temperature [S/m]
+  double toolVoltageV = 72;
+  double contactDistanceM = 0.0008;
+  ElectrodeShape electrode;
+  ReturnElectrode returnElectrode;
+  ToolPath toolPath;
+  ElectricSolverOptions electricSolver;
+  // effect: sigma(T) = sigma0 (1 + a (T - T0)) up to boiling, x factor once desiccated
+  bool temperatureDependentConductivity = false;
+  double conductivityTempCoeffPerK = 0.02;
+  double desiccatedConductivityFactor = 0.01;
+  double conductivityRefreshTolerance = 0.02;  // refresh K when some sigma moved this much (rel.)
+
+  // thermal
+  ThermalParams thermal;
+  HeatSourceSpec heatSource;
+  HotSpotSpec hotSpot;
+  bool coolTopSurface = false;  // convective faces: the boundary faces facing up (+z)
+};
+
+// ---- the simulation ----
+class Simulation {
+ public:
+  // Builds the listed phases on the mesh (validated here). Throws Error on bad input
+  // (no return-electrode node, unimplemented phase, bad parameters).
+  Simulation(TetMesh mesh, SimulationConfig config);
+  ~Simulation();
+
+  // advances one frame and returns its record (stage times, currents, max temperature)
+  const FrameRecord& step();
+
+  // the surface of the alive tets with per-vertex state, for the renderer (timed into the
+  // last record's Snapshot stage)
+  SurfaceSnapshot snapshot();
+
+  // ---- read access ----
+  const FrameRecord& lastRecord() const { return record_; }  // of the last step (+ snapshot)
+  const TetMesh& mesh() const { return mesh_; }
+  const SimulationConfig& config() const { return config_; }
+  int frame() const { return frame_; }
+  double timeS() const { return timeS_; }
+  const std::vector<int>& groundNodes() const { return ground_; }
+  const std::vector<int>& contactNodes() const { return contacts_; }
+  const Eigen::VectorXd& potentialV() const { return potential_; }
+  const std::vector<double>& joulePowerW_m3() const { return joule_; }
+  const std::vector<double>& conductivityS_m() const { return sigma_; }
+  const ThermalState* thermalState() const { return thermal_ ? &thermalState_ : nullptr; }
+  Eigen::VectorXd temperatureC() const;      // per node (initial value without thermal)
+  double energyDeliveredJ() const { return energyJ_; }  // integral of Joule power [J]
+  double maxTemperatureSeenC() const { return maxTemperatureC_; }
+  double electricMemoryBytes() const;
+  std::string electricSolverName() const;
+  bool hasElectric() const { return electric_ != nullptr; }
+
+ private:
+  void refreshConductivity(FrameRecord& record);
+
+  TetMesh mesh_;
+  SimulationConfig config_;
+  std::vector<TetGeometry> geo_;
+  std::vector<BoundaryFace> surface_;
+  std::vector<int> surfaceNodes_;
+  std::vector<int> ground_;
+  ContactFinder contactFinder_;
+
+  // electric phase (null when not listed)
+  std::unique_ptr<ElectricSolver> electric_;
+  SparseMatrix stiffness_;
+  std::vector<double> sigma_, sigmaAssembled_;
+  Eigen::VectorXd potential_;
+  std::vector<double> joule_;
+  std::vector<int> contacts_;
+
+  // thermal phase (null when not listed)
+  std::unique_ptr<ThermalPhase> thermal_;
+  ThermalState thermalState_;
+  std::vector<double> prescribedSource_;
+
+  int frame_ = 0;
+  double timeS_ = 0;
+  double energyJ_ = 0;
+  double maxTemperatureC_ = 0;
+  FrameRecord record_;
+  ToolPose pose_;
+  bool generatorOn_ = false;
+};
+
+}  // namespace esim

@@ -1,0 +1,727 @@
+// thermal_step.cpp - enthalpy heat equation, theta schemes, boiling, damage (see thermal_step.h).
+#include "sim/thermal_step.h"
+
+#include <Eigen/CholmodSupport>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "sim/core_error.h"
+
+namespace esim {
+
+namespace {
+
+constexpr double kGasConstantJ_molK = 8.314462618;
+constexpr double kKelvinOffset = 273.15;
+constexpr double kStabilityMargin = 0.95;  // on the Lanczos estimate of lambda_max
+constexpr double kCgMaxCondition = 4.0;    // Auto: CG when the Gershgorin bound is below this
+constexpr double kCgRoundOff = 1e-13;      // CG stop floor, relative to max |T|
+constexpr int kCgMaxIterations = 500;      // then Cholesky
+constexpr double kPinCapacity = 1e8;       // boiling iteration: relative capacity of plateau nodes
+constexpr int kPinIterations = 3;          // ... for this many iterations, then plain Chernoff
+constexpr int kLanczosSteps = 40;          // the top Ritz value has converged by ~30 on slabs
+
+using RowMatrix = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
+using Cholesky = Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower>;
+
+std::string fmt(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+void requirePositive(double v, const std::string& where, const char* field, const char* what) {
+  ESIM_VERIFY(std::isfinite(v) && v > 0,
+              where + "." + field + " = " + fmt(v) + ": must be > 0 and finite (" + what + ")");
+}
+
+}  // namespace
+
+// ---- names and validation ----
+
+ThermalIntegrator parseThermalIntegrator(const std::string& name) {
+  if (name == "explicit") return ThermalIntegrator::Explicit;
+  if (name == "backward-euler") return ThermalIntegrator::BackwardEuler;
+  if (name == "crank-nicolson") return ThermalIntegrator::CrankNicolson;
+  throw Error("unknown thermal integrator '" + name +
+              "': expected one of explicit, backward-euler, crank-nicolson");
+}
+
+std::string thermalIntegratorName(ThermalIntegrator integrator) {
+  switch (integrator) {
+    case ThermalIntegrator::Explicit: return "explicit";
+    case ThermalIntegrator::BackwardEuler: return "backward-euler";
+    case ThermalIntegrator::CrankNicolson: return "crank-nicolson";
+  }
+  return "?";
+}
+
+void validateThermalParams(const ThermalParams& p, const std::string& where) {
+  requirePositive(p.heatCapacityJ_m3K, where, "heat_capacity_j_m3k",
+                  "volumetric heat capacity c*rho [J/(K m^3)]");
+  requirePositive(p.conductivityW_mK, where, "conductivity_w_mk",
+                  "thermal conductivity [W/(m K)]");
+  ESIM_VERIFY(std::isfinite(p.initialTemperatureC) && p.initialTemperatureC > -kKelvinOffset,
+              where + ".initial_temperature_c = " + fmt(p.initialTemperatureC) +
+                  ": must be finite and above absolute zero (-273.15 C)");
+  ESIM_VERIFY(std::isfinite(p.waterFraction) && p.waterFraction >= 0 && p.waterFraction <= 1,
+              where + ".water_fraction = " + fmt(p.waterFraction) +
+                  ": must be in [0, 1] (water mass fraction of the tissue)");
+  if (p.boiling) {
+    requirePositive(p.densityKg_m3, where, "density_kg_m3", "tissue density [kg/m^3]");
+    ESIM_VERIFY(std::isfinite(p.latentHeatJ_kg) && p.latentHeatJ_kg >= 0,
+                where + ".latent_heat_j_kg = " + fmt(p.latentHeatJ_kg) +
+                    ": must be >= 0 and finite (latent heat of vaporisation [J/kg])");
+    ESIM_VERIFY(std::isfinite(p.boilingTemperatureC) &&
+                    p.boilingTemperatureC > p.initialTemperatureC,
+                where + ".boiling_temperature_c = " + fmt(p.boilingTemperatureC) +
+                    ": must be finite and above the initial temperature " +
+                    fmt(p.initialTemperatureC) + " C");
+  }
+  ESIM_VERIFY(std::isfinite(p.nonlinearToleranceK) && p.nonlinearToleranceK > 0,
+              where + ".nonlinear_tolerance_k = " + fmt(p.nonlinearToleranceK) + ": must be > 0");
+  ESIM_VERIFY(p.maxNonlinearIterations >= 1,
+              where + ".max_nonlinear_iterations = " + std::to_string(p.maxNonlinearIterations) +
+                  ": must be >= 1");
+  ESIM_VERIFY(std::isfinite(p.convectionW_m2K) && p.convectionW_m2K >= 0,
+              where + ".convection_w_m2k = " + fmt(p.convectionW_m2K) +
+                  ": must be >= 0 and finite (heat transfer coefficient [W/(m^2 K)])");
+  ESIM_VERIFY(std::isfinite(p.ambientTemperatureC) && p.ambientTemperatureC > -kKelvinOffset,
+              where + ".ambient_temperature_c = " + fmt(p.ambientTemperatureC) +
+                  ": must be finite and above absolute zero");
+  if (p.damage) {
+    requirePositive(p.arrheniusA_s, where, "arrhenius_a_s", "frequency factor [1/s]");
+    requirePositive(p.arrheniusEa_J_mol, where, "arrhenius_ea_j_mol",
+                    "activation energy [J/mol]");
+  }
+}
+
+// ---- operators, caches and workspace ----
+
+struct ThermalPhase::Impl {
+  Adjacency nodeTets;              // node -> alive tets
+  SparseMatrix stiffness;          // conduction + convection [W/K], column major
+  RowMatrix stiffnessRows;         // the same, row major for products
+  Eigen::VectorXd massM3;          // lumped mass (row sums) [m^3]; 0 on orphan nodes
+  SparseMatrix massConsistent;     // consistent mass [m^3] (consistent mode only)
+  std::vector<std::uint8_t> active;  // node has an alive tet
+  Eigen::VectorXd stiffnessDiag;   // K_ii
+  Eigen::VectorXd stiffnessAbsRow; // sum_j |K_ij| (Gershgorin)
+  Eigen::VectorXd convectionLoadW; // h T_amb A/3 per node [W]
+  Eigen::VectorXd convectionColSum;  // sum_i (K_h)_ij [W/K]: loss = colsum . T - sum(load)
+  double convectionLoadTotalW = 0;
+  bool convectionActive = false;
+
+  // implicit system (c rho M/dt + theta K) T = b
+  std::unique_ptr<Cholesky> factor;
+  bool factorAnalyzed = false;
+  double factorDt = -1, factorTheta = -1;
+  double cgDecidedDt = -1, cgDecidedTheta = -1;
+  bool useCg = false;
+  std::string lastSolver = "none";
+  // consistent mass factor (flux-form update, explicit)
+  std::unique_ptr<Cholesky> massFactor;
+
+  mutable double stableDt = -1;  // explicit limit, computed on first use
+
+  // workspace
+  Eigen::VectorXd load, flux, rhs, g, tempNew, kTemp, tempOld, enthalpy0, work, cgR, cgZ, cgP,
+      cgAp, cgKp, diagS, diagPrec;
+};
+
+ThermalPhase::ThermalPhase(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
+                           const ThermalParams& params,
+                           const std::vector<BoundaryFace>& cooledFaces)
+    : params_(params), cooledFaces_(cooledFaces), impl_(std::make_unique<Impl>()) {
+  validateThermalParams(params_, "thermal");
+  buildOperators(mesh, geo);
+}
+
+ThermalPhase::~ThermalPhase() = default;
+ThermalPhase::ThermalPhase(ThermalPhase&&) noexcept = default;
+ThermalPhase& ThermalPhase::operator=(ThermalPhase&&) noexcept = default;
+
+void ThermalPhase::buildOperators(const TetMesh& mesh, const std::vector<TetGeometry>& geo) {
+  ESIM_VERIFY(mesh.numNodes() > 0 && mesh.numTets() > 0, "thermal: the mesh is empty");
+  ESIM_VERIFY(geo.size() == mesh.tets.size(),
+              "thermal: tet geometry has " + std::to_string(geo.size()) +
+                  " entries, the mesh has " + std::to_string(mesh.numTets()) + " tets");
+  numNodes_ = mesh.numNodes();
+  tets_ = mesh.tets;
+  alive_.assign(mesh.tets.size(), 1);
+  volumeM3_.assign(mesh.tets.size(), 0.0);
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    alive_[e] = mesh.isAlive(e) ? 1 : 0;
+    volumeM3_[e] = geo[e].volume;
+  }
+  Impl& m = *impl_;
+  const int n = numNodes_;
+
+  // conduction
+  const std::vector<double> lambda(mesh.tets.size(), params_.conductivityW_mK);
+  m.stiffness = assembleStiffness(mesh, geo, lambda);
+  const std::vector<double> ones(mesh.tets.size(), 1.0);
+  m.massM3 = lumpedMass(mesh, geo, ones);
+  m.nodeTets = esim::nodeTets(mesh);
+  m.active.assign(n, 0);
+  for (int i = 0; i < n; ++i) m.active[i] = m.massM3[i] > 0 ? 1 : 0;
+
+  // convection on the cooled faces of alive tets (a Robin condition)
+  m.convectionLoadW = Eigen::VectorXd::Zero(n);
+  m.convectionColSum = Eigen::VectorXd::Zero(n);
+  m.convectionLoadTotalW = 0;
+  m.convectionActive = false;
+  if (params_.convectionW_m2K > 0) {
+    std::vector<Eigen::Triplet<double>> trip;
+    const double h = params_.convectionW_m2K;
+    for (const BoundaryFace& f : cooledFaces_) {
+      ESIM_VERIFY(f.tet >= 0 && f.tet < mesh.numTets(),
+                  "thermal: cooled face names tet " + std::to_string(f.tet) + " of " +
+                      std::to_string(mesh.numTets()));
+      for (int v : f.nodes)
+        ESIM_VERIFY(v >= 0 && v < n, "thermal: cooled face node " + std::to_string(v) +
+                                         " out of range (" + std::to_string(n) + " nodes)");
+      if (!mesh.isAlive(f.tet)) continue;
+      const Vec3& a = mesh.nodes[f.nodes[0]];
+      const Vec3& b = mesh.nodes[f.nodes[1]];
+      const Vec3& c = mesh.nodes[f.nodes[2]];
+      const double areaM2 = 0.5 * (b - a).cross(c - a).norm();
+      for (int i = 0; i < 3; ++i) {
+        m.convectionLoadW[f.nodes[i]] += h * params_.ambientTemperatureC * areaM2 / 3.0;
+        for (int j = 0; j < 3; ++j) {
+          // lumped: h A/3 on the diagonal; consistent: h A (1 + delta_ij)/12
+          double kij = params_.lumpedMass ? (i == j ? h * areaM2 / 3.0 : 0.0)
+                                          : h * areaM2 * (i == j ? 2.0 : 1.0) / 12.0;
+          if (kij != 0) trip.emplace_back(f.nodes[i], f.nodes[j], kij);
+          m.convectionColSum[f.nodes[j]] += kij;
+        }
+      }
+      m.convectionActive = true;
+    }
+    SparseMatrix kh(n, n);
+    kh.setFromTriplets(trip.begin(), trip.end());
+    m.stiffness += kh;
+    m.convectionLoadTotalW = m.convectionLoadW.sum();
+  }
+  m.stiffness.makeCompressed();
+  m.stiffnessRows = m.stiffness;
+  m.stiffnessDiag = m.stiffness.diagonal();
+  m.stiffnessAbsRow = Eigen::VectorXd::Zero(n);
+  for (int r = 0; r < m.stiffnessRows.outerSize(); ++r)
+    for (RowMatrix::InnerIterator it(m.stiffnessRows, r); it; ++it)
+      m.stiffnessAbsRow[r] += std::abs(it.value());
+
+  // consistent mass (+ identity on orphan nodes so that it stays invertible)
+  m.massFactor.reset();
+  if (!params_.lumpedMass) {
+    m.massConsistent = assembleMass(mesh, geo, ones);
+    SparseMatrix regular = m.massConsistent;
+    for (int i = 0; i < n; ++i)
+      if (!m.active[i]) regular.coeffRef(i, i) = 1.0;
+    m.massFactor = std::make_unique<Cholesky>();
+    m.massFactor->compute(regular);
+    ESIM_VERIFY(m.massFactor->info() == Eigen::Success,
+                "thermal: the consistent mass matrix could not be factored");
+  }
+
+  // drop every cache that depends on the operators
+  m.factor.reset();
+  m.factorAnalyzed = false;
+  m.factorDt = m.factorTheta = -1;
+  m.cgDecidedDt = m.cgDecidedTheta = -1;
+  m.stableDt = -1;
+  for (Eigen::VectorXd* v :
+       {&m.load, &m.flux, &m.rhs, &m.g, &m.tempNew, &m.kTemp, &m.tempOld, &m.enthalpy0, &m.work,
+        &m.cgR, &m.cgZ, &m.cgP, &m.cgAp, &m.cgKp, &m.diagS, &m.diagPrec})
+    v->setZero(n);
+}
+
+void ThermalPhase::rebuild(const TetMesh& mesh, const std::vector<TetGeometry>& geo) {
+  ESIM_VERIFY(mesh.numNodes() == numNodes_ && mesh.numTets() == numTets(),
+              "thermal rebuild: the mesh has " + std::to_string(mesh.numNodes()) + " nodes and " +
+                  std::to_string(mesh.numTets()) + " tets, the thermal phase " +
+                  std::to_string(numNodes_) + " and " + std::to_string(numTets()) +
+                  " (rebuild expects removed tets, not a renumbered mesh)");
+  buildOperators(mesh, geo);
+}
+
+// ---- T(H) ----
+
+namespace {
+
+// the T(H) relation and the vapour fraction, with the constants precomputed
+struct Derived {
+  double crho, t0, tb, hb, lv;
+  bool boiling;
+  double temperature(double h) const {
+    if (!boiling || h <= hb) return t0 + h / crho;
+    if (h <= hb + lv) return tb;
+    return tb + (h - hb - lv) / crho;
+  }
+  double vapor(double h) const {
+    if (!boiling) return 0.0;
+    if (lv <= 0) return h > hb ? 1.0 : 0.0;
+    return std::clamp((h - hb) / lv, 0.0, 1.0);
+  }
+};
+
+Derived derivedOf(const ThermalParams& p) {
+  Derived d;
+  d.crho = p.heatCapacityJ_m3K;
+  d.t0 = p.initialTemperatureC;
+  d.tb = p.boilingTemperatureC;
+  d.hb = d.crho * (d.tb - d.t0);
+  d.lv = p.waterFraction * p.densityKg_m3 * p.latentHeatJ_kg;
+  d.boiling = p.boiling;
+  return d;
+}
+
+}  // namespace
+
+
+double ThermalPhase::temperatureOfEnthalpy(double h) const {
+  return derivedOf(params_).temperature(h);
+}
+
+void ThermalPhase::initState(ThermalState& s) const {
+  const int n = numNodes_;
+  const size_t nt = tets_.size();
+  s.temperatureC = Eigen::VectorXd::Constant(n, params_.initialTemperatureC);
+  s.enthalpyJ_m3 = Eigen::VectorXd::Zero(n);
+  s.vaporFraction = Eigen::VectorXd::Zero(n);
+  s.vaporFractionTet.assign(nt, 0.0);
+  s.damageOmega.assign(nt, 0.0);
+  s.coagulationTet.assign(nt, 0.0);
+  s.desiccatedTet.assign(nt, 0);
+  s.timeS = 0;
+  s.sensibleJ = s.latentJ = s.sourceJ = s.convectedJ = 0;
+}
+
+void ThermalPhase::setTemperature(ThermalState& s, const Eigen::VectorXd& temperatureC) const {
+  ESIM_VERIFY(temperatureC.size() == numNodes_,
+              "thermal setTemperature: " + std::to_string(temperatureC.size()) +
+                  " values for " + std::to_string(numNodes_) + " nodes");
+  if (s.enthalpyJ_m3.size() != numNodes_) initState(s);
+  const Derived d = derivedOf(params_);
+  for (int i = 0; i < numNodes_; ++i) {
+    const double t = temperatureC[i];
+    ESIM_VERIFY(std::isfinite(t) && t > -kKelvinOffset,
+                "thermal setTemperature: node " + std::to_string(i) + " temperature " + fmt(t) +
+                    " C is not a finite temperature above absolute zero");
+    double h = d.crho * (t - d.t0);
+    if (d.boiling && t > d.tb) h += d.lv;  // above boiling: dry
+    s.enthalpyJ_m3[i] = h;
+    s.temperatureC[i] = temperatureOfEnthalpy(h);
+    s.vaporFraction[i] = d.vapor(h);
+  }
+  // energy split of the imposed field
+  const Impl& m = *impl_;
+  double latent = 0, total = 0;
+  for (int i = 0; i < numNodes_; ++i) {
+    total += m.massM3[i] * s.enthalpyJ_m3[i];
+    latent += m.massM3[i] * d.lv * s.vaporFraction[i];
+  }
+  s.latentJ = latent;
+  s.sensibleJ = total - latent;
+  // per tet (the step updates these only around nodes whose vapour changes)
+  const Eigen::VectorXd& vf = s.vaporFraction;
+  for (size_t e = 0; e < tets_.size(); ++e) {
+    const Tet& t = tets_[e];
+    s.vaporFractionTet[e] = 0.25 * (vf[t[0]] + vf[t[1]] + vf[t[2]] + vf[t[3]]);
+    if (alive_[e] && vf[t[0]] >= 1 && vf[t[1]] >= 1 && vf[t[2]] >= 1 && vf[t[3]] >= 1)
+      s.desiccatedTet[e] = 1;
+  }
+}
+
+double ThermalPhase::storedEnergyJ(const ThermalState& s) const {
+  ESIM_VERIFY(s.enthalpyJ_m3.size() == numNodes_, "thermal storedEnergyJ: state has " +
+                                                       std::to_string(s.enthalpyJ_m3.size()) +
+                                                       " nodes, the phase " +
+                                                       std::to_string(numNodes_));
+  return impl_->massM3.dot(s.enthalpyJ_m3);
+}
+
+std::string ThermalPhase::lastSolverName() const { return impl_->lastSolver; }
+
+// ---- explicit stability limit: Lanczos on K v = lambda (c rho M) v ----
+
+double ThermalPhase::stableExplicitDtS() const {
+  Impl& m = *impl_;
+  if (m.stableDt > 0) return m.stableDt;
+  const int n = numNodes_;
+  const bool lumped = params_.lumpedMass;
+  auto applyMass = [&](const Eigen::VectorXd& x, Eigen::VectorXd& y) {
+    if (lumped) y = m.massM3.cwiseProduct(x);
+    else y = m.massConsistent * x;
+  };
+  auto solveMass = [&](const Eigen::VectorXd& x, Eigen::VectorXd& y) {
+    if (lumped) {
+      y.resize(n);
+      for (int i = 0; i < n; ++i) y[i] = m.active[i] ? x[i] / m.massM3[i] : 0.0;
+    } else {
+      y = m.massFactor->solve(x);
+      for (int i = 0; i < n; ++i)
+        if (!m.active[i]) y[i] = 0.0;
+    }
+  };
+  // deterministic start vector on the active nodes
+  Eigen::VectorXd q = Eigen::VectorXd::Zero(n), mq, u, w, mw;
+  std::uint64_t seed = 0x9E3779B97F4A7C15ull;
+  int numActive = 0;
+  for (int i = 0; i < n; ++i) {
+    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+    if (!m.active[i]) continue;
+    q[i] = static_cast<double>(seed >> 11) / 9007199254740992.0 - 0.5;
+    ++numActive;
+  }
+  if (numActive == 0) return m.stableDt = std::numeric_limits<double>::infinity();
+  applyMass(q, mq);
+  q /= std::sqrt(q.dot(mq));
+  const int steps = std::min(kLanczosSteps, numActive);
+  std::vector<Eigen::VectorXd> basis;
+  std::vector<double> alpha, beta;
+  for (int j = 0; j < steps; ++j) {
+    basis.push_back(q);
+    u = m.stiffnessRows * q;
+    const double a = q.dot(u);
+    alpha.push_back(a);
+    solveMass(u, w);
+    w -= a * q;
+    if (j > 0) w -= beta.back() * basis[j - 1];
+    applyMass(w, mw);  // full re-orthogonalisation (M inner product)
+    for (const Eigen::VectorXd& b : basis) w -= b.dot(mw) * b;
+    applyMass(w, mw);
+    const double b = std::sqrt(std::max(0.0, w.dot(mw)));
+    if (j + 1 == steps || b <= 1e-10 * std::abs(a)) break;
+    beta.push_back(b);
+    q = w / b;
+  }
+  const int k = static_cast<int>(alpha.size());
+  Eigen::MatrixXd tri = Eigen::MatrixXd::Zero(k, k);
+  for (int i = 0; i < k; ++i) {
+    tri(i, i) = alpha[i];
+    if (i + 1 < k) tri(i, i + 1) = tri(i + 1, i) = beta[i];
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(tri, Eigen::EigenvaluesOnly);
+  const double lambdaMax = eig.eigenvalues().maxCoeff() / params_.heatCapacityJ_m3K;  // [1/s]
+  m.stableDt = lambdaMax > 0 ? kStabilityMargin * 2.0 / lambdaMax
+                             : std::numeric_limits<double>::infinity();
+  return m.stableDt;
+}
+
+// ---- the step ----
+
+ThermalPhase::StepStats ThermalPhase::step(double dtS, const std::vector<double>& sourceW_m3,
+                                           ThermalState& s) {
+  Impl& m = *impl_;
+  const int n = numNodes_;
+  const ThermalParams& p = params_;
+  const Derived d = derivedOf(p);
+  ESIM_VERIFY(std::isfinite(dtS) && dtS > 0,
+              "thermal step: dt = " + fmt(dtS) + " s: must be > 0 and finite");
+  ESIM_VERIFY(sourceW_m3.size() == tets_.size(),
+              "thermal step: source has " + std::to_string(sourceW_m3.size()) +
+                  " values, the mesh has " + std::to_string(tets_.size()) + " tets");
+  ESIM_VERIFY(s.enthalpyJ_m3.size() == n && s.temperatureC.size() == n &&
+                  s.vaporFraction.size() == n && s.damageOmega.size() == tets_.size() &&
+                  s.coagulationTet.size() == tets_.size() &&
+                  s.vaporFractionTet.size() == tets_.size() &&
+                  s.desiccatedTet.size() == tets_.size(),
+              "thermal step: the state does not match the mesh (call initState)");
+
+  // ---- nodal source load F_i = sum_e Q_e V_e / 4 [W] ----
+  m.load.setZero();
+  double sourcePowerW = 0;
+  bool anySource = false;
+  for (size_t e = 0; e < tets_.size(); ++e) {
+    if (!alive_[e]) continue;
+    const double q = sourceW_m3[e];
+    ESIM_VERIFY(std::isfinite(q), "thermal step: source of tet " + std::to_string(e) + " is " +
+                                      fmt(q) + " W/m^3 (must be finite)");
+    if (q == 0) continue;
+    anySource = true;
+    const double powerW = q * volumeM3_[e];
+    sourcePowerW += powerW;
+    for (int v : tets_[e]) m.load[v] += 0.25 * powerW;
+  }
+
+  // temperature from the primary unknown
+  Eigen::VectorXd& temp = s.temperatureC;
+  Eigen::VectorXd& enth = s.enthalpyJ_m3;
+  for (int i = 0; i < n; ++i) temp[i] = d.temperature(enth[i]);
+
+  // Arrhenius damage over a (sub)step, trapezoid rule on the tet mean temperature
+  auto accumulateDamage = [&](double h, const Eigen::VectorXd& t0, const Eigen::VectorXd& t1) {
+    if (!p.damage) return;
+    const double ea = p.arrheniusEa_J_mol / kGasConstantJ_molK;
+    for (size_t e = 0; e < tets_.size(); ++e) {
+      if (!alive_[e]) continue;
+      const Tet& t = tets_[e];
+      const double m0 = 0.25 * (t0[t[0]] + t0[t[1]] + t0[t[2]] + t0[t[3]]) + kKelvinOffset;
+      const double m1 = 0.25 * (t1[t[0]] + t1[t[1]] + t1[t[2]] + t1[t[3]]) + kKelvinOffset;
+      s.damageOmega[e] += 0.5 * h * p.arrheniusA_s * (std::exp(-ea / m0) + std::exp(-ea / m1));
+      s.coagulationTet[e] = -std::expm1(-s.damageOmega[e]);
+    }
+  };
+
+  StepStats stats;
+  // ---- skip: nothing can change but time and damage ----
+  if (!anySource && !m.convectionActive) {
+    bool uniform = true;
+    double h0 = 0;
+    bool first = true;
+    for (int i = 0; i < n && uniform; ++i) {
+      if (!m.active[i]) continue;
+      if (first) { h0 = enth[i]; first = false; }
+      else if (enth[i] != h0) uniform = false;
+    }
+    if (uniform) {
+      accumulateDamage(dtS, temp, temp);
+      s.timeS += dtS;
+      stats.skipped = true;
+      return stats;
+    }
+  }
+
+  auto solveMass = [&](const Eigen::VectorXd& x, Eigen::VectorXd& y) {
+    if (p.lumpedMass) {
+      for (int i = 0; i < n; ++i) y[i] = m.active[i] ? x[i] / m.massM3[i] : 0.0;
+    } else {
+      y = m.massFactor->solve(x);
+      for (int i = 0; i < n; ++i)
+        if (!m.active[i]) y[i] = 0.0;
+    }
+  };
+  auto convectedPowerW = [&](const Eigen::VectorXd& t) {
+    return m.convectionActive ? m.convectionColSum.dot(t) - m.convectionLoadTotalW : 0.0;
+  };
+
+  if (p.integrator == ThermalIntegrator::Explicit) {
+    // ---- explicit: H += h M^-1 (F - K T), sub-stepped below the limit ----
+    const double limit = stableExplicitDtS();
+    int substeps = 1;
+    if (dtS > limit) {
+      ESIM_VERIFY(p.allowSubstepping,
+                  "thermal explicit step: dt = " + fmt(dtS) +
+                      " s exceeds the stability limit " + fmt(limit) +
+                      " s of this mesh; enable sub-stepping (allow_substepping) or use "
+                      "backward-euler / crank-nicolson");
+      substeps = static_cast<int>(std::ceil(dtS / limit));
+    }
+    const double h = dtS / substeps;
+    for (int k = 0; k < substeps; ++k) {
+      m.flux = m.load + m.convectionLoadW;
+      m.flux.noalias() -= m.stiffnessRows * temp;
+      s.convectedJ += h * convectedPowerW(temp);
+      solveMass(m.flux, m.work);
+      enth += h * m.work;
+      m.tempOld = temp;
+      for (int i = 0; i < n; ++i) temp[i] = d.temperature(enth[i]);
+      accumulateDamage(h, m.tempOld, temp);
+    }
+    stats.substeps = substeps;
+    stats.iterations = 0;
+  } else {
+    // ---- implicit theta scheme with the Chernoff iteration on T(H) ----
+    const double theta = p.integrator == ThermalIntegrator::BackwardEuler ? 1.0 : 0.5;
+    const double crho = d.crho;
+    // choose the linear solver for this (dt, theta)
+    if (m.cgDecidedDt != dtS || m.cgDecidedTheta != theta) {
+      m.cgDecidedDt = dtS;
+      m.cgDecidedTheta = theta;
+      bool cg = p.lumpedMass && p.linearSolver != ThermalLinearSolver::Direct;
+      if (cg && p.linearSolver == ThermalLinearSolver::Auto) {
+        double lo = std::numeric_limits<double>::infinity(), hi = 0;
+        for (int i = 0; i < n; ++i) {
+          if (!m.active[i]) continue;
+          const double si = crho * m.massM3[i] / dtS;
+          const double di = si + theta * m.stiffnessDiag[i];
+          lo = std::min(lo, si / di);
+          hi = std::max(hi, (si + theta * m.stiffnessAbsRow[i]) / di);
+        }
+        cg = hi <= kCgMaxCondition * lo;
+      }
+      m.useCg = cg;
+      for (int i = 0; i < n; ++i) {
+        m.diagS[i] = m.active[i] ? crho * m.massM3[i] / dtS : 1.0;
+        m.diagPrec[i] = 1.0 / (m.diagS[i] + theta * m.stiffnessDiag[i]);
+      }
+    }
+    // A x = b, lumped mass: A = diag(S) + theta K; kx = K x on entry and on exit (tracked
+    // along the iteration, so that no product is spent on it). Stops when the preconditioned
+    // residual (~ the error in kelvin, A being close to its diagonal) is below errorK.
+    auto solveCg = [&](const Eigen::VectorXd& b, Eigen::VectorXd& x, Eigen::VectorXd& kx,
+                       double errorK) -> bool {
+      m.cgR = b - m.diagS.cwiseProduct(x) - theta * kx;
+      m.cgZ = m.diagPrec.cwiseProduct(m.cgR);
+      if (m.cgZ.cwiseAbs().maxCoeff() <= errorK) return true;
+      m.cgP = m.cgZ;
+      double rz = m.cgR.dot(m.cgZ);
+      for (int it = 0; it < kCgMaxIterations; ++it) {
+        m.cgKp.noalias() = m.stiffnessRows * m.cgP;
+        m.cgAp = m.diagS.cwiseProduct(m.cgP) + theta * m.cgKp;
+        const double alpha = rz / m.cgP.dot(m.cgAp);
+        x += alpha * m.cgP;
+        kx += alpha * m.cgKp;
+        m.cgR -= alpha * m.cgAp;
+        ++stats.cgIterations;
+        m.cgZ = m.diagPrec.cwiseProduct(m.cgR);
+        if (m.cgZ.cwiseAbs().maxCoeff() <= errorK) return true;
+        const double rzNew = m.cgR.dot(m.cgZ);
+        m.cgP = m.cgZ + (rzNew / rz) * m.cgP;
+        rz = rzNew;
+      }
+      return false;
+    };
+    auto solveDirect = [&](const Eigen::VectorXd& b, Eigen::VectorXd& x, Eigen::VectorXd& kx) {
+      if (!m.factor || m.factorDt != dtS || m.factorTheta != theta) {
+        SparseMatrix a = theta * m.stiffness;
+        if (p.lumpedMass) {
+          for (int i = 0; i < n; ++i)
+            a.coeffRef(i, i) += m.active[i] ? crho * m.massM3[i] / dtS : 1.0;
+        } else {
+          a += (crho / dtS) * m.massConsistent;
+          for (int i = 0; i < n; ++i)
+            if (!m.active[i]) a.coeffRef(i, i) += 1.0;
+        }
+        a.makeCompressed();
+        if (!m.factor) m.factor = std::make_unique<Cholesky>();
+        if (!m.factorAnalyzed) {
+          m.factor->analyzePattern(a);
+          m.factorAnalyzed = true;
+        }
+        m.factor->factorize(a);
+        ESIM_VERIFY(m.factor->info() == Eigen::Success,
+                    "thermal step: the implicit heat matrix could not be factored");
+        m.factorDt = dtS;
+        m.factorTheta = theta;
+      }
+      x = m.factor->solve(b);
+      kx.noalias() = m.stiffnessRows * x;
+    };
+    auto solveLinear = [&](const Eigen::VectorXd& b, Eigen::VectorXd& x, Eigen::VectorXd& kx,
+                           double errorK) {
+      if (m.useCg) {
+        m.lastSolver = "cg";
+        if (solveCg(b, x, kx, errorK)) return;
+        m.useCg = false;  // did not converge: Cholesky for this dt from now on
+      }
+      m.lastSolver = "cholmod";
+      solveDirect(b, x, kx);
+    };
+
+    // G = F - (1 - theta) K T0 (+ convection load)
+    m.enthalpy0 = enth;
+    m.tempOld = temp;
+    m.tempNew = temp;  // initial guess, and K T0
+    m.kTemp.noalias() = m.stiffnessRows * temp;
+    m.g = m.load + m.convectionLoadW;
+    if (theta < 1) m.g -= (1 - theta) * m.kTemp;
+    const Eigen::VectorXd& g = m.g;
+    if (p.boiling && p.lumpedMass) {
+      // start the iteration from the predictor H0 + dt M^-1 (G - theta K T0): a node that
+      // starts boiling in this step then starts near its plateau (one iteration fewer)
+      for (int i = 0; i < n; ++i) {
+        if (!m.active[i]) continue;
+        enth[i] = m.enthalpy0[i] + dtS * (g[i] - theta * m.kTemp[i]) / m.massM3[i];
+        temp[i] = d.temperature(enth[i]);
+      }
+    }
+    stats.converged = false;
+    double lastMismatchK = 0;  // of the previous iteration [K]
+    const double cgFloorK = kCgRoundOff * (1.0 + m.tempOld.cwiseAbs().maxCoeff());
+    bool pinnedLast = false;
+    for (int it = 0; it < p.maxNonlinearIterations; ++it) {
+      // rhs = G + M (C T(H_k) - (H_k - H0)) / dt with the relaxation capacity C = c rho
+      // (Chernoff). With CG (no factorization to keep), the first iterations use a Newton-
+      // like C = kPinCapacity c rho on the nodes inside the plateau, which pins them at the
+      // boiling temperature: the phase set is then found in ~2 iterations instead of the
+      // Chernoff contraction's ~4; after kPinIterations the plain, always convergent
+      // Chernoff iteration takes over.
+      const bool pin = p.boiling && m.useCg && it < kPinIterations;
+      if (pin || pinnedLast) {
+        for (int i = 0; i < n; ++i) {
+          const bool inPlateau = pin && enth[i] > d.hb && enth[i] < d.hb + d.lv;
+          const double c = inPlateau ? kPinCapacity * crho : crho;
+          m.diagS[i] = m.active[i] ? c * m.massM3[i] / dtS : 1.0;
+          m.diagPrec[i] = 1.0 / (m.diagS[i] + theta * m.stiffnessDiag[i]);
+          m.work[i] = c * temp[i] - (enth[i] - m.enthalpy0[i]);
+        }
+        pinnedLast = pin;
+      } else {
+        for (int i = 0; i < n; ++i) m.work[i] = crho * temp[i] - (enth[i] - m.enthalpy0[i]);
+      }
+      if (p.lumpedMass) m.rhs = g + (m.massM3.cwiseProduct(m.work)) / dtS;
+      else m.rhs = g + (m.massConsistent * m.work) / dtS;
+      // later solves need only an error well below what this iteration will leave (the
+      // iteration contracts by ~theta dt lambda_max, < 1e-2 at frame steps)
+      // (the first solve: 1e-3 of the tolerance)
+      solveLinear(m.rhs, m.tempNew, m.kTemp,
+                  std::max(1e-3 * std::max(p.nonlinearToleranceK, lastMismatchK), cgFloorK));
+      ++stats.iterations;
+      // flux form: H = H0 + dt M^-1 (G - theta K T_k+1): exact energy at every iterate
+      m.flux = g - theta * m.kTemp;
+      solveMass(m.flux, m.work);
+      enth = m.enthalpy0 + dtS * m.work;
+      double mismatchK = 0;
+      for (int i = 0; i < n; ++i) {
+        temp[i] = d.temperature(enth[i]);
+        if (m.active[i]) mismatchK = std::max(mismatchK, std::abs(temp[i] - m.tempNew[i]));
+      }
+      if (mismatchK <= p.nonlinearToleranceK) {
+        stats.converged = true;
+        break;
+      }
+      lastMismatchK = mismatchK;
+    }
+    if (pinnedLast) {  // restore the Chernoff diagonal for the next step
+      for (int i = 0; i < n; ++i) {
+        m.diagS[i] = m.active[i] ? crho * m.massM3[i] / dtS : 1.0;
+        m.diagPrec[i] = 1.0 / (m.diagS[i] + theta * m.stiffnessDiag[i]);
+      }
+    }
+    if (m.convectionActive)
+      s.convectedJ += dtS * (theta * convectedPowerW(m.tempNew) +
+                             (1 - theta) * convectedPowerW(m.tempOld));
+    accumulateDamage(dtS, m.tempOld, temp);
+    stats.substeps = 1;
+  }
+
+  // ---- derived fields: vapour per node and tet, desiccation, energy split ----
+  s.timeS += dtS;
+  s.sourceJ += dtS * sourcePowerW;
+  // (per tet only around the nodes whose vapour fraction changed or that are dry)
+  double latent = 0, total = 0;
+  Eigen::VectorXd& vf = s.vaporFraction;
+  for (int i = 0; i < n; ++i) {
+    const double v = d.vapor(enth[i]);
+    if (v != vf[i]) {
+      vf[i] = v;
+      for (const int* e = m.nodeTets.begin(i); e != m.nodeTets.end(i); ++e) {
+        const Tet& t = tets_[*e];
+        s.vaporFractionTet[*e] = 0.25 * (vf[t[0]] + vf[t[1]] + vf[t[2]] + vf[t[3]]);
+      }
+    }
+    total += m.massM3[i] * enth[i];
+    latent += m.massM3[i] * d.lv * v;
+  }
+  s.latentJ = latent;
+  s.sensibleJ = total - latent;
+  if (p.boiling) {
+    for (int i = 0; i < n; ++i) {
+      if (vf[i] < 1) continue;
+      for (const int* e = m.nodeTets.begin(i); e != m.nodeTets.end(i); ++e) {
+        const Tet& t = tets_[*e];
+        if (!s.desiccatedTet[*e] && vf[t[0]] >= 1 && vf[t[1]] >= 1 && vf[t[2]] >= 1 &&
+            vf[t[3]] >= 1)
+          s.desiccatedTet[*e] = 1;
+      }
+    }
+  }
+  return stats;
+}
+
+}  // namespace esim

@@ -1,0 +1,531 @@
+// scenario_test.cpp - the scenario schema, loader, validator and writer (sim/io/scenario.h):
+// paper defaults, every shipped scenario, --set overrides, one message per kind of bad
+// input (with file:line:col, field path and suggestion), the generated reference, and
+// the YAML round trip.
+#include "sim/io/scenario.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "sim/core_error.h"
+#include "sim/electrode.h"
+#include "sim/io/mesh_import.h"
+#include "sim/mesh_slab.h"
+
+namespace esim {
+namespace {
+
+namespace fs = std::filesystem;
+const fs::path kRoot = ESIM_SOURCE_DIR;
+
+// the error message of parsing text (fails the test when it parses)
+std::string errorOf(const std::string& yaml, const std::vector<std::string>& overrides = {}) {
+  try {
+    parseScenario(yaml, "bad.yaml", overrides);
+  } catch (const Error& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "no error for:\n" << yaml;
+  return "";
+}
+
+// asserts that the message contains every piece
+void expectMessage(const std::string& message, const std::vector<std::string>& pieces) {
+  for (const auto& p : pieces)
+    EXPECT_NE(message.find(p), std::string::npos) << "'" << p << "' missing in: " << message;
+}
+
+std::vector<fs::path> shippedScenarios() {
+  std::vector<fs::path> files;
+  for (const auto& e : fs::directory_iterator(kRoot / "scenarios"))
+    if (e.path().extension() == ".yaml") files.push_back(e.path());
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+// ---- defaults ----
+
+TEST(Scenario, DefaultsAreThePapersValues) {
+  const Scenario s;
+  // Table 1
+  EXPECT_EQ(s.material.heatCapacityJPerM3K, 3.82e6);
+  EXPECT_EQ(s.material.thermalConductivityWPerMK, 0.502);
+  EXPECT_EQ(s.material.electricConductivitySPerM, 0.144);
+  EXPECT_EQ(s.material.youngsModulusPa, 4.75e4);
+  EXPECT_EQ(s.material.poissonRatio, 0.4);
+  EXPECT_EQ(s.material.criticalStressPa, 2.45e4);
+  // section 4.1, Table 2
+  EXPECT_EQ(s.tool.voltageV, 72.0);
+  EXPECT_EQ(s.returnElectrode.radiusM, 0.04);
+  EXPECT_EQ(s.returnElectrode.normal, Vec3(0, 0, -1));
+  EXPECT_EQ(s.mesh.source, "slab");
+  EXPECT_EQ(s.mesh.slab.sizeM, Vec3(0.1, 0.1, 0.01));
+  EXPECT_EQ(s.mesh.slab.nodes, 1013);
+  EXPECT_EQ(s.material.boilingTemperatureC, 100.0);
+  EXPECT_EQ(s.material.initialTemperatureC, 37.0);
+  // physical constants (REFERENCE.md)
+  EXPECT_EQ(s.material.latentHeatJPerKg, 2.256e6);
+  EXPECT_EQ(s.material.waterFraction, 0.78);
+  // run defaults
+  EXPECT_EQ(s.time.fps, 30.0);
+  EXPECT_EQ(s.time.durationS, 4.0);
+  EXPECT_EQ(frameCount(s), 120);
+  EXPECT_EQ(s.physics, (std::vector<Phase>{Phase::Electric, Phase::Thermal, Phase::Boiling}));
+  ASSERT_EQ(s.tool.generatorOnS.size(), 1u);
+  EXPECT_EQ(s.tool.generatorOnS[0][0], 0.0);
+  EXPECT_TRUE(std::isinf(s.tool.generatorOnS[0][1]));
+  EXPECT_EQ(s.solvers.electricStrategy, "capacitance");
+  EXPECT_EQ(s.look.width, 1280);
+  EXPECT_EQ(s.look.height, 720);
+}
+
+TEST(Scenario, EmptyFileGivesTheDefaults) {
+  Scenario expected;
+  expected.sourceName = "empty.yaml";
+  EXPECT_EQ(parseScenario("", "empty.yaml"), expected);
+  EXPECT_EQ(parseScenario("# only a comment\n", "empty.yaml"), expected);
+  EXPECT_EQ(parseScenario("effects:\n", "empty.yaml"), expected);
+}
+
+TEST(Scenario, ReadsEveryKindOfField) {
+  const Scenario s = parseScenario(
+      "name: \"x: y\"\n"
+      "mesh: {slab: {size_m: [0.05, 0.04, 0.02], nodes_per_axis: [5, 4, 3]}}\n"
+      "material: {water_fraction: 0.7}\n"
+      "solvers: {electric: {threads: 2, strategy: pcg}}\n"
+      "effects: {thermal_damage: yes}\n"
+      "physics: [boiling, thermal, electric]\n"
+      "tool:\n"
+      "  generator_on: [[0.5, 1], [2, 3]]\n"
+      "  path:\n"
+      "    - {t_s: 0, position_m: [0, 0, 0.01]}\n"
+      "    - {t_s: 1.5, position_m: [0.01, 0, 0.01], orientation_deg: [0, -15, 0]}\n",
+      "ok.yaml");
+  EXPECT_EQ(s.name, "x: y");
+  EXPECT_EQ(s.mesh.slab.sizeM, Vec3(0.05, 0.04, 0.02));
+  EXPECT_EQ(s.mesh.slab.nodesPerAxis, (std::array<int, 3>{5, 4, 3}));
+  EXPECT_EQ(s.material.waterFraction, 0.7);
+  EXPECT_EQ(s.solvers.electricThreads, 2);
+  EXPECT_EQ(s.solvers.electricStrategy, "pcg");
+  EXPECT_TRUE(s.effects.thermalDamage);
+  // phases are stored in pipeline order whatever the order written
+  EXPECT_EQ(s.physics, (std::vector<Phase>{Phase::Electric, Phase::Thermal, Phase::Boiling}));
+  ASSERT_EQ(s.tool.generatorOnS.size(), 2u);
+  EXPECT_EQ(s.tool.generatorOnS[1][1], 3.0);
+  ASSERT_EQ(s.tool.path.size(), 2u);
+  EXPECT_EQ(s.tool.path[0].orientationDeg, Vec3::Zero());  // default
+  EXPECT_EQ(s.tool.path[1].orientationDeg, Vec3(0, -15, 0));
+  // derived: tool path with quaternions, generator bursts, slab spec
+  const ToolPath path = makeToolPath(s);
+  EXPECT_TRUE(path.generatorOnAt(0.7));
+  EXPECT_FALSE(path.generatorOnAt(1.5));
+  EXPECT_NEAR(path.positionAt(0.75).x(), 0.005, 1e-15);
+  const Vec3 axis =
+      path.poseAt(1.5).orientation * Vec3::UnitZ();  // -15 deg about y: handle toward -x
+  EXPECT_NEAR(axis.x(), -std::sin(15 * M_PI / 180), 1e-12);
+  const SlabSpec spec = makeSlabSpec(s);
+  EXPECT_EQ(spec.sizeM, Vec3(0.05, 0.04, 0.02));
+  EXPECT_EQ(spec.nodesPerAxis, (std::array<int, 3>{5, 4, 3}));
+}
+
+// ---- shipped scenarios ----
+
+TEST(Scenario, EveryShippedScenarioLoadsAndRoundTrips) {
+  const auto files = shippedScenarios();
+  ASSERT_GE(files.size(), 7u) << "scenarios/ should hold the 7 shipped scenarios";
+  std::set<std::uint64_t> hashes;
+  for (const auto& file : files) {
+    SCOPED_TRACE(file.string());
+    Scenario s;
+    try {
+      s = loadScenario(file.string());
+    } catch (const Error& e) {
+      ADD_FAILURE() << e.what();
+      continue;
+    }
+    EXPECT_EQ(s.name, file.stem().string()) << "name should match the file name";
+    EXPECT_FALSE(s.description.empty());
+    EXPECT_GE(frameCount(s), 1);
+    EXPECT_NO_THROW(makeToolPath(s));
+    // the tool's lowest point presses into the slab's top face
+    if (s.mesh.source == "slab") {
+      const double below = s.tool.shape == "sphere" ? s.tool.radiusM : 0.0;
+      for (const auto& k : s.tool.path) EXPECT_LT(k.positionM.z() - below, s.mesh.slab.sizeM.z());
+    }
+    // parse(toYaml(s)) == s, and the text is a fixed point
+    const std::string yaml = scenarioToYaml(s);
+    const Scenario again = parseScenario(yaml, s.sourceName);
+    EXPECT_EQ(again, s) << yaml;
+    EXPECT_EQ(scenarioToYaml(again), yaml);
+    EXPECT_EQ(scenarioHash(again), scenarioHash(s));
+    hashes.insert(scenarioHash(s));
+  }
+  EXPECT_EQ(hashes.size(), files.size()) << "shipped scenarios should differ";
+}
+
+TEST(Scenario, PaperSlabIsThePapersSetUp) {
+  const Scenario s = loadScenario((kRoot / "scenarios/paper_slab.yaml").string());
+  EXPECT_EQ(s.mesh.slab.nodes, 1013);
+  EXPECT_EQ(s.tool.voltageV, 72.0);
+  EXPECT_EQ(s.returnElectrode.radiusM, 0.04);
+  EXPECT_EQ(frameCount(s), 120);
+  EXPECT_EQ(s.physics, (std::vector<Phase>{Phase::Electric, Phase::Thermal, Phase::Boiling}));
+  const ToolPath p = makeToolPath(s);
+  EXPECT_NEAR(p.positionAt(0.0).x(), -0.035, 1e-15);
+  EXPECT_NEAR(p.positionAt(4.0).x(), 0.035, 1e-15);
+  EXPECT_NEAR(p.positionAt(2.0).x(), 0.0, 1e-15);  // left to right, through the centre
+  EXPECT_NEAR(p.positionAt(2.0).z(), 0.0098, 1e-15);
+  EXPECT_TRUE(p.generatorOnAt(3.9));
+  EXPECT_EQ(loadScenario((kRoot / "scenarios/paper_slab_506.yaml").string()).mesh.slab.nodes, 506);
+  EXPECT_EQ(loadScenario((kRoot / "scenarios/paper_slab_643.yaml").string()).mesh.slab.nodes, 643);
+  const Scenario coag = loadScenario((kRoot / "scenarios/coagulation_spot.yaml").string());
+  const ToolPath cp = makeToolPath(coag);
+  EXPECT_TRUE(cp.generatorOnAt(1.0));
+  EXPECT_FALSE(cp.generatorOnAt(4.0));
+  EXPECT_EQ(cp.positionAt(0.0), cp.positionAt(5.0));  // held still
+  EXPECT_EQ(loadScenario((kRoot / "scenarios/electric_only.yaml").string()).physics,
+            (std::vector<Phase>{Phase::Electric}));
+  const Scenario fine = loadScenario((kRoot / "scenarios/fine_cut.yaml").string());
+  EXPECT_EQ(fine.mesh.slab.nodes, 50000);
+  EXPECT_TRUE(fine.mesh.slab.grading.enabled);
+}
+
+// Every shipped scenario's tool touches the tissue on every frame and its return pad
+// grounds nodes: the scene actually conducts (coarse grids need a large contact distance).
+TEST(Scenario, ShippedToolsTouchTheTissueOnEveryFrame) {
+  for (const auto& file : shippedScenarios()) {
+    SCOPED_TRACE(file.string());
+    const Scenario s = loadScenario(file.string());
+    TetMesh mesh;
+    if (s.mesh.source == "slab") {
+      mesh = makeSlab(makeSlabSpec(s));
+    } else {
+      MeshingOptions o;
+      o.cellSizeM = s.mesh.file.cellSizeM;
+      o.facetSizeM = s.mesh.file.facetSizeM;
+      o.facetDistanceM = s.mesh.file.facetDistanceM;
+      o.facetAngleDeg = s.mesh.file.facetAngleDeg;
+      o.cellRadiusEdgeRatio = s.mesh.file.radiusEdgeRatio;
+      mesh = loadTetMesh(s.mesh.file.resolvedPath, o, s.mesh.file.scaleToM);
+    }
+    const std::vector<int> surface = boundaryNodes(mesh, boundaryFaces(mesh));
+    ReturnElectrode pad;
+    pad.centerM = s.returnElectrode.centerM;
+    pad.normal = s.returnElectrode.normal;
+    pad.radiusM = s.returnElectrode.radiusM;
+    pad.toleranceM = s.returnElectrode.toleranceM;
+    EXPECT_GE(returnElectrodeNodes(mesh, surface, pad).size(), 20u);
+    ElectrodeShape shape;
+    shape.kind = s.tool.shape == "sphere" ? ElectrodeKind::Sphere : ElectrodeKind::Blade;
+    shape.radiusM = s.tool.radiusM;
+    shape.lengthM = s.tool.lengthM;
+    shape.widthM = s.tool.widthM;
+    const ToolPath path = makeToolPath(s);
+    const ContactFinder finder(mesh, surface);
+    int framesWithout = 0;
+    for (int f = 0; f < frameCount(s); ++f) {
+      const std::vector<int> contacts =
+          finder.find(shape, path.poseAt(f / s.time.fps), s.tool.contactDistanceM);
+      if (contacts.empty()) ++framesWithout;
+    }
+    EXPECT_EQ(framesWithout, 0);
+  }
+}
+
+TEST(Scenario, SummaryNamesFramesPhasesAndMesh) {
+  const Scenario s = loadScenario((kRoot / "scenarios/paper_slab.yaml").string());
+  const std::string line = scenarioSummary(s);
+  expectMessage(line, {"120 frames", "physics [electric, thermal, boiling]", "slab 100x100x10 mm",
+                       "~1013 nodes", "blade 72 V"});
+}
+
+// ---- overrides ----
+
+TEST(Scenario, OverridesSetNumbersListsAndNestedFields) {
+  const std::string base = "tool: {voltage_v: 50}\n";
+  const Scenario s =
+      parseScenario(base, "o.yaml",
+                    {"tool.voltage_v=60", "physics=[electric]", "mesh.slab.grading.enabled=true",
+                     "camera.eye_m=[0, -0.2, 0.1]", "look.style=tissue",
+                     "tool.path=[{t_s: 0, position_m: [0.01, 0, 0.0098]}]"});
+  EXPECT_EQ(s.tool.voltageV, 60.0);
+  EXPECT_EQ(s.physics, std::vector<Phase>{Phase::Electric});
+  EXPECT_TRUE(s.mesh.slab.grading.enabled);
+  EXPECT_EQ(s.camera.eyeM, Vec3(0, -0.2, 0.1));
+  EXPECT_EQ(s.look.style, "tissue");
+  ASSERT_EQ(s.tool.path.size(), 1u);
+  EXPECT_EQ(s.tool.path[0].positionM.x(), 0.01);
+  // a group replaced as a mapping; the last override wins
+  const Scenario t = parseScenario(
+      base, "o.yaml", {"effects={thermal_damage: true}", "time.fps=25", "time.fps=24"});
+  EXPECT_TRUE(t.effects.thermalDamage);
+  EXPECT_EQ(t.time.fps, 24.0);
+  EXPECT_EQ(frameCount(t), 96);
+  // an override into an empty document creates the groups
+  EXPECT_EQ(parseScenario("", "e.yaml", {"material.poisson_ratio=0.45"}).material.poissonRatio,
+            0.45);
+}
+
+TEST(Scenario, BadOverridesAreErrors) {
+  expectMessage(
+      errorOf("", {"tool.voltag_v=60"}),
+      {"--set tool.voltag_v=60", "tool.voltag_v: unknown key", "did you mean 'voltage_v'?"});
+  expectMessage(
+      errorOf("", {"tool.voltage_v=abc"}),
+      {"--set tool.voltage_v=abc", "tool.voltage_v: expected a number in volts, got 'abc'"});
+  expectMessage(errorOf("", {"voltage_v"}), {"expected key.path=value"});
+  expectMessage(errorOf("", {"tool.voltage_v.x=1"}), {"tool.voltage_v is a value, not a group"});
+  expectMessage(
+      errorOf("", {"physics=[electric, thermal, boiling, structural, ruptur]"}),
+      {"--set physics=", "physics[4]: unknown phase 'ruptur'", "did you mean 'rupture'?"});
+  expectMessage(errorOf("", {"tool.path=[1"}), {"--set tool.path=[1", "malformed value"});
+}
+
+// ---- bad input: one clear message each ----
+
+TEST(Scenario, MalformedYamlNamesLineAndColumn) {
+  const std::string msg = errorOf("name: x\ntool:\n  voltage_v: [72, 1\n  shape: blade\n");
+  expectMessage(msg, {"bad.yaml:", "malformed YAML"});
+  EXPECT_EQ(msg.rfind("bad.yaml:", 0), 0u) << msg;
+  // a bad indentation
+  expectMessage(errorOf("tool:\n  voltage_v: 72\n shape: blade\n"),
+                {"bad.yaml:3:", "malformed YAML"});
+}
+
+TEST(Scenario, WrongTypeNamesFieldUnitAndValue) {
+  expectMessage(errorOf("name: t\ntool:\n  voltage_v: abc\n"),
+                {"bad.yaml:3:14: tool.voltage_v: expected a number in volts, got 'abc'"});
+  expectMessage(errorOf("tool:\n  radius_m: [1, 2]\n"),
+                {"bad.yaml:2:13: tool.radius_m: expected a number in metres, got a list"});
+  expectMessage(errorOf("camera:\n  eye_m: [0, 1]\n"),
+                {"bad.yaml:2:10: camera.eye_m: expected a list of 3 numbers in metres"});
+  expectMessage(errorOf("camera:\n  eye_m: [0, x, 1]\n"),
+                {"bad.yaml:2:14: camera.eye_m[1]: expected a number in metres, got 'x'"});
+  expectMessage(errorOf("look:\n  width: 12.5\n"),
+                {"bad.yaml:2:10: look.width: expected an integer in pixels, got '12.5'"});
+  expectMessage(errorOf("output:\n  video: maybe\n"),
+                {"bad.yaml:2:10: output.video: expected true or false, got 'maybe'"});
+  expectMessage(errorOf("tool: 5\n"), {"bad.yaml:1:7: tool: expected a mapping with keys shape"});
+  expectMessage(errorOf("look:\n  style: tisue\n"),
+                {"bad.yaml:2:10: look.style: unknown value 'tisue'; did you mean 'tissue'?",
+                 "expected one of temperature, tissue"});
+}
+
+TEST(Scenario, OutOfRangeNamesValueAndRange) {
+  expectMessage(errorOf("material:\n  water_fraction: 1.3\n"),
+                {"bad.yaml:2:19: material.water_fraction = 1.3 is outside [0, 1]"});
+  expectMessage(errorOf("tool:\n  radius_m: 0\n"), {"tool.radius_m = 0 is outside (0, 0.1]"});
+  expectMessage(errorOf("material:\n  poisson_ratio: 0.5\n"),
+                {"material.poisson_ratio = 0.5 is outside [0, 0.5)"});
+  expectMessage(errorOf("output:\n  crf: 60\n"), {"output.crf = 60 is outside [0, 51]"});
+  expectMessage(errorOf("time:\n  fps: .nan\n"), {"time.fps: expected a number"});
+  expectMessage(errorOf("look:\n  width: 641\n"), {"look.width = 641 must be even"});
+  expectMessage(errorOf("look:\n  t_min_c: 100\n  t_max_c: 50\n"),
+                {"bad.yaml:3:12: look.t_max_c = 50 must be above look.t_min_c = 100"});
+}
+
+TEST(Scenario, UnknownKeySuggestsTheClosestName) {
+  expectMessage(errorOf("name: t\ntool:\n  contact_distnce: 0.001\n"),
+                {"bad.yaml:3:3: tool.contact_distnce: unknown key; did you mean "
+                 "'contact_distance_m'?"});
+  // a missing unit suffix
+  expectMessage(errorOf("tool:\n  voltage: 60\n"),
+                {"bad.yaml:2:3: tool.voltage: unknown key; did you mean 'voltage_v'?"});
+  // a top-level typo
+  expectMessage(errorOf("materail:\n  poisson_ratio: 0.3\n"),
+                {"bad.yaml:1:1: materail: unknown key; did you mean 'material'?"});
+  // a key in the wrong section
+  expectMessage(errorOf("tool:\n  fps: 30\n"), {"tool.fps: unknown key; did you mean 'time.fps'?"});
+  // nothing close: list the keys
+  expectMessage(errorOf("time:\n  zzzzzz: 1\n"),
+                {"time.zzzzzz: unknown key; expected one of fps, duration_s"});
+  // inside a keyframe
+  expectMessage(errorOf("tool:\n  path:\n    - {t_s: 0, postion_m: [0, 0, 0]}\n"),
+                {"bad.yaml:3:16: tool.path[0].postion_m: unknown key; did you mean 'position_m'?"});
+  expectMessage(errorOf("time:\n  fps: 30\n  fps: 25\n"),
+                {"bad.yaml:3:3: time.fps: duplicate key"});
+}
+
+TEST(Scenario, UnknownPhaseSuggestsTheClosestPhase) {
+  expectMessage(errorOf("physics: [electric, thermo]\n"),
+                {"bad.yaml:1:21: physics[1]: unknown phase 'thermo'; did you mean 'thermal'?",
+                 "expected one of electric, thermal, boiling, structural, rupture"});
+  expectMessage(errorOf("physics: [electric, electric]\n"),
+                {"physics[1]: phase 'electric' is listed twice"});
+}
+
+TEST(Scenario, MissingAssetListsThePathsTried) {
+  const std::string msg =
+      errorOf("mesh:\n  source: file\n  file:\n    path: assets/no_such_organ.obj\n");
+  expectMessage(msg, {"bad.yaml:4:11: mesh.file.path: file 'assets/no_such_organ.obj' not found; "
+                      "tried ",
+                      (kRoot / "assets/no_such_organ.obj").lexically_normal().string()});
+  expectMessage(errorOf("mesh:\n  source: file\n"),
+                {"bad.yaml:2:11: mesh.source = file needs mesh.file.path"});
+  // a file next to the scenario is found and resolved to an absolute path
+  const fs::path dir = fs::temp_directory_path() / "esim_scenario_test_asset";
+  fs::create_directories(dir);
+  std::ofstream(dir / "organ.obj") << "v 0 0 0\n";
+  const Scenario s =
+      parseScenario("mesh: {source: file, file: {path: organ.obj}}\n", (dir / "x.yaml").string());
+  EXPECT_EQ(s.mesh.file.resolvedPath, (dir / "organ.obj").lexically_normal().string());
+  EXPECT_EQ(s.mesh.file.path, "organ.obj");
+  fs::remove_all(dir);
+  // from another working directory, the repository root (the nearest folder above the
+  // scenario holding assets/) is tried after the scenario's folder
+  const fs::path root = fs::temp_directory_path() / "esim_scenario_test_root";
+  fs::create_directories(root / "assets");
+  fs::create_directories(root / "scenarios");
+  std::ofstream(root / "assets/organ.obj") << "v 0 0 0\n";
+  const fs::path cwd = fs::current_path();
+  fs::current_path("/");
+  const Scenario fromRoot = parseScenario("mesh: {source: file, file: {path: assets/organ.obj}}\n",
+                                          (root / "scenarios/x.yaml").string());
+  fs::current_path(cwd);
+  EXPECT_EQ(fromRoot.mesh.file.resolvedPath,
+            (root / "assets/organ.obj").lexically_normal().string());
+  fs::remove_all(root);
+  std::string fromScenarios;
+  try {
+    parseScenario("mesh: {source: file, file: {path: assets/liver_missing.obj}}\n",
+                  (kRoot / "scenarios/x.yaml").string());
+  } catch (const Error& e) {
+    fromScenarios = e.what();
+  }
+  expectMessage(fromScenarios, {(kRoot / "scenarios/assets/liver_missing.obj").string(),
+                                (kRoot / "assets/liver_missing.obj").string()});
+}
+
+TEST(Scenario, ToolPathTimesMustIncrease) {
+  expectMessage(errorOf("tool:\n  path:\n"
+                        "    - {t_s: 0, position_m: [0, 0, 0.0098]}\n"
+                        "    - {t_s: 2, position_m: [0.01, 0, 0.0098]}\n"
+                        "    - {t_s: 1.5, position_m: [0.02, 0, 0.0098]}\n"),
+                {"bad.yaml:5:13: tool.path[2].t_s = 1.5 is not after tool.path[1].t_s = 2; "
+                 "keyframe times must strictly increase"});
+  expectMessage(errorOf("tool:\n  path: []\n"),
+                {"tool.path: expected a list of at least one keyframe"});
+  expectMessage(errorOf("tool:\n  path:\n    - {position_m: [0, 0, 0]}\n"),
+                {"bad.yaml:3:7: tool.path[0]: missing 't_s'"});
+  expectMessage(errorOf("tool:\n  generator_on: [[0, 2], [1, 3]]\n"),
+                {"tool.generator_on[1]: starts at 1 s, before the previous interval ends (2 s)"});
+  expectMessage(errorOf("tool:\n  generator_on: [[2, 1]]\n"),
+                {"tool.generator_on[0]: off time 1 s must be after on time 2 s"});
+}
+
+TEST(Scenario, PhaseDependenciesAreChecked) {
+  expectMessage(errorOf("physics: [electric, thermal, boiling, rupture]\n"),
+                {"bad.yaml:1:10: physics [electric, thermal, boiling, rupture]: 'rupture' needs "
+                 "'structural'"});
+  expectMessage(errorOf("physics: [electric, boiling]\n"), {"'boiling' needs 'thermal'"});
+  expectMessage(errorOf("physics: [electric, thermal, structural]\n"),
+                {"'structural' needs 'thermal' and 'boiling'"});
+  expectMessage(errorOf("physics: [thermal]\n"),
+                {"bad.yaml:1:10: physics [thermal]: 'thermal' without 'electric' has no heat",
+                 "heat_source.kind: gaussian", "initial_hot_spot.enabled: true"});
+  // the same phases with a heat source or a hot spot are fine
+  EXPECT_NO_THROW(parseScenario("physics: [thermal]\nheat_source: {kind: gaussian}\n", "ok.yaml"));
+  EXPECT_NO_THROW(
+      parseScenario("physics: [thermal, boiling]\ninitial_hot_spot: {enabled: true}\n", "ok.yaml"));
+  expectMessage(errorOf("heat_source: {kind: gaussian}\n"),
+                {"bad.yaml:1:21: heat_source.kind = gaussian is used only when physics has thermal "
+                 "without electric"});
+  // effects need their phases
+  expectMessage(errorOf("physics: [electric]\neffects: {thermal_damage: true}\n"),
+                {"effects.thermal_damage needs thermal"});
+  expectMessage(
+      errorOf("physics: [electric]\neffects: {temperature_dependent_conductivity: true}\n"),
+      {"effects.temperature_dependent_conductivity needs electric and thermal"});
+  // accepted by the schema even where the runner does not implement them yet
+  EXPECT_NO_THROW(
+      parseScenario("physics: [electric, thermal, boiling, structural, rupture]\n", "ok.yaml"));
+  EXPECT_NO_THROW(parseScenario("physics: []\n", "ok.yaml"));
+}
+
+TEST(Scenario, OtherCrossFieldChecks) {
+  expectMessage(errorOf("mesh: {slab: {nodes_per_axis: [4, 1, 3]}}\n"),
+                {"mesh.slab.nodes_per_axis: each entry must be >= 2"});
+  expectMessage(errorOf("camera: {eye_m: [0, 0, 0.1], target_m: [0, 0, 0]}\n"),
+                {"camera.up is parallel to the view direction"});
+  expectMessage(errorOf("return_electrode: {normal: [0, 0, 0]}\n"),
+                {"return_electrode.normal: must not be the zero vector"});
+  expectMessage(errorOf("time: {duration_s: 0.01}\n"), {"gives no frame"});
+}
+
+// ---- writer, hash, reference ----
+
+TEST(Scenario, ToYamlRoundTripsEveryField) {
+  // non-default values everywhere it matters, including awkward text and doubles
+  Scenario s;
+  s.name = "quote \" and: colon\nnewline";
+  s.material.electricConductivitySPerM = 0.1 + 0.2;  // not a short decimal
+  s.material.arrheniusAPerS = 1.2345678901234567e39;
+  s.tool.generatorOnS = {{0.1, 0.7}, {1.0 / 3.0, 1e9}};
+  s.tool.generatorOnS[1][0] = 0.7;
+  s.tool.path = {{0.0, Vec3(-0.01, 1e-17, 0.0098), Vec3(1, 2, 3)},
+                 {1.0 / 7.0, Vec3(0.01, 0, 0.0098), Vec3(-5, 0, 0)}};
+  s.physics = {Phase::Electric};
+  s.tool.generatorOnS.clear();
+  s.sourceName = "rt.yaml";
+  const Scenario again = parseScenario(scenarioToYaml(s), "rt.yaml");
+  EXPECT_EQ(again, s) << scenarioToYaml(s);
+  EXPECT_TRUE(again.tool.generatorOnS.empty());  // never on survives
+}
+
+TEST(Scenario, HashIsStableAndSensitive) {
+  const Scenario a;
+  Scenario b;
+  EXPECT_EQ(scenarioHash(a), scenarioHash(b));
+  b.tool.voltageV = 72.000000000001;
+  EXPECT_NE(scenarioHash(a), scenarioHash(b));
+  // where the scenario came from does not change the hash
+  Scenario c;
+  c.sourceName = "elsewhere.yaml";
+  EXPECT_EQ(scenarioHash(a), scenarioHash(c));
+}
+
+TEST(Scenario, ReferenceListsEveryFieldWithItsDefault) {
+  const std::string md = scenarioReferenceMarkdown();
+  const auto fields = scenarioFields();
+  EXPECT_GT(fields.size(), 80u);
+  std::set<std::string> paths;
+  for (const auto& f : fields) {
+    EXPECT_TRUE(paths.insert(f.path).second) << "duplicate " << f.path;
+    EXPECT_FALSE(f.description.empty()) << f.path;
+    // the row: | `path` | type | `default` | ...
+    const std::string rowStart = "| `" + f.path + "` | ";
+    const size_t row = md.find(rowStart);
+    ASSERT_NE(row, std::string::npos) << f.path;
+    const std::string line = md.substr(row, md.find('\n', row) - row);
+    std::string def;
+    for (char ch : f.defaultYaml) def += ch == '|' ? std::string("\\|") : std::string(1, ch);
+    EXPECT_NE(line.find("`" + def + "`"), std::string::npos) << line;
+  }
+  // a few defaults spelled out
+  EXPECT_NE(md.find("| `tool.voltage_v` | number | `72` | V |"), std::string::npos);
+  EXPECT_NE(md.find("| `material.heat_capacity_j_per_m3k` | number | `3820000` |"),
+            std::string::npos);
+  EXPECT_NE(md.find("| `tool.generator_on` | list of [on, off] | `[[0, .inf]]` |"),
+            std::string::npos);
+  // every scalar field of the fully resolved YAML is in the reference
+  std::istringstream yaml(scenarioToYaml(Scenario{}));
+  int keys = 0;
+  for (std::string line; std::getline(yaml, line);)
+    if (line.find(": ") != std::string::npos && line[0] != '#') ++keys;
+  EXPECT_EQ(keys + 3, static_cast<int>(fields.size()));  // + the 3 keyframe sub-rows
+}
+
+TEST(Scenario, CommittedReferenceIsUpToDate) {
+  std::ifstream in(kRoot / "docs/scenario-reference.md");
+  ASSERT_TRUE(in) << "docs/scenario-reference.md missing: esim validate --reference > it";
+  std::stringstream text;
+  text << in.rdbuf();
+  EXPECT_EQ(text.str(), scenarioReferenceMarkdown())
+      << "regenerate: esim validate --reference > docs/scenario-reference.md";
+}
+
+}  // namespace
+}  // namespace esim

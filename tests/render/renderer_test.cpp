@@ -1,0 +1,400 @@
+// Tests for render/renderer.cpp: colours at known pixels, colour bar, looks, tool,
+// determinism across renders and renderers, OSMesa vs EGL, input errors.
+#include "render/renderer.h"
+
+#include <gtest/gtest.h>
+
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+
+#include "render/colormap.h"
+#include "render/gl_context.h"
+#include "render/image_hash.h"
+#include "sim/core_error.h"
+
+namespace esim {
+namespace {
+
+constexpr int kW = 160, kH = 120;
+constexpr float kDist = 0.1f;   // camera height above the plane z = 0 [m]
+constexpr float kFov = 35.0f;
+
+using Rgb = std::array<int, 3>;
+
+RenderOptions topDown(const std::string& look = "temperature") {
+  RenderOptions o;
+  o.width = kW;
+  o.height = kH;
+  o.look = look;
+  o.eyeM = {0, 0, kDist};
+  o.targetM = {0, 0, 0};
+  o.up = {0, 1, 0};
+  o.fovDeg = kFov;
+  o.showColorBar = false;
+  o.showTime = false;
+  o.lighting = false;
+  return o;
+}
+
+// pixel (column, row from the top) of world point (x, y, 0) seen by topDown()
+std::array<int, 2> pixelOf(float x, float y) {
+  const float halfH = kDist * std::tan(kFov * 3.14159265f / 360.0f);
+  const float halfW = halfH * kW / kH;
+  return {static_cast<int>(std::floor((x / halfW + 1) * 0.5f * kW)),
+          static_cast<int>(std::floor((1 - y / halfH) * 0.5f * kH))};
+}
+
+Rgb at(const std::vector<std::uint8_t>& img, int col, int row) {
+  const std::uint8_t* p = &img[(static_cast<size_t>(row) * kW + col) * 3];
+  return {p[0], p[1], p[2]};
+}
+Rgb atWorld(const std::vector<std::uint8_t>& img, float x, float y) {
+  const auto p = pixelOf(x, y);
+  return at(img, p[0], p[1]);
+}
+
+void expectNear(Rgb got, std::array<std::uint8_t, 3> want, int tol, const char* what) {
+  for (int k = 0; k < 3; ++k)
+    EXPECT_NEAR(got[k], want[k], tol) << what << " channel " << k << " got (" << got[0] << ","
+                                      << got[1] << "," << got[2] << ")";
+}
+
+// one quad (two triangles, counter-clockwise seen from +z) with uniform state
+void addQuad(SurfaceSnapshot& s, float x0, float x1, float y0, float y1, std::array<float, 4> state,
+             std::array<float, 2> temps = {-1, -1}) {
+  const auto base = static_cast<std::uint32_t>(s.numVertices());
+  const float xs[4] = {x0, x1, x1, x0}, ys[4] = {y0, y0, y1, y1};
+  for (int i = 0; i < 4; ++i) {
+    s.positionsM.insert(s.positionsM.end(), {xs[i], ys[i], 0.0f});
+    float t = state[0];
+    if (temps[0] >= 0) t = (i == 0 || i == 3) ? temps[0] : temps[1];  // ramp along x
+    s.temperatureC.push_back(t);
+    s.coagulation.push_back(state[1]);
+    s.desiccation.push_back(state[2]);
+    s.cutWall.push_back(state[3]);
+  }
+  s.triangles.insert(s.triangles.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
+}
+
+// cold block (T = 0 C, below tMin) | ramp 0..200 C | hot block (T = 200 C, above tMax)
+SurfaceSnapshot gradientStrip() {
+  SurfaceSnapshot s;
+  s.timeS = 1.25;
+  addQuad(s, -0.03f, -0.006f, -0.02f, 0.02f, {0, 0, 0, 0});
+  addQuad(s, -0.006f, 0.006f, -0.02f, 0.02f, {0, 0, 0, 0}, {0, 200});
+  addQuad(s, 0.006f, 0.03f, -0.02f, 0.02f, {200, 0, 0, 0});
+  return s;
+}
+
+TEST(Renderer, ContextStringsAndCoreVersion) {
+  Renderer r(topDown());
+  EXPECT_FALSE(r.glRenderer().empty());
+  EXPECT_NE(r.glRenderer(), "unknown");
+  const std::string v = r.glVersion();
+  ASSERT_FALSE(v.empty());
+  EXPECT_GE(std::stod(v.substr(0, 3)), 3.3) << v;
+}
+
+TEST(Renderer, ColormapEndpointsAndBackgroundUnlit) {
+  for (const std::string map : {"inferno", "viridis"}) {
+    RenderOptions o = topDown();
+    o.colormap = map;
+    Renderer r(o);
+    const auto& img = r.render(gradientStrip());
+    ASSERT_EQ(img.size(), static_cast<size_t>(kW * kH * 3));
+    const ColormapLut& lut = colormapLut(map);
+    expectNear(atWorld(img, -0.018f, 0.0f), lut[0], 1, "cold end");
+    expectNear(atWorld(img, 0.018f, 0.01f), lut[255], 1, "hot end");
+    // inside the ramp T = 100 C + x * 200 C / 12 mm; t = (T - 37) / 83 at the pixel centre
+    const auto px = pixelOf(-0.002f, 0.0f);
+    const float halfW = kDist * std::tan(kFov * 3.14159265f / 360.0f) * kW / kH;
+    const double xCentre = ((px[0] + 0.5) / kW * 2 - 1) * halfW;
+    const double tRamp = (100.0 + xCentre / 0.012 * 200.0 - 37.0) / 83.0;
+    expectNear(at(img, px[0], px[1]), lut[static_cast<int>(std::lround(tRamp * 255))], 3,
+               "ramp middle");
+    // corners are background: top row and bottom row of the gradient
+    expectNear(at(img, 0, 0), backgroundColor(0, kH), 1, "top-left background");
+    expectNear(at(img, kW - 1, kH - 1), backgroundColor(kH - 1, kH), 1, "bottom-right background");
+  }
+  // the gradient runs from light grey-blue at the top to near black at the bottom
+  EXPECT_GT(backgroundColor(0, kH)[2], backgroundColor(kH - 1, kH)[2] + 30);
+}
+
+TEST(Renderer, ColorBarShowsTheMapHotOnTop) {
+  RenderOptions o = topDown();
+  o.showColorBar = true;
+  Renderer r(o);
+  const auto& img = r.render(SurfaceSnapshot{});  // background and overlay only
+  const ColormapLut& lut = colormapLut(o.colormap);
+  // find the column in the right quarter holding the longest run of lut[255]..lut[0]
+  bool found = false;
+  for (int col = kW - 1; col > 3 * kW / 4 && !found; --col) {
+    int top = -1, bottom = -1;
+    for (int row = 0; row < kH; ++row) {
+      const Rgb c = at(img, col, row);
+      if (top < 0 && c == Rgb{lut[255][0], lut[255][1], lut[255][2]}) top = row;
+      if (c == Rgb{lut[0][0], lut[0][1], lut[0][2]}) bottom = row;
+    }
+    if (top >= 0 && bottom > top + kH / 3) {
+      found = true;
+      // monotone darkening (luma) from top to bottom of the bar
+      int prevLuma = 1 << 30;
+      for (int row = top; row <= bottom; ++row) {
+        const Rgb c = at(img, col, row);
+        const int luma = 77 * c[0] + 150 * c[1] + 29 * c[2];
+        EXPECT_LE(luma, prevLuma + 256) << "row " << row;
+        prevLuma = luma;
+      }
+    }
+  }
+  EXPECT_TRUE(found) << "no colour bar from lut[255] down to lut[0] in the right quarter";
+  // tick labels: light text pixels left of the bar
+  int textPixels = 0;
+  for (int row = 0; row < kH; ++row)
+    for (int col = kW / 2; col < kW - 10; ++col)
+      if (at(img, col, row) == Rgb{236, 236, 236}) ++textPixels;
+  EXPECT_GT(textPixels, 40);
+}
+
+TEST(Renderer, TimeTextAppearsTopLeftAndChangesWithTime) {
+  RenderOptions o = topDown();
+  o.showTime = true;
+  Renderer r(o);
+  SurfaceSnapshot s = gradientStrip();
+  const std::vector<std::uint8_t> a = r.render(s);
+  s.timeS = 2.5;
+  const std::vector<std::uint8_t> b = r.render(s);
+  o.showTime = false;
+  Renderer plain(o);
+  const std::vector<std::uint8_t> c = plain.render(s);
+  int diffs = 0, outside = 0, white = 0;
+  for (int row = 0; row < kH; ++row)
+    for (int col = 0; col < kW; ++col) {
+      if (at(b, col, row) != at(c, col, row)) {
+        ++diffs;
+        if (row > kH / 3 || col > kW / 2) ++outside;
+      }
+      if (at(b, col, row) == Rgb{236, 236, 236}) ++white;
+    }
+  EXPECT_GT(diffs, 30);
+  EXPECT_EQ(outside, 0) << "the time text must stay in the top-left corner";
+  EXPECT_GT(white, 20);
+  EXPECT_NE(hashFrame(a), hashFrame(b));
+}
+
+TEST(Renderer, LightingShadesButKeepsHotBrighter) {
+  RenderOptions o = topDown();
+  o.lighting = true;
+  Renderer lit(o);
+  const std::vector<std::uint8_t> a = lit.render(gradientStrip());
+  Renderer flat(topDown());
+  const std::vector<std::uint8_t>& b = flat.render(gradientStrip());
+  EXPECT_NE(hashFrame(a), hashFrame(b));
+  const Rgb hot = atWorld(a, 0.018f, 0.0f), cold = atWorld(a, -0.018f, 0.0f);
+  EXPECT_GT(hot[0] + hot[1] + hot[2], cold[0] + cold[1] + cold[2] + 300);
+  // a plane facing the camera: key light at ~50 deg plus ambient keeps the hue
+  const Rgb hotFlat = atWorld(b, 0.018f, 0.0f);
+  EXPECT_GT(hot[0], hot[2]);
+  EXPECT_NEAR(static_cast<double>(hot[1]) / hot[0], static_cast<double>(hotFlat[1]) / hotFlat[0],
+              0.15);
+}
+
+TEST(Renderer, TissueLookStates) {
+  // four separate quads: fresh | coagulated | charred | cut wall
+  SurfaceSnapshot s;
+  addQuad(s, -0.030f, -0.016f, -0.02f, 0.02f, {37, 0, 0, 0});
+  addQuad(s, -0.014f, -0.001f, -0.02f, 0.02f, {37, 1, 0, 0});
+  addQuad(s, 0.001f, 0.014f, -0.02f, 0.02f, {37, 1, 1, 0});
+  addQuad(s, 0.016f, 0.030f, -0.02f, 0.02f, {37, 0, 0, 1});
+  Renderer r(topDown("tissue"));
+  const auto& img = r.render(s);
+  const Rgb fresh = atWorld(img, -0.023f, 0.0f), coag = atWorld(img, -0.0075f, 0.0f);
+  const Rgb charred = atWorld(img, 0.0075f, 0.0f), wall = atWorld(img, 0.023f, 0.0f);
+  EXPECT_GT(fresh[0], fresh[1] + 60) << "fresh tissue is pink-red";
+  EXPECT_GT(fresh[0], 150);
+  EXPECT_GT(std::min({coag[0], coag[1], coag[2]}), 150) << "coagulated tissue whitens";
+  EXPECT_LT(coag[0] - coag[2], 60);
+  EXPECT_LT(std::max({charred[0], charred[1], charred[2]}), 40) << "desiccated tissue chars";
+  EXPECT_LT(wall[0], fresh[0] - 25) << "the cut wall is darker";
+  EXPECT_GT(wall[0], wall[1] + 40) << "and still red";
+}
+
+// rotation taking the tool axis (local +z) to world +y: -90 deg about x
+SurfaceSnapshot withBlade(bool generatorOn) {
+  SurfaceSnapshot s;
+  addQuad(s, -0.03f, 0.03f, -0.02f, 0.02f, {37, 0, 0, 0});
+  s.tool.present = true;
+  s.tool.generatorOn = generatorOn;
+  s.tool.kind = ElectrodeKind::Blade;
+  s.tool.tipM = {0.0f, -0.01f, 0.004f};
+  s.tool.orientationWxyz = {0.70710678f, -0.70710678f, 0.0f, 0.0f};
+  s.tool.radiusM = 0.0004f;
+  s.tool.widthM = 0.004f;
+  s.tool.lengthM = 0.02f;
+  return s;
+}
+
+TEST(Renderer, BladeElectrodeIsMetallicGreyAndGlowsWhenOn) {
+  Renderer r(topDown("tissue"));
+  const std::vector<std::uint8_t> off = r.render(withBlade(false));
+  // blade face between 2 and 8 mm from the tip along +y: unlit metal albedo (0.70, 0.71, 0.73)
+  const Rgb metal = atWorld(off, 0.0f, -0.01f + 0.006f);
+  expectNear(metal, {179, 181, 186}, 2, "blade metal");
+  // insulated shaft is dark, the handle light
+  const Rgb shaft = atWorld(off, 0.0f, -0.01f + 0.016f);
+  EXPECT_LT(std::max({shaft[0], shaft[1], shaft[2]}), 50);
+  // beside the blade the tissue shows
+  const Rgb beside = atWorld(off, 0.008f, -0.006f);
+  EXPECT_GT(beside[0], beside[1] + 60);
+  // generator on: orange glow at the tip
+  const std::vector<std::uint8_t> on = r.render(withBlade(true));
+  const Rgb tip = atWorld(on, 0.0f, -0.01f + 0.0012f), tipOff = atWorld(off, 0.0f, -0.01f + 0.0012f);
+  EXPECT_GT(tip[0] - tip[2], tipOff[0] - tipOff[2] + 30);
+}
+
+TEST(Renderer, SphereElectrodeIsDrawnAtTheTip) {
+  SurfaceSnapshot s = withBlade(false);
+  s.tool.kind = ElectrodeKind::Sphere;
+  s.tool.radiusM = 0.002f;
+  Renderer r(topDown("tissue"));
+  const auto& img = r.render(s);
+  // ball centred at the tip: metallic grey there (unlit albedo)
+  expectNear(atWorld(img, 0.0f, -0.01f), {179, 181, 186}, 2, "ball centre");
+  // 3 mm to the side of the ball: tissue
+  const Rgb side = atWorld(img, 0.004f, -0.01f);
+  EXPECT_GT(side[0], side[1] + 60);
+}
+
+TEST(Renderer, DeterministicAcrossRendersAndRenderers) {
+  RenderOptions o = topDown("tissue");
+  o.lighting = true;
+  o.showTime = true;
+  Renderer a(o);
+  const std::uint64_t h1 = hashFrame(a.render(withBlade(true)));
+  const std::uint64_t h2 = hashFrame(a.render(withBlade(true)));
+  Renderer b(o);
+  const std::uint64_t h3 = hashFrame(b.render(withBlade(true)));
+  EXPECT_EQ(h1, h2);
+  EXPECT_EQ(h1, h3);
+}
+
+TEST(Renderer, OsMesaAndEglGiveIdenticalPixels) {
+  std::string reason;
+  if (!eglBackendAvailable(&reason)) GTEST_SKIP() << "EGL backend unavailable here: " << reason;
+  RenderOptions o = topDown("temperature");
+  o.lighting = true;
+  o.showColorBar = true;
+  o.showTime = true;
+  SurfaceSnapshot s = withBlade(true);
+  for (size_t v = 0; v < s.temperatureC.size(); ++v) s.temperatureC[v] = 37.0f + 30.0f * v;
+  Renderer osm(o);
+  const std::vector<std::uint8_t> a = osm.render(s);
+  o.backend = "egl";
+  Renderer egl(o);
+  const std::vector<std::uint8_t> b = egl.render(s);
+  EXPECT_NE(egl.glPlatform().find("EGL"), std::string::npos);
+  const ImageComparison c = compareImages(a, b, kW, kH);
+  EXPECT_EQ(hashFrame(a), hashFrame(b)) << "PSNR " << c.psnrDb << " dB, " << c.offPixels
+                                        << " pixels off";
+  // and the first renderer still works after the second context was made current
+  EXPECT_EQ(hashFrame(osm.render(s)), hashFrame(a));
+}
+
+// the scene of the thread test: lit tissue with a glowing blade, MSAA on
+std::uint64_t threadTestHash() {
+  RenderOptions o = topDown("tissue");
+  o.lighting = true;
+  o.showTime = true;
+  SurfaceSnapshot s = withBlade(true);
+  for (size_t v = 0; v < s.coagulation.size(); ++v) s.coagulation[v] = 0.3f * (v % 4);
+  Renderer r(o);
+  return hashFrame(r.render(s));
+}
+
+// child side: run by the test below in a fresh process with LP_NUM_THREADS set
+TEST(Renderer, DISABLED_WriteHashForThreadTest) {
+  const char* out = std::getenv("ESIM_RENDER_HASH_OUT");
+  ASSERT_NE(out, nullptr);
+  std::ofstream(out) << threadTestHash();
+}
+
+TEST(Renderer, SameHashWithOneAndTwoLlvmpipeThreads) {
+  // llvmpipe reads LP_NUM_THREADS when its screen is created, so each count needs
+  // its own process: re-run this binary's child test with the variable set
+  const std::string self = std::filesystem::read_symlink("/proc/self/exe").string();
+  const auto dir = std::filesystem::temp_directory_path() / "esim_renderer_test";
+  std::filesystem::create_directories(dir);
+  std::vector<std::uint64_t> hashes;
+  for (const char* threads : {"1", "2"}) {
+    const std::string out = (dir / (std::string("hash_") + threads)).string();
+    std::filesystem::remove(out);
+    std::vector<std::string> env;
+    for (char** e = environ; *e; ++e) {
+      const std::string kv = *e;
+      if (kv.rfind("LP_NUM_THREADS=", 0) != 0 && kv.rfind("ESIM_RENDER_HASH_OUT=", 0) != 0)
+        env.push_back(kv);
+    }
+    env.push_back(std::string("LP_NUM_THREADS=") + threads);
+    env.push_back("ESIM_RENDER_HASH_OUT=" + out);
+    std::vector<char*> envp;
+    for (auto& kv : env) envp.push_back(kv.data());
+    envp.push_back(nullptr);
+    std::string a0 = self, a1 = "--gtest_filter=Renderer.DISABLED_WriteHashForThreadTest",
+                a2 = "--gtest_also_run_disabled_tests";
+    char* argv[] = {a0.data(), a1.data(), a2.data(), nullptr};
+    pid_t pid = 0;
+    ASSERT_EQ(posix_spawn(&pid, self.c_str(), nullptr, nullptr, argv, envp.data()), 0);
+    int status = 0;
+    ASSERT_EQ(waitpid(pid, &status, 0), pid);
+    ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "child with LP_NUM_THREADS="
+                                                                << threads << " failed";
+    std::uint64_t h = 0;
+    std::ifstream(out) >> h;
+    ASSERT_NE(h, 0u) << "no hash from the child with LP_NUM_THREADS=" << threads;
+    hashes.push_back(h);
+  }
+  EXPECT_EQ(hashes[0], hashes[1]) << "LP_NUM_THREADS=1 and 2 rendered different pixels";
+  EXPECT_EQ(hashes[0], threadTestHash()) << "differs from this process's default thread count";
+}
+
+TEST(Renderer, RejectsBadOptionsAndSnapshots) {
+  auto message = [](auto&& f) {
+    try {
+      f();
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  RenderOptions o = topDown();
+  o.look = "xray";
+  EXPECT_NE(message([&] { Renderer r(o); }).find("render.look"), std::string::npos);
+  o = topDown();
+  o.colormap = "jet";
+  EXPECT_NE(message([&] { Renderer r(o); }).find("render.colormap"), std::string::npos);
+  o = topDown();
+  o.tMaxC = o.tMinC;
+  EXPECT_NE(message([&] { Renderer r(o); }).find("t_min_c"), std::string::npos);
+  o = topDown();
+  o.backend = "vulkan";
+  EXPECT_NE(message([&] { Renderer r(o); }).find("render.backend"), std::string::npos);
+  Renderer r(topDown());
+  SurfaceSnapshot s = gradientStrip();
+  s.triangles.back() = 99;
+  EXPECT_NE(message([&] { r.render(s); }).find("snapshot.triangles"), std::string::npos);
+  s = gradientStrip();
+  s.temperatureC.pop_back();
+  EXPECT_NE(message([&] { r.render(s); }).find("snapshot.temperatureC"), std::string::npos);
+  s = gradientStrip();
+  s.positionsM[4] = std::nanf("");
+  EXPECT_NE(message([&] { r.render(s); }).find("snapshot.positionsM"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace esim

@@ -1,0 +1,398 @@
+// Tests for sim/electric_solver.h and its four strategies: one discrete answer
+// (checked against an independent Eigen solve of the reduced system), caching and
+// refactoring behaviour, matrix changes, floating nodes, error messages.
+#include "sim/electric_solver.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/SparseCholesky>
+#include <algorithm>
+#include <iostream>
+#include <limits>
+#include <random>
+
+#include "sim/core_error.h"
+#include "sim/electrode.h"
+#include "sim/mesh_slab.h"
+
+namespace esim {
+namespace {
+
+constexpr double kSigma = 0.144;
+constexpr double kVolt = 72.0;
+const ElectricStrategy kAll[] = {ElectricStrategy::Refactor, ElectricStrategy::DenseInverse,
+                                 ElectricStrategy::Capacitance, ElectricStrategy::Pcg};
+
+struct Problem {
+  TetMesh mesh;
+  SparseMatrix K;
+  std::vector<int> grounded;
+  std::vector<int> top;
+};
+
+// the paper's slab (~1013 nodes) with the 40 mm return disc on the bottom
+Problem paperSlab(int targetNodes = 1013) {
+  Problem p;
+  SlabSpec s;
+  s.targetNodes = targetNodes;
+  p.mesh = makeSlab(s);
+  p.K = assembleStiffness(p.mesh, tetGeometry(p.mesh), std::vector<double>(p.mesh.numTets(), kSigma));
+  const auto surface = boundaryNodes(p.mesh, boundaryFaces(p.mesh));
+  p.grounded = returnElectrodeNodes(p.mesh, surface, ReturnElectrode{});
+  p.top = p.mesh.nodeSets.at("top");
+  return p;
+}
+
+// independent reference: Eigen LDLT of K_oo u_o = -K_oc u_c with o = all but fixed
+Eigen::VectorXd referenceSolve(const SparseMatrix& K, const std::vector<int>& grounded,
+                               const std::vector<int>& contact, double v) {
+  const int n = static_cast<int>(K.rows());
+  std::vector<int> fixedValue(n, -1);  // -1 unknown, 0 ground, 1 contact
+  for (int g : grounded) fixedValue[g] = 0;
+  for (int c : contact) fixedValue[c] = 1;
+  std::vector<int> idx(n, -1);
+  int m = 0;
+  for (int i = 0; i < n; ++i)
+    if (fixedValue[i] < 0) idx[i] = m++;
+  std::vector<Eigen::Triplet<double>> t;
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(m);
+  for (int j = 0; j < n; ++j)
+    for (SparseMatrix::InnerIterator it(K, j); it; ++it) {
+      const int i = static_cast<int>(it.row());
+      if (idx[i] < 0) continue;
+      if (idx[j] >= 0) t.emplace_back(idx[i], idx[j], it.value());
+      else if (fixedValue[j] == 1) b[idx[i]] -= it.value() * v;
+    }
+  SparseMatrix a(m, m);
+  a.setFromTriplets(t.begin(), t.end());
+  Eigen::SimplicialLDLT<SparseMatrix> ldlt(a);
+  EXPECT_EQ(ldlt.info(), Eigen::Success);
+  const Eigen::VectorXd x = ldlt.solve(b);
+  Eigen::VectorXd u = Eigen::VectorXd::Zero(n);
+  for (int i = 0; i < n; ++i) u[i] = idx[i] >= 0 ? x[idx[i]] : (fixedValue[i] == 1 ? v : 0.0);
+  return u;
+}
+
+double relError(const Eigen::VectorXd& a, const Eigen::VectorXd& ref) {
+  return (a - ref).cwiseAbs().maxCoeff() / std::max(ref.cwiseAbs().maxCoeff(), 1e-300);
+}
+
+// contact sets of a sphere electrode at a few spots on the top face (5..40 nodes)
+std::vector<std::vector<int>> sampleContacts(const Problem& p) {
+  std::vector<std::vector<int>> sets;
+  const double ztop = 0.01;
+  const struct {
+    double x, y, r;
+  } spots[] = {{0.0, 0.0, 0.008}, {0.003, 0.0, 0.008}, {-0.03, 0.02, 0.012},
+               {0.0, 0.0, 0.008}, {0.045, -0.045, 0.01}, {0.01, 0.01, 0.02}};
+  for (const auto& s : spots) {
+    ElectrodeShape sphere{ElectrodeKind::Sphere, s.r, 0, 0};
+    ToolPose pose{Vec3(s.x, s.y, ztop), Eigen::Quaterniond::Identity()};
+    sets.push_back(findContacts(p.mesh, p.top, sphere, pose, 0.0));
+    EXPECT_FALSE(sets.back().empty());
+  }
+  return sets;
+}
+
+TEST(ElectricSolver, StrategyNamesRoundTripAndUnknownNameIsAnError) {
+  for (ElectricStrategy s : kAll) EXPECT_EQ(parseElectricStrategy(electricStrategyName(s)), s);
+  try {
+    parseElectricStrategy("cholesky");
+    FAIL() << "no throw";
+  } catch (const Error& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("cholesky"), std::string::npos);
+    for (const char* name : {"refactor", "dense-inverse", "capacitance", "pcg"})
+      EXPECT_NE(msg.find(name), std::string::npos) << msg;
+  }
+}
+
+TEST(ElectricSolver, FourStrategiesGiveTheSameAnswerOnSeveralContactSets) {
+  const Problem p = paperSlab();
+  const auto sets = sampleContacts(p);
+  for (ElectricStrategy s : kAll) {
+    ElectricSolverOptions opt;
+    opt.strategy = s;
+    opt.pcgTolerance = 1e-12;
+    auto solver = makeElectricSolver(opt);
+    EXPECT_STREQ(solver->name(), electricStrategyName(s));
+    solver->setMatrix(p.K, p.grounded);
+    Eigen::VectorXd u = Eigen::VectorXd::Zero(p.mesh.numNodes());
+    for (const auto& contact : sets) {
+      solver->solve(contact, kVolt, u);
+      const Eigen::VectorXd ref = referenceSolve(p.K, p.grounded, contact, kVolt);
+      const double power = u.dot(p.K * u), refPower = ref.dot(p.K * ref);
+      const double tolV = s == ElectricStrategy::Pcg ? 1e-7 : 1e-9;
+      EXPECT_LT(relError(u, ref), tolV) << solver->name() << " c=" << contact.size();
+      EXPECT_NEAR(power, refPower, tolV * refPower) << solver->name();
+      for (int c : contact) EXPECT_EQ(u[c], kVolt);
+      for (int g : p.grounded) EXPECT_EQ(u[g], 0.0);
+    }
+    EXPECT_GT(solver->memoryBytes(), 0.0);
+  }
+}
+
+TEST(ElectricSolver, PcgMeetsItsToleranceAndWarmStartSavesIterations) {
+  const Problem p = paperSlab();
+  const auto sets = sampleContacts(p);
+  for (PcgPreconditioner pre : {PcgPreconditioner::Jacobi, PcgPreconditioner::IncompleteCholesky}) {
+    ElectricSolverOptions opt;
+    opt.strategy = ElectricStrategy::Pcg;
+    opt.pcgPreconditioner = pre;
+    opt.pcgTolerance = 1e-6;
+    auto solver = makeElectricSolver(opt);
+    solver->setMatrix(p.K, p.grounded);
+    Eigen::VectorXd u = Eigen::VectorXd::Zero(p.mesh.numNodes());
+    const ElectricSolveStats cold = solver->solve(sets[0], kVolt, u);
+    const Eigen::VectorXd ref = referenceSolve(p.K, p.grounded, sets[0], kVolt);
+    EXPECT_LE(cold.residual, 1e-6);
+    EXPECT_GT(cold.iterations, 0);
+    std::cout << "pcg tol 1e-6: rel error " << relError(u, ref) << " iterations " << cold.iterations << "\n";
+    EXPECT_LT(relError(u, ref), 1e-5);  // bounded by cond(A) * tolerance; ~tolerance here
+    // warm start from the previous answer on a nearby contact set vs a cold start
+    const ElectricSolveStats warm = solver->solve(sets[1], kVolt, u);
+    Eigen::VectorXd zero = Eigen::VectorXd::Zero(p.mesh.numNodes());
+    auto fresh = makeElectricSolver(opt);
+    fresh->setMatrix(p.K, p.grounded);
+    const ElectricSolveStats cold1 = fresh->solve(sets[1], kVolt, zero);
+    std::cout << "pcg warm " << warm.iterations << " cold " << cold1.iterations << "\n";
+    EXPECT_LT(warm.iterations, cold1.iterations);
+    // the same set again: already converged
+    const ElectricSolveStats again = solver->solve(sets[1], kVolt, u);
+    EXPECT_LE(again.iterations, 1);
+  }
+}
+
+TEST(ElectricSolver, EmptyContactGivesZeroPotential) {
+  const Problem p = paperSlab(506);
+  for (ElectricStrategy s : kAll) {
+    auto solver = makeElectricSolver({.strategy = s});
+    solver->setMatrix(p.K, p.grounded);
+    Eigen::VectorXd u = Eigen::VectorXd::Constant(p.mesh.numNodes(), 5.0);
+    solver->solve({}, kVolt, u);
+    ASSERT_EQ(u.size(), p.mesh.numNodes());
+    EXPECT_EQ(u.cwiseAbs().maxCoeff(), 0.0) << electricStrategyName(s);
+  }
+}
+
+TEST(ElectricSolver, ShortCircuitNoGroundAndBadIdsAreErrors) {
+  const Problem p = paperSlab(506);
+  for (ElectricStrategy s : kAll) {
+    auto solver = makeElectricSolver({.strategy = s});
+    EXPECT_THROW(solver->setMatrix(p.K, {}), Error);
+    SparseMatrix bad = p.K;
+    bad.valuePtr()[7] = std::numeric_limits<double>::quiet_NaN();
+    EXPECT_THROW(solver->setMatrix(bad, p.grounded), Error);
+    // an indefinite matrix (negative conductivity) is refused by the direct strategies
+    // (refactor factorizes at its first solve)
+    if (s != ElectricStrategy::Pcg) {
+      Eigen::VectorXd v;
+      EXPECT_THROW(
+          {
+            solver->setMatrix(-1.0 * p.K, p.grounded);
+            solver->solve({p.top[0]}, kVolt, v);
+          },
+          Error);
+    }
+    solver->setMatrix(p.K, p.grounded);
+    Eigen::VectorXd u;
+    std::vector<int> contact = {p.top[0], p.grounded[3]};
+    std::sort(contact.begin(), contact.end());
+    try {
+      solver->solve(contact, kVolt, u);
+      FAIL() << "no throw";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("short circuit"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(std::to_string(p.grounded[3])), std::string::npos);
+    }
+    EXPECT_THROW(solver->solve({p.mesh.numNodes()}, kVolt, u), Error);
+    EXPECT_THROW(solver->solve({p.top[2], p.top[1]}, kVolt, u), Error);  // unsorted
+  }
+}
+
+TEST(ElectricSolver, DenseInverseRefusesAboveItsMemoryLimitAndNamesCapacitance) {
+  const Problem p = paperSlab(506);
+  ElectricSolverOptions opt;
+  opt.strategy = ElectricStrategy::DenseInverse;
+  opt.denseMemoryLimitBytes = 1e6;  // 506^2 * 8 = 2 MB
+  auto solver = makeElectricSolver(opt);
+  try {
+    solver->setMatrix(p.K, p.grounded);
+    FAIL() << "no throw";
+  } catch (const Error& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("capacitance"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("GB"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("denseMemoryLimitBytes"), std::string::npos) << msg;
+  }
+  // a refused setMatrix leaves the solver unusable with a message, not half-built
+  Eigen::VectorXd u;
+  EXPECT_THROW(solver->solve({p.top[0]}, kVolt, u), Error);
+  opt.denseMemoryLimitBytes = 3e6;
+  auto ok = makeElectricSolver(opt);
+  EXPECT_NO_THROW(ok->setMatrix(p.K, p.grounded));
+}
+
+TEST(ElectricSolver, RefactorOnlyWhenTheContactSetChanges) {
+  const Problem p = paperSlab(506);
+  const auto sets = sampleContacts(p);
+  auto solver = makeElectricSolver({.strategy = ElectricStrategy::Refactor});
+  solver->setMatrix(p.K, p.grounded);
+  Eigen::VectorXd u;
+  EXPECT_TRUE(solver->solve(sets[0], kVolt, u).refactored);
+  EXPECT_FALSE(solver->solve(sets[0], 60.0, u).refactored);  // new voltage, same set
+  EXPECT_LT(relError(u, referenceSolve(p.K, p.grounded, sets[0], 60.0)), 1e-9);
+  EXPECT_TRUE(solver->solve(sets[2], kVolt, u).refactored);
+}
+
+TEST(ElectricSolver, CapacitanceCachesColumnsAndEvictionDoesNotChangeBits) {
+  const Problem p = paperSlab(506);
+  const auto sets = sampleContacts(p);
+  for (bool patches : {false, true}) {
+    auto big = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
+    ElectricSolverOptions tinyOpt;
+    tinyOpt.cacheMemoryLimitBytes = 8.0 * p.mesh.numNodes() * 3;  // ~3 columns
+    auto tiny = makeElectricSolver(tinyOpt);
+    if (patches) {
+      big->setContactCandidates(p.top);
+      tiny->setContactCandidates(p.top);
+    }
+    big->setMatrix(p.K, p.grounded);
+    tiny->setMatrix(p.K, p.grounded);
+    Eigen::VectorXd ub, ut;
+    for (const auto& contact : sets) {
+      big->solve(contact, kVolt, ub);
+      tiny->solve(contact, kVolt, ut);
+      EXPECT_EQ((ub - ut).cwiseAbs().maxCoeff(), 0.0);  // bit-identical
+      EXPECT_LT(relError(ub, referenceSolve(p.K, p.grounded, contact, kVolt)), 1e-9);
+    }
+    // the repeated first set (sets[3] == sets[0]) needed no new column
+    EXPECT_EQ(big->solve(sets[0], kVolt, ub).newColumns, 0);
+    // prefetched nodes cost nothing when touched, and give the same bits
+    auto pre = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
+    if (patches) pre->setContactCandidates(p.top);
+    pre->setMatrix(p.K, p.grounded);
+    pre->prefetch(sets[4]);
+    EXPECT_EQ(pre->solve(sets[4], kVolt, ut).newColumns, 0);
+    big->solve(sets[4], kVolt, ub);
+    EXPECT_EQ((ub - ut).cwiseAbs().maxCoeff(), 0.0);
+  }
+}
+
+TEST(ElectricSolver, CapacitancePatchesSolveNeighboursAheadOfTheTool) {
+  const Problem p = paperSlab(5000);
+  const auto surface = boundaryNodes(p.mesh, boundaryFaces(p.mesh));
+  const ContactFinder finder(p.mesh, surface);
+  const ElectrodeShape blade;
+  int framesSolving[2] = {0, 0};
+  Eigen::VectorXd u[2];
+  for (int patches = 0; patches < 2; ++patches) {
+    auto solver = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
+    if (patches) solver->setContactCandidates(surface);
+    solver->setMatrix(p.K, p.grounded);
+    for (int f = 0; f < 30; ++f) {
+      const ToolPose pose{Vec3(-0.03 + 0.002 * f, 0, 0.0095), Eigen::Quaterniond::Identity()};
+      const auto contact = finder.find(blade, pose, 0.0015);
+      ASSERT_FALSE(contact.empty());
+      framesSolving[patches] += solver->solve(contact, kVolt, u[patches]).newColumns > 0;
+    }
+  }
+  std::cout << "frames with column solves: single " << framesSolving[0] << ", patches "
+            << framesSolving[1] << "\n";
+  EXPECT_LE(2 * framesSolving[1], framesSolving[0]);
+  EXPECT_LT(relError(u[1], u[0]), 1e-13);
+}
+
+TEST(ElectricSolver, MatrixChangeIsFollowedByEveryStrategy) {
+  Problem p = paperSlab(506);
+  const auto sets = sampleContacts(p);
+  // conductivity rising with a hot spot near the centre
+  std::vector<double> sigma(p.mesh.numTets());
+  for (int e = 0; e < p.mesh.numTets(); ++e) {
+    Vec3 c = Vec3::Zero();
+    for (int k = 0; k < 4; ++k) c += p.mesh.nodes[p.mesh.tets[e][k]] / 4;
+    sigma[e] = kSigma * (1 + 2 * std::exp(-c.squaredNorm() / 1e-4));
+  }
+  const SparseMatrix K2 = assembleStiffness(p.mesh, tetGeometry(p.mesh), sigma);
+  const Eigen::VectorXd ref = referenceSolve(K2, p.grounded, sets[0], kVolt);
+  for (ElectricStrategy s : kAll) {
+    auto solver = makeElectricSolver({.strategy = s, .pcgTolerance = 1e-12});
+    solver->setMatrix(p.K, p.grounded);
+    Eigen::VectorXd u;
+    solver->solve(sets[0], kVolt, u);
+    const int coldIterations = s == ElectricStrategy::Pcg ? [&] {
+      Eigen::VectorXd z;
+      auto fresh = makeElectricSolver({.strategy = s, .pcgTolerance = 1e-12});
+      fresh->setMatrix(K2, p.grounded);
+      return fresh->solve(sets[0], kVolt, z).iterations;
+    }() : 0;
+    solver->setMatrix(K2, p.grounded);
+    const ElectricSolveStats st = solver->solve(sets[0], kVolt, u);
+    EXPECT_LT(relError(u, ref), s == ElectricStrategy::Pcg ? 1e-7 : 1e-9) << solver->name();
+    if (s == ElectricStrategy::Capacitance) {
+      EXPECT_EQ(st.newColumns, int(sets[0].size()));  // the cache was emptied
+    }
+    if (s == ElectricStrategy::Refactor) {
+      EXPECT_TRUE(st.refactored);
+    }
+    if (s == ElectricStrategy::Pcg) {
+      EXPECT_LT(st.iterations, coldIterations);  // the warm start carried over
+    }
+  }
+}
+
+TEST(ElectricSolver, FloatingNodesAndIslandsAreHeldAtZeroAndDoNotBreakTheSolve) {
+  Problem p = paperSlab(506);
+  const auto sets = sampleContacts(p);
+  const Eigen::VectorXd ref = referenceSolve(p.K, p.grounded, sets[0], kVolt);
+  // an island: one extra tet far away, not connected to anything
+  TetMesh m = p.mesh;
+  const int n0 = m.numNodes();
+  m.nodes.push_back(Vec3(0.2, 0, 0));
+  m.nodes.push_back(Vec3(0.21, 0, 0));
+  m.nodes.push_back(Vec3(0.2, 0.01, 0));
+  m.nodes.push_back(Vec3(0.2, 0, 0.01));
+  m.tets.push_back({n0, n0 + 1, n0 + 2, n0 + 3});
+  m.alive.push_back(1);
+  m.nodes.push_back(Vec3(0.3, 0, 0));  // an orphan node: zero row and column
+  const SparseMatrix K = assembleStiffness(m, tetGeometry(m), std::vector<double>(m.numTets(), kSigma));
+  std::vector<int> contact = sets[0];
+  contact.push_back(n0 + 1);  // touching the island: ignored
+  contact.push_back(n0 + 4);  // touching the orphan: ignored
+  for (ElectricStrategy s : kAll) {
+    auto solver = makeElectricSolver({.strategy = s, .pcgTolerance = 1e-12});
+    solver->setMatrix(K, p.grounded);
+    Eigen::VectorXd u;
+    solver->solve(contact, kVolt, u);
+    ASSERT_EQ(u.size(), m.numNodes());
+    EXPECT_TRUE(u.allFinite());
+    EXPECT_LT(relError(u.head(n0), ref), s == ElectricStrategy::Pcg ? 1e-7 : 1e-9);
+    EXPECT_EQ(u.tail(5).cwiseAbs().maxCoeff(), 0.0) << solver->name();
+  }
+}
+
+TEST(ElectricSolver, ThreadCountDoesNotChangeTheAnswer) {
+  const Problem p = paperSlab(1013);
+  const auto sets = sampleContacts(p);
+  for (ElectricStrategy s : {ElectricStrategy::Refactor, ElectricStrategy::DenseInverse,
+                             ElectricStrategy::Capacitance}) {
+    Eigen::VectorXd u1, u2;
+    auto a = makeElectricSolver({.strategy = s, .threads = 1});
+    auto b = makeElectricSolver({.strategy = s, .threads = 2});
+    a->setMatrix(p.K, p.grounded);
+    b->setMatrix(p.K, p.grounded);
+    a->solve(sets[5], kVolt, u1);
+    b->solve(sets[5], kVolt, u2);
+    EXPECT_LT(relError(u1, u2), 1e-12) << electricStrategyName(s);
+    // and the same run twice is bit-identical
+    Eigen::VectorXd u3;
+    auto c = makeElectricSolver({.strategy = s, .threads = 1});
+    c->setMatrix(p.K, p.grounded);
+    c->solve(sets[5], kVolt, u3);
+    EXPECT_EQ((u1 - u3).cwiseAbs().maxCoeff(), 0.0);
+  }
+  setBlasThreads(1);
+}
+
+}  // namespace
+}  // namespace esim

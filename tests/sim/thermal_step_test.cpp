@@ -1,0 +1,559 @@
+// Tests for sim/thermal_step.cpp: exact uniform heating, Fourier-mode decay orders,
+// explicit stability limit, boiling plateau, energy balance, maximum principle, damage,
+// topology change and bad input.
+#include "sim/thermal_step.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <functional>
+#include <cstdio>
+
+#include "sim/core_error.h"
+#include "sim/mesh_slab.h"
+
+namespace esim {
+namespace {
+
+TetMesh slab(Vec3 sizeM, std::array<int, 3> nodes) {
+  SlabSpec s;
+  s.sizeM = sizeM;
+  s.nodesPerAxis = nodes;
+  return makeSlab(s);
+}
+
+struct Variant {
+  ThermalIntegrator integrator;
+  bool lumped;
+};
+
+const Variant kVariants[] = {
+    {ThermalIntegrator::Explicit, true},      {ThermalIntegrator::Explicit, false},
+    {ThermalIntegrator::BackwardEuler, true}, {ThermalIntegrator::BackwardEuler, false},
+    {ThermalIntegrator::CrankNicolson, true}, {ThermalIntegrator::CrankNicolson, false},
+};
+
+std::string name(const Variant& v) {
+  return thermalIntegratorName(v.integrator) + (v.lumped ? "/lumped" : "/consistent");
+}
+
+// Gaussian hot spot [W/m^3] at the top centre of the mesh
+std::vector<double> hotSpot(const TetMesh& mesh, double peakW_m3, double radiusM, double topZ) {
+  std::vector<double> q(mesh.tets.size());
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    Vec3 c = Vec3::Zero();
+    for (int v : mesh.tets[e]) c += 0.25 * mesh.nodes[v];
+    const double r2 = c.x() * c.x() + c.y() * c.y() + (c.z() - topZ) * (c.z() - topZ);
+    q[e] = peakW_m3 * std::exp(-r2 / (2 * radiusM * radiusM));
+  }
+  return q;
+}
+
+// ---- 1. uniform source: T = T0 + Q t/(c rho), exact for every integrator ----
+TEST(ThermalStep, UniformSourceIsExactForEveryIntegrator) {
+  const TetMesh mesh = slab(Vec3(0.02, 0.02, 0.01), {5, 5, 3});
+  const auto geo = tetGeometry(mesh);
+  const double q = 1e6;  // [W/m^3]
+  const std::vector<double> source(mesh.tets.size(), q);
+  for (const Variant& v : kVariants) {
+    for (double dt : {0.5, 97.0}) {  // 97 s is above the explicit limit: sub-steps
+      ThermalParams p;
+      p.integrator = v.integrator;
+      p.lumpedMass = v.lumped;
+      ThermalPhase phase(mesh, geo, p);
+      ThermalState s;
+      phase.initState(s);
+      for (int k = 1; k <= 10; ++k) {
+        const auto stats = phase.step(dt, source, s);
+        EXPECT_FALSE(stats.skipped);
+        const double rise = q * k * dt / p.heatCapacityJ_m3K;
+        const double exact = p.initialTemperatureC + rise;
+        EXPECT_LT((s.temperatureC.array() - exact).abs().maxCoeff(), 1e-10 * rise)
+            << name(v) << " dt " << dt << " step " << k;
+      }
+      const double vol = meshVolume(mesh);
+      EXPECT_NEAR(s.sourceJ, q * vol * 10 * dt, 1e-12 * s.sourceJ);
+      EXPECT_NEAR(phase.storedEnergyJ(s), s.sourceJ, 1e-10 * s.sourceJ) << name(v);
+      if (v.integrator == ThermalIntegrator::Explicit && dt > 1) {
+        EXPECT_LT(phase.stableExplicitDtS(), dt);  // the 97 s steps were sub-stepped
+      }
+    }
+  }
+}
+
+// ---- 2. Fourier mode decay and the observed orders in time ----
+TEST(ThermalStep, FourierModeDecaysWithOrderOneAndTwo) {
+  // A bar along x (L = 20 mm, h = 1 mm), insulated. Its slowest non-constant discrete mode
+  // is the cos(pi (x - xmin)/L) mode: the generalized eigenvector phi, K phi = mu (c rho M)
+  // phi, is taken as the initial field, so T = T0 + A phi exp(-mu t) is the exact
+  // semi-discrete solution and the error vs dt is purely the time-integration error.
+  const double lengthM = 0.02;
+  const TetMesh mesh = slab(Vec3(lengthM, 0.002, 0.002), {21, 3, 3});
+  const auto geo = tetGeometry(mesh);
+  ThermalParams base;
+  const double crho = base.heatCapacityJ_m3K, lambda = base.conductivityW_mK;
+  const double amplitudeK = 10;
+  const double muExact = lambda * std::pow(M_PI / lengthM, 2) / crho;  // continuous [1/s]
+  Eigen::VectorXd cosMode(mesh.numNodes());
+  for (int i = 0; i < mesh.numNodes(); ++i)
+    cosMode[i] = std::cos(M_PI * (mesh.nodes[i].x() + lengthM / 2) / lengthM);
+  const std::vector<double> lam(mesh.tets.size(), lambda), cr(mesh.tets.size(), crho);
+  const Eigen::MatrixXd k(assembleStiffness(mesh, geo, lam));
+  for (bool lumped : {true, false}) {
+    const Eigen::MatrixXd m = lumped ? Eigen::MatrixXd(lumpedMass(mesh, geo, cr).asDiagonal())
+                                     : Eigen::MatrixXd(assembleMass(mesh, geo, cr));
+    Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> eig(k, m);
+    const double mu = eig.eigenvalues()[1];
+    Eigen::VectorXd phi = eig.eigenvectors().col(1);
+    phi /= phi.cwiseAbs().maxCoeff();
+    if (phi.dot(cosMode) < 0) phi = -phi;
+    // it is the cosine mode, decaying at the continuous rate up to the O(h^2) mesh error
+    EXPECT_GT(phi.dot(cosMode) / (phi.norm() * cosMode.norm()), 0.999);
+    EXPECT_NEAR(mu, muExact, 0.01 * muExact);
+
+    const double endS = 1.0 / mu;  // one e-folding
+    for (ThermalIntegrator integrator :
+         {ThermalIntegrator::BackwardEuler, ThermalIntegrator::CrankNicolson}) {
+      const Variant v{integrator, lumped};
+      std::vector<double> errors;
+      const std::vector<int> counts = {8, 16, 32, 64};
+      for (int steps : counts) {
+        ThermalParams p;
+        p.integrator = integrator;
+        p.lumpedMass = lumped;
+        ThermalPhase phase(mesh, geo, p);
+        ThermalState s;
+        phase.setTemperature(s, (p.initialTemperatureC + amplitudeK * phi.array()).matrix());
+        const std::vector<double> zero(mesh.tets.size(), 0.0);
+        const double dt = endS / steps;
+        for (int j = 0; j < steps; ++j) phase.step(dt, zero, s);
+        const Eigen::VectorXd semi =
+            (p.initialTemperatureC + amplitudeK * std::exp(-mu * endS) * phi.array()).matrix();
+        errors.push_back((s.temperatureC - semi).cwiseAbs().maxCoeff());
+        // against the continuous solution A cos(pi x/L) exp(-lambda (pi/L)^2 t/(c rho))
+        if (steps == counts.back()) {
+          const Eigen::VectorXd exact =
+              (p.initialTemperatureC + amplitudeK * std::exp(-muExact * endS) * cosMode.array())
+                  .matrix();
+          EXPECT_LT((s.temperatureC - exact).cwiseAbs().maxCoeff(), 0.01 * amplitudeK);
+        }
+      }
+      std::printf("  %-28s error vs dt:", name(v).c_str());
+      for (size_t i = 0; i < errors.size(); ++i)
+        std::printf(" %.1fs %.3e K;", endS / counts[i], errors[i]);
+      std::printf("\n  %-28s observed orders:", "");
+      const double expected = integrator == ThermalIntegrator::BackwardEuler ? 1.0 : 2.0;
+      for (size_t i = 1; i < errors.size(); ++i) {
+        const double order = std::log2(errors[i - 1] / errors[i]);
+        std::printf(" %.3f", order);
+        EXPECT_NEAR(order, expected, 0.1) << name(v) << " refinement " << i;
+      }
+      std::printf("\n");
+    }
+  }
+}
+
+// ---- 3. explicit stability limit ----
+TEST(ThermalStep, ExplicitLimitMatchesTheDenseEigenvalue) {
+  const TetMesh mesh = slab(Vec3(0.02, 0.015, 0.01), {5, 4, 3});
+  const auto geo = tetGeometry(mesh);
+  for (bool lumped : {true, false}) {
+    ThermalParams p;
+    p.integrator = ThermalIntegrator::Explicit;
+    p.lumpedMass = lumped;
+    ThermalPhase phase(mesh, geo, p);
+    const std::vector<double> lam(mesh.tets.size(), p.conductivityW_mK);
+    const std::vector<double> crho(mesh.tets.size(), p.heatCapacityJ_m3K);
+    const Eigen::MatrixXd k(assembleStiffness(mesh, geo, lam));
+    const Eigen::MatrixXd m =
+        lumped ? Eigen::MatrixXd(lumpedMass(mesh, geo, crho).asDiagonal())
+               : Eigen::MatrixXd(assembleMass(mesh, geo, crho));
+    Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> eig(k, m, Eigen::EigenvaluesOnly);
+    const double exactLimit = 2.0 / eig.eigenvalues().maxCoeff();
+    const double limit = phase.stableExplicitDtS();
+    std::printf("  explicit limit (%s): %.4f s, exact 2/lambda_max %.4f s\n",
+                lumped ? "lumped" : "consistent", limit, exactLimit);
+    EXPECT_LE(limit, exactLimit);
+    EXPECT_GE(limit, 0.9 * exactLimit);
+  }
+}
+
+TEST(ThermalStep, SubsteppingKeepsExplicitStable) {
+  const TetMesh mesh = slab(Vec3(0.02, 0.02, 0.01), {9, 9, 5});
+  const auto geo = tetGeometry(mesh);
+  ThermalParams p;
+  p.integrator = ThermalIntegrator::Explicit;
+  ThermalPhase phase(mesh, geo, p);
+  // checkerboard: the highest-frequency content, the first to blow up
+  Eigen::VectorXd t0(mesh.numNodes());
+  for (int i = 0; i < mesh.numNodes(); ++i) {
+    const Vec3& x = mesh.nodes[i];
+    const int parity = static_cast<int>(std::lround(x.x() / 0.0025 + x.y() / 0.0025 +
+                                                    x.z() / 0.0025 + 100));
+    t0[i] = 37 + (parity % 2 ? 10.0 : -10.0);
+  }
+  ThermalState s;
+  phase.setTemperature(s, t0);
+  const double limit = phase.stableExplicitDtS();
+  const std::vector<double> zero(mesh.tets.size(), 0.0);
+  const Eigen::VectorXd m = lumpedMass(mesh, geo, std::vector<double>(mesh.tets.size(), 1.0));
+  auto deviationNorm = [&](const Eigen::VectorXd& t) {
+    const double mean = m.dot(t) / m.sum();
+    return std::sqrt(m.dot((t.array() - mean).square().matrix()));
+  };
+  double norm = deviationNorm(s.temperatureC);
+  const double norm0 = norm;
+  for (int k = 0; k < 5; ++k) {
+    const auto stats = phase.step(20 * limit, zero, s);
+    EXPECT_GE(stats.substeps, 20);
+    const double next = deviationNorm(s.temperatureC);
+    EXPECT_LE(next, norm * (1 + 1e-12));  // no mode grows
+    norm = next;
+  }
+  EXPECT_LT(norm, 0.5 * norm0);
+  EXPECT_TRUE(s.temperatureC.allFinite());
+  EXPECT_LT(s.temperatureC.maxCoeff(), 47.0 + 1e-9);
+  EXPECT_GT(s.temperatureC.minCoeff(), 27.0 - 1e-9);
+}
+
+TEST(ThermalStep, ExplicitAboveTheLimitWithoutSubsteppingIsAnError) {
+  const TetMesh mesh = slab(Vec3(0.02, 0.02, 0.01), {5, 5, 3});
+  const auto geo = tetGeometry(mesh);
+  ThermalParams p;
+  p.integrator = ThermalIntegrator::Explicit;
+  p.allowSubstepping = false;
+  ThermalPhase phase(mesh, geo, p);
+  ThermalState s;
+  phase.initState(s);
+  const std::vector<double> source(mesh.tets.size(), 1e5);
+  const double limit = phase.stableExplicitDtS();
+  EXPECT_EQ(phase.step(0.9 * limit, source, s).substeps, 1);
+  try {
+    phase.step(2 * limit, source, s);
+    FAIL() << "expected an Error";
+  } catch (const Error& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("exceeds the stability limit"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("allow_substepping"), std::string::npos) << msg;
+  }
+}
+
+// ---- 4. boiling plateau: T = 100 C for w rho L / Q seconds, then rises ----
+TEST(ThermalStep, BoilingPlateauLastsWaterLatentHeatOverSource) {
+  const TetMesh mesh = slab(Vec3(0.01, 0.01, 0.005), {3, 3, 2});
+  const auto geo = tetGeometry(mesh);
+  for (const Variant& v : kVariants) {
+    ThermalParams p;
+    p.boiling = true;
+    p.integrator = v.integrator;
+    p.lumpedMass = v.lumped;
+    const double lv = p.waterFraction * p.densityKg_m3 * p.latentHeatJ_kg;  // [J/m^3]
+    const double q = lv / 10.0;  // plateau of 10 s
+    const double plateauS = lv / q;
+    const double onsetS = p.heatCapacityJ_m3K * (100 - p.initialTemperatureC) / q;
+    ThermalPhase phase(mesh, geo, p);
+    ThermalState s;
+    phase.initState(s);
+    const std::vector<double> source(mesh.tets.size(), q);
+    const double dt = 0.25;
+    double firstAt100 = -1, lastAt100 = -1;
+    for (int k = 1; k <= 80; ++k) {
+      phase.step(dt, source, s);
+      const double t = s.timeS;
+      const double tmax = s.temperatureC.maxCoeff(), tmin = s.temperatureC.minCoeff();
+      EXPECT_NEAR(tmax, tmin, 1e-9);
+      EXPECT_NEAR(tmax, phase.temperatureOfEnthalpy(q * t), 1e-9) << name(v) << " t " << t;
+      if (std::abs(tmax - 100) < 1e-9) {
+        if (firstAt100 < 0) firstAt100 = t;
+        lastAt100 = t;
+        const double expectedVapor = std::clamp((q * t - p.heatCapacityJ_m3K * 63) / lv, 0., 1.);
+        EXPECT_NEAR(s.vaporFraction[0], expectedVapor, 1e-9);
+        EXPECT_NEAR(s.vaporFractionTet[0], expectedVapor, 1e-9);
+      }
+    }
+    ASSERT_GT(firstAt100, 0) << name(v);
+    EXPECT_NEAR(firstAt100, onsetS, dt) << name(v);
+    EXPECT_NEAR(lastAt100 - firstAt100, plateauS, dt) << name(v);
+    // then dry: rising again at c rho, all tets desiccated
+    EXPECT_GT(s.temperatureC[0], 100.5);
+    EXPECT_DOUBLE_EQ(s.vaporFraction.minCoeff(), 1.0);
+    for (size_t e = 0; e < mesh.tets.size(); ++e) EXPECT_EQ(s.desiccatedTet[e], 1);
+    EXPECT_NEAR(s.latentJ, lv * meshVolume(mesh), 1e-9 * lv * meshVolume(mesh));
+  }
+}
+
+// ---- 5. energy balance with a non-uniform source and boiling ----
+TEST(ThermalStep, EnergyBalanceWithHotSpotAndBoiling) {
+  const TetMesh mesh = slab(Vec3(0.02, 0.02, 0.006), {11, 11, 4});
+  const auto geo = tetGeometry(mesh);
+  const std::vector<double> source = hotSpot(mesh, 2e9, 0.0015, 0.006);
+  for (const Variant& v : kVariants) {
+    ThermalParams p;
+    p.boiling = true;
+    p.damage = true;
+    p.integrator = v.integrator;
+    p.lumpedMass = v.lumped;
+    ThermalPhase phase(mesh, geo, p);
+    ThermalState s;
+    phase.initState(s);
+    int notConverged = 0;
+    for (int k = 0; k < 30; ++k) notConverged += !phase.step(1.0 / 30, source, s).converged;
+    EXPECT_EQ(notConverged, 0) << name(v);
+    const double stored = phase.storedEnergyJ(s);
+    EXPECT_NEAR(stored, s.sourceJ, 1e-8 * s.sourceJ) << name(v);
+    EXPECT_NEAR(s.sensibleJ + s.latentJ, stored, 1e-10 * stored);
+    EXPECT_GT(s.latentJ, 0.01 * stored) << name(v);  // boiling took place
+    EXPECT_LE(s.temperatureC.maxCoeff(), 100 + 50.0);
+    double maxVapor = 0;
+    for (double f : s.vaporFractionTet) maxVapor = std::max(maxVapor, f);
+    EXPECT_GT(maxVapor, 0.0);
+    double maxCoag = 0;
+    for (double c : s.coagulationTet) maxCoag = std::max(maxCoag, c);
+    EXPECT_GT(maxCoag, 0.0);
+    std::printf("  %-28s stored %.6e J, source %.6e J, latent %.3e J, rel error %.2e\n",
+                name(v).c_str(), stored, s.sourceJ, s.latentJ,
+                std::abs(stored - s.sourceJ) / s.sourceJ);
+  }
+}
+
+TEST(ThermalStep, EnergyBalanceWithConvectiveCooling) {
+  const TetMesh mesh = slab(Vec3(0.02, 0.02, 0.006), {9, 9, 4});
+  const auto geo = tetGeometry(mesh);
+  std::vector<BoundaryFace> top;
+  for (const BoundaryFace& f : boundaryFaces(mesh)) {
+    bool allTop = true;
+    for (int v : f.nodes) allTop = allTop && mesh.nodes[v].z() > 0.006 - 1e-9;
+    if (allTop) top.push_back(f);
+  }
+  ASSERT_FALSE(top.empty());
+  const std::vector<double> source = hotSpot(mesh, 5e8, 0.002, 0.006);
+  for (const Variant& v : kVariants) {
+    ThermalParams p;
+    p.boiling = true;
+    p.integrator = v.integrator;
+    p.lumpedMass = v.lumped;
+    p.convectionW_m2K = 50;
+    ThermalPhase phase(mesh, geo, p, top);
+    ThermalState s;
+    phase.initState(s);
+    for (int k = 0; k < 20; ++k) phase.step(0.1, source, s);
+    const double stored = phase.storedEnergyJ(s);
+    EXPECT_GT(s.convectedJ, 0.0) << name(v);  // body at 37 C above a 20 C ambient
+    EXPECT_NEAR(stored, s.sourceJ - s.convectedJ, 1e-8 * s.sourceJ) << name(v);
+  }
+  // a body at the ambient temperature with no source loses nothing
+  ThermalParams p;
+  p.convectionW_m2K = 50;
+  p.ambientTemperatureC = p.initialTemperatureC;
+  ThermalPhase phase(mesh, geo, p, top);
+  ThermalState s;
+  phase.initState(s);
+  const std::vector<double> zero(mesh.tets.size(), 0.0);
+  for (int k = 0; k < 3; ++k) phase.step(1.0, zero, s);
+  EXPECT_LT((s.temperatureC.array() - p.initialTemperatureC).abs().maxCoeff(), 1e-10);
+}
+
+// ---- 6. maximum principle: no source, lumped mass, backward Euler ----
+TEST(ThermalStep, MaximumPrincipleWithoutSource) {
+  const TetMesh mesh = slab(Vec3(0.02, 0.02, 0.01), {9, 9, 5});
+  const auto geo = tetGeometry(mesh);
+  Eigen::VectorXd t0(mesh.numNodes());
+  std::uint32_t seed = 12345;
+  for (int i = 0; i < mesh.numNodes(); ++i) {
+    seed = seed * 1664525u + 1013904223u;
+    t0[i] = 30 + 30 * (seed >> 8) / 16777216.0;  // in [30, 60)
+  }
+  const double lo = t0.minCoeff(), hi = t0.maxCoeff();
+  for (double dt : {0.05, 5.0, 500.0}) {
+    ThermalParams p;
+    p.integrator = ThermalIntegrator::BackwardEuler;
+    ThermalPhase phase(mesh, geo, p);
+    ThermalState s;
+    phase.setTemperature(s, t0);
+    const std::vector<double> zero(mesh.tets.size(), 0.0);
+    double prevLo = lo, prevHi = hi;
+    for (int k = 0; k < 10; ++k) {
+      phase.step(dt, zero, s);
+      const double a = s.temperatureC.minCoeff(), b = s.temperatureC.maxCoeff();
+      EXPECT_GE(a, prevLo - 1e-9) << "dt " << dt;
+      EXPECT_LE(b, prevHi + 1e-9) << "dt " << dt;
+      prevLo = a;
+      prevHi = b;
+    }
+    EXPECT_LT(prevHi - prevLo, hi - lo);
+  }
+}
+
+// ---- 7. Arrhenius damage at a held temperature; skipped steps ----
+TEST(ThermalStep, ArrheniusDamageAtConstantTemperatureAndSkippedSteps) {
+  const TetMesh mesh = slab(Vec3(0.01, 0.01, 0.005), {3, 3, 2});
+  const auto geo = tetGeometry(mesh);
+  ThermalParams p;
+  p.damage = true;
+  ThermalPhase phase(mesh, geo, p);
+  ThermalState s;
+  phase.setTemperature(s, Eigen::VectorXd::Constant(mesh.numNodes(), 70.0));
+  const std::vector<double> zero(mesh.tets.size(), 0.0);
+  for (int k = 0; k < 10; ++k) {
+    const auto stats = phase.step(0.5, zero, s);
+    EXPECT_TRUE(stats.skipped);  // uniform field, no source: nothing to solve
+  }
+  const double rate = p.arrheniusA_s * std::exp(-p.arrheniusEa_J_mol / (8.314462618 * 343.15));
+  EXPECT_NEAR(s.damageOmega[0], rate * 5.0, 1e-12 * rate * 5.0);
+  EXPECT_NEAR(s.coagulationTet[3], 1 - std::exp(-rate * 5.0), 1e-12);
+  EXPECT_GT(s.coagulationTet[3], 0.5);  // 70 C for 5 s coagulates liver (Omega ~ 1.2)
+  EXPECT_DOUBLE_EQ(s.timeS, 5.0);
+  EXPECT_DOUBLE_EQ(s.temperatureC.maxCoeff(), 70.0);
+  // a source makes the step real again
+  const std::vector<double> source(mesh.tets.size(), 1e5);
+  EXPECT_FALSE(phase.step(0.5, source, s).skipped);
+}
+
+// ---- 8. the two linear solvers agree; runs are bitwise deterministic ----
+TEST(ThermalStep, CgAndCholeskyAgreeAndRunsAreDeterministic) {
+  const TetMesh mesh = slab(Vec3(0.02, 0.02, 0.006), {11, 11, 4});
+  const auto geo = tetGeometry(mesh);
+  const std::vector<double> source = hotSpot(mesh, 1e9, 0.002, 0.006);
+  auto run = [&](ThermalLinearSolver solver, ThermalIntegrator integrator) {
+    ThermalParams p;
+    p.boiling = true;
+    p.integrator = integrator;
+    p.linearSolver = solver;
+    ThermalPhase phase(mesh, geo, p);
+    ThermalState s;
+    phase.initState(s);
+    for (int k = 0; k < 20; ++k) phase.step(1.0 / 30, source, s);
+    EXPECT_EQ(phase.lastSolverName(), solver == ThermalLinearSolver::Direct ? "cholmod" : "cg");
+    return s.temperatureC;
+  };
+  for (ThermalIntegrator integrator :
+       {ThermalIntegrator::BackwardEuler, ThermalIntegrator::CrankNicolson}) {
+    const Eigen::VectorXd a = run(ThermalLinearSolver::Cg, integrator);
+    const Eigen::VectorXd b = run(ThermalLinearSolver::Direct, integrator);
+    const Eigen::VectorXd c = run(ThermalLinearSolver::Auto, integrator);
+    EXPECT_GT(a.maxCoeff(), 60.0);
+    EXPECT_LT((a - b).cwiseAbs().maxCoeff(), 1e-7);
+    EXPECT_EQ(0, std::memcmp(a.data(), c.data(), sizeof(double) * a.size()));
+    const Eigen::VectorXd a2 = run(ThermalLinearSolver::Cg, integrator);
+    EXPECT_EQ(0, std::memcmp(a.data(), a2.data(), sizeof(double) * a.size()));
+  }
+}
+
+// ---- 9. topology change: removed tets, orphan nodes, energy from the rebuild on ----
+TEST(ThermalStep, RebuildAfterRemovingTets) {
+  TetMesh mesh = slab(Vec3(0.02, 0.02, 0.006), {9, 9, 4});
+  auto geo = tetGeometry(mesh);
+  const std::vector<double> source = hotSpot(mesh, 5e8, 0.002, 0.006);
+  for (const Variant& v : kVariants) {
+    TetMesh cut = mesh;
+    ThermalParams p;
+    p.boiling = true;
+    p.integrator = v.integrator;
+    p.lumpedMass = v.lumped;
+    ThermalPhase phase(cut, geo, p);
+    ThermalState s;
+    phase.initState(s);
+    for (int k = 0; k < 5; ++k) phase.step(0.1, source, s);
+    // remove every tet touching node 0 (a corner: it becomes an orphan) and the 40 tets
+    // nearest the hot spot
+    cut.alive.assign(cut.tets.size(), 1);
+    for (int e = 0; e < cut.numTets(); ++e)
+      for (int n : cut.tets[e])
+        if (n == 0) cut.alive[e] = 0;
+    std::vector<std::pair<double, int>> byDistance;
+    for (int e = 0; e < cut.numTets(); ++e) {
+      Vec3 c = Vec3::Zero();
+      for (int n : cut.tets[e]) c += 0.25 * cut.nodes[n];
+      byDistance.push_back({(c - Vec3(0, 0, 0.006)).norm(), e});
+    }
+    std::sort(byDistance.begin(), byDistance.end());
+    for (int i = 0; i < 40; ++i) cut.alive[byDistance[i].second] = 0;
+    const double orphanTemp = s.temperatureC[0];
+    phase.rebuild(cut, geo);
+    const double storedAtRebuild = phase.storedEnergyJ(s);
+    const double sourceAtRebuild = s.sourceJ;
+    for (int k = 0; k < 5; ++k) phase.step(0.1, source, s);
+    const double added = s.sourceJ - sourceAtRebuild;
+    EXPECT_GT(added, 0);
+    EXPECT_NEAR(phase.storedEnergyJ(s) - storedAtRebuild, added, 1e-8 * s.sourceJ) << name(v);
+    EXPECT_DOUBLE_EQ(s.temperatureC[0], orphanTemp);
+    EXPECT_TRUE(s.temperatureC.allFinite());
+  }
+  // a renumbered mesh is not a rebuild
+  ThermalPhase phase(mesh, geo, ThermalParams{});
+  const TetMesh smaller = slab(Vec3(0.02, 0.02, 0.006), {5, 5, 3});
+  EXPECT_THROW(phase.rebuild(smaller, tetGeometry(smaller)), Error);
+}
+
+// ---- 10. bad input ----
+void expectError(const std::function<void()>& f, const std::vector<std::string>& parts) {
+  try {
+    f();
+    ADD_FAILURE() << "expected an Error containing '" << parts.front() << "'";
+  } catch (const Error& e) {
+    const std::string msg = e.what();
+    for (const std::string& part : parts)
+      EXPECT_NE(msg.find(part), std::string::npos) << "message: " << msg;
+  }
+}
+
+TEST(ThermalStep, BadInputGivesClearMessages) {
+  ThermalParams p;
+  p.heatCapacityJ_m3K = 0;
+  expectError([&] { validateThermalParams(p, "scene.thermal"); },
+              {"scene.thermal.heat_capacity_j_m3k = 0", "must be > 0"});
+  p = ThermalParams{};
+  p.heatCapacityJ_m3K = -3.82e6;
+  expectError([&] { validateThermalParams(p, "scene.thermal"); },
+              {"heat_capacity_j_m3k = -3.82e+06", "must be > 0"});
+  p = ThermalParams{};
+  p.conductivityW_mK = 0;
+  expectError([&] { validateThermalParams(p, "t"); }, {"t.conductivity_w_mk = 0", "must be > 0"});
+  p.conductivityW_mK = -0.5;
+  expectError([&] { validateThermalParams(p, "t"); }, {"conductivity_w_mk = -0.5"});
+  for (double w : {-0.1, 1.2}) {
+    p = ThermalParams{};
+    p.waterFraction = w;
+    expectError([&] { validateThermalParams(p, "t"); }, {"t.water_fraction", "must be in [0, 1]"});
+  }
+  p = ThermalParams{};
+  p.waterFraction = 1.0;  // the bounds are allowed
+  EXPECT_NO_THROW(validateThermalParams(p, "t"));
+  p.waterFraction = 0.0;
+  EXPECT_NO_THROW(validateThermalParams(p, "t"));
+  p = ThermalParams{};
+  p.boiling = true;
+  p.boilingTemperatureC = 30;
+  expectError([&] { validateThermalParams(p, "t"); },
+              {"t.boiling_temperature_c = 30", "above the initial temperature"});
+  expectError([] { parseThermalIntegrator("runge-kutta"); },
+              {"'runge-kutta'", "explicit, backward-euler, crank-nicolson"});
+  EXPECT_EQ(parseThermalIntegrator("crank-nicolson"), ThermalIntegrator::CrankNicolson);
+
+  // the constructor validates; the step checks its arguments
+  const TetMesh mesh = slab(Vec3(0.01, 0.01, 0.005), {3, 3, 2});
+  const auto geo = tetGeometry(mesh);
+  ThermalParams bad;
+  bad.conductivityW_mK = 0;
+  expectError([&] { ThermalPhase phase(mesh, geo, bad); }, {"thermal.conductivity_w_mk"});
+  ThermalPhase phase(mesh, geo, ThermalParams{});
+  ThermalState s;
+  phase.initState(s);
+  expectError([&] { phase.step(0.1, std::vector<double>(3, 0.0), s); },
+              {"source has 3 values", "tets"});
+  expectError([&] { phase.step(-0.1, std::vector<double>(mesh.tets.size(), 0.0), s); },
+              {"dt = -0.1 s", "must be > 0"});
+  std::vector<double> nan(mesh.tets.size(), 0.0);
+  nan[2] = std::nan("");
+  expectError([&] { phase.step(0.1, nan, s); }, {"source of tet 2", "finite"});
+  ThermalState empty;
+  expectError([&] { phase.step(0.1, std::vector<double>(mesh.tets.size(), 0.0), empty); },
+              {"initState"});
+}
+
+}  // namespace
+}  // namespace esim

@@ -1,0 +1,95 @@
+// validate_cli_test.cpp - `esim validate` end to end: every shipped scenario passes with
+// exit 0; bad files and bad overrides print file:line:col messages and exit 2;
+// `--reference` prints the committed docs/scenario-reference.md.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace {
+
+namespace fs = std::filesystem;
+const fs::path kRoot = ESIM_SOURCE_DIR;
+
+struct Result {
+  int exitCode = -1;
+  std::string output;  // stdout and stderr
+};
+
+Result runEsim(const std::string& args) {
+  const std::string cmd = std::string("\"") + ESIM_EXE + "\" " + args + " 2>&1";
+  Result r;
+  FILE* pipe = popen(cmd.c_str(), "r");
+  if (!pipe) return r;
+  char buf[4096];
+  size_t n = 0;
+  while ((n = fread(buf, 1, sizeof buf, pipe)) > 0) r.output.append(buf, n);
+  const int status = pclose(pipe);
+  r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+TEST(ValidateCli, EveryShippedScenarioIsOk) {
+  std::vector<fs::path> files;
+  for (const auto& e : fs::directory_iterator(kRoot / "scenarios"))
+    if (e.path().extension() == ".yaml") files.push_back(e.path());
+  std::sort(files.begin(), files.end());
+  ASSERT_GE(files.size(), 7u);
+  std::string args = "validate";
+  for (const auto& f : files) args += " \"" + f.string() + "\"";
+  const Result r = runEsim(args);
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+  for (const auto& f : files)
+    EXPECT_NE(r.output.find("ok " + f.string() + ": "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("120 frames (4 s at 30 fps), physics [electric, thermal, boiling]"),
+            std::string::npos)
+      << r.output;
+}
+
+TEST(ValidateCli, BadInputExitsTwoWithTheMessage) {
+  const fs::path bad = fs::temp_directory_path() / "esim_validate_cli_bad.yaml";
+  std::ofstream(bad) << "name: bad\ntool:\n  contact_distnce: 0.001\n";
+  const fs::path good = kRoot / "scenarios/paper_slab.yaml";
+  const Result r = runEsim("validate \"" + good.string() + "\" \"" + bad.string() + "\"");
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_NE(r.output.find("ok " + good.string()), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("error: " + bad.string() +
+                          ":3:3: tool.contact_distnce: unknown key; did you mean "
+                          "'contact_distance_m'?"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("1 of 2 scenarios invalid"), std::string::npos) << r.output;
+  fs::remove(bad);
+
+  const Result o = runEsim("validate \"" + good.string() + "\" --set physics=[electric,rupture]");
+  EXPECT_EQ(o.exitCode, 2) << o.output;
+  EXPECT_NE(o.output.find("--set physics=[electric,rupture]: physics [electric, rupture]: "
+                          "'rupture' needs 'structural'"),
+            std::string::npos)
+      << o.output;
+
+  const Result set = runEsim("validate \"" + good.string() + "\" --set tool.voltage_v=60");
+  EXPECT_EQ(set.exitCode, 0) << set.output;
+  EXPECT_NE(set.output.find("tool blade 60 V"), std::string::npos) << set.output;
+
+  const Result missing = runEsim("validate /nonexistent/x.yaml");
+  EXPECT_EQ(missing.exitCode, 2) << missing.output;
+  EXPECT_NE(missing.output.find("/nonexistent/x.yaml: cannot open"), std::string::npos);
+}
+
+TEST(ValidateCli, ReferenceIsTheCommittedPage) {
+  const Result r = runEsim("validate --reference");
+  EXPECT_EQ(r.exitCode, 0);
+  std::ifstream in(kRoot / "docs/scenario-reference.md");
+  std::stringstream text;
+  text << in.rdbuf();
+  EXPECT_EQ(r.output, text.str());
+}
+
+}  // namespace

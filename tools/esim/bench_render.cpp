@@ -1,0 +1,227 @@
+// bench_render.cpp - `esim bench render`: per-frame render, conversion and encode times.
+//
+// 1. Surfaces (--surfaces): "slab" (makeSlab, 1013 nodes, boundary faces), "slab20k"
+//    (71 x 71 x 3 nodes: 20,720 triangles), "sphere20k" (icosphere, 20,480
+//    triangles), "liver" (assets/liver.obj). The analytic cut (render_scenes.h) gives
+//    every frame a moving hot trail, so frames differ like a real run's.
+// 2. For each surface and size (--sizes): render --frames frames after --warmup
+//    frames, timing render() (upload, draw, MSAA resolve, read-back, overlay).
+// 3. Feed the frames to VideoEncoder (libx264, --preset/--crf, reproducible: one
+//    thread) and report its RGB->YUV conversion and encode times per frame. Frames
+//    are encoded after rendering so the two do not compete for the cores here.
+// 4. Print a table; --csv writes surface,width,height,triangles,render_ms,convert_ms,
+//    encode_ms (medians for render, means for convert/encode). The table also splits
+//    render() into CPU preparation, drawing, resolve + read-back and overlay, and gives
+//    the process CPU time per frame (all llvmpipe threads): on a shared machine the
+//    wall time of a 2-thread rasteriser depends on the load, the CPU time much less.
+// A benchmark, never a pass/fail test. Target: render + read-back < 10 ms at
+// 1280x720 for ~20k triangles.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <sstream>
+
+#include "render/renderer.h"
+#include "render/video_encoder.h"
+#include "sim/core_error.h"
+#include "tools/esim/command.h"
+#include "tools/esim/render_scenes.h"
+
+namespace esim::cli {
+namespace {
+
+struct BenchRenderOptions {
+  std::string surfaces = "slab,slab20k,sphere20k,liver";
+  std::string sizes = "640x480,1280x720";
+  int frames = 30;
+  int warmup = 3;
+  std::string look = "temperature";
+  std::string backend = "osmesa";
+  int msaa = 4;
+  std::string preset = "medium";
+  int crf = 20;
+  std::string liver = "assets/liver.obj";
+  std::string csv;
+};
+
+std::vector<std::string> splitList(const std::string& text) {
+  std::vector<std::string> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ','))
+    if (!item.empty()) out.push_back(item);
+  return out;
+}
+
+SurfaceSnapshot makeSurface(const std::string& name, const std::string& liverPath,
+                            AnalyticCut& cut) {
+  if (name == "slab" || name == "slab20k") {
+    SlabSpec spec;
+    if (name == "slab20k") spec.nodesPerAxis = {71, 71, 3};
+    cut.topZM = spec.sizeM.z();
+    return slabSurface(spec);
+  }
+  if (name == "sphere20k") {
+    cut.topZM = 0.01;  // sphere of radius 10 mm centred at z = 0: the cut runs over its top
+    return icosphereSurface(0.01, 5, {0, 0, 0});
+  }
+  if (name == "liver") {
+    SurfaceSnapshot s = fileSurface(liverPath);
+    float zMax = -1e9f;
+    for (int v = 0; v < s.numVertices(); ++v) zMax = std::max(zMax, s.positionsM[3 * v + 2]);
+    cut.topZM = zMax;
+    return s;
+  }
+  throw Error("--surfaces: unknown surface '" + name +
+              "', expected slab, slab20k, sphere20k or liver");
+}
+
+// CPU time of the whole process (all llvmpipe threads) [ms]
+double processCpuMs() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return t.tv_sec * 1e3 + t.tv_nsec * 1e-6;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0.0 : v[v.size() / 2];
+}
+
+int benchRender(const BenchRenderOptions& opt) {
+  using Clock = std::chrono::steady_clock;
+  ESIM_VERIFY(opt.frames >= 1 && opt.warmup >= 0, "--frames must be >= 1, --warmup >= 0");
+  std::vector<std::array<int, 2>> sizes;
+  for (const std::string& s : splitList(opt.sizes)) {
+    int w = 0, h = 0;
+    ESIM_VERIFY(std::sscanf(s.c_str(), "%dx%d", &w, &h) == 2,
+                "--sizes: '" + s + "' is not WIDTHxHEIGHT (e.g. 1280x720)");
+    sizes.push_back({w, h});
+  }
+  std::unique_ptr<std::ofstream> csv;
+  if (!opt.csv.empty()) {
+    csv = std::make_unique<std::ofstream>(opt.csv);
+    ESIM_VERIFY(csv->good(), "--csv: cannot write '" + opt.csv + "'");
+    *csv << "surface,width,height,triangles,render_ms,convert_ms,encode_ms\n";
+  }
+  const char* lpThreads = std::getenv("LP_NUM_THREADS");
+  bool header = false;
+  const std::string tmpVideo =
+      (std::filesystem::temp_directory_path() / "esim_bench_render.mp4").string();
+
+  for (const std::string& name : splitList(opt.surfaces)) {
+    // 1. surface
+    AnalyticCut cut;
+    const SurfaceSnapshot base = makeSurface(name, opt.liver, cut);
+    for (const auto& [w, h] : sizes) {
+      RenderOptions ro;
+      ro.width = w;
+      ro.height = h;
+      ro.look = opt.look;
+      ro.backend = opt.backend;
+      ro.msaaSamples = opt.msaa;
+      ro.eyeM = {0.0f, -0.06f, static_cast<float>(cut.topZM) + 0.05f};
+      ro.targetM = {0.0f, 0.0f, static_cast<float>(cut.topZM) - 0.004f};
+      Renderer renderer(ro);
+      if (!header) {
+        std::printf("esim bench render: %s look, backend %s, MSAA %d, %d frames (+%d warm-up), "
+                    "x264 preset %s crf %d (1 thread)\nGL: %s | %s; LP_NUM_THREADS=%s; %s\n",
+                    opt.look.c_str(), renderer.glPlatform().c_str(), opt.msaa, opt.frames,
+                    opt.warmup, opt.preset.c_str(), opt.crf, renderer.glRenderer().c_str(),
+                    renderer.glVersion().c_str(), lpThreads ? lpThreads : "(unset)",
+                    VideoEncoder::libraryVersions().c_str());
+        std::printf("%-10s %6s %6s %9s %10s %10s %10s %10s %10s | means: %7s %7s %7s %7s %7s\n",
+                    "surface", "width", "height", "triangles", "render_ms", "render_p95",
+                    "render_max", "convert_ms", "encode_ms", "prep", "draw", "read", "overlay",
+                    "cpu_ms");
+        header = true;
+      }
+      // 2. render (the cut advances 0.5 mm per frame)
+      std::vector<std::vector<std::uint8_t>> frames;
+      std::vector<double> renderMs;
+      RenderTimings split;  // sums over the timed frames
+      double cpuMs = 0;     // process CPU time in render() per timed frame
+      for (int f = -opt.warmup; f < opt.frames; ++f) {
+        SurfaceSnapshot snap = base;
+        AnalyticCut c = cut;
+        c.tipXM = -0.02 + 0.0005 * (f + opt.warmup);
+        applyAnalyticCut(c, (f + opt.warmup) / 30.0, snap);
+        const auto t0 = Clock::now();
+        const double cpu0 = processCpuMs();
+        const auto& rgb = renderer.render(snap);
+        const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+        if (f >= 0) cpuMs += (processCpuMs() - cpu0) / opt.frames;
+        if (f >= 0) {
+          const RenderTimings& t = renderer.lastTimings();
+          split.prepareMs += t.prepareMs / opt.frames;
+          split.drawMs += t.drawMs / opt.frames;
+          split.readbackMs += t.readbackMs / opt.frames;
+          split.overlayMs += t.overlayMs / opt.frames;
+          renderMs.push_back(ms);
+          frames.push_back(rgb);
+        }
+      }
+      // 3. encode
+      double convertMs = 0, encodeMs = 0;
+      if (w % 2 == 0 && h % 2 == 0) {
+        VideoEncoder enc;
+        VideoEncoder::Options vo;
+        vo.path = tmpVideo;
+        vo.width = w;
+        vo.height = h;
+        vo.preset = opt.preset;
+        vo.crf = opt.crf;
+        enc.open(vo);
+        for (auto& f : frames) enc.push(std::move(f));
+        enc.close();
+        convertMs = 1e3 * enc.convertSeconds() / opt.frames;
+        encodeMs = 1e3 * enc.encodeSeconds() / opt.frames;
+        std::filesystem::remove(tmpVideo);
+      }
+      // 4. report
+      std::vector<double> sorted = renderMs;
+      std::sort(sorted.begin(), sorted.end());
+      const double p95 = sorted[std::min(sorted.size() - 1, static_cast<size_t>(0.95 * sorted.size()))];
+      std::printf("%-10s %6d %6d %9d %10.2f %10.2f %10.2f %10.2f %10.2f | %14.2f %7.2f %7.2f %7.2f %7.2f\n",
+                  name.c_str(), w, h, base.numTriangles(), median(renderMs), p95, sorted.back(),
+                  convertMs, encodeMs, split.prepareMs, split.drawMs, split.readbackMs,
+                  split.overlayMs, cpuMs);
+      std::fflush(stdout);
+      if (csv)
+        *csv << name << "," << w << "," << h << "," << base.numTriangles() << ","
+             << median(renderMs) << "," << convertMs << "," << encodeMs << "\n";
+    }
+  }
+  if (csv) std::printf("wrote %s\n", opt.csv.c_str());
+  return kExitOk;
+}
+
+Registrar registerBenchRender(
+    {"bench", "render"}, "Renderer benchmark: render+read-back, RGB->YUV and encode ms per frame",
+    [](CLI::App& app) -> Runner {
+      auto opt = std::make_shared<BenchRenderOptions>();
+      app.add_option("--surfaces", opt->surfaces, "slab, slab20k, sphere20k, liver (comma list)")
+          ->capture_default_str();
+      app.add_option("--sizes", opt->sizes, "frame sizes WxH, comma separated")
+          ->capture_default_str();
+      app.add_option("--frames", opt->frames, "timed frames per case")->capture_default_str();
+      app.add_option("--warmup", opt->warmup, "untimed frames first")->capture_default_str();
+      app.add_option("--look", opt->look, "temperature or tissue")->capture_default_str();
+      app.add_option("--backend", opt->backend, "osmesa or egl")->capture_default_str();
+      app.add_option("--msaa", opt->msaa, "MSAA samples: 0, 2 or 4")->capture_default_str();
+      app.add_option("--preset", opt->preset, "x264 preset")->capture_default_str();
+      app.add_option("--crf", opt->crf, "x264 CRF")->capture_default_str();
+      app.add_option("--liver", opt->liver, "surface file of the 'liver' case")
+          ->capture_default_str();
+      app.add_option("--csv", opt->csv,
+                     "write surface,width,height,triangles,render_ms,convert_ms,encode_ms");
+      return [opt] { return benchRender(*opt); };
+    });
+
+}  // namespace
+}  // namespace esim::cli

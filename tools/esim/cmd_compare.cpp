@@ -1,0 +1,78 @@
+// cmd_compare.cpp - `esim compare RUN_A RUN_B`: regression check of two runs' frames.
+//
+// 1. Read both runs' hashes.json (per frame xxh3 of the raw RGB bytes + dHash).
+// 2. Exact comparison of the frame hashes.
+// 3. For frames that differ and have a PNG in both runs (output.png_every), a tolerant
+//    comparison: PSNR and the share of pixels off by more than 16 levels (thresholds and
+//    why: render/image_hash.h), and a diff image.
+// 4. Write a report (compare.json and diff PNGs) into --report DIR (default RUN_B/compare)
+//    and print a summary. Exit 0 when all frames are identical or within tolerance
+//    (--exact: identical only), 3 otherwise.
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <sstream>
+
+#include "render/image_hash.h"
+#include "sim/core_error.h"
+#include "tools/esim/command.h"
+#include "tools/esim/compare_runs.h"
+
+namespace esim::cli {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct CompareOptions {
+  std::string runA, runB, report;
+  bool exact = false;
+};
+
+int runCompare(const CompareOptions& o) {
+  const std::string report = o.report.empty() ? (fs::path(o.runB) / "compare").string() : o.report;
+  const CompareResult r = compareRuns(o.runA, o.runB, report, true);
+  std::cout << "esim compare " << o.runA << " " << o.runB << "\n";
+  std::cout << "  frames        " << r.framesA << " vs " << r.framesB << "\n";
+  std::cout << "  renderer/libs " << (r.sameRenderer ? "same" : "DIFFERENT") << "\n";
+  if (r.identical()) {
+    std::cout << "  result        identical (every frame hash equal)\n";
+    return kExitOk;
+  }
+  std::cout << "  differing     " << r.diffs.size() << " frames\n";
+  int shown = 0;
+  for (const auto& d : r.diffs) {
+    if (shown++ == 10) {
+      std::cout << "  ...\n";
+      break;
+    }
+    std::cout << "    frame " << d.frame << ": dhash " << d.dhashBits << " bits";
+    if (d.hasImages)
+      std::cout << ", PSNR " << d.psnrDb << " dB, " << 100 * d.offShare << " % pixels off, max "
+                << d.maxDiff << (d.withinTolerance ? " (within tolerance)" : " (OUT of tolerance)");
+    else
+      std::cout << " (no PNG in both runs: set output.png_every for a tolerant comparison)";
+    std::cout << "\n";
+  }
+  std::cout << "  report        " << report << "/compare.json\n";
+  if (!o.exact && r.withinTolerance()) {
+    std::cout << "  result        within tolerance\n";
+    return kExitOk;
+  }
+  std::cout << "  result        MISMATCH\n";
+  return kExitMismatch;
+}
+
+Registrar reg({"compare"}, "Compare two runs' frames: exact hashes, then a tolerant image diff",
+              [](CLI::App& app) -> Runner {
+                auto o = std::make_shared<CompareOptions>();
+                app.add_option("run_a", o->runA, "reference run folder")->required();
+                app.add_option("run_b", o->runB, "run folder to check")->required();
+                app.add_option("--report", o->report, "report folder (default RUN_B/compare)");
+                app.add_flag("--exact", o->exact, "fail on any hash difference");
+                return [o] { return runCompare(*o); };
+              });
+
+}  // namespace
+}  // namespace esim::cli

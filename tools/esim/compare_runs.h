@@ -1,0 +1,32 @@
+// compare_runs.h - frame-by-frame comparison of two run folders (see cmd_compare.cpp).
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace esim::cli {
+
+struct FrameDiff {
+  int frame = 0;
+  int dhashBits = 0;         // perceptual hash distance (0..64)
+  bool hasImages = false;    // both runs have this frame as PNG
+  double psnrDb = 0;
+  double offShare = 0;       // share of pixels off by more than 16 levels
+  int maxDiff = 0;
+  bool withinTolerance = false;
+};
+
+struct CompareResult {
+  int framesA = 0, framesB = 0;
+  bool sameRenderer = false;  // renderer strings and library versions equal
+  std::vector<FrameDiff> diffs;  // frames whose exact hash differs
+  bool identical() const { return framesA == framesB && diffs.empty(); }
+  bool withinTolerance() const;
+};
+
+// compares runA (reference) with runB; writes compare.json (and diff PNGs when writeDiffs)
+// into reportDir unless it is empty; throws esim::Error on unreadable runs
+CompareResult compareRuns(const std::string& runA, const std::string& runB,
+                          const std::string& reportDir, bool writeDiffs);
+
+}  // namespace esim::cli

@@ -1,0 +1,165 @@
+// run_report.cpp - timing statistics and report files (see run_report.h).
+#include "tools/esim/run_report.h"
+
+#include <sys/utsname.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+namespace esim::cli {
+
+namespace {
+
+// p-th percentile by linear interpolation between closest ranks (sorted input)
+double percentile(const std::vector<double>& sorted, double p) {
+  if (sorted.empty()) return 0;
+  const double pos = p / 100.0 * (sorted.size() - 1);
+  const size_t lo = static_cast<size_t>(std::floor(pos));
+  const size_t hi = std::min(lo + 1, sorted.size() - 1);
+  return sorted[lo] + (pos - lo) * (sorted[hi] - sorted[lo]);
+}
+
+nlohmann::json statsJson(const StageStats& s) {
+  return {{"frames_ran", s.ran}, {"frames_skipped", s.skipped}, {"mean_ms", s.meanMs},
+          {"p50_ms", s.p50Ms},   {"p95_ms", s.p95Ms},           {"p99_ms", s.p99Ms},
+          {"max_ms", s.maxMs}};
+}
+
+bool stagePresent(const std::vector<FrameRecord>& records, Stage stage) {
+  for (const auto& r : records)
+    if (r.status[static_cast<int>(stage)] != StageStatus::Absent) return true;
+  return false;
+}
+
+}  // namespace
+
+StageStats seriesStats(std::vector<double> ms) {
+  StageStats s;
+  s.ran = static_cast<int>(ms.size());
+  if (ms.empty()) return s;
+  std::sort(ms.begin(), ms.end());
+  double sum = 0;
+  for (double v : ms) sum += v;
+  s.meanMs = sum / ms.size();
+  s.p50Ms = percentile(ms, 50);
+  s.p95Ms = percentile(ms, 95);
+  s.p99Ms = percentile(ms, 99);
+  s.maxMs = ms.back();
+  return s;
+}
+
+StageStats stageStats(const std::vector<FrameRecord>& records, Stage stage) {
+  std::vector<double> ms;
+  int skipped = 0;
+  for (const auto& r : records) {
+    const auto st = r.status[static_cast<int>(stage)];
+    if (st == StageStatus::Ran) ms.push_back(r.ms[static_cast<int>(stage)]);
+    if (st == StageStatus::Skipped) ++skipped;
+  }
+  StageStats s = seriesStats(ms);
+  s.skipped = skipped;
+  return s;
+}
+
+double interactiveMs(const FrameRecord& r) {
+  return r.physicsMs() + r.ms[static_cast<int>(Stage::Render)];
+}
+
+std::string timingCsv(const std::vector<FrameRecord>& records) {
+  std::vector<Stage> present;
+  for (int s = 0; s < kStageCount; ++s)
+    if (stagePresent(records, static_cast<Stage>(s))) present.push_back(static_cast<Stage>(s));
+  std::ostringstream os;
+  os << "frame,time_s";
+  for (Stage s : present) os << ',' << stageName(s) << "_ms";
+  os << ",interactive_ms,over_budget,generator_on,contacts,power_w,max_temperature_c\n";
+  os.setf(std::ios::fixed);
+  for (const auto& r : records) {
+    os.precision(4);
+    os << r.frame << ',' << r.timeS;
+    for (Stage s : present) {
+      const int i = static_cast<int>(s);
+      if (r.status[i] == StageStatus::Skipped) os << ",skipped";
+      else if (r.status[i] == StageStatus::Absent) os << ",";
+      else os << ',' << r.ms[i];
+    }
+    const double im = interactiveMs(r);
+    os << ',' << im << ',' << (im > kBudgetMs ? 1 : 0) << ',' << (r.generatorOn ? 1 : 0) << ','
+       << r.contactNodes << ',';
+    os.precision(6);
+    os << r.powerW << ',' << r.maxTemperatureC << '\n';
+  }
+  return os.str();
+}
+
+nlohmann::json timingJson(const std::vector<FrameRecord>& records, const nlohmann::json& extra) {
+  nlohmann::json j;
+  j["frames"] = records.size();
+  j["budget_ms"] = kBudgetMs;
+  nlohmann::json stages = nlohmann::json::object();
+  for (int s = 0; s < kStageCount; ++s) {
+    const Stage st = static_cast<Stage>(s);
+    if (!stagePresent(records, st)) continue;
+    stages[stageName(st)] = statsJson(stageStats(records, st));
+  }
+  j["stages"] = stages;
+  std::vector<double> physics, interactive;
+  int over = 0;
+  for (const auto& r : records) {
+    physics.push_back(r.physicsMs());
+    interactive.push_back(interactiveMs(r));
+    over += interactiveMs(r) > kBudgetMs;
+  }
+  j["physics_total"] = statsJson(seriesStats(physics));
+  j["interactive_total"] = statsJson(seriesStats(interactive));
+  j["interactive_total"]["note"] = "physics stages + snapshot + render, against the 30 Hz budget";
+  j["frames_over_budget"] = over;
+  for (auto it = extra.begin(); it != extra.end(); ++it) j[it.key()] = it.value();
+  return j;
+}
+
+nlohmann::json chromeTrace(const std::vector<FrameRecord>& records,
+                           const std::vector<double>& frameStartUs) {
+  nlohmann::json events = nlohmann::json::array();
+  for (size_t f = 0; f < records.size(); ++f) {
+    double ts = f < frameStartUs.size() ? frameStartUs[f] : 0;
+    for (int s = 0; s < kStageCount; ++s) {
+      if (records[f].status[s] != StageStatus::Ran) continue;
+      const double dur = records[f].ms[s] * 1000.0;
+      events.push_back({{"name", stageName(static_cast<Stage>(s))},
+                        {"cat", "frame"},
+                        {"ph", "X"},
+                        {"ts", ts},
+                        {"dur", dur},
+                        {"pid", 1},
+                        {"tid", 1},
+                        {"args", {{"frame", records[f].frame}}}});
+      ts += dur;
+    }
+  }
+  return {{"traceEvents", events}, {"displayTimeUnit", "ms"}};
+}
+
+nlohmann::json machineInfo() {
+  nlohmann::json j;
+  std::ifstream cpu("/proc/cpuinfo");
+  std::string line;
+  while (std::getline(cpu, line)) {
+    if (line.rfind("model name", 0) == 0) {
+      j["cpu"] = line.substr(line.find(':') + 2);
+      break;
+    }
+  }
+  j["hardware_threads"] = std::thread::hardware_concurrency();
+  utsname u{};
+  if (uname(&u) == 0) j["system"] = std::string(u.sysname) + " " + u.release + " " + u.machine;
+  const char* lp = std::getenv("LP_NUM_THREADS");
+  j["LP_NUM_THREADS"] = lp ? lp : "";
+  return j;
+}
+
+}  // namespace esim::cli

@@ -1,0 +1,48 @@
+// run_report.h - the timing report of a run: timing.csv, timing.json, trace.json.
+//
+// One FrameRecord per frame (sim/simulation.h). Statistics per stage are taken over
+// the frames where the stage ran (skipped frames count in `skipped`). The 30 Hz
+// budget (33.3 ms) applies to the interactive part: physics + snapshot + render;
+// encoding runs on its own thread and is reported apart.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "sim/simulation.h"
+
+namespace esim::cli {
+
+struct StageStats {
+  int ran = 0, skipped = 0;
+  double meanMs = 0, p50Ms = 0, p95Ms = 0, p99Ms = 0, maxMs = 0;
+};
+
+// statistics of one stage over the records (ran frames only)
+StageStats stageStats(const std::vector<FrameRecord>& records, Stage stage);
+
+// statistics of a derived per-frame time (e.g. physics + render)
+StageStats seriesStats(std::vector<double> ms);
+
+// interactive time of a frame: the simulation stages + render [ms]
+double interactiveMs(const FrameRecord& record);
+
+constexpr double kBudgetMs = 1000.0 / 30.0;
+
+// timing.csv: frame,time_s,<stage columns>,interactive_ms,contacts,power_w,max_temperature_c
+// a stage the scene did not build has no column; "skipped" where it had nothing to do
+std::string timingCsv(const std::vector<FrameRecord>& records);
+
+// timing.json: per stage and in total mean/p50/p95/p99/max, frames over budget, machine
+nlohmann::json timingJson(const std::vector<FrameRecord>& records, const nlohmann::json& extra);
+
+// trace.json: Chrome trace format (Perfetto), one complete event per stage per frame
+nlohmann::json chromeTrace(const std::vector<FrameRecord>& records,
+                           const std::vector<double>& frameStartUs);
+
+// "Intel(R) Xeon(R) ..." from /proc/cpuinfo, and the core count
+nlohmann::json machineInfo();
+
+}  // namespace esim::cli

@@ -1,0 +1,142 @@
+#!/usr/bin/python3
+"""make_electrodes.py - generates assets/electrode_blade.obj and assets/electrode_needle.obj.
+
+Units: metres. Both tools have their tip at the origin and their axis along +z
+(the handle is at +z); the blade's flat faces are normal to y (its cutting edge
+runs along x).
+
+Method (deterministic, numpy only): a loft. Cross-sections are convex closed
+curves of M_RING points, counter-clockwise seen from +z, at increasing heights
+z_k; consecutive rings are joined by quads split into two triangles, and the two
+ends are closed by a fan to a pole vertex (the tip pole is the origin). Convex,
+nested-in-z sections make the surface closed, manifold and free of
+self-intersections; the script checks edges and outward orientation.
+  - blade (monopolar spatula): rounded tip (elliptic profile over TIP_LEN), a flat
+    blade 2.4 mm wide and 0.5 mm thick with rounded edges (superellipse), 16 mm
+    long, morphing into a round 2.4 mm shaft, 40 mm in all.
+  - needle: a conical tip over 3 mm with a rounded apex, 1.0 mm diameter shaft,
+    30 mm in all.
+
+Usage: tools/make_electrodes.py [--outdir assets]
+"""
+import argparse
+import os
+import sys
+
+import numpy as np
+
+M_RING = 48  # points per cross-section
+
+
+def superellipse(half_x, half_y, exponent, m=M_RING):
+    """closed convex curve |x/a|^e + |y/b|^e = 1, CCW from +z, shape (m, 2)"""
+    t = 2.0 * np.pi * np.arange(m) / m
+    c, s = np.cos(t), np.sin(t)
+    x = half_x * np.sign(c) * np.abs(c) ** (2.0 / exponent)
+    y = half_y * np.sign(s) * np.abs(s) ** (2.0 / exponent)
+    return np.stack([x, y], axis=1)
+
+
+def loft(sections):
+    """sections: list of (z, ring (m, 2)); tip pole at z=0 origin, top pole above"""
+    m = len(sections[0][1])
+    verts = [np.zeros(3)]
+    for z, ring in sections:
+        verts.extend(np.column_stack([ring, np.full(m, z)]))
+    top_z = sections[-1][0]
+    verts.append(np.array([0.0, 0.0, top_z]))
+    v = np.array(verts)
+    ring_id = lambda k, i: 1 + k * m + (i % m)
+    tris = []
+    # tip fan (normals point to -z: clockwise seen from +z)
+    for i in range(m):
+        tris.append((0, ring_id(0, i + 1), ring_id(0, i)))
+    for k in range(len(sections) - 1):
+        for i in range(m):
+            a, b = ring_id(k, i), ring_id(k, i + 1)
+            c, d = ring_id(k + 1, i), ring_id(k + 1, i + 1)
+            tris.append((a, b, d))
+            tris.append((a, d, c))
+    top = len(v) - 1
+    last = len(sections) - 1
+    for i in range(m):
+        tris.append((top, ring_id(last, i), ring_id(last, i + 1)))
+    return v, np.array(tris, dtype=np.int64)
+
+
+def blade():
+    width, thick = 2.4e-3, 0.5e-3
+    tip_len, blade_len, total = 1.2e-3, 16e-3, 40e-3
+    shaft_r = 1.2e-3
+    sections = []
+    # rounded tip: half-width follows a quarter ellipse over tip_len
+    for z in np.linspace(0.0, tip_len, 13)[1:]:
+        s = np.sqrt(1.0 - (1.0 - z / tip_len) ** 2)
+        sections.append((z, superellipse(0.5 * width * s, 0.5 * thick * max(s, 0.3), 4.0)))
+    for z in np.linspace(tip_len, blade_len, 12)[1:]:
+        sections.append((z, superellipse(0.5 * width, 0.5 * thick, 4.0)))
+    # transition to the round shaft over 4 mm, then the shaft
+    for z in np.linspace(blade_len, blade_len + 4e-3, 9)[1:]:
+        u = (z - blade_len) / 4e-3
+        sections.append((z, superellipse(0.5 * width + u * (shaft_r - 0.5 * width),
+                                         0.5 * thick + u * (shaft_r - 0.5 * thick),
+                                         4.0 - 2.0 * u)))
+    for z in np.linspace(blade_len + 4e-3, total, 6)[1:]:
+        sections.append((z, superellipse(shaft_r, shaft_r, 2.0)))
+    return loft(sections)
+
+
+def needle():
+    radius, cone_len, total = 0.5e-3, 3e-3, 30e-3
+    apex_r = 0.05e-3
+    sections = []
+    # rounded apex (sphere cap of radius apex_r), then the cone, then the shaft
+    for z in np.linspace(0.0, apex_r, 5)[1:]:
+        sections.append((z, superellipse(*(2 * [np.sqrt(apex_r**2 - (apex_r - z) ** 2)]), 2.0)))
+    for z in np.linspace(apex_r, cone_len, 13)[1:]:
+        r = apex_r + (radius - apex_r) * (z - apex_r) / (cone_len - apex_r)
+        sections.append((z, superellipse(r, r, 2.0)))
+    for z in np.linspace(cone_len, total, 10)[1:]:
+        sections.append((z, superellipse(radius, radius, 2.0)))
+    return loft(sections)
+
+
+def check(v, tris):
+    e = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
+    directed = set(map(tuple, e))
+    assert len(directed) == len(e), "a directed edge repeats (inconsistent orientation)"
+    assert all((b, a) in directed for a, b in directed), "open surface"
+    a, b, c = v[tris[:, 0]], v[tris[:, 1]], v[tris[:, 2]]
+    vol = np.sum(np.einsum("ij,ij->i", a, np.cross(b, c))) / 6.0
+    assert vol > 0, "surface must be oriented outward"
+    return vol
+
+
+def write_obj(path, name, v, tris, vol):
+    with open(path, "w") as out:
+        out.write("# %s generated by tools/make_electrodes.py (do not edit)\n" % name)
+        out.write("# units: metres; tip at the origin, axis +z; %d vertices, %d triangles, "
+                  "volume %.6e m^3\n" % (len(v), len(tris), vol))
+        for p in v:
+            out.write("v %.8f %.8f %.8f\n" % (p[0], p[1], p[2]))
+        for t in tris:
+            out.write("f %d %d %d\n" % (t[0] + 1, t[1] + 1, t[2] + 1))
+    print("%s: %d vertices, %d triangles, volume %.4e m^3, bbox %s m"
+          % (path, len(v), len(tris), vol, np.round(v.max(0) - v.min(0), 6)))
+
+
+def main():
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--outdir", default=os.path.join(root, "assets"))
+    args = ap.parse_args()
+    os.makedirs(args.outdir, exist_ok=True)
+    for name, make in (("electrode_blade", blade), ("electrode_needle", needle)):
+        v, tris = make()
+        vol = check(v, tris)
+        write_obj(os.path.join(args.outdir, name + ".obj"), name, v, tris, vol)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
