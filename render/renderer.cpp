@@ -162,7 +162,8 @@ void main() {
 
 // Specialised by the preprocessor (llvmpipe runs both sides of a branch on a
 // uniform, so one program per variant is several times faster):
-//   LOOK 0 temperature, 1 tissue, 2 tool (vState = albedo rgb, material id)
+//   LOOK 0 temperature, 1 tissue, 2 tool (vState = albedo rgb, material id),
+//        3 potential (vState.x = phi [V]; LOGSCALE 0/1 linear or logarithmic map)
 //   LIT 0/1 lighting, SHADOW 0/1 the electrode's shadow on the tissue
 const char* kSurfaceFs = R"(
 in vec3 vPos;
@@ -170,7 +171,7 @@ in vec3 vNormal;
 in vec4 vState;
 in float vShadow;
 uniform sampler1D uColormap;
-uniform vec2 uTempRange;      // tMinC, tMaxC
+uniform vec2 uTempRange;      // tMinC, tMaxC (potential look: vMinV, vMaxV)
 uniform vec3 uHalfDir;        // Blinn-Phong half vector of key light and view (infinite viewer)
 uniform vec3 uKeyDir;         // towards the key light
 uniform vec3 uFillDir;        // towards the fill light
@@ -179,10 +180,10 @@ uniform float uGlow;          // 1 while the generator is on
 out vec4 fragColor;
 
 // Blinn-Phong lobe x^shininess by repeated squaring (pow costs ~20 operations
-// per pixel on llvmpipe): 24 for the temperature look, 55 for tissue
+// per pixel on llvmpipe): 24 for the temperature and potential looks, 55 for tissue
 float specLobe(float x) {
   float x2 = x * x, x4 = x2 * x2, x8 = x4 * x4, x16 = x8 * x8;
-#if LOOK == 0
+#if LOOK == 0 || LOOK == 3
   return x16 * x8;
 #else
   return x16 * x16 * x16 * x4 * x2 * x;
@@ -203,6 +204,16 @@ void main() {
   bool metal = false;
 #if LOOK == 0
   float t = clamp((vState.x - uTempRange.x) / (uTempRange.y - uTempRange.x), 0.0, 1.0);
+  albedo = texture(uColormap, t * (255.0 / 256.0) + 0.5 / 256.0).rgb;
+  specStrength = 0.18;
+  shininess = 24.0;
+#elif LOOK == 3
+#if LOGSCALE
+  float t = clamp(log(max(vState.x, uTempRange.x) / uTempRange.x) /
+                  log(uTempRange.y / uTempRange.x), 0.0, 1.0);
+#else
+  float t = clamp((vState.x - uTempRange.x) / (uTempRange.y - uTempRange.x), 0.0, 1.0);
+#endif
   albedo = texture(uColormap, t * (255.0 / 256.0) + 0.5 / 256.0).rgb;
   specStrength = 0.18;
   shininess = 24.0;
@@ -245,7 +256,7 @@ void main() {
   float fill = max(dot(n, uFillDir), 0.0);
   float ambient = metal ? 0.38 : 0.30;
   vec3 color = albedo * (ambient + 0.78 * key + 0.22 * fill);
-#if LOOK == 0
+#if LOOK == 0 || LOOK == 3
   // a faint grey diffuse sheen, so that the shape of tissue at the dark end of
   // the map (inferno is black at tMin) stays readable
   color += vec3(0.10) * (key + 0.3 * fill);
@@ -309,7 +320,9 @@ void pushVertex(std::vector<float>& out, V3 p, V3 n, const std::array<float, 4>&
 // indexed triangle list with crease-limited smooth normals (see renderer.h): a
 // vertex is split only where its corners get different normals (creases), so a
 // smooth surface keeps one GPU vertex per snapshot vertex
-void buildSurfaceVertices(const SurfaceSnapshot& snap, float tDefaultC, std::vector<float>& out,
+// (potential: the state's first entry is potentialV instead of temperatureC)
+void buildSurfaceVertices(const SurfaceSnapshot& snap, float tDefaultC, bool potential,
+                          std::vector<float>& out,
                           std::vector<std::uint32_t>& indices, std::vector<V3>& faceNormal,
                           std::vector<int>& offsets, std::vector<int>& incident,
                           std::vector<int>& firstCopy, std::vector<int>& nextCopy) {
@@ -337,7 +350,8 @@ void buildSurfaceVertices(const SurfaceSnapshot& snap, float tDefaultC, std::vec
   const float cosCrease = static_cast<float>(std::cos(kCreaseAngleDeg * 3.14159265358979 / 180.0));
   auto state = [&](std::uint32_t v) {
     return std::array<float, 4>{
-        snap.temperatureC.empty() ? tDefaultC : snap.temperatureC[v],
+        potential ? snap.potentialV[v]
+                  : (snap.temperatureC.empty() ? tDefaultC : snap.temperatureC[v]),
         snap.coagulation.empty() ? 0.0f : snap.coagulation[v],
         snap.desiccation.empty() ? 0.0f : snap.desiccation[v],
         snap.cutWall.empty() ? 0.0f : snap.cutWall[v]};
@@ -499,7 +513,7 @@ double niceStep(double range) {
 std::string formatNumber(double v, double step) {
   char buf[32];
   const int decimals = step >= 1 ? 0 : static_cast<int>(std::ceil(-std::log10(step) - 1e-9));
-  std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
+  std::snprintf(buf, sizeof buf, "%.*f", decimals, v == 0 ? 0.0 : v);  // no "-0"
   return buf;
 }
 
@@ -511,12 +525,19 @@ void validateRenderOptions(const RenderOptions& o) {
   ESIM_VERIFY(o.width >= 16 && o.width <= 8192 && o.height >= 16 && o.height <= 8192,
               "render.width/height: " + std::to_string(o.width) + "x" + std::to_string(o.height) +
                   " is out of range, expected 16..8192 pixels each");
-  ESIM_VERIFY(o.look == "temperature" || o.look == "tissue",
-              "render.look: '" + o.look + "' is unknown, expected 'temperature' or 'tissue'");
+  ESIM_VERIFY(o.look == "temperature" || o.look == "tissue" || o.look == "potential",
+              "render.look: '" + o.look +
+                  "' is unknown, expected 'temperature', 'tissue' or 'potential'");
   colormapLut(o.colormap);  // throws for an unknown map
   ESIM_VERIFY(std::isfinite(o.tMinC) && std::isfinite(o.tMaxC) && o.tMaxC > o.tMinC,
               "render.t_min_c/t_max_c: need finite tMinC < tMaxC, got " + std::to_string(o.tMinC) +
                   " and " + std::to_string(o.tMaxC));
+  ESIM_VERIFY(std::isfinite(o.vMinV) && std::isfinite(o.vMaxV) && o.vMaxV > o.vMinV,
+              "render.v_min_v/v_max_v: need finite vMinV < vMaxV, got " + std::to_string(o.vMinV) +
+                  " and " + std::to_string(o.vMaxV));
+  ESIM_VERIFY(!o.potentialLogScale || o.vMinV > 0,
+              "render.v_min_v: the logarithmic potential scale needs vMinV > 0, got " +
+                  std::to_string(o.vMinV));
   ESIM_VERIFY(o.fovDeg > 1 && o.fovDeg < 170,
               "render.fov_deg: " + std::to_string(o.fovDeg) + " is out of range (1, 170)");
   const V3 view = sub(o.targetM, o.eyeM);
@@ -549,10 +570,19 @@ void validateSnapshot(const SurfaceSnapshot& s) {
   checkField(s.coagulation, "coagulation");
   checkField(s.desiccation, "desiccation");
   checkField(s.cutWall, "cutWall");
+  checkField(s.potentialV, "potentialV");
   for (float v : s.positionsM) ESIM_VERIFY(std::isfinite(v), "snapshot.positionsM: non-finite value");
   for (std::uint32_t v : s.triangles)
     ESIM_VERIFY(v < nv, "snapshot.triangles: vertex index " + std::to_string(v) +
                             " out of range (" + std::to_string(nv) + " vertices)");
+}
+
+void validateSnapshot(const SurfaceSnapshot& s, const RenderOptions& o) {
+  validateSnapshot(s);
+  ESIM_VERIFY(o.look != "potential" || s.numVertices() == 0 || !s.potentialV.empty(),
+              "look.style: potential needs the electric phase (snapshot.potentialV is empty for " +
+                  std::to_string(s.numVertices()) +
+                  " vertices); add electric to physics or use another look");
 }
 
 std::array<std::uint8_t, 3> backgroundColor(int row, int height) {
@@ -603,13 +633,13 @@ struct Renderer::Impl {
 
 Renderer::Impl::SurfaceProgram Renderer::Impl::makeSurfaceProgram(int look, bool shadow) {
   const GlFunctions& gl = ctx->gl();
-  const std::string fs = std::string("#version 330 core\n#define LOOK ") + std::to_string(look) +
-                         "\n#define LIT " + std::to_string(opt.lighting ? 1 : 0) +
-                         "\n#define SHADOW " + std::to_string(shadow ? 1 : 0) + "\n" + kSurfaceFs;
-  SurfaceProgram p;
   const std::string header = "#version 330 core\n#define LOOK " + std::to_string(look) +
                              "\n#define LIT " + std::to_string(opt.lighting ? 1 : 0) +
-                             "\n#define SHADOW " + std::to_string(shadow ? 1 : 0) + "\n";
+                             "\n#define SHADOW " + std::to_string(shadow ? 1 : 0) +
+                             "\n#define LOGSCALE " + std::to_string(opt.potentialLogScale ? 1 : 0) +
+                             "\n";
+  const std::string fs = header + kSurfaceFs;
+  SurfaceProgram p;
   const std::string vs = header + kSurfaceVs;
   p.id = linkProgram(gl, vs.c_str(), fs.c_str(), "surface");
   auto loc = [&](const char* n) { return gl.GetUniformLocation(p.id, n); };
@@ -632,7 +662,7 @@ void Renderer::Impl::init() {
   const GlFunctions& gl = ctx->gl();
   bgProgram = linkProgram(gl, kFullScreenVs, kBackgroundFs, "background");
   uSize = gl.GetUniformLocation(bgProgram, "uSize");
-  const int look = opt.look == "temperature" ? 0 : 1;
+  const int look = opt.look == "temperature" ? 0 : (opt.look == "tissue" ? 1 : 3);
   lookProgram[0] = makeSurfaceProgram(look, false);
   lookProgram[1] = makeSurfaceProgram(look, opt.lighting);
   toolProgram = makeSurfaceProgram(2, false);
@@ -781,8 +811,9 @@ void Renderer::Impl::drawOverlay(const SurfaceSnapshot& snap) {
     std::snprintf(buf, sizeof buf, "t = %.2f s", snap.timeS);
     drawText(frame, w, h, margin, margin, buf, scale, white);
   }
-  if (opt.look != "temperature" || !opt.showColorBar) return;
-  // vertical bar at the right: hot at the top, ticks and labels to its left
+  const bool potential = opt.look == "potential";
+  if (opt.look == "tissue" || !opt.showColorBar) return;
+  // vertical bar at the right: hot (high potential) at the top, ticks and labels to its left
   const ColormapLut& lut = colormapLut(opt.colormap);
   const int barW = std::max(4, h / 36);
   const int barH = static_cast<int>(std::lround(0.55 * h));
@@ -794,21 +825,40 @@ void Renderer::Impl::drawOverlay(const SurfaceSnapshot& snap) {
     const auto& c = lut[static_cast<int>(std::lround(t * 255.0))];
     fillRect(frame, w, h, barX, barY + y, barW, 1, c);
   }
-  const std::string unit = "\xC2\xB0" "C";
+  const std::string unit = potential ? "V" : "\xC2\xB0" "C";
   drawText(frame, w, h, barX + barW / 2 - textWidthPx(unit, scale) / 2,
            barY - 1 - (kFontCellH + 1) * scale, unit, scale, white);
-  const double step = niceStep(opt.tMaxC - opt.tMinC);
+  const double lo = potential ? opt.vMinV : opt.tMinC, hi = potential ? opt.vMaxV : opt.tMaxC;
   const int tickLen = std::max(3, barW / 2);
-  for (double v = std::ceil(opt.tMinC / step - 1e-9) * step; v <= opt.tMaxC + 1e-9 * step;
-       v += step) {
-    const double t = (v - opt.tMinC) / (opt.tMaxC - opt.tMinC);
+  auto drawTick = [&](double v, double t, double step) {
     const int y = barY + static_cast<int>(std::lround((1.0 - t) * (barH - 1)));
     fillRect(frame, w, h, barX - 1 - tickLen, y - scale / 2, tickLen, std::max(1, scale / 2 + 1),
              {200, 200, 200});
     const std::string label = formatNumber(v, step);
     drawText(frame, w, h, barX - 1 - tickLen - scale * 2 - textWidthPx(label, scale),
              y - (7 * scale) / 2, label, scale, white);
+  };
+  if (potential && opt.potentialLogScale) {
+    // logarithmic bar: ticks at {1, 2, 5} x 10^k, only 10^k when that gives more than 7
+    const double logSpan = std::log(hi / lo);
+    for (const bool decadesOnly : {false, true}) {
+      std::vector<std::array<double, 2>> ticks;  // value, power of ten
+      for (int k = static_cast<int>(std::floor(std::log10(lo))) - 1;
+           k <= static_cast<int>(std::ceil(std::log10(hi))); ++k)
+        for (double mant : {1.0, 2.0, 5.0}) {
+          if (decadesOnly && mant != 1.0) continue;
+          const double v = mant * std::pow(10.0, k);
+          if (v >= lo * (1 - 1e-9) && v <= hi * (1 + 1e-9)) ticks.push_back({v, std::pow(10.0, k)});
+        }
+      if (ticks.size() > 7 && !decadesOnly) continue;
+      for (const auto& [v, p] : ticks) drawTick(v, std::log(v / lo) / logSpan, p);
+      break;
+    }
+    return;
   }
+  const double step = niceStep(hi - lo);
+  for (double v = std::ceil(lo / step - 1e-9) * step; v <= hi + 1e-9 * step; v += step)
+    drawTick(v, (v - lo) / (hi - lo), step);
 }
 
 Renderer::Renderer(const RenderOptions& options) : impl_(std::make_unique<Impl>()) {
@@ -832,7 +882,7 @@ const std::vector<std::uint8_t>& Renderer::render(const SurfaceSnapshot& snap) {
     return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
   };
   const auto tStart = Clock::now();
-  validateSnapshot(snap);
+  validateSnapshot(snap, impl_->opt);
   Impl& m = *impl_;
   const RenderOptions& o = m.opt;
   m.ctx->makeCurrent();
@@ -886,7 +936,10 @@ const std::vector<std::uint8_t>& Renderer::render(const SurfaceSnapshot& snap) {
     gl.UniformMatrix4fv(p.uModel, 1, GL_FALSE, model.data());
     gl.Uniform1i(p.uColormap, 0);
     gl.Uniform1i(p.uNoise, 1);
-    gl.Uniform2f(p.uTempRange, o.tMinC, o.tMaxC);
+    if (o.look == "potential")
+      gl.Uniform2f(p.uTempRange, o.vMinV, o.vMaxV);
+    else
+      gl.Uniform2f(p.uTempRange, o.tMinC, o.tMaxC);
     gl.Uniform3fv(p.uHalfDir, 1, halfDir.data());
     gl.Uniform3fv(p.uKeyDir, 1, keyDir.data());
     gl.Uniform3fv(p.uFillDir, 1, fillDir.data());
@@ -902,7 +955,7 @@ const std::vector<std::uint8_t>& Renderer::render(const SurfaceSnapshot& snap) {
   double prepareMs = 0;
   if (snap.numTriangles() > 0) {
     const auto tPrep = Clock::now();
-    buildSurfaceVertices(snap, o.tMinC, m.vertices, m.indices, m.faceNormal, m.offsets,
+    buildSurfaceVertices(snap, o.tMinC, o.look == "potential", m.vertices, m.indices, m.faceNormal, m.offsets,
                          m.incident, m.firstCopy, m.nextCopy);
     prepareMs = msSince(tPrep);
     useProgram(m.lookProgram[tool.present ? 1 : 0], identity);

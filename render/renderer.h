@@ -12,12 +12,15 @@
 //      metallic grey, an orange glow at the tip while generatorOn),
 // into its own framebuffer object (multisampled when msaaSamples > 0, resolved
 // by a full-screen pass into a plain one) and reads it back; then 4. the overlay
-// (colour bar with ticks in deg C, simulated time) is drawn on the CPU with the
+// (colour bar with ticks in deg C or V, simulated time) is drawn on the CPU with the
 // built-in 5x7 font (bitmap_font.h).
 // Looks: "temperature" colours T with a perceptual map (colormap.h) between
 // tMinC and tMaxC (clamped); "tissue" shows pink liver-like tissue, whitening with
 // coagulation, browning then charring with desiccation, darker on cut walls, with
-// a faint mottling (a hashed value-noise texture).
+// a faint mottling (a hashed value-noise texture); "potential" colours the electric
+// potential phi [V] (SurfaceSnapshot::potentialV) with the same map between vMinV and
+// vMaxV, linear t = (phi - vMin) / (vMax - vMin) or, with potentialLogScale,
+// t = ln(phi / vMin) / ln(vMax / vMin) (vMinV > 0), clamped to [0, 1], with a bar in V.
 // Lighting: a key light from the upper left of the camera, a weak fill light from
 // the right and ambient; Blinn-Phong specular with an infinite viewer; the
 // electrode casts a soft analytic shadow of the key light (two capsules,
@@ -25,7 +28,7 @@
 // (llvmpipe pays for both sides of a branch). Everything is deterministic: the
 // same snapshot and options give the same bytes on the same driver, whatever
 // the backend (osmesa or egl) and LP_NUM_THREADS.
-// Units: positions in metres, temperatures in deg C, time in seconds.
+// Units: positions in metres, temperatures in deg C, potentials in volts, time in seconds.
 // Ownership: render() returns a reference to an internal buffer (RGB24, top row
 // first, width*height*3 bytes) that stays valid until the next render() call.
 // A Renderer is used from one thread (the GL context is current on it).
@@ -45,14 +48,16 @@ constexpr double kCreaseAngleDeg = 65.0;
 
 struct RenderOptions {
   int width = 1280, height = 720;          // frame size [px]
-  std::string look = "temperature";        // "temperature" or "tissue"
+  std::string look = "temperature";        // "temperature", "tissue" or "potential"
   std::array<float, 3> eyeM{0.0f, -0.085f, 0.095f};    // camera position [m]
   std::array<float, 3> targetM{0.0f, 0.0f, 0.006f};    // point looked at [m]
   std::array<float, 3> up{0.0f, 0.0f, 1.0f};            // world up direction
   float fovDeg = 35;                       // vertical field of view [deg]
   float tMinC = 37, tMaxC = 120;           // colour map range [C]
-  std::string colormap = "inferno";        // "inferno" or "viridis"
-  bool showColorBar = true;                // temperature look only
+  float vMinV = 0, vMaxV = 72;             // potential look: colour map range [V]
+  bool potentialLogScale = false;          // potential look: logarithmic map (needs vMinV > 0)
+  std::string colormap = "inferno";        // "inferno" or "viridis" (temperature, potential)
+  bool showColorBar = true;                // temperature and potential looks only
   bool showTime = true;                    // "t = 1.25 s" at the top left
   std::string backend = "osmesa";          // "osmesa" or "egl"
   int msaaSamples = 4;                     // 0 (off), 2 or 4
@@ -102,5 +107,9 @@ void validateRenderOptions(const RenderOptions& options);
 
 // checks the snapshot's array sizes, indices and finiteness; throws esim::Error
 void validateSnapshot(const SurfaceSnapshot& snapshot);
+
+// validateSnapshot plus what the options' look needs (the potential look needs
+// potentialV unless the snapshot has no vertices); render() calls it
+void validateSnapshot(const SurfaceSnapshot& snapshot, const RenderOptions& options);
 
 }  // namespace esim

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 
 #include "sim/core_error.h"
 #include "sim/electric_phase.h"
@@ -70,7 +71,9 @@ Simulation::Simulation(TetMesh mesh, SimulationConfig config)
     sigmaAssembled_ = sigma_;
     stiffness_ = assembleStiffness(mesh_, geo_, sigma_);
     electric_ = makeElectricSolver(config_.electricSolver);
+    electric_->setContactCandidates(surfaceNodes_);
     electric_->setMatrix(stiffness_, ground_);
+    prefetchScriptedPath();
   }
 
   // ---- thermal phase ----
@@ -125,6 +128,26 @@ double Simulation::electricMemoryBytes() const {
 
 std::string Simulation::electricSolverName() const {
   return electric_ ? electric_->name() : "";
+}
+
+void Simulation::prefetchScriptedPath() {
+  if (config_.prefetchUntilS <= 0) return;
+  // the union of the contact sets the script will produce, frame by frame
+  std::vector<int> nodes;
+  const int frames = static_cast<int>(std::ceil(config_.prefetchUntilS / config_.frameDtS));
+  for (int f = 0; f <= frames; ++f) {
+    const double t = f * config_.frameDtS;
+    if (!config_.toolPath.generatorOnAt(t)) continue;
+    const auto c = contactFinder_.find(config_.electrode, config_.toolPath.poseAt(t),
+                                       config_.contactDistanceM);
+    nodes.insert(nodes.end(), c.begin(), c.end());
+  }
+  std::sort(nodes.begin(), nodes.end());
+  nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+  std::vector<int> not_ground;
+  std::set_difference(nodes.begin(), nodes.end(), ground_.begin(), ground_.end(),
+                      std::back_inserter(not_ground));
+  electric_->prefetch(not_ground);
 }
 
 void Simulation::refreshConductivity(FrameRecord& /*record*/) {
@@ -256,6 +279,8 @@ SurfaceSnapshot Simulation::snapshot() {
     }
   }
   if (electric_) {
+    snap.potentialV.resize(nv);
+    for (int v : surfaceNodes_) snap.potentialV[vertex_of[v]] = static_cast<float>(potential_[v]);
     ToolSnapshot& t = snap.tool;
     t.present = true;
     t.generatorOn = generatorOn_;

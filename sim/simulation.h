@@ -114,6 +114,10 @@ struct SimulationConfig {
   ReturnElectrode returnElectrode;
   ToolPath toolPath;
   ElectricSolverOptions electricSolver;
+  // pre-processing: the solver precomputes what the scripted tool path will touch in
+  // [0, prefetchUntilS] (capacitance: the columns of those nodes), so that frames need no
+  // new column; 0 disables it (a live, unscripted tool)
+  double prefetchUntilS = 0;
   // effect: sigma(T) = sigma0 (1 + a (T - T0)) up to boiling, x factor once desiccated
   bool temperatureDependentConductivity = false;
   double conductivityTempCoeffPerK = 0.02;
@@ -163,6 +167,7 @@ class Simulation {
 
  private:
   void refreshConductivity(FrameRecord& record);
+  void prefetchScriptedPath();
 
   TetMesh mesh_;
   SimulationConfig config_;

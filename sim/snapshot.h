@@ -34,6 +34,8 @@ struct SurfaceSnapshot {
   std::vector<float> coagulation;        // per vertex, thermal damage fraction [0,1]
   std::vector<float> desiccation;        // per vertex, vaporized water fraction [0,1]
   std::vector<float> cutWall;            // per vertex, 1 on surfaces exposed by removal [0,1]
+  std::vector<float> potentialV;         // per vertex electric potential [V]; empty without
+                                         // the electric phase
   ToolSnapshot tool;
 
   int numVertices() const { return static_cast<int>(positionsM.size() / 3); }

@@ -285,6 +285,9 @@ const std::vector<Field>& schema() {
                         "dense-inverse refuses when n^2 * 8 bytes exceeds this"));
     f.push_back(integer("solvers.electric.threads", ESIM_REF(solvers.electricThreads), "",
                         closed(1, 256), "BLAS / solver threads (fixed for reproducibility)"));
+    f.push_back(boolean("solvers.electric.prefetch_path", ESIM_REF(solvers.electricPrefetchPath),
+                        "pre-processing: precompute the solver data (capacitance columns) of every "
+                        "node the scripted tool path touches, so frames need none"));
     f.push_back(choice("solvers.thermal.integrator", ESIM_REF(solvers.thermalIntegrator),
                        {"explicit", "backward-euler", "crank-nicolson"},
                        "time integrator of the heat equation (explicit: lumped mass, sub-stepped "
@@ -309,14 +312,23 @@ const std::vector<Field>& schema() {
     f.push_back(number("camera.fov_deg", ESIM_REF(camera.fovDeg), "deg", {0.0, 180.0, true, true},
                        "vertical field of view"));
     // look
-    f.push_back(choice("look.style", ESIM_REF(look.style), {"temperature", "tissue"},
-                       "temperature colour map with legend, or realistic tissue"));
+    f.push_back(choice("look.style", ESIM_REF(look.style), {"temperature", "tissue", "potential"},
+                       "temperature colour map with legend, realistic tissue, or the electric "
+                       "potential on the surface with legend (needs the electric phase)"));
     f.push_back(choice("look.colormap", ESIM_REF(look.colormap), {"inferno", "viridis"},
-                       "colour map of the temperature style"));
+                       "colour map of the temperature and potential styles"));
     f.push_back(number("look.t_min_c", ESIM_REF(look.tMinC), "C", closed(-50.0, 1000.0),
                        "temperature at the bottom of the colour map"));
     f.push_back(number("look.t_max_c", ESIM_REF(look.tMaxC), "C", closed(-50.0, 1000.0),
                        "temperature at the top of the colour map (> t_min_c)"));
+    f.push_back(number("look.v_min_v", ESIM_REF(look.vMinV), "V", closed(-1e4, 1e4),
+                       "potential at the bottom of the colour map (potential style)"));
+    f.push_back(number("look.v_max_v", ESIM_REF(look.vMaxV), "V", closed(-1e4, 1e4),
+                       "potential at the top of the colour map (potential style; 0 = "
+                       "tool.voltage_v)"));
+    f.push_back(choice("look.potential_scale", ESIM_REF(look.potentialScale), {"linear", "log"},
+                       "colour map scale of the potential style (log needs v_min_v > 0; the "
+                       "potential spans decades away from the tool)"));
     f.push_back(integer("look.width", ESIM_REF(look.width), "px", closed(16, 7680),
                         "frame width (even, for yuv420p video)"));
     f.push_back(integer("look.height", ESIM_REF(look.height), "px", closed(16, 4320),
@@ -1090,6 +1102,18 @@ void checkScenario(Scenario& s, const Reader& r) {
   if (!(s.look.tMaxC > s.look.tMinC))
     r.fail("look.t_max_c", "look.t_max_c = " + formatNumber(s.look.tMaxC) +
                                " must be above look.t_min_c = " + formatNumber(s.look.tMinC));
+  if (s.look.style == "potential" && !electric)
+    r.fail("look.style", "look.style = potential needs the electric phase (physics " +
+                             phaseList(s) + "); add electric, or use temperature or tissue");
+  const double vMaxV = s.look.vMaxV != 0.0 ? s.look.vMaxV : s.tool.voltageV;
+  if ((s.look.style == "potential" || s.look.vMaxV != 0.0) && !(vMaxV > s.look.vMinV))
+    r.fail(s.look.vMaxV != 0.0 ? "look.v_max_v" : "look.v_min_v",
+           "look.v_max_v = " + formatNumber(vMaxV) +
+               (s.look.vMaxV != 0.0 ? "" : " (0 = tool.voltage_v)") +
+               " must be above look.v_min_v = " + formatNumber(s.look.vMinV));
+  if (s.look.potentialScale == "log" && !(s.look.vMinV > 0.0))
+    r.fail("look.v_min_v", "look.v_min_v = " + formatNumber(s.look.vMinV) +
+                               " must be above 0 with look.potential_scale = log");
   if (s.look.width % 2 != 0)
     r.fail("look.width",
            "look.width = " + std::to_string(s.look.width) + " must be even (yuv420p video)");

@@ -146,6 +146,7 @@ struct ScenarioSolvers {
   int electricMaxIterations = 5000;
   int electricDenseMemoryLimitMb = 2048;  // dense-inverse refuses above this
   int electricThreads = 1;
+  bool electricPrefetchPath = true;  // precompute what the scripted tool path touches
   std::string thermalIntegrator = "explicit";  // explicit | backward-euler | crank-nicolson
   std::string thermalMass = "lumped";                // lumped | consistent
   bool thermalAllowSubstepping = true;
@@ -167,10 +168,13 @@ struct ScenarioCamera {
 };
 
 struct ScenarioLook {
-  std::string style = "temperature";  // temperature | tissue
+  std::string style = "temperature";  // temperature | tissue | potential (needs electric)
   std::string colormap = "inferno";   // inferno | viridis
   double tMinC = 37.0;
   double tMaxC = 120.0;
+  double vMinV = 0.0;  // potential colour map range [V]
+  double vMaxV = 0.0;  // 0 = tool.voltageV
+  std::string potentialScale = "linear";  // linear | log (log needs vMinV > 0)
   int width = 1280;
   int height = 720;
   bool colorBar = true;

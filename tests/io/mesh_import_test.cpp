@@ -227,8 +227,8 @@ TEST(MeshImport, LiverTetrahedralizesWatertightWithinTwoPercentVolume) {
 
 TEST(MeshImport, MeshingIsDeterministic) {
   const SurfaceMesh s = readSurface(kLiver);
-  const TetMesh a = tetrahedralize(s, coarse(0.012), "liver");
-  const TetMesh b = tetrahedralize(s, coarse(0.012), "liver");
+  const TetMesh a = tetrahedralize(s, coarse(0.010), "liver");
+  const TetMesh b = tetrahedralize(s, coarse(0.010), "liver");
   ASSERT_EQ(a.numNodes(), b.numNodes());
   ASSERT_EQ(a.numTets(), b.numTets());
   for (int i = 0; i < a.numNodes(); ++i) ASSERT_EQ(a.nodes[i], b.nodes[i]) << "node " << i;

@@ -455,6 +455,44 @@ TEST(Scenario, OtherCrossFieldChecks) {
   expectMessage(errorOf("time: {duration_s: 0.01}\n"), {"gives no frame"});
 }
 
+TEST(Scenario, PotentialLookFieldsAndChecks) {
+  // defaults: 0 V .. 0 (= the tool voltage)
+  const Scenario d;
+  EXPECT_EQ(d.look.vMinV, 0.0);
+  EXPECT_EQ(d.look.vMaxV, 0.0);
+  const Scenario s = parseScenario(
+      "physics: [electric]\nlook: {style: potential, v_min_v: 0.5, v_max_v: 30}\n", "ok.yaml");
+  EXPECT_EQ(s.look.style, "potential");
+  EXPECT_EQ(s.look.vMinV, 0.5);
+  EXPECT_EQ(s.look.vMaxV, 30.0);
+  EXPECT_EQ(parseScenario(scenarioToYaml(s), "ok.yaml").look, s.look);
+  EXPECT_NO_THROW(parseScenario("look: {style: potential}\n", "ok.yaml"));  // default physics
+  // the potential look needs the electric phase
+  expectMessage(errorOf("physics: [thermal]\nheat_source: {kind: gaussian}\n"
+                        "look: {style: potential}\n"),
+                {"bad.yaml:3:15: look.style = potential needs the electric phase",
+                 "physics [thermal]", "add electric"});
+  EXPECT_NO_THROW(parseScenario(
+      "physics: [thermal]\nheat_source: {kind: gaussian}\nlook: {style: temperature}\n", "ok.yaml"));
+  // range: v_max_v (or the tool voltage it defaults to) above v_min_v
+  expectMessage(errorOf("look: {style: potential, v_min_v: 10, v_max_v: 5}\n"),
+                {"look.v_max_v = 5 must be above look.v_min_v = 10"});
+  expectMessage(errorOf("tool: {voltage_v: 40}\nlook: {style: potential, v_min_v: 50}\n"),
+                {"look.v_min_v", "look.v_max_v = 40 (0 = tool.voltage_v) must be above "
+                                 "look.v_min_v = 50"});
+  expectMessage(errorOf("look: {v_max_v: 1e5}\n"), {"look.v_max_v = 100000 is outside"});
+  // logarithmic scale: read, and needs v_min_v > 0
+  EXPECT_EQ(d.look.potentialScale, "linear");
+  EXPECT_EQ(parseScenario("look: {potential_scale: log, v_min_v: 0.01}\n", "ok.yaml")
+                .look.potentialScale,
+            "log");
+  expectMessage(errorOf("look: {style: potential, potential_scale: log}\n"),
+                {"look.v_min_v = 0 must be above 0 with look.potential_scale = log"});
+  expectMessage(errorOf("look: {potential_scale: decibel}\n"),
+                {"look.potential_scale: unknown value 'decibel'", "linear, log"});
+  expectMessage(errorOf("look: {v_max_v: high}\n"), {"look.v_max_v: expected a number in volts"});
+}
+
 // ---- writer, hash, reference ----
 
 TEST(Scenario, ToYamlRoundTripsEveryField) {

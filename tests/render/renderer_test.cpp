@@ -363,6 +363,139 @@ TEST(Renderer, SameHashWithOneAndTwoLlvmpipeThreads) {
   EXPECT_EQ(hashes[0], threadTestHash()) << "differs from this process's default thread count";
 }
 
+// potential look: low block (0 V = vMin) | ramp 0..144 V along x | high block (100 V, above
+// vMax); temperatures vary against the potential so a look mix-up shows
+SurfaceSnapshot potentialStrip() {
+  SurfaceSnapshot s;
+  s.timeS = 0.5;
+  addQuad(s, -0.03f, -0.006f, -0.02f, 0.02f, {120, 0, 0, 0});
+  addQuad(s, -0.006f, 0.006f, -0.02f, 0.02f, {0, 0, 0, 0}, {200, 0});
+  addQuad(s, 0.006f, 0.03f, -0.02f, 0.02f, {37, 0, 0, 0});
+  s.potentialV = {0, 0, 0, 0, 0, 144, 144, 0, 100, 100, 100, 100};
+  return s;
+}
+
+TEST(Renderer, PotentialLookColoursThePotentialLinearly) {
+  for (const std::string map : {"viridis", "inferno"}) {
+    RenderOptions o = topDown("potential");
+    o.colormap = map;
+    Renderer r(o);
+    const auto& img = r.render(potentialStrip());
+    const ColormapLut& lut = colormapLut(map);
+    expectNear(atWorld(img, -0.018f, 0.0f), lut[0], 1, "0 V end");
+    expectNear(atWorld(img, 0.018f, 0.01f), lut[255], 1, "above vMaxV, clamped");
+    // ramp: phi = 72 V + x * 144 V / 12 mm; t = phi / 72 V at the pixel centre
+    const auto px = pixelOf(-0.003f, 0.0f);
+    const float halfW = kDist * std::tan(kFov * 3.14159265f / 360.0f) * kW / kH;
+    const double xCentre = ((px[0] + 0.5) / kW * 2 - 1) * halfW;
+    const double tRamp = (72.0 + xCentre / 0.012 * 144.0) / 72.0;
+    ASSERT_GT(tRamp, 0.2);
+    ASSERT_LT(tRamp, 0.8);
+    expectNear(at(img, px[0], px[1]), lut[static_cast<int>(std::lround(tRamp * 255))], 3,
+               "ramp middle");
+  }
+  // a different range moves the colours: vMaxV = 200 V puts 100 V at t = 0.5
+  RenderOptions o = topDown("potential");
+  o.colormap = "viridis";
+  o.vMaxV = 200;
+  Renderer r(o);
+  expectNear(atWorld(r.render(potentialStrip()), 0.018f, 0.01f), colormapLut("viridis")[128], 2,
+             "100 V of 0..200 V");
+}
+
+TEST(Renderer, PotentialLookLogScale) {
+  RenderOptions o = topDown("potential");
+  o.colormap = "viridis";
+  o.potentialLogScale = true;
+  o.vMinV = 1;
+  o.vMaxV = 10000;
+  Renderer r(o);
+  SurfaceSnapshot s = potentialStrip();
+  // 0 V is below vMinV (clamped to the low end), 100 V is half way in decades
+  const auto& img = r.render(s);
+  const ColormapLut& lut = colormapLut("viridis");
+  expectNear(atWorld(img, -0.018f, 0.0f), lut[0], 1, "below vMinV");
+  expectNear(atWorld(img, 0.018f, 0.01f), lut[128], 2, "100 V of 1..10^4 V");
+  o.vMinV = 0;
+  EXPECT_THROW(Renderer bad(o), Error) << "the log scale needs vMinV > 0";
+}
+
+TEST(Renderer, PotentialLookHasAVoltColorBar) {
+  RenderOptions o = topDown("potential");
+  o.colormap = "viridis";
+  o.showColorBar = true;
+  Renderer r(o);
+  const std::vector<std::uint8_t> img = r.render(SurfaceSnapshot{});  // background and overlay
+  const ColormapLut& lut = colormapLut(o.colormap);
+  // a column in the right quarter running from lut[255] (top) down to lut[0]
+  bool found = false;
+  for (int col = kW - 1; col > 3 * kW / 4 && !found; --col) {
+    int top = -1, bottom = -1;
+    for (int row = 0; row < kH; ++row) {
+      const Rgb c = at(img, col, row);
+      if (top < 0 && c == Rgb{lut[255][0], lut[255][1], lut[255][2]}) top = row;
+      if (c == Rgb{lut[0][0], lut[0][1], lut[0][2]}) bottom = row;
+    }
+    found = top >= 0 && bottom > top + kH / 3;
+  }
+  EXPECT_TRUE(found) << "no colour bar from lut[255] down to lut[0] in the right quarter";
+  // labels differ from the temperature bar's (V and 0..72 instead of deg C and 37..120)
+  RenderOptions t = o;
+  t.look = "temperature";
+  Renderer rt(t);
+  const std::vector<std::uint8_t> timg = rt.render(SurfaceSnapshot{});
+  int textPixels = 0, differing = 0;
+  for (int row = 0; row < kH; ++row)
+    for (int col = kW / 2; col < kW; ++col) {
+      if (at(img, col, row) == Rgb{236, 236, 236}) ++textPixels;
+      if (at(img, col, row) != at(timg, col, row)) ++differing;
+    }
+  EXPECT_GT(textPixels, 40);
+  EXPECT_GT(differing, 20);
+  // the log bar draws more ticks than 0..72 V linear (1, 2, 5, 10, 20, 50 vs 0, 20, 40, 60)
+  o.potentialLogScale = true;
+  o.vMinV = 1;
+  Renderer rl(o);
+  const std::vector<std::uint8_t> limg = rl.render(SurfaceSnapshot{});
+  // ticks: grey rows just left of the bar's grey frame (its left column is the one with
+  // the most grey pixels)
+  auto tickRows = [&](const std::vector<std::uint8_t>& im) {
+    const Rgb grey{200, 200, 200};
+    int frameCol = -1, best = 0;
+    for (int col = kW * 3 / 4; col < kW; ++col) {
+      int n = 0;
+      for (int row = 0; row < kH; ++row) n += at(im, col, row) == grey;
+      if (n > best) best = n, frameCol = col;
+    }
+    int n = 0;
+    for (int row = 0; row < kH && frameCol >= 2; ++row) n += at(im, frameCol - 2, row) == grey;
+    return n;
+  };
+  EXPECT_GT(tickRows(limg), tickRows(img));
+}
+
+TEST(Renderer, PotentialLookNeedsTheElectricPhase) {
+  Renderer r(topDown("potential"));
+  SurfaceSnapshot s = gradientStrip();  // no potentialV
+  try {
+    r.render(s);
+    ADD_FAILURE() << "no error for a potential look without potentialV";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("look.style: potential needs the electric phase"),
+              std::string::npos)
+        << e.what();
+  }
+  s = potentialStrip();
+  s.potentialV.pop_back();
+  EXPECT_THROW(r.render(s), Error);
+  s = potentialStrip();
+  s.potentialV[3] = std::nanf("");
+  EXPECT_THROW(r.render(s), Error);
+  // other looks ignore a missing potential
+  Renderer t(topDown("temperature"));
+  EXPECT_NO_THROW(t.render(gradientStrip()));
+}
+
 TEST(Renderer, RejectsBadOptionsAndSnapshots) {
   auto message = [](auto&& f) {
     try {

@@ -132,6 +132,26 @@ TEST(Simulation, SnapshotIsTheClosedSurface) {
   for (auto v : s.triangles) ASSERT_LT(static_cast<int>(v), s.numVertices());
 }
 
+TEST(Simulation, TemperatureDependentConductivityScalesTheCurrent) {
+  // a uniform 20 K rise multiplies sigma by (1 + 0.02 * 20) = 1.4 everywhere; the potential
+  // is unchanged (Laplace is homogeneous in sigma) and the current scales by exactly 1.4
+  SimulationConfig base = cutConfig(true);
+  base.phases.boiling = false;
+  base.thermal.boiling = false;
+  base.hotSpot.enabled = true;
+  base.hotSpot.centerM = Vec3(0, 0, 0);
+  base.hotSpot.radiusM = 1.0;  // the whole slab
+  base.hotSpot.temperatureC = 57.0;
+  SimulationConfig hot = base;
+  hot.temperatureDependentConductivity = true;
+  Simulation a(smallSlab(), base), b(smallSlab(), hot);
+  const double ia = a.step().toolCurrentA;
+  const double ib = b.step().toolCurrentA;
+  EXPECT_NEAR(ib / ia, 1.4, 1e-9);
+  EXPECT_LT((a.potentialV() - b.potentialV()).cwiseAbs().maxCoeff(), 1e-9);
+  for (double s : b.conductivityS_m()) EXPECT_NEAR(s, 0.144 * 1.4, 1e-12);
+}
+
 TEST(Simulation, BadInputMessages) {
   SimulationConfig c = cutConfig(false);
   c.phases.structural = true;

@@ -9,6 +9,7 @@
 // 6. Print the one-screen summary.
 // Bad input (steps 1-3) exits 2 with nothing written. Ctrl-C stops after the current
 // frame and still closes the video properly (the summary says "interrupted").
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -81,6 +82,7 @@ SimulationConfig makeConfig(const Scenario& s) {
   c.electricSolver.pcgMaxIterations = s.solvers.electricMaxIterations;
   c.electricSolver.denseMemoryLimitBytes = s.solvers.electricDenseMemoryLimitMb * 1048576.0;
   c.electricSolver.threads = s.solvers.electricThreads;
+  c.prefetchUntilS = s.solvers.electricPrefetchPath ? s.time.durationS : 0.0;
   c.temperatureDependentConductivity = s.effects.temperatureDependentConductivity;
   c.conductivityTempCoeffPerK = m.conductivityTempCoeffPerK;
   c.desiccatedConductivityFactor = m.desiccatedConductivityFactor;
@@ -145,6 +147,9 @@ RenderOptions makeRenderOptions(const Scenario& s) {
   r.fovDeg = static_cast<float>(s.camera.fovDeg);
   r.tMinC = static_cast<float>(s.look.tMinC);
   r.tMaxC = static_cast<float>(s.look.tMaxC);
+  r.vMinV = static_cast<float>(s.look.vMinV);
+  r.vMaxV = static_cast<float>(s.look.vMaxV != 0.0 ? s.look.vMaxV : s.tool.voltageV);  // 0: tool
+  r.potentialLogScale = s.look.potentialScale == "log";
   r.colormap = s.look.colormap;
   r.showColorBar = s.look.colorBar;
   r.showTime = s.look.showTime;
@@ -196,6 +201,13 @@ void writeFields(const std::string& path, const Simulation& sim) {
   writeVtu(path, m, point, cell);
 }
 
+// peak resident memory of this process so far [MB]
+double peakRssMb() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return u.ru_maxrss / 1024.0;  // ru_maxrss is in kB on Linux
+}
+
 // ---- progress ----
 class Progress {
  public:
@@ -240,6 +252,7 @@ int runScenario(const RunOptions& opt) {
   const auto build_t0 = Clock::now();
   Simulation sim(std::move(mesh), makeConfig(sc));
   const double setup_s = std::chrono::duration<double>(Clock::now() - build_t0).count();
+  const double rss_after_setup_mb = peakRssMb();
 
   // ---- 3. renderer, then the output folder ----
   const bool need_render = video || sc.output.pngEvery > 0 || sc.output.hashes;
@@ -342,6 +355,8 @@ int runScenario(const RunOptions& opt) {
   extra["interrupted"] = gInterrupted.load();
   extra["mesh"] = {{"nodes", nodes}, {"tets", tets}, {"build_s", mesh_s}};
   extra["setup_s"] = setup_s;
+  extra["peak_rss_mb"] = peakRssMb();
+  extra["peak_rss_after_setup_mb"] = rss_after_setup_mb;
   extra["frame_loop_s"] = loop_s;
   extra["offline"] = {{"encode_s", encode_s},
                       {"codec", encoder_codec},
@@ -402,6 +417,8 @@ int runScenario(const RunOptions& opt) {
                 inter.p50Ms, inter.p95Ms, timing["frames_over_budget"].get<int>(), frames_done);
   sum << line;
   sum << "  encode        " << encode_s << " s offline (own thread)\n";
+  sum << "  memory        peak " << peakRssMb() << " MB resident (" << rss_after_setup_mb
+      << " MB after setup)\n";
   sum.precision(1);
   sum << "  temperature   max " << sim.maxTemperatureSeenC() << " C (now " << temp.maxCoeff()
       << " C)\n";

@@ -1,0 +1,169 @@
+// `esim run` end to end: every shipped scenario runs (short), outputs are complete, the
+// fields hold only the phases the scene has, idle stages say "skipped", and bad input
+// exits 2 with nothing written.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "sim/io/vtu.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Result {
+  int exitCode = 0;
+  std::string output;  // stdout + stderr
+};
+
+Result esimRun(const std::string& args) {
+  const std::string cmd =
+      std::string("cd ") + ESIM_SOURCE_DIR + " && " + ESIM_EXE + " run " + args + " 2>&1";
+  Result r;
+  FILE* pipe = popen(cmd.c_str(), "r");
+  char buf[4096];
+  while (fgets(buf, sizeof buf, pipe)) r.output += buf;
+  const int status = pclose(pipe);
+  r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+std::string readFile(const fs::path& p) {
+  std::ifstream is(p);
+  std::stringstream ss;
+  ss << is.rdbuf();
+  return ss.str();
+}
+
+fs::path tempOut(const std::string& name) {
+  const fs::path p = fs::temp_directory_path() / ("esim_run_test_" + name);
+  fs::remove_all(p);
+  return p;
+}
+
+const char* kSmall = " --set look.width=160 --set look.height=90 -q";
+
+TEST(RunCli, EveryShippedScenarioRuns) {
+  for (const auto& entry : fs::directory_iterator(fs::path(ESIM_SOURCE_DIR) / "scenarios")) {
+    if (entry.path().extension() != ".yaml") continue;
+    const std::string name = entry.path().stem().string();
+    const fs::path out = tempOut(name);
+    const Result r = esimRun("scenarios/" + name + ".yaml --frames 3 --set output.video=false" +
+                             std::string(kSmall) + " -o " + out.string());
+    ASSERT_EQ(r.exitCode, 0) << name << ":\n" << r.output;
+    for (const char* f : {"timing.csv", "timing.json", "trace.json", "scenario.yaml",
+                          "hashes.json", "summary.txt"})
+      EXPECT_TRUE(fs::exists(out / f)) << name << " lacks " << f;
+    const auto timing = nlohmann::json::parse(readFile(out / "timing.json"));
+    EXPECT_EQ(timing["frames"], 3) << name;
+    EXPECT_FALSE(fs::exists(out.string() + ".partial"));
+    fs::remove_all(out);
+  }
+}
+
+TEST(RunCli, VideoAndSummary) {
+  const fs::path out = tempOut("video");
+  const Result r = esimRun("scenarios/paper_slab.yaml --frames 15" + std::string(kSmall) +
+                           " -o " + out.string());
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  ASSERT_TRUE(fs::exists(out / "video.mp4"));
+  EXPECT_GT(fs::file_size(out / "video.mp4"), 1000u);
+  EXPECT_NE(r.output.find("frames      15 of 15"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("energy"), std::string::npos);
+  EXPECT_NE(r.output.find("over 33.3 ms"), std::string::npos);
+  fs::remove_all(out);
+}
+
+TEST(RunCli, FieldsHoldOnlyThePhasesOfTheScene) {
+  const fs::path full = tempOut("fields_full");
+  Result r = esimRun("scenarios/paper_slab.yaml --frames 2 --fields 1 --no-video" +
+                     std::string(kSmall) + " -o " + full.string());
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  const esim::VtuData d = esim::readVtu((full / "fields" / "frame_00001.vtu").string());
+  for (const char* f : {"potential", "temperature", "bc"})
+    EXPECT_NE(d.findPointField(f), nullptr) << f;
+  for (const char* f : {"conductivity", "joule_power", "vapor_fraction", "alive"})
+    EXPECT_NE(d.findCellField(f), nullptr) << f;
+  EXPECT_EQ(d.findPointField("displacement"), nullptr);  // no structural phase
+  EXPECT_EQ(d.findCellField("von_mises"), nullptr);
+  // bc: some tool contacts (1) and return-electrode nodes (2)
+  int tool = 0, ground = 0;
+  for (double v : d.findPointField("bc")->values) {
+    tool += v == 1;
+    ground += v == 2;
+  }
+  EXPECT_GT(tool, 0);
+  EXPECT_GT(ground, 0);
+  // potential between 0 and 72 V
+  for (double v : d.findPointField("potential")->values) {
+    EXPECT_GE(v, -1e-9);
+    EXPECT_LE(v, 72 + 1e-9);
+  }
+  fs::remove_all(full);
+
+  const fs::path eo = tempOut("fields_electric");
+  r = esimRun("scenarios/electric_only.yaml --frames 1 --fields 1 --no-video" +
+              std::string(kSmall) + " -o " + eo.string());
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  const esim::VtuData e = esim::readVtu((eo / "fields" / "frame_00000.vtu").string());
+  EXPECT_NE(e.findPointField("potential"), nullptr);
+  EXPECT_EQ(e.findPointField("temperature"), nullptr);  // thermal not listed: not built
+  EXPECT_EQ(e.findCellField("vapor_fraction"), nullptr);
+  // timing.csv has no heat column at all
+  const std::string csv = readFile(eo / "timing.csv");
+  EXPECT_EQ(csv.find("heat_ms"), std::string::npos) << csv.substr(0, 200);
+  EXPECT_NE(csv.find("solve_potential_ms"), std::string::npos);
+  fs::remove_all(eo);
+}
+
+TEST(RunCli, IdleStagesAreSkipped) {
+  // coagulation_spot: the generator is off before 0.5 s
+  const fs::path out = tempOut("skipped");
+  const Result r = esimRun("scenarios/coagulation_spot.yaml --frames 3 --no-video" +
+                           std::string(kSmall) + " -o " + out.string());
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  const std::string csv = readFile(out / "timing.csv");
+  std::istringstream lines(csv);
+  std::string header, row;
+  std::getline(lines, header);
+  std::getline(lines, row);
+  EXPECT_NE(header.find("find_contacts_ms,solve_potential_ms,heat_ms"), std::string::npos)
+      << header;
+  EXPECT_NE(row.find("skipped,skipped,skipped"), std::string::npos) << row;
+  const auto timing = nlohmann::json::parse(readFile(out / "timing.json"));
+  EXPECT_EQ(timing["stages"]["solve_potential"]["frames_skipped"], 3);
+  fs::remove_all(out);
+}
+
+TEST(RunCli, BadInputExitsTwoAndWritesNothing) {
+  const fs::path out = tempOut("bad");
+  const fs::path bad_yaml = fs::temp_directory_path() / "esim_run_test_bad.yaml";
+  std::ofstream(bad_yaml) << "name: x\ntool: {voltage_v: [1, 2\n";
+  struct Case {
+    std::string args, expect;
+  } cases[] = {
+      {bad_yaml.string(), "esim_run_test_bad.yaml:"},
+      {"scenarios/paper_slab.yaml --set tool.voltage_v=abc", "tool.voltage_v"},
+      {"scenarios/paper_slab.yaml --set physics=[electric,magic]", "magic"},
+      {"scenarios/nope.yaml", "nope.yaml"},
+      {"scenarios/paper_slab.yaml --set return_electrode.center_m=[0,0,-0.5]",
+       "return_electrode: no mesh node lies on the return electrode disc"},
+      {"scenarios/paper_slab.yaml --set solvers.electric.strategy=dense-inverse "
+       "--set mesh.slab.nodes=60000 --set solvers.electric.dense_memory_limit_mb=100",
+       "capacitance"},
+  };
+  for (const auto& c : cases) {
+    const Result r = esimRun(c.args + " -q -o " + out.string());
+    EXPECT_EQ(r.exitCode, 2) << c.args << "\n" << r.output;
+    EXPECT_NE(r.output.find(c.expect), std::string::npos) << c.args << "\n" << r.output;
+    EXPECT_FALSE(fs::exists(out)) << c.args;
+    EXPECT_FALSE(fs::exists(out.string() + ".partial")) << c.args;
+  }
+  fs::remove(bad_yaml);
+}
+
+}  // namespace
