@@ -177,6 +177,7 @@ struct ScenarioLook {
   std::string potentialScale = "linear";  // linear | log (log needs vMinV > 0)
   int width = 1280;
   int height = 720;
+  int msaa = 4;  // multisample anti-aliasing samples: 0 (off, fastest), 2 or 4
   bool colorBar = true;
   bool showTime = true;
   bool operator==(const ScenarioLook&) const = default;

@@ -567,3 +567,21 @@ TEST(Scenario, CommittedReferenceIsUpToDate) {
 
 }  // namespace
 }  // namespace esim
+
+namespace esim {
+namespace {
+
+TEST(Scenario, MsaaSamples) {
+  EXPECT_EQ(parseScenario("", "m.yaml").look.msaa, 4);
+  EXPECT_EQ(parseScenario("look: {msaa: 0}\n", "m.yaml").look.msaa, 0);
+  try {
+    parseScenario("look: {msaa: 3}\n", "m.yaml");
+    FAIL() << "msaa 3 accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("look.msaa = 3 must be 0, 2 or 4"), std::string::npos)
+        << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace esim

@@ -153,6 +153,7 @@ RenderOptions makeRenderOptions(const Scenario& s) {
   r.colormap = s.look.colormap;
   r.showColorBar = s.look.colorBar;
   r.showTime = s.look.showTime;
+  r.msaaSamples = s.look.msaa;
   return r;
 }
 
