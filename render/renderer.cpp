@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <cstdlib>
 
 #include "render/bitmap_font.h"
 #include "render/colormap.h"
@@ -95,14 +96,24 @@ void main() {
 })";
 
 // MSAA resolve as a full-screen pass (llvmpipe runs it on all its threads; the
-// blit path is several times slower): the mean of the samples, like a box resolve
+// blit path is several times slower): the mean of the samples, like a box resolve.
+// The background is not drawn into the multisampled buffer: it is cleared to alpha
+// 0 (everything drawn has alpha 1), and a sample still at alpha 0 takes the
+// background colour of its row from uBackground (1 x height, written once by the
+// background pass itself, so the bytes are the ones that pass would have stored):
+// the same sums as drawing the background first, without a full-screen pass per frame.
 const char* kResolveFs = R"(
 uniform sampler2DMS uSamples;
+uniform sampler2D uBackground;
 out vec4 fragColor;
 void main() {
   ivec2 p = ivec2(gl_FragCoord.xy);
+  vec4 bg = texelFetch(uBackground, ivec2(0, p.y), 0);
   vec4 sum = vec4(0.0);
-  for (int i = 0; i < SAMPLES; ++i) sum += texelFetch(uSamples, p, i);
+  for (int i = 0; i < SAMPLES; ++i) {
+    vec4 s = texelFetch(uSamples, p, i);
+    sum += s.a < 0.5 ? bg : s;
+  }
   fragColor = sum / float(SAMPLES);
 })";
 
@@ -324,7 +335,7 @@ void pushVertex(std::vector<float>& out, V3 p, V3 n, const std::array<float, 4>&
 void buildSurfaceVertices(const SurfaceSnapshot& snap, float tDefaultC, bool potential,
                           std::vector<float>& out,
                           std::vector<std::uint32_t>& indices, std::vector<V3>& faceNormal,
-                          std::vector<int>& offsets, std::vector<int>& incident,
+                          std::vector<float>& faceLength, std::vector<int>& offsets, std::vector<int>& incident,
                           std::vector<int>& firstCopy, std::vector<int>& nextCopy) {
   const int nv = snap.numVertices();
   const int nt = snap.numTriangles();
@@ -332,9 +343,11 @@ void buildSurfaceVertices(const SurfaceSnapshot& snap, float tDefaultC, bool pot
   auto pos = [&](std::uint32_t v) { return V3{P[3 * v], P[3 * v + 1], P[3 * v + 2]}; };
   // 1. area-weighted face normals (|cross| = 2 area)
   faceNormal.resize(nt);
+  faceLength.resize(nt);
   for (int t = 0; t < nt; ++t) {
     const std::uint32_t* tri = &snap.triangles[3 * t];
     faceNormal[t] = cross(sub(pos(tri[1]), pos(tri[0])), sub(pos(tri[2]), pos(tri[0])));
+    faceLength[t] = norm(faceNormal[t]);
   }
   // 2. vertex -> incident triangles (CSR, ascending triangle ids)
   offsets.assign(nv + 1, 0);
@@ -362,13 +375,14 @@ void buildSurfaceVertices(const SurfaceSnapshot& snap, float tDefaultC, bool pot
   firstCopy.assign(nv, -1);  // first GPU vertex of each snapshot vertex
   nextCopy.clear();          // chain of further copies (crease splits)
   for (int t = 0; t < nt; ++t) {
-    const V3 nf = normalized(faceNormal[t]);
+    // normalized(faceNormal[t]) with the stored length (the same bits)
+    const V3 nf = faceLength[t] > 0 ? mul(faceNormal[t], 1.0f / faceLength[t]) : V3{0, 0, 1};
     for (int k = 0; k < 3; ++k) {
       const std::uint32_t v = snap.triangles[3 * t + k];
       V3 sum{0, 0, 0};
       for (int i = offsets[v]; i < offsets[v + 1]; ++i) {
         const V3& ng = faceNormal[incident[i]];
-        const float len = norm(ng);
+        const float len = faceLength[incident[i]];
         if (len > 0 && dot(ng, nf) >= cosCrease * len) sum = add(sum, ng);
       }
       const V3 n = norm(sum) > 0 ? normalized(sum) : nf;
@@ -610,6 +624,7 @@ struct Renderer::Impl {
   SurfaceProgram lookProgram[2], toolProgram;  // lookProgram[shadow]
   GLuint noiseTex = 0;
   GLuint bgProgram = 0, bgVao = 0, resolveProgram = 0;  // bgVao: empty, full-screen passes
+  GLuint bgTex = 0, bgFbo = 0;  // MSAA: the background column (1 x height) for the resolve
   GLint uSize = -1;
   GLuint surfVao = 0, surfVbo = 0, toolVao = 0, toolVbo = 0, lutTex = 0;
   GLuint msFbo = 0, msColor = 0, msDepth = 0, fbo = 0, color = 0, depth = 0;
@@ -621,6 +636,7 @@ struct Renderer::Impl {
   std::vector<int> firstCopy, nextCopy;
   GLuint surfIbo = 0;
   std::vector<V3> faceNormal;
+  std::vector<float> faceLength;
   std::vector<int> offsets, incident;
   std::vector<std::uint8_t> readBuf, frame;
   RenderTimings timings;
@@ -770,6 +786,30 @@ void Renderer::Impl::init() {
     const std::string fs = "#version 330 core\n#define SAMPLES " +
                            std::to_string(opt.msaaSamples) + "\n" + kResolveFs;
     resolveProgram = linkProgram(gl, kFullScreenVs, fs.c_str(), "msaa resolve");
+    // the background column, drawn once by the background pass (it depends on the row only)
+    gl.GenTextures(1, &bgTex);
+    gl.BindTexture(GL_TEXTURE_2D, bgTex);
+    gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, 1, opt.height, 0, GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
+    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    gl.BindTexture(GL_TEXTURE_2D, 0);
+    gl.GenFramebuffers(1, &bgFbo);
+    gl.BindFramebuffer(GL_FRAMEBUFFER, bgFbo);
+    gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, bgTex, 0);
+    ESIM_VERIFY(gl.CheckFramebufferStatus(GL_FRAMEBUFFER) == GL_FRAMEBUFFER_COMPLETE,
+                "renderer: background framebuffer incomplete");
+    gl.Viewport(0, 0, 1, opt.height);
+    gl.Disable(GL_DEPTH_TEST);
+    gl.UseProgram(bgProgram);
+    gl.Uniform2f(uSize, static_cast<float>(opt.width), static_cast<float>(opt.height));
+    gl.BindVertexArray(bgVao);
+    gl.DrawArrays(GL_TRIANGLES, 0, 3);
+    gl.BindVertexArray(0);
+    gl.UseProgram(0);
+    gl.UseProgram(resolveProgram);
+    gl.Uniform1i(gl.GetUniformLocation(resolveProgram, "uSamples"), 2);
+    gl.Uniform1i(gl.GetUniformLocation(resolveProgram, "uBackground"), 3);
+    gl.UseProgram(0);
   }
   const GLenum err = gl.GetError();
   ESIM_VERIFY(err == GL_NO_ERROR, "renderer: GL error 0x" + std::to_string(err) + " at setup");
@@ -794,9 +834,10 @@ void Renderer::Impl::destroy() {
   gl.DeleteTextures(1, &lutTex);
   gl.DeleteTextures(1, &noiseTex);
   gl.DeleteTextures(1, &msColor);
+  gl.DeleteTextures(1, &bgTex);
   gl.DeleteProgram(resolveProgram);
-  GLuint fbos[] = {fbo, msFbo};
-  gl.DeleteFramebuffers(2, fbos);
+  GLuint fbos[] = {fbo, msFbo, bgFbo};
+  gl.DeleteFramebuffers(3, fbos);
   GLuint rbs[] = {color, depth, msDepth};
   gl.DeleteRenderbuffers(3, rbs);
 }
@@ -905,18 +946,24 @@ const std::vector<std::uint8_t>& Renderer::render(const SurfaceSnapshot& snap) {
   const V3 fillDir = normalized(add(add(mul(right, 0.70f), mul(camUp, 0.10f)), mul(fwd, -0.50f)));
   const V3 halfDir = normalized(sub(keyDir, fwd));  // towards the light + towards the viewer
 
-  // 2. target framebuffer and background (a full-screen pass: llvmpipe turns
-  //    scissored clears into draws, so one pass is cheaper than a clear per band)
+  // 2. target framebuffer and background. MSAA: colour cleared to alpha 0, the
+  //    resolve fills the background in (kResolveFs). Without MSAA: a full-screen
+  //    pass that covers every pixel (so no colour clear; llvmpipe turns scissored
+  //    clears into draws, so one pass is cheaper than a clear per band)
   gl.BindFramebuffer(GL_FRAMEBUFFER, o.msaaSamples > 0 ? m.msFbo : m.fbo);
   gl.Viewport(0, 0, o.width, o.height);
-  gl.ClearColor(0, 0, 0, 1);
-  gl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-  gl.Disable(GL_DEPTH_TEST);
-  gl.DepthMask(GL_FALSE);
-  gl.UseProgram(m.bgProgram);
-  gl.Uniform2f(m.uSize, static_cast<float>(o.width), static_cast<float>(o.height));
-  gl.BindVertexArray(m.bgVao);
-  gl.DrawArrays(GL_TRIANGLES, 0, 3);
+  if (o.msaaSamples > 0) {
+    gl.ClearColor(0, 0, 0, 0);
+    gl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  } else {
+    gl.Clear(GL_DEPTH_BUFFER_BIT);
+    gl.Disable(GL_DEPTH_TEST);
+    gl.DepthMask(GL_FALSE);
+    gl.UseProgram(m.bgProgram);
+    gl.Uniform2f(m.uSize, static_cast<float>(o.width), static_cast<float>(o.height));
+    gl.BindVertexArray(m.bgVao);
+    gl.DrawArrays(GL_TRIANGLES, 0, 3);
+  }
   gl.Enable(GL_DEPTH_TEST);
   gl.DepthMask(GL_TRUE);
   gl.DepthFunc(GL_LESS);
@@ -955,7 +1002,8 @@ const std::vector<std::uint8_t>& Renderer::render(const SurfaceSnapshot& snap) {
   double prepareMs = 0;
   if (snap.numTriangles() > 0) {
     const auto tPrep = Clock::now();
-    buildSurfaceVertices(snap, o.tMinC, o.look == "potential", m.vertices, m.indices, m.faceNormal, m.offsets,
+    buildSurfaceVertices(snap, o.tMinC, o.look == "potential", m.vertices, m.indices, m.faceNormal,
+                         m.faceLength, m.offsets,
                          m.incident, m.firstCopy, m.nextCopy);
     prepareMs = msSince(tPrep);
     useProgram(m.lookProgram[tool.present ? 1 : 0], identity);
@@ -992,31 +1040,42 @@ const std::vector<std::uint8_t>& Renderer::render(const SurfaceSnapshot& snap) {
   gl.BindVertexArray(0);
 
   // 5. resolve and read back (GL rows are bottom-up)
-  gl.Finish();
+  if (!std::getenv("ESIM_RPERF_NOFIN")) gl.Finish();
   m.timings.drawMs = msSince(tStart) - prepareMs;
   const auto tRead = Clock::now();
   gl.BindFramebuffer(GL_FRAMEBUFFER, m.fbo);
   if (o.msaaSamples > 0) {
     gl.Disable(GL_DEPTH_TEST);
-    gl.UseProgram(m.resolveProgram);
+    gl.UseProgram(m.resolveProgram);  // samplers: uSamples unit 2, uBackground unit 3
+    gl.ActiveTexture(GL_TEXTURE3);
+    gl.BindTexture(GL_TEXTURE_2D, m.bgTex);
     gl.ActiveTexture(GL_TEXTURE2);
     gl.BindTexture(GL_TEXTURE_2D_MULTISAMPLE, m.msColor);
-    gl.Uniform1i(gl.GetUniformLocation(m.resolveProgram, "uSamples"), 2);
     gl.BindVertexArray(m.bgVao);
     gl.DrawArrays(GL_TRIANGLES, 0, 3);
     gl.BindVertexArray(0);
     gl.ActiveTexture(GL_TEXTURE0);
   }
+  //    as RGBA (the buffer's own layout: a plain copy in the driver), then packed
+  //    to RGB and flipped in one pass here
   gl.ReadBuffer(GL_COLOR_ATTACHMENT0);
-  gl.PixelStorei(GL_PACK_ALIGNMENT, 1);
+  gl.PixelStorei(GL_PACK_ALIGNMENT, 4);
   const size_t rowBytes = static_cast<size_t>(o.width) * 3;
-  m.readBuf.resize(rowBytes * o.height);
+  const size_t rgbaRowBytes = static_cast<size_t>(o.width) * 4;
+  m.readBuf.resize(rgbaRowBytes * o.height);
   m.frame.resize(rowBytes * o.height);
-  gl.ReadPixels(0, 0, o.width, o.height, GL_RGB, GL_UNSIGNED_BYTE, m.readBuf.data());
+  gl.ReadPixels(0, 0, o.width, o.height, GL_RGBA, GL_UNSIGNED_BYTE, m.readBuf.data());
   const GLenum err = gl.GetError();
   ESIM_VERIFY(err == GL_NO_ERROR, "renderer: GL error 0x" + std::to_string(err) + " while drawing");
-  for (int y = 0; y < o.height; ++y)
-    std::memcpy(&m.frame[rowBytes * y], &m.readBuf[rowBytes * (o.height - 1 - y)], rowBytes);
+  for (int y = 0; y < o.height; ++y) {
+    const std::uint8_t* src = &m.readBuf[rgbaRowBytes * (o.height - 1 - y)];
+    std::uint8_t* dst = &m.frame[rowBytes * y];
+    for (int x = 0; x < o.width; ++x) {
+      dst[3 * x] = src[4 * x];
+      dst[3 * x + 1] = src[4 * x + 1];
+      dst[3 * x + 2] = src[4 * x + 2];
+    }
+  }
 
   m.timings.readbackMs = msSince(tRead);
   // 6. overlay on the CPU

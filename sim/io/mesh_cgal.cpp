@@ -1,7 +1,8 @@
 // mesh_cgal.cpp - every CGAL instantiation of ESim lives here (see mesh_cgal.h).
 //
 // A Mesh_3 unit takes minutes and GBs to compile, so this file is kept small and
-// stable: self-intersection test (PMP) and Mesh_3 with a polyhedral domain.
+// stable: self-intersection test (PMP) and Mesh_3 with a polyhedral domain, with
+// constant size bounds or sizing fields refined around a segment (SegmentSizing).
 // Kernel: Epick (exact predicates, inexact constructions). The polyhedral domain
 // uses exact intersection constructions internally where it needs them.
 // Under valgrind, CGAL's interval arithmetic self-check fails because valgrind
@@ -58,6 +59,51 @@ CgalSurface toCgal(const SurfaceMesh& surface) {
   return sm;
 }
 
+// ---- local refinement: a size bound that shrinks near a segment ----
+// h(p) = fine + (coarse - fine) * clamp((d(p) - width) / width, 0, 1), d = distance of p
+// to the segment [a, b]. A pure function of the point: meshing stays deterministic.
+struct SegmentSizing {
+  Vec3 a, b;
+  double fineM, coarseM, widthM;
+  template <class Index>
+  Kernel::FT operator()(const Point& p, int /*dim*/, const Index& /*index*/) const {
+    const Vec3 q(p.x(), p.y(), p.z());
+    const Vec3 ab = b - a;
+    const double s = std::clamp((q - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+    const double d = (q - (a + s * ab)).norm();
+    const double w = std::clamp((d - widthM) / widthM, 0.0, 1.0);
+    return fineM + (coarseM - fineM) * w;
+  }
+};
+
+// runs make_mesh_3 and the optional optimisers in a fixed order
+template <class MeshCriteria>
+Complex meshDomain(const Domain& domain, const MeshCriteria& criteria,
+                   const MeshingOptions& options) {
+  namespace params = CGAL::parameters;
+  Complex c3t3;
+  try {
+    // manifold(): the boundary of the tets is a 2-manifold (rendered, cut, exported)
+    c3t3 = CGAL::make_mesh_3<Complex>(domain, criteria, params::manifold(), params::no_perturb(),
+                                      params::no_exude());
+    if (options.lloyd) {
+      CGAL::lloyd_optimize_mesh_3(c3t3, domain, params::time_limit = 0,
+                                  params::max_iteration_number = options.lloydIterations);
+    }
+    if (options.perturb) {
+      CGAL::perturb_mesh_3(c3t3, domain, params::time_limit = 0,
+                           params::sliver_bound = options.sliverBoundDeg);
+    }
+    if (options.exude) {
+      CGAL::exude_mesh_3(c3t3, params::time_limit = 0,
+                         params::sliver_bound = options.sliverBoundDeg);
+    }
+  } catch (const CGAL::Failure_exception& e) {
+    throw Error(std::string("CGAL Mesh_3 failed: ") + e.what());
+  }
+  return c3t3;
+}
+
 }  // namespace
 
 SelfIntersections findSelfIntersections(const SurfaceMesh& surface) {
@@ -83,31 +129,28 @@ TetMesh generateTets(const SurfaceMesh& surface, const MeshingOptions& options) 
   Domain domain(sm, &rng);
   if (options.featureAngleDeg > 0) domain.detect_features(options.featureAngleDeg);
 
-  // 2. criteria and refinement, then the optional optimisers in a fixed order
-  const Criteria criteria(
-      params::edge_size = options.edgeSizeM, params::facet_angle = options.facetAngleDeg,
-      params::facet_size = options.facetSizeM, params::facet_distance = options.facetDistanceM,
-      params::cell_radius_edge_ratio = options.cellRadiusEdgeRatio,
-      params::cell_size = options.cellSizeM);
+  // 2. criteria (constant sizes, or sizing fields around the planned cut), then Mesh_3
   Complex c3t3;
-  try {
-    // manifold(): the boundary of the tets is a 2-manifold (rendered, cut, exported)
-    c3t3 = CGAL::make_mesh_3<Complex>(domain, criteria, params::manifold(), params::no_perturb(),
-                                      params::no_exude());
-    if (options.lloyd) {
-      CGAL::lloyd_optimize_mesh_3(c3t3, domain, params::time_limit = 0,
-                                  params::max_iteration_number = options.lloydIterations);
-    }
-    if (options.perturb) {
-      CGAL::perturb_mesh_3(c3t3, domain, params::time_limit = 0,
-                           params::sliver_bound = options.sliverBoundDeg);
-    }
-    if (options.exude) {
-      CGAL::exude_mesh_3(c3t3, params::time_limit = 0,
-                         params::sliver_bound = options.sliverBoundDeg);
-    }
-  } catch (const CGAL::Failure_exception& e) {
-    throw Error(std::string("CGAL Mesh_3 failed: ") + e.what());
+  const auto& r = options.refinement;
+  if (!r.enabled) {
+    const Criteria criteria(
+        params::edge_size = options.edgeSizeM, params::facet_angle = options.facetAngleDeg,
+        params::facet_size = options.facetSizeM, params::facet_distance = options.facetDistanceM,
+        params::cell_radius_edge_ratio = options.cellRadiusEdgeRatio,
+        params::cell_size = options.cellSizeM);
+    c3t3 = meshDomain(domain, criteria, options);
+  } else {
+    const double k = r.cellSizeM / options.cellSizeM;  // fine / global, in (0, 1]
+    auto field = [&](double globalM) {
+      return SegmentSizing{r.fromM, r.toM, k * globalM, globalM, r.widthM};
+    };
+    const Criteria criteria(params::edge_size = field(options.edgeSizeM),
+                            params::facet_angle = options.facetAngleDeg,
+                            params::facet_size = field(options.facetSizeM),
+                            params::facet_distance = field(options.facetDistanceM),
+                            params::cell_radius_edge_ratio = options.cellRadiusEdgeRatio,
+                            params::cell_size = field(options.cellSizeM));
+    c3t3 = meshDomain(domain, criteria, options);
   }
 
   // 3. convert: nodes numbered by first use in CGAL's cell order

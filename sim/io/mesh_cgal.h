@@ -25,7 +25,9 @@ SelfIntersections findSelfIntersections(const SurfaceMesh& surface);
 
 // Mesh_3 of the volume bounded by the surface: nodes [m] and tets with positive
 // orientation, numbered in CGAL's (deterministic) iteration order, only nodes used
-// by tets. Sizes must already be resolved (> 0). Reseeds CGAL's default random.
+// by tets. Sizes must already be resolved (> 0). With options.refinement enabled, the
+// cell, facet-size, facet-distance and edge bounds are sizing fields that shrink near
+// the segment (already validated by the caller). Reseeds CGAL's default random.
 TetMesh generateTets(const SurfaceMesh& surface, const MeshingOptions& options);
 
 }  // namespace esim::cgal

@@ -14,6 +14,7 @@
 #include <cmath>
 #include <filesystem>
 #include <map>
+#include <numbers>
 #include <sstream>
 
 #include "sim/core_error.h"
@@ -246,14 +247,35 @@ TetMesh tetrahedralize(const SurfaceMesh& surface, const MeshingOptions& options
   ESIM_VERIFY(opt.featureAngleDeg >= 0 && opt.featureAngleDeg < 180 && opt.sliverBoundDeg >= 0 &&
                   opt.sliverBoundDeg < 70.5 && opt.lloydIterations >= 0,
               sourceName + ": feature angle, sliver bound or Lloyd iterations out of range");
+  const MeshingOptions::Refinement& ref = opt.refinement;
+  if (ref.enabled) {
+    ESIM_VERIFY(positive(ref.cellSizeM) && ref.cellSizeM <= opt.cellSizeM,
+                sourceName + ": refinement cell size must be > 0 m and <= the cell size " +
+                    std::to_string(opt.cellSizeM) + " m (got " + std::to_string(ref.cellSizeM) +
+                    ")");
+    ESIM_VERIFY(positive(ref.widthM),
+                sourceName + ": refinement width must be > 0 m (got " +
+                    std::to_string(ref.widthM) + ")");
+    ESIM_VERIFY(ref.fromM.allFinite() && ref.toM.allFinite() && ref.fromM != ref.toM,
+                sourceName + ": refinement segment needs two distinct finite ends (from " +
+                    formatPoint(ref.fromM) + " to " + formatPoint(ref.toM) + " m)");
+  }
 
   // 2. size guard: a unit mix-up (mm read as m) would otherwise mesh for hours
   const double volume = std::abs(enclosedVolume(surface));
   const double regularTetPerR3 = 8.0 / (9.0 * std::sqrt(3.0));  // volume / circumradius^3
-  const double expectedTets = volume / (regularTetPerR3 * std::pow(opt.cellSizeM, 3));
+  double expectedTets = volume / (regularTetPerR3 * std::pow(opt.cellSizeM, 3));
+  if (ref.enabled) {  // plus the fine zone: a capsule of radius 2 widthM around the segment
+    const double rr = 2 * ref.widthM;
+    const double capsule = std::numbers::pi * rr * rr * (ref.toM - ref.fromM).norm() +
+                           4.0 / 3.0 * std::numbers::pi * rr * rr * rr;
+    expectedTets += std::min(capsule, volume) / (regularTetPerR3 * std::pow(ref.cellSizeM, 3));
+  }
   if (expectedTets > 2e7) {
     std::ostringstream msg;
-    msg << sourceName << ": cell size " << opt.cellSizeM << " m would give about " << expectedTets
+    msg << sourceName << ": cell size " << opt.cellSizeM << " m";
+    if (ref.enabled) msg << " (" << ref.cellSizeM << " m near the refinement segment)";
+    msg << " would give about " << expectedTets
         << " tetrahedra for an enclosed volume of " << volume
         << " m^3; check the units (the surface must be in metres) or use a larger cell size";
     throw Error(msg.str());

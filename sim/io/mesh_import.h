@@ -16,6 +16,8 @@
 //      (positive orientation, only nodes used by tets, validateMesh passed).
 // Enclosed volume by the divergence theorem: V = 1/6 sum_t p0 . (p1 x p2) [m^3].
 // Errors are esim::Error "<file>: <what is wrong>". Results are owned by value.
+// Optional local refinement (MeshingOptions::Refinement): CGAL sizing fields make tets
+// and surface facets finer within a distance of a planned cut segment.
 // Meshing is deterministic: CGAL's random generator is reseeded from options.seed.
 #pragma once
 
@@ -50,6 +52,21 @@ struct MeshingOptions {
   bool exude = true;                 // sliver exudation (weights)
   double sliverBoundDeg = 10;        // perturb/exude target min dihedral [deg]; 0: best effort
   unsigned seed = 0;                 // CGAL random seed (fixed: deterministic output)
+
+  // Local refinement around a planned cut segment [fromM, toM]. With d the distance of a
+  // point to the segment, the size bounds are h(d) = fine for d <= widthM, growing
+  // linearly to the global bound at d = 2 widthM, global beyond:
+  //   h(d) = fine + (global - fine) * clamp((d - widthM) / widthM, 0, 1).
+  // Applied to the cell size (fine = cellSizeM here), and to facet size, facet
+  // distance and edge size with fine = their global value * cellSizeM / global cellSizeM.
+  struct Refinement {
+    bool enabled = false;
+    Vec3 fromM{0, 0, 0};       // segment start [m]
+    Vec3 toM{0, 0, 0};         // segment end [m] (must differ from fromM)
+    double cellSizeM = 0.001;  // cell size bound near the segment [m] (0 < . <= cellSizeM)
+    double widthM = 0.005;     // fine-zone radius; the transition is as wide again [m]
+  };
+  Refinement refinement;
 };
 
 // Reads a surface with assimp. Throws "<path>: file not found",

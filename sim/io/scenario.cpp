@@ -158,6 +158,20 @@ const std::vector<Field>& schema() {
                        positive(30.0), "smallest surface triangle angle (CGAL guarantees <= 30)"));
     f.push_back(number("mesh.file.radius_edge_ratio", ESIM_REF(mesh.file.radiusEdgeRatio), "",
                        closed(2.0, 10.0), "largest tetrahedron circumradius / shortest edge"));
+    f.push_back(boolean("mesh.file.refine.enabled", ESIM_REF(mesh.file.refine.enabled),
+                        "make tets and surface facets finer around a planned cut segment"));
+    f.push_back(vector("mesh.file.refine.from_m", ESIM_REF(mesh.file.refine.fromM), "m", anyPos,
+                       "planned cut segment start (in the file's frame after scale_to_m)"));
+    f.push_back(vector("mesh.file.refine.to_m", ESIM_REF(mesh.file.refine.toM), "m", anyPos,
+                       "planned cut segment end"));
+    f.push_back(number("mesh.file.refine.cell_size_m", ESIM_REF(mesh.file.refine.cellSizeM), "m",
+                       positive(1.0),
+                       "tet circumradius bound within width_m of the segment (<= cell_size_m); "
+                       "facet size and distance shrink by the same factor"));
+    f.push_back(number("mesh.file.refine.width_m", ESIM_REF(mesh.file.refine.widthM), "m",
+                       positive(10.0),
+                       "radius of the fine zone; sizes grow linearly back to the global ones "
+                       "over another width_m"));
     // material
     f.push_back(number("material.heat_capacity_j_per_m3k", ESIM_REF(material.heatCapacityJPerM3K),
                        "J/(m^3 K)", positive(1e8),
@@ -1084,6 +1098,15 @@ void checkScenario(Scenario& s, const Reader& r) {
   if (s.mesh.slab.grading.enabled && s.mesh.slab.grading.fromM == s.mesh.slab.grading.toM)
     r.fail("mesh.slab.grading.to_m",
            "mesh.slab.grading.to_m equals from_m; the planned cut needs two distinct ends");
+  const ScenarioRefine& refine = s.mesh.file.refine;
+  if (refine.enabled && refine.fromM == refine.toM)
+    r.fail("mesh.file.refine.to_m",
+           "mesh.file.refine.to_m equals from_m; the planned cut needs two distinct ends");
+  if (refine.enabled && refine.cellSizeM > s.mesh.file.cellSizeM)
+    r.fail("mesh.file.refine.cell_size_m",
+           "mesh.file.refine.cell_size_m = " + formatNumber(refine.cellSizeM) +
+               " m is larger than mesh.file.cell_size_m = " + formatNumber(s.mesh.file.cellSizeM) +
+               " m; the refined cells must be at most the global size");
   if (s.mesh.source == "file") {
     if (s.mesh.file.path.empty())
       r.fail("mesh.source", "mesh.source = file needs mesh.file.path (a surface file)");
@@ -1322,6 +1345,22 @@ SlabSpec makeSlabSpec(const Scenario& s) {
   return spec;
 }
 
+MeshingOptions makeMeshingOptions(const Scenario& s) {
+  const ScenarioMeshFile& f = s.mesh.file;
+  MeshingOptions o;
+  o.cellSizeM = f.cellSizeM;
+  o.facetSizeM = f.facetSizeM;
+  o.facetDistanceM = f.facetDistanceM;
+  o.facetAngleDeg = f.facetAngleDeg;
+  o.cellRadiusEdgeRatio = f.radiusEdgeRatio;
+  o.refinement.enabled = f.refine.enabled;
+  o.refinement.fromM = f.refine.fromM;
+  o.refinement.toM = f.refine.toM;
+  o.refinement.cellSizeM = f.refine.cellSizeM;
+  o.refinement.widthM = f.refine.widthM;
+  return o;
+}
+
 ToolPath makeToolPath(const Scenario& s) {
   ToolPath path;
   for (const auto& k : s.tool.path)
@@ -1347,7 +1386,10 @@ std::string scenarioSummary(const Scenario& s) {
     if (s.mesh.slab.grading.enabled) out << " graded x" << formatNumber(s.mesh.slab.grading.ratio);
   } else {
     out << "file " << s.mesh.file.path << " (cell " << formatNumber(s.mesh.file.cellSizeM * 1e3)
-        << " mm)";
+        << " mm";
+    if (s.mesh.file.refine.enabled)
+      out << ", " << formatNumber(s.mesh.file.refine.cellSizeM * 1e3) << " mm near the cut";
+    out << ")";
   }
   out << ", tool " << s.tool.shape << " " << formatNumber(s.tool.voltageV) << " V, "
       << s.tool.path.size() << " keyframe" << (s.tool.path.size() == 1 ? "" : "s") << ", look "

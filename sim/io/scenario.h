@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "sim/io/mesh_import.h"
 #include "sim/mesh_slab.h"
 #include "sim/mesh_tet.h"
 #include "sim/tool_path.h"
@@ -47,6 +48,16 @@ struct ScenarioSlab {
   bool operator==(const ScenarioSlab&) const = default;
 };
 
+// local refinement of a surface-file mesh around the planned cut (MeshingOptions::Refinement)
+struct ScenarioRefine {
+  bool enabled = false;
+  Vec3 fromM{-0.04, 0.0, 0.02};  // planned cut start [m]
+  Vec3 toM{0.04, 0.0, 0.02};     // planned cut end [m]
+  double cellSizeM = 0.001;      // tet size bound within width_m of the segment [m]
+  double widthM = 0.005;         // fine-zone radius; sizes grow back over another width [m]
+  bool operator==(const ScenarioRefine&) const = default;
+};
+
 struct ScenarioMeshFile {
   std::string path;                // as written (relative to the scenario or repo root)
   double scaleToM = 1.0;           // file units -> metres
@@ -55,6 +66,7 @@ struct ScenarioMeshFile {
   double facetDistanceM = 0.0005;  // max surface approximation error [m]
   double facetAngleDeg = 25.0;     // min surface triangle angle [deg]
   double radiusEdgeRatio = 2.5;    // max tet circumradius / shortest edge
+  ScenarioRefine refine;           // finer cells near the planned cut
   std::string resolvedPath;        // filled by the loader: the file found (not in YAML)
   bool operator==(const ScenarioMeshFile&) const = default;
 };
@@ -257,6 +269,9 @@ const char* phaseName(Phase phase);
 
 // the slab generator's spec (mesh.source == "slab")
 SlabSpec makeSlabSpec(const Scenario& scenario);
+
+// mesh.file.* as Mesh_3 options (sizes, refinement around the planned cut)
+MeshingOptions makeMeshingOptions(const Scenario& scenario);
 
 // keyframes with Euler degrees turned into quaternions, generator intervals in seconds
 ToolPath makeToolPath(const Scenario& scenario);

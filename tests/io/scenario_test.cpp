@@ -203,13 +203,7 @@ TEST(Scenario, ShippedToolsTouchTheTissueOnEveryFrame) {
     if (s.mesh.source == "slab") {
       mesh = makeSlab(makeSlabSpec(s));
     } else {
-      MeshingOptions o;
-      o.cellSizeM = s.mesh.file.cellSizeM;
-      o.facetSizeM = s.mesh.file.facetSizeM;
-      o.facetDistanceM = s.mesh.file.facetDistanceM;
-      o.facetAngleDeg = s.mesh.file.facetAngleDeg;
-      o.cellRadiusEdgeRatio = s.mesh.file.radiusEdgeRatio;
-      mesh = loadTetMesh(s.mesh.file.resolvedPath, o, s.mesh.file.scaleToM);
+      mesh = loadTetMesh(s.mesh.file.resolvedPath, makeMeshingOptions(s), s.mesh.file.scaleToM);
     }
     const std::vector<int> surface = boundaryNodes(mesh, boundaryFaces(mesh));
     ReturnElectrode pad;
@@ -453,6 +447,52 @@ TEST(Scenario, OtherCrossFieldChecks) {
   expectMessage(errorOf("return_electrode: {normal: [0, 0, 0]}\n"),
                 {"return_electrode.normal: must not be the zero vector"});
   expectMessage(errorOf("time: {duration_s: 0.01}\n"), {"gives no frame"});
+}
+
+TEST(Scenario, FileMeshRefinementKeysMapToMeshingOptions) {
+  // defaults: off, 1 mm within 5 mm of the segment
+  const Scenario d;
+  EXPECT_FALSE(d.mesh.file.refine.enabled);
+  EXPECT_EQ(d.mesh.file.refine.cellSizeM, 0.001);
+  EXPECT_EQ(d.mesh.file.refine.widthM, 0.005);
+  EXPECT_FALSE(makeMeshingOptions(d).refinement.enabled);
+  const Scenario s = parseScenario(
+      "mesh:\n  file:\n    cell_size_m: 0.005\n    facet_size_m: 0.004\n"
+      "    refine: {enabled: true, from_m: [-0.03, 0, 0.02], to_m: [0.03, 0.001, 0.021],\n"
+      "             cell_size_m: 0.0015, width_m: 0.004}\n",
+      "r.yaml");
+  const ScenarioRefine& r = s.mesh.file.refine;
+  EXPECT_TRUE(r.enabled);
+  EXPECT_EQ(r.fromM, Vec3(-0.03, 0, 0.02));
+  EXPECT_EQ(r.toM, Vec3(0.03, 0.001, 0.021));
+  const MeshingOptions o = makeMeshingOptions(s);
+  EXPECT_EQ(o.cellSizeM, 0.005);
+  EXPECT_EQ(o.facetSizeM, 0.004);
+  EXPECT_TRUE(o.refinement.enabled);
+  EXPECT_EQ(o.refinement.fromM, r.fromM);
+  EXPECT_EQ(o.refinement.toM, r.toM);
+  EXPECT_EQ(o.refinement.cellSizeM, 0.0015);
+  EXPECT_EQ(o.refinement.widthM, 0.004);
+  EXPECT_NE(scenarioSummary(parseScenario(
+                                "mesh: {source: file, file: {path: assets/liver.obj, refine: "
+                                "{enabled: true}}}\n",
+                                (kRoot / "scenarios/x.yaml").string()))
+                .find("(cell 4 mm, 1 mm near the cut)"),
+            std::string::npos);
+  // overrides reach the nested group
+  EXPECT_EQ(parseScenario("", "o.yaml", {"mesh.file.refine.width_m=0.007"}).mesh.file.refine.widthM,
+            0.007);
+  // bad values
+  expectMessage(errorOf("mesh:\n  file:\n    refine:\n      cell_size_m: 0\n"),
+                {"bad.yaml:4:20: mesh.file.refine.cell_size_m = 0 is outside (0, 1]"});
+  expectMessage(errorOf("mesh:\n  file:\n    refine: {enabled: true, cell_size_m: 0.006}\n"),
+                {"mesh.file.refine.cell_size_m = 0.006 m is larger than mesh.file.cell_size_m = "
+                 "0.004 m"});
+  expectMessage(
+      errorOf("mesh:\n  file:\n    refine: {enabled: true, from_m: [0, 0, 0], to_m: [0, 0, 0]}\n"),
+      {"mesh.file.refine.to_m equals from_m; the planned cut needs two distinct ends"});
+  expectMessage(errorOf("mesh:\n  file:\n    refine: {enabeld: true}\n"),
+                {"mesh.file.refine.enabeld: unknown key; did you mean 'enabled'?"});
 }
 
 TEST(Scenario, PotentialLookFieldsAndChecks) {

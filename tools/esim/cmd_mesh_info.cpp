@@ -4,11 +4,13 @@
 // 1. Parse options (sizes in metres).
 // 2. Build the mesh: "slab" / --slab-nodes -> makeSlab; *.vtu -> readVtu; otherwise
 //    a closed surface file -> readSurface, checkSurface, orientOutward, tetrahedralize.
+//    --refine-from/--refine-to make the mesh finer around a planned cut segment.
 // 3. validateMesh, then print the report; optionally write the mesh as VTU.
 #include <chrono>
 #include <cstdio>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "sim/core_error.h"
 #include "sim/io/mesh_import.h"
@@ -28,6 +30,7 @@ struct MeshInfoOptions {
   bool noPerturb = false;
   bool noExude = false;
   std::string vtuOut;
+  std::vector<double> refineFrom, refineTo;  // planned cut ends x,y,z [m]; both enable refinement
 };
 
 bool endsWith(const std::string& s, const std::string& suffix) {
@@ -37,6 +40,10 @@ bool endsWith(const std::string& s, const std::string& suffix) {
 
 int runMeshInfo(const MeshInfoOptions& opt) {
   using Clock = std::chrono::steady_clock;
+  ESIM_VERIFY(opt.refineFrom.empty() == opt.refineTo.empty(),
+              "mesh-info: --refine-from and --refine-to go together (the planned cut's ends)");
+  ESIM_VERIFY(opt.refineFrom.empty() || (opt.refineFrom.size() == 3 && opt.refineTo.size() == 3),
+              "mesh-info: --refine-from and --refine-to take x,y,z in metres");
   // 2. build or load
   TetMesh mesh;
   std::string source = opt.file;
@@ -65,6 +72,11 @@ int runMeshInfo(const MeshInfoOptions& opt) {
     std::printf("  enclosed vol.  %.6e m^3\n", enclosedVolume(surface));
     std::printf("  read+check     %.3f s\n", std::chrono::duration<double>(tRead - t0).count());
     MeshingOptions meshing = opt.meshing;
+    if (!opt.refineFrom.empty()) {
+      meshing.refinement.enabled = true;
+      meshing.refinement.fromM = Vec3(opt.refineFrom[0], opt.refineFrom[1], opt.refineFrom[2]);
+      meshing.refinement.toM = Vec3(opt.refineTo[0], opt.refineTo[1], opt.refineTo[2]);
+    }
     meshing.perturb = !opt.noPerturb;
     meshing.exude = !opt.noExude;
     mesh = tetrahedralize(surface, meshing, opt.file);
@@ -131,6 +143,16 @@ Registrar reg(
       app.add_flag("--lloyd", opt->meshing.lloyd, "Lloyd smoothing");
       app.add_flag("--no-perturb", opt->noPerturb, "skip sliver perturbation");
       app.add_flag("--no-exude", opt->noExude, "skip sliver exudation");
+      app.add_option("--refine-from", opt->refineFrom,
+                     "refine around a planned cut from x,y,z [m] (with --refine-to)")
+          ->delimiter(',');
+      app.add_option("--refine-to", opt->refineTo, "planned cut end x,y,z [m]")->delimiter(',');
+      app.add_option("--refine-size", opt->meshing.refinement.cellSizeM,
+                     "tet size bound near the planned cut [m]")
+          ->capture_default_str();
+      app.add_option("--refine-width", opt->meshing.refinement.widthM,
+                     "radius of the fine zone around the planned cut [m]")
+          ->capture_default_str();
       app.add_option("--vtu", opt->vtuOut, "also write the tet mesh to this .vtu file");
       return [opt] { return runMeshInfo(*opt); };
     });

@@ -122,12 +122,7 @@ TetMesh buildMesh(const Scenario& s, double* seconds) {
     mesh = makeSlab(makeSlabSpec(s));
   } else {
     const auto& f = s.mesh.file;
-    MeshingOptions o;
-    o.cellSizeM = f.cellSizeM;
-    o.facetSizeM = f.facetSizeM;
-    o.facetDistanceM = f.facetDistanceM;
-    o.facetAngleDeg = f.facetAngleDeg;
-    o.cellRadiusEdgeRatio = f.radiusEdgeRatio;
+    const MeshingOptions o = makeMeshingOptions(s);  // sizes and refinement near the cut
     mesh = loadTetMesh(f.resolvedPath.empty() ? f.path : f.resolvedPath, o, f.scaleToM);
   }
   *seconds = std::chrono::duration<double>(Clock::now() - t0).count();
