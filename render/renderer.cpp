@@ -6,7 +6,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <cstdlib>
 
 #include "render/bitmap_font.h"
 #include "render/colormap.h"
@@ -335,8 +334,9 @@ void pushVertex(std::vector<float>& out, V3 p, V3 n, const std::array<float, 4>&
 void buildSurfaceVertices(const SurfaceSnapshot& snap, float tDefaultC, bool potential,
                           std::vector<float>& out,
                           std::vector<std::uint32_t>& indices, std::vector<V3>& faceNormal,
-                          std::vector<float>& faceLength, std::vector<int>& offsets, std::vector<int>& incident,
-                          std::vector<int>& firstCopy, std::vector<int>& nextCopy) {
+                          std::vector<float>& faceLength, std::vector<int>& offsets,
+                          std::vector<int>& incident, std::vector<int>& firstCopy,
+                          std::vector<int>& nextCopy) {
   const int nv = snap.numVertices();
   const int nt = snap.numTriangles();
   const float* P = snap.positionsM.data();
@@ -805,7 +805,6 @@ void Renderer::Impl::init() {
     gl.BindVertexArray(bgVao);
     gl.DrawArrays(GL_TRIANGLES, 0, 3);
     gl.BindVertexArray(0);
-    gl.UseProgram(0);
     gl.UseProgram(resolveProgram);
     gl.Uniform1i(gl.GetUniformLocation(resolveProgram, "uSamples"), 2);
     gl.Uniform1i(gl.GetUniformLocation(resolveProgram, "uBackground"), 3);
@@ -1003,8 +1002,7 @@ const std::vector<std::uint8_t>& Renderer::render(const SurfaceSnapshot& snap) {
   if (snap.numTriangles() > 0) {
     const auto tPrep = Clock::now();
     buildSurfaceVertices(snap, o.tMinC, o.look == "potential", m.vertices, m.indices, m.faceNormal,
-                         m.faceLength, m.offsets,
-                         m.incident, m.firstCopy, m.nextCopy);
+                         m.faceLength, m.offsets, m.incident, m.firstCopy, m.nextCopy);
     prepareMs = msSince(tPrep);
     useProgram(m.lookProgram[tool.present ? 1 : 0], identity);
     gl.BindVertexArray(m.surfVao);
@@ -1040,7 +1038,7 @@ const std::vector<std::uint8_t>& Renderer::render(const SurfaceSnapshot& snap) {
   gl.BindVertexArray(0);
 
   // 5. resolve and read back (GL rows are bottom-up)
-  if (!std::getenv("ESIM_RPERF_NOFIN")) gl.Finish();
+  gl.Finish();
   m.timings.drawMs = msSince(tStart) - prepareMs;
   const auto tRead = Clock::now();
   gl.BindFramebuffer(GL_FRAMEBUFFER, m.fbo);
@@ -1056,26 +1054,16 @@ const std::vector<std::uint8_t>& Renderer::render(const SurfaceSnapshot& snap) {
     gl.BindVertexArray(0);
     gl.ActiveTexture(GL_TEXTURE0);
   }
-  //    as RGBA (the buffer's own layout: a plain copy in the driver), then packed
-  //    to RGB and flipped in one pass here
   gl.ReadBuffer(GL_COLOR_ATTACHMENT0);
-  gl.PixelStorei(GL_PACK_ALIGNMENT, 4);
+  gl.PixelStorei(GL_PACK_ALIGNMENT, 1);
   const size_t rowBytes = static_cast<size_t>(o.width) * 3;
-  const size_t rgbaRowBytes = static_cast<size_t>(o.width) * 4;
-  m.readBuf.resize(rgbaRowBytes * o.height);
+  m.readBuf.resize(rowBytes * o.height);
   m.frame.resize(rowBytes * o.height);
-  gl.ReadPixels(0, 0, o.width, o.height, GL_RGBA, GL_UNSIGNED_BYTE, m.readBuf.data());
+  gl.ReadPixels(0, 0, o.width, o.height, GL_RGB, GL_UNSIGNED_BYTE, m.readBuf.data());
   const GLenum err = gl.GetError();
   ESIM_VERIFY(err == GL_NO_ERROR, "renderer: GL error 0x" + std::to_string(err) + " while drawing");
-  for (int y = 0; y < o.height; ++y) {
-    const std::uint8_t* src = &m.readBuf[rgbaRowBytes * (o.height - 1 - y)];
-    std::uint8_t* dst = &m.frame[rowBytes * y];
-    for (int x = 0; x < o.width; ++x) {
-      dst[3 * x] = src[4 * x];
-      dst[3 * x + 1] = src[4 * x + 1];
-      dst[3 * x + 2] = src[4 * x + 2];
-    }
-  }
+  for (int y = 0; y < o.height; ++y)
+    std::memcpy(&m.frame[rowBytes * y], &m.readBuf[rowBytes * (o.height - 1 - y)], rowBytes);
 
   m.timings.readbackMs = msSince(tRead);
   // 6. overlay on the CPU
