@@ -13,16 +13,11 @@ extern "C" {
 #include <fstream>
 #include <memory>
 
+#include "render/av_error.h"
 #include "sim/core_error.h"
 
 namespace esim {
 namespace {
-
-std::string avError(int code) {
-  char buf[AV_ERROR_MAX_STRING_SIZE] = {0};
-  av_strerror(code, buf, sizeof buf);
-  return buf;
-}
 
 struct CodecCtxFree {
   void operator()(AVCodecContext* c) const { avcodec_free_context(&c); }

@@ -15,16 +15,11 @@ extern "C" {
 #include <filesystem>
 #include <iostream>
 
+#include "render/av_error.h"
 #include "sim/core_error.h"
 
 namespace esim {
 namespace {
-
-std::string avError(int code) {
-  char buf[AV_ERROR_MAX_STRING_SIZE] = {0};
-  av_strerror(code, buf, sizeof buf);
-  return buf;
-}
 
 std::int64_t nowNs() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(

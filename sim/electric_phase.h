@@ -39,6 +39,24 @@ void validateConductivity(const TetMesh& mesh, const std::vector<double>& conduc
 SparseMatrix assembleElectricStiffness(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
                                        const std::vector<double>& conductivityS_m);
 
+struct ElectricTotals {
+  double toolCurrentA = 0;    // into the tissue at the contact nodes [A]
+  double returnCurrentA = 0;  // out of the tissue at the grounded nodes [A]
+  double powerW = 0;          // total Joule power [W]
+  double impedanceOhm = 0;    // V_tool / toolCurrentA (+inf without current)
+};
+
+// The per-frame part: Joule power density per tet into joulePowerW_m3 (resized to the
+// tet count; its storage is reused across frames) and the totals. The currents are the
+// reactions (K u)_i at the fixed nodes only, row i taken as column i of the symmetric K,
+// so no full product is formed. sigma is assumed validated (assembleElectricStiffness).
+ElectricTotals computeJoulePower(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
+                                 const std::vector<double>& conductivityS_m,
+                                 const SparseMatrix& K, const Eigen::VectorXd& potentialV,
+                                 const std::vector<int>& contact,
+                                 const std::vector<int>& grounded, double toolVoltageV,
+                                 std::vector<double>& joulePowerW_m3);
+
 // the derived fields of a solved potential (see the header comment); contact and
 // grounded are the sorted node sets the solve used, toolVoltageV the contact voltage
 ElectricFields computeElectricFields(const TetMesh& mesh, const std::vector<TetGeometry>& geo,

@@ -49,6 +49,7 @@ Simulation::Simulation(TetMesh mesh, SimulationConfig config)
   geo_ = tetGeometry(mesh_);
   surface_ = boundaryFaces(mesh_);
   surfaceNodes_ = boundaryNodes(mesh_, surface_);
+  buildSurfaceTopology();
   potential_ = Eigen::VectorXd::Zero(mesh_.numNodes());
   joule_.assign(mesh_.numTets(), 0.0);
 
@@ -99,8 +100,8 @@ Simulation::Simulation(TetMesh mesh, SimulationConfig config)
           t[i] = config_.hotSpot.temperatureC;
       thermal_->setTemperature(thermalState_, t);
     }
+    if (!ph.electric) prescribedSource_.assign(mesh_.numTets(), 0.0);  // zero without a source
     if (!ph.electric && config_.heatSource.enabled) {
-      prescribedSource_.assign(mesh_.numTets(), 0.0);
       const double r2 = config_.heatSource.radiusM * config_.heatSource.radiusM;
       for (int e = 0; e < mesh_.numTets(); ++e) {
         Vec3 c = Vec3::Zero();
@@ -211,14 +212,13 @@ const FrameRecord& Simulation::step() {
     } else {
       if (thermal_ && config_.temperatureDependentConductivity) refreshConductivity(rec);
       electric_->solve(contacts_, config_.toolVoltageV, potential_);
-      // Joule power density, currents and impedance with the assembled conductivity
-      ElectricFields fields = computeElectricFields(mesh_, geo_, sigmaAssembled_, stiffness_,
-                                                    potential_, contacts_, ground_,
-                                                    config_.toolVoltageV);
-      joule_ = std::move(fields.joulePowerW_m3);
-      power_w = fields.powerW;
-      rec.toolCurrentA = fields.toolCurrentA;
-      rec.returnCurrentA = fields.returnCurrentA;
+      // Joule power density (into joule_, reused) and currents with the assembled sigma
+      const ElectricTotals totals =
+          computeJoulePower(mesh_, geo_, sigmaAssembled_, stiffness_, potential_, contacts_,
+                            ground_, config_.toolVoltageV, joule_);
+      power_w = totals.powerW;
+      rec.toolCurrentA = totals.toolCurrentA;
+      rec.returnCurrentA = totals.returnCurrentA;
     }
   }
   rec.powerW = power_w;
@@ -227,12 +227,11 @@ const FrameRecord& Simulation::step() {
   // ---- 4. heat: Joule (or prescribed) source, conduction, boiling ----
   if (thermal_) {
     StageTimer timer(rec, Stage::Heat);
-    const std::vector<double>& source = electric_ ? joule_ : prescribedSource_;
-    const auto stats = thermal_->step(
-        dt, source.empty() ? std::vector<double>(mesh_.numTets(), 0.0) : source, thermalState_);
+    const auto stats =
+        thermal_->step(dt, electric_ ? joule_ : prescribedSource_, thermalState_);
     if (stats.skipped) timer.skip();
-    maxTemperatureC_ = std::max(maxTemperatureC_, thermalState_.temperatureC.maxCoeff());
     rec.maxTemperatureC = thermalState_.temperatureC.maxCoeff();
+    maxTemperatureC_ = std::max(maxTemperatureC_, rec.maxTemperatureC);
   } else {
     rec.maxTemperatureC = config_.thermal.initialTemperatureC;
   }
@@ -242,19 +241,28 @@ const FrameRecord& Simulation::step() {
   return rec;
 }
 
+void Simulation::buildSurfaceTopology() {
+  // surface vertex numbering and triangles: fixed until the topology changes
+  surfaceVertexOf_.assign(mesh_.numNodes(), -1);
+  surfacePositionsM_.clear();
+  for (int v : surfaceNodes_) {
+    surfaceVertexOf_[v] = static_cast<int>(surfacePositionsM_.size() / 3);
+    for (int c = 0; c < 3; ++c) surfacePositionsM_.push_back(static_cast<float>(mesh_.nodes[v][c]));
+  }
+  surfaceTriangles_.clear();
+  surfaceTriangles_.reserve(surface_.size() * 3);
+  for (const auto& f : surface_)
+    for (int v : f.nodes) surfaceTriangles_.push_back(static_cast<std::uint32_t>(surfaceVertexOf_[v]));
+}
+
 SurfaceSnapshot Simulation::snapshot() {
   StageTimer timer(record_, Stage::Snapshot);
   SurfaceSnapshot snap;
   snap.frame = record_.frame;
   snap.timeS = timeS_;
-  std::vector<int> vertex_of(mesh_.numNodes(), -1);
-  for (int v : surfaceNodes_) {
-    vertex_of[v] = snap.numVertices();
-    for (int c = 0; c < 3; ++c) snap.positionsM.push_back(static_cast<float>(mesh_.nodes[v][c]));
-  }
-  snap.triangles.reserve(surface_.size() * 3);
-  for (const auto& f : surface_)
-    for (int v : f.nodes) snap.triangles.push_back(static_cast<std::uint32_t>(vertex_of[v]));
+  const std::vector<int>& vertex_of = surfaceVertexOf_;
+  snap.positionsM = surfacePositionsM_;
+  snap.triangles = surfaceTriangles_;
   const int nv = snap.numVertices();
   snap.temperatureC.assign(nv, static_cast<float>(config_.thermal.initialTemperatureC));
   snap.coagulation.assign(nv, 0.0f);

@@ -168,12 +168,16 @@ class Simulation {
  private:
   void refreshConductivity(FrameRecord& record);
   void prefetchScriptedPath();
+  void buildSurfaceTopology();
 
   TetMesh mesh_;
   SimulationConfig config_;
   std::vector<TetGeometry> geo_;
   std::vector<BoundaryFace> surface_;
   std::vector<int> surfaceNodes_;
+  std::vector<int> surfaceVertexOf_;             // node -> snapshot vertex (-1 inside)
+  std::vector<float> surfacePositionsM_;         // snapshot vertex positions [m]
+  std::vector<std::uint32_t> surfaceTriangles_;  // snapshot triangles
   std::vector<int> ground_;
   ContactFinder contactFinder_;
 
@@ -188,7 +192,7 @@ class Simulation {
   // thermal phase (null when not listed)
   std::unique_ptr<ThermalPhase> thermal_;
   ThermalState thermalState_;
-  std::vector<double> prescribedSource_;
+  std::vector<double> prescribedSource_;  // thermal without electric: per tet [W/m^3]
 
   int frame_ = 0;
   double timeS_ = 0;
