@@ -152,12 +152,6 @@ RenderOptions makeRenderOptions(const Scenario& s) {
   return r;
 }
 
-std::string hex64(std::uint64_t h) {
-  char buf[17];
-  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
-  return buf;
-}
-
 void writeText(const fs::path& path, const std::string& text) {
   std::ofstream os(path, std::ios::binary);
   os << text;
@@ -347,7 +341,7 @@ int runScenario(const RunOptions& opt) {
 
   nlohmann::json extra;
   extra["scenario"] = sc.name;
-  extra["scenario_hash"] = hex64(scenarioHash(sc));
+  extra["scenario_hash"] = hashToHex(scenarioHash(sc));
   extra["interrupted"] = gInterrupted.load();
   extra["mesh"] = {{"nodes", nodes}, {"tets", tets}, {"build_s", mesh_s}};
   extra["setup_s"] = setup_s;
