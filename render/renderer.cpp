@@ -331,12 +331,53 @@ void pushVertex(std::vector<float>& out, V3 p, V3 n, const std::array<float, 4>&
 // vertex is split only where its corners get different normals (creases), so a
 // smooth surface keeps one GPU vertex per snapshot vertex
 // (potential: the state's first entry is potentialV instead of temperatureC)
-void buildSurfaceVertices(const SurfaceSnapshot& snap, float tDefaultC, bool potential,
-                          std::vector<float>& out,
-                          std::vector<std::uint32_t>& indices, std::vector<V3>& faceNormal,
-                          std::vector<float>& faceLength, std::vector<int>& offsets,
-                          std::vector<int>& incident, std::vector<int>& firstCopy,
-                          std::vector<int>& nextCopy) {
+// the vertex state the shaders read: (T [C] or phi [V], coagulation, desiccation, cut wall)
+std::array<float, 4> vertexState(const SurfaceSnapshot& snap, std::uint32_t v, float tDefaultC,
+                                 bool potential) {
+  return {potential ? snap.potentialV[v]
+                    : (snap.temperatureC.empty() ? tDefaultC : snap.temperatureC[v]),
+          snap.coagulation.empty() ? 0.0f : snap.coagulation[v],
+          snap.desiccation.empty() ? 0.0f : snap.desiccation[v],
+          snap.cutWall.empty() ? 0.0f : snap.cutWall[v]};
+}
+
+// GPU vertex and index arrays of the surface, with what is needed to skip the
+// geometry on the next frame: while positions and triangles are bit-identical
+// (no structural phase, or a frame without deformation) the normals and the
+// crease splits are the same, and only the state columns are rewritten
+struct SurfaceBuffers {
+  std::vector<float> vertices;             // kFloatsPerVertex per GPU vertex
+  std::vector<std::uint32_t> indices;      // 3 per triangle
+  std::vector<std::uint32_t> source;       // GPU vertex -> snapshot vertex
+  std::vector<float> lastPositionsM;       // geometry the arrays were built from
+  std::vector<std::uint32_t> lastTriangles;
+  bool geometryReused = false;             // last update() rewrote the states only
+  // scratch
+  std::vector<V3> faceNormal;
+  std::vector<float> faceLength;
+  std::vector<int> offsets, incident, firstCopy, nextCopy;
+
+  void update(const SurfaceSnapshot& snap, float tDefaultC, bool potential);
+  void build(const SurfaceSnapshot& snap, float tDefaultC, bool potential);
+};
+
+void SurfaceBuffers::update(const SurfaceSnapshot& snap, float tDefaultC, bool potential) {
+  geometryReused = !vertices.empty() && snap.positionsM == lastPositionsM &&
+                   snap.triangles == lastTriangles;
+  if (!geometryReused) {
+    build(snap, tDefaultC, potential);
+    lastPositionsM = snap.positionsM;
+    lastTriangles = snap.triangles;
+    return;
+  }
+  for (size_t c = 0; c < source.size(); ++c) {
+    const std::array<float, 4> s = vertexState(snap, source[c], tDefaultC, potential);
+    std::memcpy(&vertices[c * kFloatsPerVertex + 6], s.data(), sizeof s);
+  }
+}
+
+void SurfaceBuffers::build(const SurfaceSnapshot& snap, float tDefaultC, bool potential) {
+  std::vector<float>& out = vertices;
   const int nv = snap.numVertices();
   const int nt = snap.numTriangles();
   const float* P = snap.positionsM.data();
@@ -361,15 +402,8 @@ void buildSurfaceVertices(const SurfaceSnapshot& snap, float tDefaultC, bool pot
   //    of a vertex with bit-identical normals share one GPU vertex (the sums run over
   //    the same faces in the same order, so equal face sets give equal bits)
   const float cosCrease = static_cast<float>(std::cos(kCreaseAngleDeg * 3.14159265358979 / 180.0));
-  auto state = [&](std::uint32_t v) {
-    return std::array<float, 4>{
-        potential ? snap.potentialV[v]
-                  : (snap.temperatureC.empty() ? tDefaultC : snap.temperatureC[v]),
-        snap.coagulation.empty() ? 0.0f : snap.coagulation[v],
-        snap.desiccation.empty() ? 0.0f : snap.desiccation[v],
-        snap.cutWall.empty() ? 0.0f : snap.cutWall[v]};
-  };
   out.clear();
+  source.clear();
   out.reserve(static_cast<size_t>(nv) * kFloatsPerVertex * 5 / 4);
   indices.resize(snap.triangles.size());
   firstCopy.assign(nv, -1);  // first GPU vertex of each snapshot vertex
@@ -399,7 +433,8 @@ void buildSurfaceVertices(const SurfaceSnapshot& snap, float tDefaultC, bool pot
         found = static_cast<int>(nextCopy.size());
         *link = found;
         nextCopy.push_back(-1);
-        pushVertex(out, pos(v), n, state(v));
+        pushVertex(out, pos(v), n, vertexState(snap, v, tDefaultC, potential));
+        source.push_back(v);
       }
       indices[3 * t + k] = static_cast<std::uint32_t>(found);
     }
@@ -624,20 +659,16 @@ struct Renderer::Impl {
   SurfaceProgram lookProgram[2], toolProgram;  // lookProgram[shadow]
   GLuint noiseTex = 0;
   GLuint bgProgram = 0, bgVao = 0, resolveProgram = 0;  // bgVao: empty, full-screen passes
-  GLuint bgTex = 0, bgFbo = 0;  // MSAA: the background column (1 x height) for the resolve
+  GLuint bgTex = 0, bgFbo = 0;  // the background column (1 x height): MSAA resolve input
+  std::vector<std::uint8_t> bgColumn;  // the same, RGBA bottom row first, for the composite
   GLint uSize = -1;
   GLuint surfVao = 0, surfVbo = 0, toolVao = 0, toolVbo = 0, lutTex = 0;
   GLuint msFbo = 0, msColor = 0, msDepth = 0, fbo = 0, color = 0, depth = 0;
   int toolVertexCount = 0;
   ToolSnapshot toolCached;
   bool toolBuilt = false;
-  std::vector<float> vertices;
-  std::vector<std::uint32_t> indices;
-  std::vector<int> firstCopy, nextCopy;
+  SurfaceBuffers surface;
   GLuint surfIbo = 0;
-  std::vector<V3> faceNormal;
-  std::vector<float> faceLength;
-  std::vector<int> offsets, incident;
   std::vector<std::uint8_t> readBuf, frame;
   RenderTimings timings;
 
@@ -786,30 +817,37 @@ void Renderer::Impl::init() {
     const std::string fs = "#version 330 core\n#define SAMPLES " +
                            std::to_string(opt.msaaSamples) + "\n" + kResolveFs;
     resolveProgram = linkProgram(gl, kFullScreenVs, fs.c_str(), "msaa resolve");
-    // the background column, drawn once by the background pass (it depends on the row only)
-    gl.GenTextures(1, &bgTex);
-    gl.BindTexture(GL_TEXTURE_2D, bgTex);
-    gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, 1, opt.height, 0, GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
-    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    gl.BindTexture(GL_TEXTURE_2D, 0);
-    gl.GenFramebuffers(1, &bgFbo);
-    gl.BindFramebuffer(GL_FRAMEBUFFER, bgFbo);
-    gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, bgTex, 0);
-    ESIM_VERIFY(gl.CheckFramebufferStatus(GL_FRAMEBUFFER) == GL_FRAMEBUFFER_COMPLETE,
-                "renderer: background framebuffer incomplete");
-    gl.Viewport(0, 0, 1, opt.height);
-    gl.Disable(GL_DEPTH_TEST);
-    gl.UseProgram(bgProgram);
-    gl.Uniform2f(uSize, static_cast<float>(opt.width), static_cast<float>(opt.height));
-    gl.BindVertexArray(bgVao);
-    gl.DrawArrays(GL_TRIANGLES, 0, 3);
-    gl.BindVertexArray(0);
     gl.UseProgram(resolveProgram);
     gl.Uniform1i(gl.GetUniformLocation(resolveProgram, "uSamples"), 2);
     gl.Uniform1i(gl.GetUniformLocation(resolveProgram, "uBackground"), 3);
     gl.UseProgram(0);
   }
+  // the background column (it depends on the row only), drawn once by the background
+  // pass: a texture for the MSAA resolve, and read back for the composite on the CPU
+  // (render() step 5), so both paths store the bytes that pass would have stored
+  gl.GenTextures(1, &bgTex);
+  gl.BindTexture(GL_TEXTURE_2D, bgTex);
+  gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, 1, opt.height, 0, GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
+  gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  gl.BindTexture(GL_TEXTURE_2D, 0);
+  gl.GenFramebuffers(1, &bgFbo);
+  gl.BindFramebuffer(GL_FRAMEBUFFER, bgFbo);
+  gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, bgTex, 0);
+  ESIM_VERIFY(gl.CheckFramebufferStatus(GL_FRAMEBUFFER) == GL_FRAMEBUFFER_COMPLETE,
+              "renderer: background framebuffer incomplete");
+  gl.Viewport(0, 0, 1, opt.height);
+  gl.Disable(GL_DEPTH_TEST);
+  gl.UseProgram(bgProgram);
+  gl.Uniform2f(uSize, static_cast<float>(opt.width), static_cast<float>(opt.height));
+  gl.BindVertexArray(bgVao);
+  gl.DrawArrays(GL_TRIANGLES, 0, 3);
+  gl.BindVertexArray(0);
+  gl.UseProgram(0);
+  bgColumn.resize(static_cast<size_t>(opt.height) * 4);
+  gl.ReadBuffer(GL_COLOR_ATTACHMENT0);
+  gl.PixelStorei(GL_PACK_ALIGNMENT, 1);
+  gl.ReadPixels(0, 0, 1, opt.height, GL_RGBA, GL_UNSIGNED_BYTE, bgColumn.data());
   const GLenum err = gl.GetError();
   ESIM_VERIFY(err == GL_NO_ERROR, "renderer: GL error 0x" + std::to_string(err) + " at setup");
 }
@@ -945,24 +983,14 @@ const std::vector<std::uint8_t>& Renderer::render(const SurfaceSnapshot& snap) {
   const V3 fillDir = normalized(add(add(mul(right, 0.70f), mul(camUp, 0.10f)), mul(fwd, -0.50f)));
   const V3 halfDir = normalized(sub(keyDir, fwd));  // towards the light + towards the viewer
 
-  // 2. target framebuffer and background. MSAA: colour cleared to alpha 0, the
-  //    resolve fills the background in (kResolveFs). Without MSAA: a full-screen
-  //    pass that covers every pixel (so no colour clear; llvmpipe turns scissored
-  //    clears into draws, so one pass is cheaper than a clear per band)
+  // 2. target framebuffer, colour cleared to alpha 0 (everything drawn has alpha 1):
+  //    the background is filled in where alpha stayed 0, by the MSAA resolve
+  //    (kResolveFs) or, without MSAA, by the composite after the read-back (step 5);
+  //    a full-screen background pass would shade every pixel once more
   gl.BindFramebuffer(GL_FRAMEBUFFER, o.msaaSamples > 0 ? m.msFbo : m.fbo);
   gl.Viewport(0, 0, o.width, o.height);
-  if (o.msaaSamples > 0) {
-    gl.ClearColor(0, 0, 0, 0);
-    gl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-  } else {
-    gl.Clear(GL_DEPTH_BUFFER_BIT);
-    gl.Disable(GL_DEPTH_TEST);
-    gl.DepthMask(GL_FALSE);
-    gl.UseProgram(m.bgProgram);
-    gl.Uniform2f(m.uSize, static_cast<float>(o.width), static_cast<float>(o.height));
-    gl.BindVertexArray(m.bgVao);
-    gl.DrawArrays(GL_TRIANGLES, 0, 3);
-  }
+  gl.ClearColor(0, 0, 0, 0);
+  gl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
   gl.Enable(GL_DEPTH_TEST);
   gl.DepthMask(GL_TRUE);
   gl.DepthFunc(GL_LESS);
@@ -1001,20 +1029,21 @@ const std::vector<std::uint8_t>& Renderer::render(const SurfaceSnapshot& snap) {
   double prepareMs = 0;
   if (snap.numTriangles() > 0) {
     const auto tPrep = Clock::now();
-    buildSurfaceVertices(snap, o.tMinC, o.look == "potential", m.vertices, m.indices, m.faceNormal,
-                         m.faceLength, m.offsets, m.incident, m.firstCopy, m.nextCopy);
+    m.surface.update(snap, o.tMinC, o.look == "potential");
     prepareMs = msSince(tPrep);
     useProgram(m.lookProgram[tool.present ? 1 : 0], identity);
     gl.BindVertexArray(m.surfVao);
     gl.BindBuffer(GL_ARRAY_BUFFER, m.surfVbo);
-    gl.BufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(m.vertices.size() * sizeof(float)),
-                  m.vertices.data(), GL_STREAM_DRAW);
-    gl.BufferData(GL_ELEMENT_ARRAY_BUFFER,
-                  static_cast<GLsizeiptr>(m.indices.size() * sizeof(std::uint32_t)),
-                  m.indices.data(), GL_STREAM_DRAW);
+    gl.BufferData(GL_ARRAY_BUFFER,
+                  static_cast<GLsizeiptr>(m.surface.vertices.size() * sizeof(float)),
+                  m.surface.vertices.data(), GL_STREAM_DRAW);
+    if (!m.surface.geometryReused)  // the element buffer belongs to surfVao
+      gl.BufferData(GL_ELEMENT_ARRAY_BUFFER,
+                    static_cast<GLsizeiptr>(m.surface.indices.size() * sizeof(std::uint32_t)),
+                    m.surface.indices.data(), GL_STATIC_DRAW);
     // a closed surface, counter-clockwise from outside: its back faces are hidden
     if (o.cullBackFaces) gl.Enable(GL_CULL_FACE);
-    gl.DrawElements(GL_TRIANGLES, static_cast<GLsizei>(m.indices.size()), GL_UNSIGNED_INT,
+    gl.DrawElements(GL_TRIANGLES, static_cast<GLsizei>(m.surface.indices.size()), GL_UNSIGNED_INT,
                     nullptr);
     gl.Disable(GL_CULL_FACE);
   }
@@ -1054,16 +1083,33 @@ const std::vector<std::uint8_t>& Renderer::render(const SurfaceSnapshot& snap) {
     gl.BindVertexArray(0);
     gl.ActiveTexture(GL_TEXTURE0);
   }
+  // RGBA is the framebuffer's own layout (a copy in the driver); the composite packs
+  // it to RGB, flips the rows and puts the background where alpha is still 0
   gl.ReadBuffer(GL_COLOR_ATTACHMENT0);
   gl.PixelStorei(GL_PACK_ALIGNMENT, 1);
-  const size_t rowBytes = static_cast<size_t>(o.width) * 3;
-  m.readBuf.resize(rowBytes * o.height);
-  m.frame.resize(rowBytes * o.height);
-  gl.ReadPixels(0, 0, o.width, o.height, GL_RGB, GL_UNSIGNED_BYTE, m.readBuf.data());
+  const size_t w = static_cast<size_t>(o.width);
+  m.readBuf.resize(w * 4 * o.height);
+  m.frame.resize(w * 3 * o.height);
+  gl.ReadPixels(0, 0, o.width, o.height, GL_RGBA, GL_UNSIGNED_BYTE, m.readBuf.data());
   const GLenum err = gl.GetError();
   ESIM_VERIFY(err == GL_NO_ERROR, "renderer: GL error 0x" + std::to_string(err) + " while drawing");
-  for (int y = 0; y < o.height; ++y)
-    std::memcpy(&m.frame[rowBytes * y], &m.readBuf[rowBytes * (o.height - 1 - y)], rowBytes);
+  for (int y = 0; y < o.height; ++y) {
+    const int glRow = o.height - 1 - y;
+    const std::uint8_t* src = &m.readBuf[w * 4 * glRow];
+    const std::uint8_t* bg = &m.bgColumn[4 * static_cast<size_t>(glRow)];
+    std::uint8_t* dst = &m.frame[w * 3 * y];
+    std::uint32_t bgWord;
+    std::memcpy(&bgWord, bg, 4);
+    // 4-byte stores 3 bytes apart (each overwrites the previous one's spare byte);
+    // the row's last pixel is stored as 3 bytes so nothing is written past the row
+    for (size_t x = 0; x + 1 < w; ++x, src += 4, dst += 3) {
+      std::uint32_t p;
+      std::memcpy(&p, src, 4);
+      if (src[3] == 0) p = bgWord;
+      std::memcpy(dst, &p, 4);
+    }
+    std::memcpy(dst, src[3] == 0 ? bg : src, 3);
+  }
 
   m.timings.readbackMs = msSince(tRead);
   // 6. overlay on the CPU

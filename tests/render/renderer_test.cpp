@@ -284,6 +284,31 @@ TEST(Renderer, DeterministicAcrossRendersAndRenderers) {
   EXPECT_EQ(h1, h3);
 }
 
+// frames with the same geometry rewrite only the vertex states (renderer.cpp,
+// SurfaceBuffers): the result must be the bytes a fresh renderer draws, and a
+// change of positions or triangles must rebuild the normals
+TEST(Renderer, ReusedGeometryGivesTheBytesOfAFreshRender) {
+  RenderOptions o = topDown("temperature");
+  o.lighting = true;
+  o.msaaSamples = 0;
+  SurfaceSnapshot cold = withBlade(true);
+  SurfaceSnapshot hot = cold;
+  for (size_t v = 0; v < hot.temperatureC.size(); ++v) hot.temperatureC[v] = 37.0f + 30.0f * v;
+  SurfaceSnapshot tilted = hot;
+  for (size_t v = 0; v < tilted.temperatureC.size(); ++v)
+    tilted.positionsM[3 * v + 2] = 0.2f * tilted.positionsM[3 * v];  // z = 0.2 x
+  Renderer fresh(o);
+  const std::uint64_t hotFresh = hashFrame(fresh.render(hot));
+  Renderer freshTilted(o);
+  const std::uint64_t tiltedFresh = hashFrame(freshTilted.render(tilted));
+  ASSERT_NE(hotFresh, tiltedFresh);
+  Renderer r(o);
+  r.render(cold);
+  EXPECT_EQ(hashFrame(r.render(hot)), hotFresh);        // states rewritten only
+  EXPECT_EQ(hashFrame(r.render(tilted)), tiltedFresh);  // positions changed: rebuilt
+  EXPECT_EQ(hashFrame(r.render(hot)), hotFresh);
+}
+
 TEST(Renderer, OsMesaAndEglGiveIdenticalPixels) {
   std::string reason;
   if (!eglBackendAvailable(&reason)) GTEST_SKIP() << "EGL backend unavailable here: " << reason;
