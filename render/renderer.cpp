@@ -48,8 +48,10 @@ M4 lookAt(V3 eye, V3 target, V3 up) {
   const V3 f = normalized(sub(target, eye));
   const V3 s = normalized(cross(f, up));
   const V3 u = cross(s, f);
+  // clang-format off
   return {s[0], u[0], -f[0], 0, s[1], u[1], -f[1], 0, s[2], u[2], -f[2], 0,
           -dot(s, eye), -dot(u, eye), dot(f, eye), 1};
+  // clang-format on
 }
 
 M4 perspective(float fovYDeg, float aspect, float nearM, float farM) {
@@ -67,11 +69,13 @@ M4 perspective(float fovYDeg, float aspect, float nearM, float farM) {
 M4 poseMatrix(const std::array<float, 4>& q, V3 t) {
   float w = q[0], x = q[1], y = q[2], z = q[3];
   const float n = std::sqrt(w * w + x * x + y * y + z * z);
+  // clang-format off
   if (n > 0) { w /= n; x /= n; y /= n; z /= n; } else { w = 1; }
   return {1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y), 0,
           2 * (x * y - w * z), 1 - 2 * (x * x + z * z), 2 * (y * z + w * x), 0,
           2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y), 0,
           t[0], t[1], t[2], 1};
+  // clang-format on
 }
 
 // ---- shaders ----
@@ -116,6 +120,33 @@ void main() {
   fragColor = sum / float(SAMPLES);
 })";
 
+// shared by the surface vertex and fragment shaders
+const char* kLightingGlsl = R"(
+uniform vec3 uHalfDir;        // Blinn-Phong half vector of key light and view (infinite viewer)
+uniform vec3 uKeyDir;         // towards the key light
+uniform vec3 uFillDir;        // towards the fill light
+
+// Blinn-Phong lobe x^shininess by repeated squaring (pow costs ~20 operations
+// per pixel on llvmpipe): 24 for the temperature and potential looks, 55 for tissue
+float specLobe(float x) {
+  float x2 = x * x, x4 = x2 * x2, x8 = x4 * x4, x16 = x8 * x8;
+#if LOOK == 0 || LOOK == 3
+  return x16 * x8;
+#else
+  return x16 * x16 * x16 * x4 * x2 * x;
+#endif
+}
+
+// VERTEXLIT: the light terms of unit normal n, (key, fill, specular lobe), key and
+// specular already in the electrode's shadow
+vec3 lightTerms(vec3 n, float shadow) {
+  float key = max(dot(n, uKeyDir), 0.0) * shadow;
+  float fill = max(dot(n, uFillDir), 0.0);
+  float nh = max(dot(n, uHalfDir), 0.0);
+  return vec3(key, fill, specLobe(nh) * step(0.0, dot(n, uKeyDir)) * shadow);
+}
+)";
+
 // the electrode's soft shadow is evaluated per vertex (it is smooth on the scale
 // of the mesh, and llvmpipe would pay for it on every pixel)
 const char* kSurfaceVs = R"(
@@ -124,7 +155,6 @@ layout(location = 1) in vec3 aNormal;
 layout(location = 2) in vec4 aState;
 uniform mat4 uViewProj;
 uniform mat4 uModel;
-uniform vec3 uKeyDir;         // towards the key light
 uniform vec3 uTipM;           // electrode tip [m]
 uniform vec3 uToolAxis;       // unit axis, tip to handle
 uniform vec3 uToolSizes;      // shaft length [m], shaft radius [m], handle radius [m]
@@ -132,6 +162,10 @@ out vec3 vPos;
 out vec3 vNormal;
 out vec4 vState;
 out float vShadow;            // 1 lit, 0.25 fully in the electrode's shadow
+#if VERTEXLIT
+out vec3 vLightFront;         // lightTerms() of the front face's normal
+out vec3 vLightBack;          // and of the back face's (open surfaces)
+#endif
 
 #if SHADOW
 // distance between the ray p + s L (s >= 0, |L| = 1) and the segment [a, b]:
@@ -167,6 +201,11 @@ void main() {
   vNormal = mat3(uModel) * aNormal;
   vState = aState;
   vShadow = toolShadow(vPos);
+#if VERTEXLIT
+  vec3 n = normalize(vNormal);
+  vLightFront = lightTerms(n, vShadow);
+  vLightBack = lightTerms(-n, vShadow);
+#endif
   gl_Position = uViewProj * world;
 })";
 
@@ -174,31 +213,24 @@ void main() {
 // uniform, so one program per variant is several times faster):
 //   LOOK 0 temperature, 1 tissue, 2 tool (vState = albedo rgb, material id),
 //        3 potential (vState.x = phi [V]; LOGSCALE 0/1 linear or logarithmic map)
-//   LIT 0/1 lighting, SHADOW 0/1 the electrode's shadow on the tissue
+//   LIT 0/1 lighting, SHADOW 0/1 the electrode's shadow on the tissue,
+//   VERTEXLIT 0/1 lighting per pixel or per vertex (RenderOptions::shading; never
+//   for the electrode, LOOK 2, whose metal needs its highlights per pixel)
 const char* kSurfaceFs = R"(
 in vec3 vPos;
 in vec3 vNormal;
 in vec4 vState;
 in float vShadow;
+#if VERTEXLIT
+in vec3 vLightFront;
+in vec3 vLightBack;
+#endif
 uniform sampler1D uColormap;
 uniform vec2 uTempRange;      // tMinC, tMaxC (potential look: vMinV, vMaxV)
-uniform vec3 uHalfDir;        // Blinn-Phong half vector of key light and view (infinite viewer)
-uniform vec3 uKeyDir;         // towards the key light
-uniform vec3 uFillDir;        // towards the fill light
 uniform vec3 uTipM;           // electrode tip [m]
 uniform float uGlow;          // 1 while the generator is on
 out vec4 fragColor;
 
-// Blinn-Phong lobe x^shininess by repeated squaring (pow costs ~20 operations
-// per pixel on llvmpipe): 24 for the temperature and potential looks, 55 for tissue
-float specLobe(float x) {
-  float x2 = x * x, x4 = x2 * x2, x8 = x4 * x4, x16 = x8 * x8;
-#if LOOK == 0 || LOOK == 3
-  return x16 * x8;
-#else
-  return x16 * x16 * x16 * x4 * x2 * x;
-#endif
-}
 
 #if LOOK == 1
 // tileable value noise (64^2 lattice, bilinear) for the tissue's mottling; the
@@ -258,6 +290,15 @@ void main() {
 #endif
 #if LIT == 0
   fragColor = vec4(clamp(albedo + emissive, 0.0, 1.0), 1.0);
+#elif VERTEXLIT
+  // lighting interpolated from the vertices (Gouraud); colour map and tissue per pixel
+  vec3 L = gl_FrontFacing ? vLightFront : vLightBack;
+  vec3 color = albedo * (0.30 + 0.78 * L.x + 0.22 * L.y);
+#if LOOK == 0 || LOOK == 3
+  color += vec3(0.10) * (L.x + 0.3 * L.y);
+#endif
+  color += vec3(specStrength * L.z);
+  fragColor = vec4(clamp(color + emissive, 0.0, 1.0), 1.0);
 #else
   vec3 n = normalize(vNormal);
   if (!gl_FrontFacing) n = -n;
@@ -320,7 +361,7 @@ GLuint linkProgram(const GlFunctions& gl, const char* vs, const char* fs, const 
 
 // ---- geometry ----
 
-constexpr int kFloatsPerVertex = 10;  // position 3, normal 3, state 4
+constexpr int kFloatsPerVertex = 10;       // position 3, normal 3, state 4
 constexpr float kHandleRadiusM = 0.0045f;  // pencil handle radius [m]
 
 void pushVertex(std::vector<float>& out, V3 p, V3 n, const std::array<float, 4>& s) {
@@ -346,12 +387,12 @@ std::array<float, 4> vertexState(const SurfaceSnapshot& snap, std::uint32_t v, f
 // (no structural phase, or a frame without deformation) the normals and the
 // crease splits are the same, and only the state columns are rewritten
 struct SurfaceBuffers {
-  std::vector<float> vertices;             // kFloatsPerVertex per GPU vertex
-  std::vector<std::uint32_t> indices;      // 3 per triangle
-  std::vector<std::uint32_t> source;       // GPU vertex -> snapshot vertex
-  std::vector<float> lastPositionsM;       // geometry the arrays were built from
+  std::vector<float> vertices;         // kFloatsPerVertex per GPU vertex
+  std::vector<std::uint32_t> indices;  // 3 per triangle
+  std::vector<std::uint32_t> source;   // GPU vertex -> snapshot vertex
+  std::vector<float> lastPositionsM;   // geometry the arrays were built from
   std::vector<std::uint32_t> lastTriangles;
-  bool geometryReused = false;             // last update() rewrote the states only
+  bool geometryReused = false;  // last update() rewrote the states only
   // scratch
   std::vector<V3> faceNormal;
   std::vector<float> faceLength;
@@ -362,8 +403,8 @@ struct SurfaceBuffers {
 };
 
 void SurfaceBuffers::update(const SurfaceSnapshot& snap, float tDefaultC, bool potential) {
-  geometryReused = !vertices.empty() && snap.positionsM == lastPositionsM &&
-                   snap.triangles == lastTriangles;
+  geometryReused =
+      !vertices.empty() && snap.positionsM == lastPositionsM && snap.triangles == lastTriangles;
   if (!geometryReused) {
     build(snap, tDefaultC, potential);
     lastPositionsM = snap.positionsM;
@@ -508,9 +549,18 @@ struct ToolMeshBuilder {
         return V3{0, 0, 1};
       };
       V3 np = rimNormal(p, i), nq = rimNormal(q, (i + 1) % n);
-      if (i == arc) { np = {1, 0, 0}; nq = {1, 0, 0}; }        // right straight side
-      if (i == arc + 1) { np = {0, 0, 1}; nq = {0, 0, 1}; }    // back end
-      if (i == arc + 2) { np = {-1, 0, 0}; nq = {-1, 0, 0}; }  // left straight side
+      if (i == arc) {
+        np = {1, 0, 0};
+        nq = {1, 0, 0};
+      }  // right straight side
+      if (i == arc + 1) {
+        np = {0, 0, 1};
+        nq = {0, 0, 1};
+      }  // back end
+      if (i == arc + 2) {
+        np = {-1, 0, 0};
+        nq = {-1, 0, 0};
+      }  // left straight side
       tri(pf, qf, qb, np, nq, nq, m);
       tri(pf, qb, pb, np, nq, np, m);
     }
@@ -574,9 +624,11 @@ void validateRenderOptions(const RenderOptions& o) {
   ESIM_VERIFY(o.width >= 16 && o.width <= 8192 && o.height >= 16 && o.height <= 8192,
               "render.width/height: " + std::to_string(o.width) + "x" + std::to_string(o.height) +
                   " is out of range, expected 16..8192 pixels each");
-  ESIM_VERIFY(o.look == "temperature" || o.look == "tissue" || o.look == "potential",
-              "render.look: '" + o.look +
-                  "' is unknown, expected 'temperature', 'tissue' or 'potential'");
+  ESIM_VERIFY(o.shading == "pixel" || o.shading == "vertex",
+              "render.shading: '" + o.shading + "' is unknown, expected 'pixel' or 'vertex'");
+  ESIM_VERIFY(
+      o.look == "temperature" || o.look == "tissue" || o.look == "potential",
+      "render.look: '" + o.look + "' is unknown, expected 'temperature', 'tissue' or 'potential'");
   colormapLut(o.colormap);  // throws for an unknown map
   ESIM_VERIFY(std::isfinite(o.tMinC) && std::isfinite(o.tMaxC) && o.tMaxC > o.tMinC,
               "render.t_min_c/t_max_c: need finite tMinC < tMaxC, got " + std::to_string(o.tMinC) +
@@ -600,18 +652,17 @@ void validateRenderOptions(const RenderOptions& o) {
 }
 
 void validateSnapshot(const SurfaceSnapshot& s) {
-  ESIM_VERIFY(s.positionsM.size() % 3 == 0,
-              "snapshot.positionsM: size " + std::to_string(s.positionsM.size()) +
-                  " is not a multiple of 3");
-  ESIM_VERIFY(s.triangles.size() % 3 == 0, "snapshot.triangles: size " +
-                                               std::to_string(s.triangles.size()) +
-                                               " is not a multiple of 3");
+  ESIM_VERIFY(s.positionsM.size() % 3 == 0, "snapshot.positionsM: size " +
+                                                std::to_string(s.positionsM.size()) +
+                                                " is not a multiple of 3");
+  ESIM_VERIFY(
+      s.triangles.size() % 3 == 0,
+      "snapshot.triangles: size " + std::to_string(s.triangles.size()) + " is not a multiple of 3");
   const size_t nv = static_cast<size_t>(s.numVertices());
   auto checkField = [&](const std::vector<float>& f, const char* name) {
-    ESIM_VERIFY(f.empty() || f.size() == nv, std::string("snapshot.") + name + ": " +
-                                                 std::to_string(f.size()) + " values for " +
-                                                 std::to_string(nv) +
-                                                 " vertices, expected one per vertex (or none)");
+    ESIM_VERIFY(f.empty() || f.size() == nv,
+                std::string("snapshot.") + name + ": " + std::to_string(f.size()) + " values for " +
+                    std::to_string(nv) + " vertices, expected one per vertex (or none)");
     for (float v : f)
       ESIM_VERIFY(std::isfinite(v), std::string("snapshot.") + name + ": non-finite value");
   };
@@ -620,7 +671,8 @@ void validateSnapshot(const SurfaceSnapshot& s) {
   checkField(s.desiccation, "desiccation");
   checkField(s.cutWall, "cutWall");
   checkField(s.potentialV, "potentialV");
-  for (float v : s.positionsM) ESIM_VERIFY(std::isfinite(v), "snapshot.positionsM: non-finite value");
+  for (float v : s.positionsM)
+    ESIM_VERIFY(std::isfinite(v), "snapshot.positionsM: non-finite value");
   for (std::uint32_t v : s.triangles)
     ESIM_VERIFY(v < nv, "snapshot.triangles: vertex index " + std::to_string(v) +
                             " out of range (" + std::to_string(nv) + " vertices)");
@@ -659,7 +711,7 @@ struct Renderer::Impl {
   SurfaceProgram lookProgram[2], toolProgram;  // lookProgram[shadow]
   GLuint noiseTex = 0;
   GLuint bgProgram = 0, bgVao = 0, resolveProgram = 0;  // bgVao: empty, full-screen passes
-  GLuint bgTex = 0, bgFbo = 0;  // the background column (1 x height): MSAA resolve input
+  GLuint bgTex = 0, bgFbo = 0;         // the background column (1 x height): MSAA resolve input
   std::vector<std::uint8_t> bgColumn;  // the same, RGBA bottom row first, for the composite
   GLint uSize = -1;
   GLuint surfVao = 0, surfVbo = 0, toolVao = 0, toolVbo = 0, lutTex = 0;
@@ -680,11 +732,12 @@ struct Renderer::Impl {
 
 Renderer::Impl::SurfaceProgram Renderer::Impl::makeSurfaceProgram(int look, bool shadow) {
   const GlFunctions& gl = ctx->gl();
-  const std::string header = "#version 330 core\n#define LOOK " + std::to_string(look) +
-                             "\n#define LIT " + std::to_string(opt.lighting ? 1 : 0) +
-                             "\n#define SHADOW " + std::to_string(shadow ? 1 : 0) +
-                             "\n#define LOGSCALE " + std::to_string(opt.potentialLogScale ? 1 : 0) +
-                             "\n";
+  const std::string header =
+      "#version 330 core\n#define LOOK " + std::to_string(look) + "\n#define LIT " +
+      std::to_string(opt.lighting ? 1 : 0) + "\n#define SHADOW " + std::to_string(shadow ? 1 : 0) +
+      "\n#define LOGSCALE " + std::to_string(opt.potentialLogScale ? 1 : 0) +
+      "\n#define VERTEXLIT " + std::to_string(look != 2 && opt.shading == "vertex" ? 1 : 0) + "\n" +
+      kLightingGlsl;
   const std::string fs = header + kSurfaceFs;
   SurfaceProgram p;
   const std::string vs = header + kSurfaceVs;
@@ -812,10 +865,11 @@ void Renderer::Impl::init() {
                             msColor, 0);
     gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, msDepth);
     const GLenum status = gl.CheckFramebufferStatus(GL_FRAMEBUFFER);
-    ESIM_VERIFY(status == GL_FRAMEBUFFER_COMPLETE,
-                "renderer: multisampled framebuffer incomplete, status 0x" + std::to_string(status));
-    const std::string fs = "#version 330 core\n#define SAMPLES " +
-                           std::to_string(opt.msaaSamples) + "\n" + kResolveFs;
+    ESIM_VERIFY(
+        status == GL_FRAMEBUFFER_COMPLETE,
+        "renderer: multisampled framebuffer incomplete, status 0x" + std::to_string(status));
+    const std::string fs =
+        "#version 330 core\n#define SAMPLES " + std::to_string(opt.msaaSamples) + "\n" + kResolveFs;
     resolveProgram = linkProgram(gl, kFullScreenVs, fs.c_str(), "msaa resolve");
     gl.UseProgram(resolveProgram);
     gl.Uniform1i(gl.GetUniformLocation(resolveProgram, "uSamples"), 2);
@@ -903,7 +957,9 @@ void Renderer::Impl::drawOverlay(const SurfaceSnapshot& snap) {
     const auto& c = lut[static_cast<int>(std::lround(t * 255.0))];
     fillRect(frame, w, h, barX, barY + y, barW, 1, c);
   }
-  const std::string unit = potential ? "V" : "\xC2\xB0" "C";
+  const std::string unit = potential ? "V"
+                                     : "\xC2\xB0"
+                                       "C";
   drawText(frame, w, h, barX + barW / 2 - textWidthPx(unit, scale) / 2,
            barY - 1 - (kFontCellH + 1) * scale, unit, scale, white);
   const double lo = potential ? opt.vMinV : opt.tMinC, hi = potential ? opt.vMaxV : opt.tMaxC;

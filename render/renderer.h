@@ -62,6 +62,9 @@ struct RenderOptions {
   std::string backend = "osmesa";          // "osmesa" or "egl"
   int msaaSamples = 4;                     // 0 (off), 2 or 4
   bool lighting = true;                    // false: flat albedo (tests, colour checks)
+  std::string shading = "pixel";           // lighting "pixel" (Blinn-Phong per pixel) or
+                                           // "vertex" (per vertex, interpolated: faster,
+                                           // highlights follow the mesh); colours per pixel
   bool cullBackFaces = true;               // skip triangles seen from behind (closed
                                            // surfaces; false for open ones)
 };

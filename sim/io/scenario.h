@@ -190,6 +190,7 @@ struct ScenarioLook {
   int width = 1280;
   int height = 720;
   int msaa = 4;  // multisample anti-aliasing samples: 0 (off, fastest), 2 or 4
+  std::string shading = "vertex";  // lighting "vertex" (interpolated, faster) or "pixel"
   bool colorBar = true;
   bool showTime = true;
   bool operator==(const ScenarioLook&) const = default;

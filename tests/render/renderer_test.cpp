@@ -3,7 +3,6 @@
 #include "render/renderer.h"
 
 #include <gtest/gtest.h>
-
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -22,7 +21,7 @@ namespace esim {
 namespace {
 
 constexpr int kW = 160, kH = 120;
-constexpr float kDist = 0.1f;   // camera height above the plane z = 0 [m]
+constexpr float kDist = 0.1f;  // camera height above the plane z = 0 [m]
 constexpr float kFov = 35.0f;
 
 using Rgb = std::array<int, 3>;
@@ -61,8 +60,8 @@ Rgb atWorld(const std::vector<std::uint8_t>& img, float x, float y) {
 
 void expectNear(Rgb got, std::array<std::uint8_t, 3> want, int tol, const char* what) {
   for (int k = 0; k < 3; ++k)
-    EXPECT_NEAR(got[k], want[k], tol) << what << " channel " << k << " got (" << got[0] << ","
-                                      << got[1] << "," << got[2] << ")";
+    EXPECT_NEAR(got[k], want[k], tol)
+        << what << " channel " << k << " got (" << got[0] << "," << got[1] << "," << got[2] << ")";
 }
 
 // one quad (two triangles, counter-clockwise seen from +z) with uniform state
@@ -254,7 +253,8 @@ TEST(Renderer, BladeElectrodeIsMetallicGreyAndGlowsWhenOn) {
   EXPECT_GT(beside[0], beside[1] + 60);
   // generator on: orange glow at the tip
   const std::vector<std::uint8_t> on = r.render(withBlade(true));
-  const Rgb tip = atWorld(on, 0.0f, -0.01f + 0.0012f), tipOff = atWorld(off, 0.0f, -0.01f + 0.0012f);
+  const Rgb tip = atWorld(on, 0.0f, -0.01f + 0.0012f),
+            tipOff = atWorld(off, 0.0f, -0.01f + 0.0012f);
   EXPECT_GT(tip[0] - tip[2], tipOff[0] - tipOff[2] + 30);
 }
 
@@ -309,6 +309,63 @@ TEST(Renderer, ReusedGeometryGivesTheBytesOfAFreshRender) {
   EXPECT_EQ(hashFrame(r.render(hot)), hotFresh);
 }
 
+// closed latitude-longitude sphere of radius r [m] at the origin, counter-clockwise
+// from outside, T ramping 37..97 C from bottom to top
+SurfaceSnapshot uvSphere(float r, int segments, int rings) {
+  SurfaceSnapshot s;
+  auto add = [&](float x, float y, float z) {
+    s.positionsM.insert(s.positionsM.end(), {x, y, z});
+    s.temperatureC.push_back(67.0f + 30.0f * z / r);
+    return static_cast<std::uint32_t>(s.temperatureC.size() - 1);
+  };
+  const std::uint32_t south = add(0, 0, -r), north = add(0, 0, r);
+  auto ring = [&](int j, int i) {  // vertex i of ring j = 1..rings-1
+    return 2 + static_cast<std::uint32_t>((j - 1) * segments + (i % segments));
+  };
+  for (int j = 1; j < rings; ++j) {
+    const float th = 3.14159265f * j / rings;
+    for (int i = 0; i < segments; ++i) {
+      const float ph = 2 * 3.14159265f * i / segments;
+      add(r * std::sin(th) * std::cos(ph), r * std::sin(th) * std::sin(ph), -r * std::cos(th));
+    }
+  }
+  for (int i = 0; i < segments; ++i) {
+    s.triangles.insert(s.triangles.end(), {south, ring(1, i + 1), ring(1, i)});
+    s.triangles.insert(s.triangles.end(), {north, ring(rings - 1, i), ring(rings - 1, i + 1)});
+    for (int j = 1; j + 1 < rings; ++j)
+      s.triangles.insert(s.triangles.end(), {ring(j, i), ring(j, i + 1), ring(j + 1, i + 1),
+                                             ring(j, i), ring(j + 1, i + 1), ring(j + 1, i)});
+  }
+  return s;
+}
+
+// per-vertex lighting: the same as per pixel on a flat face (one normal), visibly
+// different on a coarse sphere, and converging to it as the sphere is refined
+TEST(Renderer, VertexShadingMatchesPixelShadingOnFineMeshes) {
+  RenderOptions o = topDown("temperature");
+  o.lighting = true;
+  o.msaaSamples = 0;
+  o.eyeM = {0.0f, -0.06f, 0.05f};
+  o.up = {0, 0, 1};
+  auto compare = [&](const SurfaceSnapshot& s) {
+    RenderOptions pixel = o, vertex = o;
+    pixel.shading = "pixel";
+    vertex.shading = "vertex";
+    Renderer a(pixel), b(vertex);
+    return compareImages(a.render(s), b.render(s), kW, kH);
+  };
+  SurfaceSnapshot flat = withBlade(false);
+  flat.tool.present = false;
+  const ImageComparison plane = compare(flat);
+  EXPECT_LE(plane.maxDiff, 1);
+  const ImageComparison coarse = compare(uvSphere(0.02f, 8, 6));
+  const ImageComparison fine = compare(uvSphere(0.02f, 128, 64));
+  EXPECT_GT(coarse.maxDiff, 20) << "coarse facets should show Gouraud interpolation";
+  EXPECT_LT(coarse.psnrDb, 45);  // measured 38.9 dB, max diff 27
+  EXPECT_GT(fine.psnrDb, 55) << "fine sphere: max diff " << fine.maxDiff;  // measured 66.8 dB
+  EXPECT_GT(fine.psnrDb, coarse.psnrDb + 20);
+}
+
 TEST(Renderer, OsMesaAndEglGiveIdenticalPixels) {
   std::string reason;
   if (!eglBackendAvailable(&reason)) GTEST_SKIP() << "EGL backend unavailable here: " << reason;
@@ -325,8 +382,8 @@ TEST(Renderer, OsMesaAndEglGiveIdenticalPixels) {
   const std::vector<std::uint8_t> b = egl.render(s);
   EXPECT_NE(egl.glPlatform().find("EGL"), std::string::npos);
   const ImageComparison c = compareImages(a, b, kW, kH);
-  EXPECT_EQ(hashFrame(a), hashFrame(b)) << "PSNR " << c.psnrDb << " dB, " << c.offPixels
-                                        << " pixels off";
+  EXPECT_EQ(hashFrame(a), hashFrame(b))
+      << "PSNR " << c.psnrDb << " dB, " << c.offPixels << " pixels off";
   // and the first renderer still works after the second context was made current
   EXPECT_EQ(hashFrame(osm.render(s)), hashFrame(a));
 }
@@ -377,8 +434,8 @@ TEST(Renderer, SameHashWithOneAndTwoLlvmpipeThreads) {
     ASSERT_EQ(posix_spawn(&pid, self.c_str(), nullptr, nullptr, argv, envp.data()), 0);
     int status = 0;
     ASSERT_EQ(waitpid(pid, &status, 0), pid);
-    ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "child with LP_NUM_THREADS="
-                                                                << threads << " failed";
+    ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
+        << "child with LP_NUM_THREADS=" << threads << " failed";
     std::uint64_t h = 0;
     std::ifstream(out) >> h;
     ASSERT_NE(h, 0u) << "no hash from the child with LP_NUM_THREADS=" << threads;
@@ -539,6 +596,9 @@ TEST(Renderer, RejectsBadOptionsAndSnapshots) {
   o = topDown();
   o.tMaxC = o.tMinC;
   EXPECT_NE(message([&] { Renderer r(o); }).find("t_min_c"), std::string::npos);
+  o = topDown();
+  o.shading = "gouraud";
+  EXPECT_NE(message([&] { Renderer r(o); }).find("render.shading"), std::string::npos);
   o = topDown();
   o.backend = "vulkan";
   EXPECT_NE(message([&] { Renderer r(o); }).find("render.backend"), std::string::npos);

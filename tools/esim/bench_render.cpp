@@ -18,14 +18,17 @@
 // 1280x720 for ~20k triangles.
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <memory>
 #include <sstream>
 
+#include "render/image_hash.h"
 #include "render/renderer.h"
 #include "render/video_encoder.h"
 #include "sim/core_error.h"
@@ -42,7 +45,8 @@ struct BenchRenderOptions {
   int warmup = 3;
   std::string look = "temperature";
   std::string backend = "osmesa";
-  int msaa = 4;
+  std::string msaa = "0,4";
+  std::string shading = "pixel,vertex";
   std::string preset = "medium";
   int crf = 20;
   std::string liver = "assets/liver.obj";
@@ -103,11 +107,33 @@ int benchRender(const BenchRenderOptions& opt) {
                 "--sizes: '" + s + "' is not WIDTHxHEIGHT (e.g. 1280x720)");
     sizes.push_back({w, h});
   }
+  // variants: every shading x every MSAA; the best (pixel, most samples) first, as the
+  // reference of the others' PSNR
+  struct Variant {
+    std::string shading;
+    int msaa;
+  };
+  std::vector<Variant> variants;
+  std::vector<int> msaaList;
+  for (const std::string& m : splitList(opt.msaa)) {
+    ESIM_VERIFY(m == "0" || m == "2" || m == "4",
+                "--msaa: '" + m + "' is not a sample count, expected 0, 2 or 4 (comma list)");
+    msaaList.push_back(std::stoi(m));
+  }
+  std::sort(msaaList.rbegin(), msaaList.rend());
+  std::vector<std::string> shadings = splitList(opt.shading);
+  for (const std::string& sh : shadings)
+    ESIM_VERIFY(sh == "pixel" || sh == "vertex",
+                "--shading: '" + sh + "' is unknown, expected pixel or vertex (comma list)");
+  std::sort(shadings.begin(), shadings.end());  // "pixel" before "vertex"
+  for (const std::string& sh : shadings)
+    for (int m : msaaList) variants.push_back({sh, m});
+  ESIM_VERIFY(!variants.empty(), "--msaa and --shading need at least one value each");
   std::unique_ptr<std::ofstream> csv;
   if (!opt.csv.empty()) {
     csv = std::make_unique<std::ofstream>(opt.csv);
     ESIM_VERIFY(csv->good(), "--csv: cannot write '" + opt.csv + "'");
-    *csv << "surface,width,height,triangles,render_ms,convert_ms,encode_ms\n";
+    *csv << "surface,width,height,triangles,render_ms,convert_ms,encode_ms,shading,msaa,psnr_db\n";
   }
   const char* lpThreads = std::getenv("LP_NUM_THREADS");
   bool header = false;
@@ -119,82 +145,119 @@ int benchRender(const BenchRenderOptions& opt) {
     AnalyticCut cut;
     const SurfaceSnapshot base = makeSurface(name, opt.liver, cut);
     for (const auto& [w, h] : sizes) {
-      RenderOptions ro;
-      ro.width = w;
-      ro.height = h;
-      ro.look = opt.look;
-      ro.backend = opt.backend;
-      ro.msaaSamples = opt.msaa;
-      ro.eyeM = {0.0f, -0.06f, static_cast<float>(cut.topZM) + 0.05f};
-      ro.targetM = {0.0f, 0.0f, static_cast<float>(cut.topZM) - 0.004f};
-      Renderer renderer(ro);
-      if (!header) {
-        std::printf("esim bench render: %s look, backend %s, MSAA %d, %d frames (+%d warm-up), "
-                    "x264 preset %s crf %d (1 thread)\nGL: %s | %s; LP_NUM_THREADS=%s; %s\n",
-                    opt.look.c_str(), renderer.glPlatform().c_str(), opt.msaa, opt.frames,
-                    opt.warmup, opt.preset.c_str(), opt.crf, renderer.glRenderer().c_str(),
-                    renderer.glVersion().c_str(), lpThreads ? lpThreads : "(unset)",
-                    VideoEncoder::libraryVersions().c_str());
-        std::printf("%-10s %6s %6s %9s %10s %10s %10s %10s %10s | means: %7s %7s %7s %7s %7s\n",
-                    "surface", "width", "height", "triangles", "render_ms", "render_p95",
-                    "render_max", "convert_ms", "encode_ms", "prep", "draw", "read", "overlay",
-                    "cpu_ms");
-        header = true;
-      }
-      // 2. render (the cut advances 0.5 mm per frame)
-      std::vector<std::vector<std::uint8_t>> frames;
-      std::vector<double> renderMs;
-      RenderTimings split;  // sums over the timed frames
-      double cpuMs = 0;     // process CPU time in render() per timed frame
-      for (int f = -opt.warmup; f < opt.frames; ++f) {
-        SurfaceSnapshot snap = base;
-        AnalyticCut c = cut;
-        c.tipXM = -0.02 + 0.0005 * (f + opt.warmup);
-        applyAnalyticCut(c, (f + opt.warmup) / 30.0, snap);
-        const auto t0 = Clock::now();
-        const double cpu0 = processCpuMs();
-        const auto& rgb = renderer.render(snap);
-        const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-        if (f >= 0) cpuMs += (processCpuMs() - cpu0) / opt.frames;
-        if (f >= 0) {
-          const RenderTimings& t = renderer.lastTimings();
-          split.prepareMs += t.prepareMs / opt.frames;
-          split.drawMs += t.drawMs / opt.frames;
-          split.readbackMs += t.readbackMs / opt.frames;
-          split.overlayMs += t.overlayMs / opt.frames;
-          renderMs.push_back(ms);
-          frames.push_back(rgb);
+      std::vector<std::vector<std::uint8_t>> reference;  // frames of the first variant
+      for (size_t vi = 0; vi < variants.size(); ++vi) {
+        const Variant& variant = variants[vi];
+        RenderOptions ro;
+        ro.width = w;
+        ro.height = h;
+        ro.look = opt.look;
+        ro.backend = opt.backend;
+        ro.msaaSamples = variant.msaa;
+        ro.shading = variant.shading;
+        ro.eyeM = {0.0f, -0.06f, static_cast<float>(cut.topZM) + 0.05f};
+        ro.targetM = {0.0f, 0.0f, static_cast<float>(cut.topZM) - 0.004f};
+        Renderer renderer(ro);
+        if (!header) {
+          std::printf(
+              "esim bench render: %s look, backend %s, %d frames (+%d warm-up), "
+              "x264 preset %s crf %d (1 thread)\nGL: %s | %s; LP_NUM_THREADS=%s; %s\n",
+              opt.look.c_str(), renderer.glPlatform().c_str(), opt.frames, opt.warmup,
+              opt.preset.c_str(), opt.crf, renderer.glRenderer().c_str(),
+              renderer.glVersion().c_str(), lpThreads ? lpThreads : "(unset)",
+              VideoEncoder::libraryVersions().c_str());
+          if (variants.size() > 1)
+            std::printf(
+                "psnr_db: mean PSNR of each frame against the same frame of the first "
+                "variant (%s shading, MSAA %d), inf = identical; off_%%: largest share of "
+                "pixels off by more than %d\n",
+                variants[0].shading.c_str(), variants[0].msaa, kPixelDiffThreshold);
+          std::printf(
+              "%-10s %6s %6s %9s %7s %4s %10s %10s %10s %7s %6s %10s %10s | means: %7s %7s "
+              "%7s %7s %7s\n",
+              "surface", "width", "height", "triangles", "shading", "msaa", "render_ms",
+              "render_p95", "render_max", "psnr_db", "off_%", "convert_ms", "encode_ms", "prep",
+              "draw", "read", "overlay", "cpu_ms");
+          header = true;
         }
+        // 2. render (the cut advances 0.5 mm per frame)
+        std::vector<std::vector<std::uint8_t>> frames;
+        std::vector<double> renderMs;
+        RenderTimings split;  // sums over the timed frames
+        double cpuMs = 0;     // process CPU time in render() per timed frame
+        for (int f = -opt.warmup; f < opt.frames; ++f) {
+          SurfaceSnapshot snap = base;
+          AnalyticCut c = cut;
+          c.tipXM = -0.02 + 0.0005 * (f + opt.warmup);
+          applyAnalyticCut(c, (f + opt.warmup) / 30.0, snap);
+          const auto t0 = Clock::now();
+          const double cpu0 = processCpuMs();
+          const auto& rgb = renderer.render(snap);
+          const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+          if (f >= 0) cpuMs += (processCpuMs() - cpu0) / opt.frames;
+          if (f >= 0) {
+            const RenderTimings& t = renderer.lastTimings();
+            split.prepareMs += t.prepareMs / opt.frames;
+            split.drawMs += t.drawMs / opt.frames;
+            split.readbackMs += t.readbackMs / opt.frames;
+            split.overlayMs += t.overlayMs / opt.frames;
+            renderMs.push_back(ms);
+            frames.push_back(rgb);
+          }
+        }
+        // 3. image quality against the first variant's frames
+        double psnrDb = std::numeric_limits<double>::infinity(), offShare = 0;
+        if (vi == 0) {
+          reference = frames;
+        } else {
+          double sum = 0;
+          bool allIdentical = true;
+          for (size_t f = 0; f < frames.size(); ++f) {
+            const ImageComparison c = compareImages(reference[f], frames[f], w, h);
+            offShare = std::max(offShare, c.offShare);
+            if (std::isfinite(c.psnrDb)) {
+              sum += c.psnrDb;
+              allIdentical = false;
+            } else {
+              sum += 99.0;  // identical frames count as 99 dB in the mean
+            }
+          }
+          if (!allIdentical) psnrDb = sum / static_cast<double>(frames.size());
+        }
+        // 4. encode
+        double convertMs = 0, encodeMs = 0;
+        if (w % 2 == 0 && h % 2 == 0) {
+          VideoEncoder enc;
+          VideoEncoder::Options vo;
+          vo.path = tmpVideo;
+          vo.width = w;
+          vo.height = h;
+          vo.preset = opt.preset;
+          vo.crf = opt.crf;
+          enc.open(vo);
+          for (auto& f : frames) enc.push(std::move(f));
+          enc.close();
+          convertMs = 1e3 * enc.convertSeconds() / opt.frames;
+          encodeMs = 1e3 * enc.encodeSeconds() / opt.frames;
+          std::filesystem::remove(tmpVideo);
+        }
+        // 5. report
+        std::vector<double> sorted = renderMs;
+        std::sort(sorted.begin(), sorted.end());
+        const double p95 =
+            sorted[std::min(sorted.size() - 1, static_cast<size_t>(0.95 * sorted.size()))];
+        std::printf(
+            "%-10s %6d %6d %9d %7s %4d %10.2f %10.2f %10.2f %7.2f %6.2f %10.2f %10.2f | "
+            "%14.2f %7.2f %7.2f %7.2f %7.2f\n",
+            name.c_str(), w, h, base.numTriangles(), variant.shading.c_str(), variant.msaa,
+            median(renderMs), p95, sorted.back(), psnrDb, 100 * offShare, convertMs, encodeMs,
+            split.prepareMs, split.drawMs, split.readbackMs, split.overlayMs, cpuMs);
+        std::fflush(stdout);
+        if (csv)
+          *csv << name << "," << w << "," << h << "," << base.numTriangles() << ","
+               << median(renderMs) << "," << convertMs << "," << encodeMs << "," << variant.shading
+               << "," << variant.msaa << "," << psnrDb << "\n";
       }
-      // 3. encode
-      double convertMs = 0, encodeMs = 0;
-      if (w % 2 == 0 && h % 2 == 0) {
-        VideoEncoder enc;
-        VideoEncoder::Options vo;
-        vo.path = tmpVideo;
-        vo.width = w;
-        vo.height = h;
-        vo.preset = opt.preset;
-        vo.crf = opt.crf;
-        enc.open(vo);
-        for (auto& f : frames) enc.push(std::move(f));
-        enc.close();
-        convertMs = 1e3 * enc.convertSeconds() / opt.frames;
-        encodeMs = 1e3 * enc.encodeSeconds() / opt.frames;
-        std::filesystem::remove(tmpVideo);
-      }
-      // 4. report
-      std::vector<double> sorted = renderMs;
-      std::sort(sorted.begin(), sorted.end());
-      const double p95 = sorted[std::min(sorted.size() - 1, static_cast<size_t>(0.95 * sorted.size()))];
-      std::printf("%-10s %6d %6d %9d %10.2f %10.2f %10.2f %10.2f %10.2f | %14.2f %7.2f %7.2f %7.2f %7.2f\n",
-                  name.c_str(), w, h, base.numTriangles(), median(renderMs), p95, sorted.back(),
-                  convertMs, encodeMs, split.prepareMs, split.drawMs, split.readbackMs,
-                  split.overlayMs, cpuMs);
-      std::fflush(stdout);
-      if (csv)
-        *csv << name << "," << w << "," << h << "," << base.numTriangles() << ","
-             << median(renderMs) << "," << convertMs << "," << encodeMs << "\n";
     }
   }
   if (csv) std::printf("wrote %s\n", opt.csv.c_str());
@@ -213,13 +276,17 @@ Registrar registerBenchRender(
       app.add_option("--warmup", opt->warmup, "untimed frames first")->capture_default_str();
       app.add_option("--look", opt->look, "temperature or tissue")->capture_default_str();
       app.add_option("--backend", opt->backend, "osmesa or egl")->capture_default_str();
-      app.add_option("--msaa", opt->msaa, "MSAA samples: 0, 2 or 4")->capture_default_str();
+      app.add_option("--msaa", opt->msaa, "MSAA samples, comma list of 0, 2, 4")
+          ->capture_default_str();
+      app.add_option("--shading", opt->shading, "lighting, comma list of 'pixel', 'vertex'")
+          ->capture_default_str();
       app.add_option("--preset", opt->preset, "x264 preset")->capture_default_str();
       app.add_option("--crf", opt->crf, "x264 CRF")->capture_default_str();
       app.add_option("--liver", opt->liver, "surface file of the 'liver' case")
           ->capture_default_str();
       app.add_option("--csv", opt->csv,
-                     "write surface,width,height,triangles,render_ms,convert_ms,encode_ms");
+                     "write surface,width,height,triangles,render_ms,convert_ms,encode_ms,"
+                     "shading,msaa,psnr_db");
       return [opt] { return benchRender(*opt); };
     });
 

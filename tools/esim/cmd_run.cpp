@@ -149,6 +149,7 @@ RenderOptions makeRenderOptions(const Scenario& s) {
   r.showColorBar = s.look.colorBar;
   r.showTime = s.look.showTime;
   r.msaaSamples = s.look.msaa;
+  r.shading = s.look.shading;
   return r;
 }
 
