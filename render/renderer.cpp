@@ -394,9 +394,10 @@ struct SurfaceBuffers {
   std::vector<std::uint32_t> lastTriangles;
   bool geometryReused = false;  // last update() rewrote the states only
   // scratch
-  std::vector<V3> faceNormal;
+  std::vector<V3> faceNormal, faceUnit, smoothNormal;
   std::vector<float> faceLength;
   std::vector<int> offsets, incident, firstCopy, nextCopy;
+  std::vector<std::uint8_t> smooth;
 
   void update(const SurfaceSnapshot& snap, float tDefaultC, bool potential);
   void build(const SurfaceSnapshot& snap, float tDefaultC, bool potential);
@@ -449,18 +450,44 @@ void SurfaceBuffers::build(const SurfaceSnapshot& snap, float tDefaultC, bool po
   indices.resize(snap.triangles.size());
   firstCopy.assign(nv, -1);  // first GPU vertex of each snapshot vertex
   nextCopy.clear();          // chain of further copies (crease splits)
+  // normalized(faceNormal[t]) with the stored length (the same bits)
+  faceUnit.resize(nt);
+  for (int t = 0; t < nt; ++t)
+    faceUnit[t] = faceLength[t] > 0 ? mul(faceNormal[t], 1.0f / faceLength[t]) : V3{0, 0, 1};
+  // the corner's test: face g joins the sum of the corner of face t
+  auto joins = [&](int g, const V3& nf) {
+    return faceLength[g] > 0 && dot(faceNormal[g], nf) >= cosCrease * faceLength[g];
+  };
+  // 3a. smooth vertices (most): every incident face joins every corner's sum, so all
+  //     corners get the same sum over the same faces in the same order; it is formed
+  //     and normalised once (the same bits as per corner)
+  smoothNormal.resize(nv);
+  smooth.assign(nv, 0);
+  for (int v = 0; v < nv; ++v) {
+    bool all = true;
+    for (int i = offsets[v]; i < offsets[v + 1] && all; ++i)
+      for (int j = offsets[v]; j < offsets[v + 1] && all; ++j)
+        all = joins(incident[j], faceUnit[incident[i]]);
+    if (!all) continue;
+    V3 sum{0, 0, 0};
+    for (int i = offsets[v]; i < offsets[v + 1]; ++i) sum = add(sum, faceNormal[incident[i]]);
+    if (norm(sum) > 0) {
+      smoothNormal[v] = normalized(sum);
+      smooth[v] = 1;
+    }
+  }
+  // 3b. per corner
   for (int t = 0; t < nt; ++t) {
-    // normalized(faceNormal[t]) with the stored length (the same bits)
-    const V3 nf = faceLength[t] > 0 ? mul(faceNormal[t], 1.0f / faceLength[t]) : V3{0, 0, 1};
+    const V3& nf = faceUnit[t];
     for (int k = 0; k < 3; ++k) {
       const std::uint32_t v = snap.triangles[3 * t + k];
-      V3 sum{0, 0, 0};
-      for (int i = offsets[v]; i < offsets[v + 1]; ++i) {
-        const V3& ng = faceNormal[incident[i]];
-        const float len = faceLength[incident[i]];
-        if (len > 0 && dot(ng, nf) >= cosCrease * len) sum = add(sum, ng);
+      V3 n = smoothNormal[v];
+      if (!smooth[v]) {
+        V3 sum{0, 0, 0};
+        for (int i = offsets[v]; i < offsets[v + 1]; ++i)
+          if (joins(incident[i], nf)) sum = add(sum, faceNormal[incident[i]]);
+        n = norm(sum) > 0 ? normalized(sum) : nf;
       }
-      const V3 n = norm(sum) > 0 ? normalized(sum) : nf;
       int found = -1;
       int* link = &firstCopy[v];
       for (int c = *link; c >= 0; link = &nextCopy[c], c = *link) {
