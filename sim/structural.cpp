@@ -1,0 +1,216 @@
+// structural.cpp - linear thermo-elastic P1 tetrahedra (see structural.h).
+#include "sim/structural.h"
+
+#include <Eigen/CholmodSupport>
+#include <Eigen/Eigenvalues>
+#include <Eigen/SparseCore>
+#include <chrono>
+#include <cmath>
+#include <string>
+
+#include "sim/core_error.h"
+#include "sim/fem_p1.h"
+
+namespace esim {
+namespace {
+
+using Cholesky = Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower>;
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+using Mat6x12 = Eigen::Matrix<double, 6, 12>;
+
+// isotropic elasticity in Voigt order with engineering shear strains
+Mat6 elasticity(double e, double nu) {
+  const double lambda = e * nu / ((1 + nu) * (1 - 2 * nu));
+  const double mu = e / (2 * (1 + nu));
+  Mat6 d = Mat6::Zero();
+  d.topLeftCorner<3, 3>().setConstant(lambda);
+  for (int i = 0; i < 3; ++i) {
+    d(i, i) = lambda + 2 * mu;
+    d(3 + i, 3 + i) = mu;
+  }
+  return d;
+}
+
+// strain (xx, yy, zz, 2yz, 2xz, 2xy) = B u_e, u_e = (x0, y0, z0, x1, ...)
+Mat6x12 strainMatrix(const TetGeometry& g) {
+  Mat6x12 b = Mat6x12::Zero();
+  for (int i = 0; i < 4; ++i) {
+    const double gx = g.grad(i, 0), gy = g.grad(i, 1), gz = g.grad(i, 2);
+    const int c = 3 * i;
+    b(0, c) = gx;
+    b(1, c + 1) = gy;
+    b(2, c + 2) = gz;
+    b(3, c + 1) = gz;
+    b(3, c + 2) = gy;
+    b(4, c) = gz;
+    b(4, c + 2) = gx;
+    b(5, c) = gy;
+    b(5, c + 1) = gx;
+  }
+  return b;
+}
+
+// do the held components remove all six rigid motions? (rank of the rigid motions'
+// values at the supports, positions taken about the supports' centroid and scaled)
+bool supportsFixRigidMotions(const TetMesh& mesh, const std::vector<Support>& supports) {
+  if (supports.empty()) return false;
+  Vec3 centre = Vec3::Zero();
+  for (const Support& s : supports) centre += mesh.nodes[s.node];
+  centre /= static_cast<double>(supports.size());
+  double scale = 0;
+  for (const Support& s : supports) scale = std::max(scale, (mesh.nodes[s.node] - centre).norm());
+  if (scale == 0) scale = 1;
+  Mat6 gram = Mat6::Zero();
+  for (const Support& s : supports) {
+    const Vec3 p = (mesh.nodes[s.node] - centre) / scale;
+    // component `axis` of the translations e_x, e_y, e_z and the rotations e_k x p
+    Eigen::Matrix<double, 6, 1> row = Eigen::Matrix<double, 6, 1>::Zero();
+    row(s.axis) = 1;
+    for (int k = 0; k < 3; ++k) row(3 + k) = Vec3::Unit(k).cross(p)(s.axis);
+    gram += row * row.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Mat6> eig(gram, Eigen::EigenvaluesOnly);
+  return eig.eigenvalues()(0) > 1e-10 * eig.eigenvalues()(5);
+}
+
+}  // namespace
+
+double vonMises(const VoigtStress& s) {
+  const double a = s[0] - s[1], b = s[1] - s[2], c = s[2] - s[0];
+  return std::sqrt(0.5 * (a * a + b * b + c * c) + 3 * (s[3] * s[3] + s[4] * s[4] + s[5] * s[5]));
+}
+
+struct StructuralPhase::Impl {
+  const TetMesh* mesh = nullptr;
+  std::vector<TetGeometry> geo;
+  std::vector<Mat6x12> db;     // D B_e per tet (stress from element displacements)
+  std::vector<int> freeIndex;  // dof -> unknown, -1 when held
+  double bulkModulusPa = 0;    // lambda + 2 mu / 3: D eps* = K_b e_v (1, 1, 1, 0, 0, 0)
+  Cholesky factor;
+  Eigen::VectorXd rhs, freeSolution, u;
+  std::vector<VoigtStress> stress;
+  std::vector<double> vonMisesPa;
+  double factorSeconds = 0;
+};
+
+StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& options,
+                                 const std::vector<Support>& supports)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  const double e = options.youngsModulusPa, nu = options.poissonRatio;
+  ESIM_VERIFY(std::isfinite(e) && e > 0,
+              "structural: youngsModulusPa must be > 0, got " + std::to_string(e));
+  ESIM_VERIFY(std::isfinite(nu) && nu >= 0 && nu < 0.5,
+              "structural: poissonRatio must be in [0, 0.5), got " + std::to_string(nu));
+  const int n = mesh.numNodes();
+  m.mesh = &mesh;
+  m.geo = tetGeometry(mesh);
+  const Mat6 d = elasticity(e, nu);
+  m.bulkModulusPa = e / (3 * (1 - 2 * nu));
+
+  // 1. unknowns: every component not held, of nodes that touch an alive tet
+  std::vector<std::uint8_t> held(3 * static_cast<size_t>(n), 1);
+  for (int t = 0; t < mesh.numTets(); ++t)
+    if (mesh.isAlive(t))
+      for (int node : mesh.tets[t])
+        for (int a = 0; a < 3; ++a) held[3 * node + a] = 0;
+  for (const Support& s : supports) {
+    ESIM_VERIFY(s.node >= 0 && s.node < n && s.axis >= 0 && s.axis < 3,
+                "structural: support (node " + std::to_string(s.node) + ", axis " +
+                    std::to_string(s.axis) + ") is out of range (" + std::to_string(n) +
+                    " nodes, axes 0..2)");
+    held[3 * s.node + s.axis] = 1;
+  }
+  ESIM_VERIFY(supportsFixRigidMotions(mesh, supports),
+              "structural: the supports leave the body free to translate or rotate; hold at "
+              "least 6 independent displacement components (e.g. clamp a face)");
+  m.freeIndex.assign(3 * static_cast<size_t>(n), -1);
+  int nf = 0;
+  for (size_t dof = 0; dof < held.size(); ++dof)
+    if (!held[dof]) m.freeIndex[dof] = nf++;
+  ESIM_VERIFY(nf > 0, "structural: every displacement component is held; nothing to solve");
+
+  // 2. K over the unknowns (lower triangle)
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(static_cast<size_t>(mesh.numAlive()) * 78);
+  m.db.resize(mesh.numTets());
+  for (int t = 0; t < mesh.numTets(); ++t) {
+    if (!mesh.isAlive(t)) continue;
+    const Mat6x12 b = strainMatrix(m.geo[t]);
+    m.db[t] = d * b;
+    const Eigen::Matrix<double, 12, 12> ke = m.geo[t].volume * b.transpose() * m.db[t];
+    for (int i = 0; i < 12; ++i) {
+      const int fi = m.freeIndex[3 * mesh.tets[t][i / 3] + i % 3];
+      if (fi < 0) continue;
+      for (int j = 0; j < 12; ++j) {
+        const int fj = m.freeIndex[3 * mesh.tets[t][j / 3] + j % 3];
+        if (fj >= 0 && fj <= fi) triplets.emplace_back(fi, fj, ke(i, j));
+      }
+    }
+  }
+  SparseMatrix k(nf, nf);
+  k.setFromTriplets(triplets.begin(), triplets.end());
+  k.makeCompressed();
+
+  // 3. factorization, once
+  const auto t0 = std::chrono::steady_clock::now();
+  m.factor.compute(k);
+  m.factorSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ESIM_VERIFY(m.factor.info() == Eigen::Success,
+              "structural: the stiffness matrix is not positive definite (degenerate tets, or "
+              "supports that leave part of the body free)");
+  m.u = Eigen::VectorXd::Zero(3 * n);
+  m.stress.assign(mesh.numTets(), VoigtStress{});
+  m.vonMisesPa.assign(mesh.numTets(), 0.0);
+}
+
+StructuralPhase::~StructuralPhase() = default;
+
+void StructuralPhase::solve(const std::vector<double>& ev) {
+  Impl& m = *impl_;
+  const TetMesh& mesh = *m.mesh;
+  ESIM_VERIFY(static_cast<int>(ev.size()) == mesh.numTets(),
+              "structural: " + std::to_string(ev.size()) + " eigenstrains for " +
+                  std::to_string(mesh.numTets()) + " tets");
+  // f = sum_e V_e B_e^T D eps*_e; D eps* = K_b e_v (1,1,1,0,0,0), so node i of the tet
+  // gets V_e K_b e_v grad N_i
+  m.rhs.setZero(m.factor.rows());
+  for (int t = 0; t < mesh.numTets(); ++t) {
+    if (!mesh.isAlive(t) || ev[t] == 0) continue;
+    ESIM_VERIFY(std::isfinite(ev[t]),
+                "structural: eigenstrain of tet " + std::to_string(t) + " is not finite");
+    const double s = m.geo[t].volume * m.bulkModulusPa * ev[t];
+    for (int i = 0; i < 4; ++i)
+      for (int a = 0; a < 3; ++a) {
+        const int fi = m.freeIndex[3 * mesh.tets[t][i] + a];
+        if (fi >= 0) m.rhs(fi) += s * m.geo[t].grad(i, a);
+      }
+  }
+  m.freeSolution = m.factor.solve(m.rhs);
+  m.u.setZero();
+  for (size_t dof = 0; dof < m.freeIndex.size(); ++dof)
+    if (m.freeIndex[dof] >= 0)
+      m.u(static_cast<Eigen::Index>(dof)) = m.freeSolution(m.freeIndex[dof]);
+  // sigma = D B u_e - K_b e_v (1, 1, 1, 0, 0, 0)
+  for (int t = 0; t < mesh.numTets(); ++t) {
+    if (!mesh.isAlive(t)) {
+      m.stress[t] = VoigtStress{};
+      m.vonMisesPa[t] = 0;
+      continue;
+    }
+    Eigen::Matrix<double, 12, 1> ue;
+    for (int i = 0; i < 4; ++i) ue.segment<3>(3 * i) = m.u.segment<3>(3 * mesh.tets[t][i]);
+    const Eigen::Matrix<double, 6, 1> s = m.db[t] * ue;
+    const double p = m.bulkModulusPa * ev[t];
+    m.stress[t] = {s(0) - p, s(1) - p, s(2) - p, s(3), s(4), s(5)};
+    m.vonMisesPa[t] = vonMises(m.stress[t]);
+  }
+}
+
+const Eigen::VectorXd& StructuralPhase::displacementM() const { return impl_->u; }
+const std::vector<VoigtStress>& StructuralPhase::stressPa() const { return impl_->stress; }
+const std::vector<double>& StructuralPhase::vonMisesPa() const { return impl_->vonMisesPa; }
+int StructuralPhase::numFreeDofs() const { return static_cast<int>(impl_->factor.rows()); }
+double StructuralPhase::factorizationSeconds() const { return impl_->factorSeconds; }
+
+}  // namespace esim
