@@ -4,8 +4,10 @@
 #include <Eigen/CholmodSupport>
 #include <Eigen/Eigenvalues>
 #include <Eigen/SparseCore>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <string>
 
 #include "sim/core_error.h"
@@ -73,7 +75,59 @@ bool supportsFixRigidMotions(const TetMesh& mesh, const std::vector<Support>& su
   return eig.eigenvalues()(0) > 1e-10 * eig.eigenvalues()(5);
 }
 
+// connected pieces of the alive tets (tets sharing a node), per node: piece id or -1
+std::vector<int> alivePieces(const TetMesh& mesh, int& count) {
+  std::vector<int> parent(mesh.numNodes());
+  for (int i = 0; i < mesh.numNodes(); ++i) parent[i] = i;
+  auto find = [&](int i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  std::vector<std::uint8_t> used(mesh.numNodes(), 0);
+  for (int t = 0; t < mesh.numTets(); ++t) {
+    if (!mesh.isAlive(t)) continue;
+    const Tet& tet = mesh.tets[t];
+    for (int k = 0; k < 4; ++k) used[tet[k]] = 1;
+    for (int k = 1; k < 4; ++k) {
+      const int a = find(tet[0]), b = find(tet[k]);
+      if (a != b) parent[std::max(a, b)] = std::min(a, b);
+    }
+  }
+  std::vector<int> piece(mesh.numNodes(), -1), idOfRoot(mesh.numNodes(), -1);
+  count = 0;
+  for (int i = 0; i < mesh.numNodes(); ++i) {
+    if (!used[i]) continue;
+    const int r = find(i);
+    if (idOfRoot[r] < 0) idOfRoot[r] = count++;
+    piece[i] = idOfRoot[r];
+  }
+  return piece;
+}
+
+// steam tables: liquid water density at 20, 40, 60, 80, 100 C [kg/m^3]
+constexpr double kWaterTableC[] = {20, 40, 60, 80, 100};
+constexpr double kWaterDensity[] = {998.2, 992.2, 983.2, 971.8, 958.4};
+
 }  // namespace
+
+double waterDensityKg_m3(double temperatureC) {
+  if (!(temperatureC > kWaterTableC[0])) return kWaterDensity[0];
+  for (int i = 1; i < 5; ++i)
+    if (temperatureC <= kWaterTableC[i]) {
+      const double f =
+          (temperatureC - kWaterTableC[i - 1]) / (kWaterTableC[i] - kWaterTableC[i - 1]);
+      return kWaterDensity[i - 1] + f * (kWaterDensity[i] - kWaterDensity[i - 1]);
+    }
+  return kWaterDensity[4];
+}
+
+double volumetricExpansion(const ExpansionParams& p, double temperatureC, double vaporFraction) {
+  const double rho0 = waterDensityKg_m3(p.initialTemperatureC);
+  const double phi = p.waterFraction * p.densityKg_m3 / rho0;
+  const double liquid = rho0 / waterDensityKg_m3(std::min(temperatureC, p.boilingTemperatureC)) - 1;
+  const double x = std::clamp(vaporFraction, 0.0, 1.0);
+  return phi * (liquid + x * (p.vaporLiquidVolumeRatio - 1));
+}
 
 double vonMises(const VoigtStress& s) {
   const double a = s[0] - s[1], b = s[1] - s[2], c = s[2] - s[0];
@@ -91,6 +145,7 @@ struct StructuralPhase::Impl {
   std::vector<VoigtStress> stress;
   std::vector<double> vonMisesPa;
   double factorSeconds = 0;
+  int islands = 0;
 };
 
 StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& options,
@@ -124,6 +179,18 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   ESIM_VERIFY(supportsFixRigidMotions(mesh, supports),
               "structural: the supports leave the body free to translate or rotate; hold at "
               "least 6 independent displacement components (e.g. clamp a face)");
+  // pieces without a support (cut loose) are held in place
+  int pieces = 0;
+  const std::vector<int> piece = alivePieces(mesh, pieces);
+  if (pieces > 1) {
+    std::vector<std::uint8_t> supported(pieces, 0);
+    for (const Support& s : supports)
+      if (piece[s.node] >= 0) supported[piece[s.node]] = 1;
+    for (int p = 0; p < pieces; ++p) m.islands += supported[p] ? 0 : 1;
+    for (int v = 0; v < n; ++v)
+      if (piece[v] >= 0 && !supported[piece[v]])
+        for (int a = 0; a < 3; ++a) held[3 * v + a] = 1;
+  }
   m.freeIndex.assign(3 * static_cast<size_t>(n), -1);
   int nf = 0;
   for (size_t dof = 0; dof < held.size(); ++dof)
@@ -212,5 +279,6 @@ const std::vector<VoigtStress>& StructuralPhase::stressPa() const { return impl_
 const std::vector<double>& StructuralPhase::vonMisesPa() const { return impl_->vonMisesPa; }
 int StructuralPhase::numFreeDofs() const { return static_cast<int>(impl_->factor.rows()); }
 double StructuralPhase::factorizationSeconds() const { return impl_->factorSeconds; }
+int StructuralPhase::numFloatingIslands() const { return impl_->islands; }
 
 }  // namespace esim

@@ -10,7 +10,9 @@
 // E, nu and the supports only: it is factorized once (CHOLMOD) at construction and
 // every solve() is a right-hand side and two triangular solves.
 // Removed tets (alive == 0) contribute nothing; a node left without an alive tet is
-// held at 0 so that K stays positive definite.
+// held at 0, and so is every node of a floating island (alive tets connected through
+// shared nodes, none of them supported: a piece cut loose), so that K stays positive
+// definite; such islands carry no stress.
 // Per tet after solve(): Cauchy stress in Voigt order (xx, yy, zz, yz, xz, xy) [Pa]
 // and its von Mises stress [Pa]. Displacement: 3 per node (x0, y0, z0, x1, ...) [m].
 // The supports must remove the rigid motions (at least 6 independent components,
@@ -26,6 +28,34 @@
 
 namespace esim {
 
+// ---- the load: expansion of the tissue's water (paper eq. 3) ----
+// e_v = Delta v_liq + Delta v_gas per unit tissue volume, with phi = w rho / rho_w(T0) the
+// water volume fraction:
+//   Delta v_liq = phi (rho_w(T0) / rho_w(min(T, Tb)) - 1)   thermal expansion of the liquid
+//                 (rho_w from the steam-table densities at 20..100 C, piecewise linear,
+//                 held outside that range: +3.6 % from 37 to 100 C);
+//   Delta v_gas = phi x (v_gas / v_liq - 1)                  the vaporised fraction x of
+//                 the water at atmospheric pressure (v_gas / v_liq = 1602 at 100 C).
+// The vapour is assumed trapped where it forms (no venting, no pressure limit), so a
+// vaporised fraction of ~7e-4 already gives e_v ~ 0.93, the expansion at which a laterally
+// constrained layer with the paper's E, nu reaches its critical stress: tissue parts
+// where boiling starts.
+struct ExpansionParams {
+  double waterFraction = 0.78;           // w, mass fraction of water
+  double densityKg_m3 = 1060;            // tissue density rho [kg/m^3]
+  double initialTemperatureC = 37;       // T0, the stress-free state [C]
+  double boilingTemperatureC = 100;      // Tb [C]
+  double vaporLiquidVolumeRatio = 1602;  // v_gas / v_liq at Tb and 1 atm (1.673 / 0.001044)
+};
+
+// liquid water density [kg/m^3] at temperatureC (20..100 C table, held outside)
+double waterDensityKg_m3(double temperatureC);
+
+// volumetric expansion e_v of tissue at temperatureC with vaporised water fraction x
+double volumetricExpansion(const ExpansionParams& params, double temperatureC,
+                           double vaporFraction);
+
+// ---- the phase ----
 struct StructuralOptions {
   double youngsModulusPa = 4.75e4;  // E (paper Table 1)
   double poissonRatio = 0.4;        // nu in [0, 0.5) (paper Table 1)
@@ -60,6 +90,7 @@ class StructuralPhase {
   const std::vector<VoigtStress>& stressPa() const;  // per tet (0 for removed tets)
   const std::vector<double>& vonMisesPa() const;     // per tet (0 for removed tets)
   int numFreeDofs() const;                           // unknowns of K u = f
+  int numFloatingIslands() const;                    // unsupported pieces held in place
   double factorizationSeconds() const;               // wall time of the constructor's factorization
 
  private:

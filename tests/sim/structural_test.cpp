@@ -162,6 +162,52 @@ TEST(Structural, RemovedTetsCarryNothingAndLinearityHolds) {
   EXPECT_LT((phase.displacementM() - 2 * u1).norm(), 1e-12 * u1.norm());
 }
 
+TEST(Structural, ExpansionOfTheTissueWater) {
+  EXPECT_NEAR(waterDensityKg_m3(37), 993.1, 1e-9);  // 998.2 + 17/20 (992.2 - 998.2)
+  EXPECT_EQ(waterDensityKg_m3(5), 998.2);
+  EXPECT_EQ(waterDensityKg_m3(130), 958.4);
+  const ExpansionParams p;  // w 0.78, rho 1060, T0 37, Tb 100, ratio 1602
+  const double phi = 0.78 * 1060 / 993.1;
+  EXPECT_NEAR(volumetricExpansion(p, 37, 0), 0, 1e-15);
+  // liquid water expands by 3.62 % from 37 to 100 C (REFERENCE.md: +3.6 %)
+  const double liquid = phi * (993.1 / 958.4 - 1);
+  EXPECT_NEAR(volumetricExpansion(p, 100, 0), liquid, 1e-12);
+  EXPECT_NEAR(liquid, 0.03014, 1e-5);
+  EXPECT_NEAR(volumetricExpansion(p, 180, 0), liquid, 1e-12);  // held at Tb when dry
+  // vapour: 1 per mille of the water boiled multiplies its volume fraction by 1.601
+  EXPECT_NEAR(volumetricExpansion(p, 100, 1e-3), liquid + phi * 1.601, 1e-12);
+  // in a laterally constrained layer the von Mises stress E e_v / (3 (1 - nu)) reaches the
+  // critical stress 2.45e4 Pa at e_v = 0.93 (REFERENCE.md: ~0.9), i.e. once 6.7e-4 of the
+  // water has boiled
+  const double ev = 3 * (1 - kNu) * 2.45e4 / kE;
+  EXPECT_NEAR(ev, 0.928, 1e-3);
+  EXPECT_NEAR((ev - liquid) / (phi * 1601), 6.74e-4, 0.01e-4);
+}
+
+TEST(Structural, FloatingIslandIsHeldInPlace) {
+  SlabSpec spec;
+  spec.sizeM = {kLx, kLy, kLz};
+  spec.nodesPerAxis = {5, 4, 4};
+  TetMesh mesh = makeSlab(spec);
+  // remove the middle layer of tets: the top layer is cut loose from the clamped bottom
+  for (int t = 0; t < mesh.numTets(); ++t) {
+    double zc = 0;
+    for (int v : mesh.tets[t]) zc += mesh.nodes[v].z() / 4;
+    if (zc > kLz / 3 && zc < 2 * kLz / 3) mesh.alive[t] = 0;
+  }
+  StructuralPhase phase(mesh, paper(),
+                        hold(mesh, [](const Vec3& p) { return p.z() < 1e-12; }, {0, 1, 2}));
+  EXPECT_EQ(phase.numFloatingIslands(), 1);
+  phase.solve(std::vector<double>(mesh.numTets(), kEv));
+  for (int v = 0; v < mesh.numNodes(); ++v) {
+    if (mesh.nodes[v].z() > kLz / 2) EXPECT_EQ(phase.displacementM().segment<3>(3 * v).norm(), 0.0);
+  }
+  // the bottom layer is still laterally free and expands: it carries stress
+  double maxVm = 0;
+  for (int t = 0; t < mesh.numTets(); ++t) maxVm = std::max(maxVm, phase.vonMisesPa()[t]);
+  EXPECT_GT(maxVm, 0.0);
+}
+
 TEST(Structural, RejectsBadInput) {
   const TetMesh mesh = distortedSlab();
   auto message = [](auto&& f) {
