@@ -200,7 +200,9 @@ TEST(Structural, FloatingIslandIsHeldInPlace) {
   EXPECT_EQ(phase.numFloatingIslands(), 1);
   phase.solve(std::vector<double>(mesh.numTets(), kEv));
   for (int v = 0; v < mesh.numNodes(); ++v) {
-    if (mesh.nodes[v].z() > kLz / 2) EXPECT_EQ(phase.displacementM().segment<3>(3 * v).norm(), 0.0);
+    if (mesh.nodes[v].z() > kLz / 2) {
+      EXPECT_EQ(phase.displacementM().segment<3>(3 * v).norm(), 0.0);
+    }
   }
   // the bottom layer is still laterally free and expands: it carries stress
   double maxVm = 0;
