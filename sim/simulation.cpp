@@ -13,7 +13,7 @@ namespace esim {
 namespace {
 
 constexpr const char* kStageNames[kStageCount] = {
-    "move_tool", "find_contacts", "solve_potential", "heat", "solve_stress",
+    "move_tool", "find_contacts", "solve_potential", "heat",   "solve_stress",
     "rupture",   "rebuild",       "snapshot",        "render", "encode_wait"};
 
 }  // namespace
@@ -36,9 +36,11 @@ StageTimer::~StageTimer() {
 Simulation::Simulation(TetMesh mesh, SimulationConfig config)
     : mesh_(std::move(mesh)), config_(std::move(config)) {
   const PhaseSet& ph = config_.phases;
-  ESIM_VERIFY(!ph.structural && !ph.rupture,
-              "physics: the structural and rupture phases are not implemented yet; remove them "
-              "from `physics` (available: electric, thermal, boiling)");
+  ESIM_VERIFY(!ph.structural || (ph.thermal && ph.boiling),
+              "physics: 'structural' needs 'thermal' and 'boiling' (its load is the water's "
+              "expansion)");
+  ESIM_VERIFY(!ph.rupture || ph.structural,
+              "physics: 'rupture' needs 'structural' (the stress that breaks elements)");
   ESIM_VERIFY(ph.electric || ph.thermal, "physics: the scene lists no phase to simulate");
   ESIM_VERIFY(config_.frameDtS > 0 && std::isfinite(config_.frameDtS),
               "time: frame step must be positive (fps > 0)");
@@ -49,6 +51,12 @@ Simulation::Simulation(TetMesh mesh, SimulationConfig config)
   geo_ = tetGeometry(mesh_);
   surface_ = boundaryFaces(mesh_);
   surfaceNodes_ = boundaryNodes(mesh_, surface_);
+  for (const auto& f : surface_) {
+    std::array<int, 3> key{f.nodes[0], f.nodes[1], f.nodes[2]};
+    std::sort(key.begin(), key.end());
+    initialFaces_.push_back(key);
+  }
+  std::sort(initialFaces_.begin(), initialFaces_.end());
   buildSurfaceTopology();
   potential_ = Eigen::VectorXd::Zero(mesh_.numNodes());
   joule_.assign(mesh_.numTets(), 0.0);
@@ -114,6 +122,70 @@ Simulation::Simulation(TetMesh mesh, SimulationConfig config)
   } else {
     maxTemperatureC_ = config_.thermal.initialTemperatureC;
   }
+
+  // ---- structural phase: clamped at the bottom ----
+  if (ph.structural) {
+    ESIM_VERIFY(config_.supportBandM >= 0 && std::isfinite(config_.supportBandM),
+                "structural.support_band_m must be >= 0");
+    ESIM_VERIFY(config_.criticalStressPa > 0 && std::isfinite(config_.criticalStressPa),
+                "material.critical_stress_pa must be > 0");
+    ESIM_VERIFY(config_.vaporLiquidVolumeRatio >= 1,
+                "material.vapor_liquid_volume_ratio must be >= 1");
+    double zMin = mesh_.nodes.front().z();
+    for (const Vec3& p : mesh_.nodes) zMin = std::min(zMin, p.z());
+    for (int v : surfaceNodes_)
+      if (mesh_.nodes[v].z() <= zMin + config_.supportBandM)
+        for (int a = 0; a < 3; ++a) supports_.push_back({v, a});
+    expansion_.waterFraction = config_.thermal.waterFraction;
+    expansion_.densityKg_m3 = config_.thermal.densityKg_m3;
+    expansion_.initialTemperatureC = config_.thermal.initialTemperatureC;
+    expansion_.boilingTemperatureC = config_.thermal.boilingTemperatureC;
+    expansion_.vaporLiquidVolumeRatio = config_.vaporLiquidVolumeRatio;
+    eigenstrain_.assign(mesh_.numTets(), 0.0);
+    try {
+      structural_ = std::make_unique<StructuralPhase>(mesh_, config_.structural, supports_);
+    } catch (const Error& e) {
+      throw Error(std::string(e.what()) + " (clamped: " + std::to_string(supports_.size() / 3) +
+                  " bottom nodes within structural.support_band_m = " +
+                  std::to_string(config_.supportBandM) + " m of the lowest node)");
+    }
+  }
+}
+
+void Simulation::computeEigenstrain() {
+  const Eigen::VectorXd& t = thermalState_.temperatureC;
+  for (int e = 0; e < mesh_.numTets(); ++e) {
+    if (!mesh_.isAlive(e)) {
+      eigenstrain_[e] = 0;
+      continue;
+    }
+    const Tet& tet = mesh_.tets[e];
+    const double te = 0.25 * (t[tet[0]] + t[tet[1]] + t[tet[2]] + t[tet[3]]);
+    const double x =
+        thermalState_.vaporFractionTet.empty() ? 0.0 : thermalState_.vaporFractionTet[e];
+    eigenstrain_[e] = volumetricExpansion(expansion_, te, x);
+  }
+}
+
+void Simulation::removeTets(const std::vector<int>& broken) {
+  for (int e : broken) mesh_.alive[e] = 0;
+  removedTets_ += static_cast<int>(broken.size());
+  ESIM_VERIFY(mesh_.numAlive() > 0, "rupture: every element of the tissue has been removed");
+  surface_ = boundaryFaces(mesh_);
+  surfaceNodes_ = boundaryNodes(mesh_, surface_);
+  buildSurfaceTopology();
+  if (thermal_) thermal_->rebuild(mesh_, geo_);
+  if (electric_) {
+    ground_ = returnElectrodeNodes(mesh_, surfaceNodes_, config_.returnElectrode);
+    ESIM_VERIFY(!ground_.empty(),
+                "rupture: the cut removed all the tissue on the return electrode");
+    contactFinder_ = ContactFinder(mesh_, surfaceNodes_);
+    stiffness_ = assembleStiffness(mesh_, geo_, sigmaAssembled_);
+    electric_->setContactCandidates(surfaceNodes_);
+    electric_->setMatrix(stiffness_, ground_);  // columns of new contacts come as needed
+  }
+  if (structural_)
+    structural_ = std::make_unique<StructuralPhase>(mesh_, config_.structural, supports_);
 }
 
 Simulation::~Simulation() = default;
@@ -127,9 +199,7 @@ double Simulation::electricMemoryBytes() const {
   return electric_ ? electric_->memoryBytes() : 0.0;
 }
 
-std::string Simulation::electricSolverName() const {
-  return electric_ ? electric_->name() : "";
-}
+std::string Simulation::electricSolverName() const { return electric_ ? electric_->name() : ""; }
 
 void Simulation::prefetchScriptedPath() {
   if (config_.prefetchUntilS <= 0) return;
@@ -227,13 +297,44 @@ const FrameRecord& Simulation::step() {
   // ---- 4. heat: Joule (or prescribed) source, conduction, boiling ----
   if (thermal_) {
     StageTimer timer(rec, Stage::Heat);
-    const auto stats =
-        thermal_->step(dt, electric_ ? joule_ : prescribedSource_, thermalState_);
+    const auto stats = thermal_->step(dt, electric_ ? joule_ : prescribedSource_, thermalState_);
     if (stats.skipped) timer.skip();
     rec.maxTemperatureC = thermalState_.temperatureC.maxCoeff();
     maxTemperatureC_ = std::max(maxTemperatureC_, rec.maxTemperatureC);
   } else {
     rec.maxTemperatureC = config_.thermal.initialTemperatureC;
+  }
+
+  // ---- 5. stress from the water's expansion ----
+  if (structural_) {
+    StageTimer timer(rec, Stage::SolveStress);
+    computeEigenstrain();
+    if (std::all_of(eigenstrain_.begin(), eigenstrain_.end(), [](double v) { return v == 0; })) {
+      timer.skip();  // at rest: no load, and the last stresses are zero too
+    } else {
+      structural_->solve(eigenstrain_);
+    }
+    const std::vector<double>& vm = structural_->vonMisesPa();
+    rec.maxVonMisesPa = vm.empty() ? 0.0 : *std::max_element(vm.begin(), vm.end());
+  }
+
+  // ---- 6. rupture: tets over the critical stress; 7. rebuild (applied now) ----
+  if (config_.phases.rupture) {
+    std::vector<int> broken;
+    {
+      StageTimer timer(rec, Stage::Rupture);
+      const std::vector<double>& vm = structural_->vonMisesPa();
+      for (int e = 0; e < mesh_.numTets(); ++e)
+        if (mesh_.isAlive(e) && vm[e] > config_.criticalStressPa) broken.push_back(e);
+      if (broken.empty()) timer.skip();
+    }
+    StageTimer timer(rec, Stage::Rebuild);
+    if (broken.empty()) {
+      timer.skip();
+    } else {
+      removeTets(broken);
+      rec.removedTets = static_cast<int>(broken.size());
+    }
   }
 
   ++frame_;
@@ -252,7 +353,16 @@ void Simulation::buildSurfaceTopology() {
   surfaceTriangles_.clear();
   surfaceTriangles_.reserve(surface_.size() * 3);
   for (const auto& f : surface_)
-    for (int v : f.nodes) surfaceTriangles_.push_back(static_cast<std::uint32_t>(surfaceVertexOf_[v]));
+    for (int v : f.nodes)
+      surfaceTriangles_.push_back(static_cast<std::uint32_t>(surfaceVertexOf_[v]));
+  // cut walls: vertices of faces that were inside the initial tissue
+  surfaceCutWall_.assign(surfacePositionsM_.size() / 3, 0.0f);
+  for (const auto& f : surface_) {
+    std::array<int, 3> key{f.nodes[0], f.nodes[1], f.nodes[2]};
+    std::sort(key.begin(), key.end());
+    if (std::binary_search(initialFaces_.begin(), initialFaces_.end(), key)) continue;
+    for (int v : f.nodes) surfaceCutWall_[surfaceVertexOf_[v]] = 1.0f;
+  }
 }
 
 SurfaceSnapshot Simulation::snapshot() {
@@ -267,7 +377,7 @@ SurfaceSnapshot Simulation::snapshot() {
   snap.temperatureC.assign(nv, static_cast<float>(config_.thermal.initialTemperatureC));
   snap.coagulation.assign(nv, 0.0f);
   snap.desiccation.assign(nv, 0.0f);
-  snap.cutWall.assign(nv, 0.0f);
+  snap.cutWall = surfaceCutWall_;
   if (thermal_) {
     std::vector<float> coag_sum(nv, 0.0f), count(nv, 0.0f);
     for (const auto& f : surface_) {

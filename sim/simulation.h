@@ -10,8 +10,13 @@
 // Only the phases the scene lists are built: an unlisted phase has no object, no
 // matrix and no stage (its timing is "absent"). A listed stage with nothing to do this
 // frame (generator off, no contact, zero source at rest) records "skipped".
-// The structural phases (structural, rupture) are not implemented yet: asking for
-// them is an Error at construction.
+// Structural: the tissue water's expansion (liquid + trapped vapour, structural.h) loads a
+// linear elastic body clamped at its bottom (nodes within supportBandM of the lowest
+// node); per-tet von Mises stress. Rupture: alive tets whose von Mises stress exceeds
+// criticalStressPa are removed; rebuild (synchronous: applied in the same frame) then
+// refreshes the surface, the contact candidates, the electric matrix and solver, the
+// thermal operators and the structural factorization. Faces exposed by removal are cut
+// walls in the snapshot.
 // Units: SI (m, s, V, A, W, J), temperatures in degrees Celsius.
 #pragma once
 
@@ -26,6 +31,7 @@
 #include "sim/fem_p1.h"
 #include "sim/mesh_tet.h"
 #include "sim/snapshot.h"
+#include "sim/structural.h"
 #include "sim/thermal_step.h"
 #include "sim/tool_path.h"
 
@@ -55,16 +61,18 @@ enum class StageStatus : std::uint8_t { Absent = 0, Ran, Skipped };
 // one row of the timing report
 struct FrameRecord {
   int frame = 0;
-  double timeS = 0;                                  // simulated time at frame start [s]
-  std::array<double, kStageCount> ms{};              // wall time per stage [ms]
-  std::array<StageStatus, kStageCount> status{};     // absent / ran / skipped
+  double timeS = 0;                               // simulated time at frame start [s]
+  std::array<double, kStageCount> ms{};           // wall time per stage [ms]
+  std::array<StageStatus, kStageCount> status{};  // absent / ran / skipped
   int contactNodes = 0;
   bool generatorOn = false;
-  double toolCurrentA = 0;                           // into the tissue at the tool [A]
-  double returnCurrentA = 0;                         // out at the return electrode [A]
-  double powerW = 0;                                 // Joule power this frame [W]
+  double toolCurrentA = 0;    // into the tissue at the tool [A]
+  double returnCurrentA = 0;  // out at the return electrode [A]
+  double powerW = 0;          // Joule power this frame [W]
   double maxTemperatureC = 0;
-  double physicsMs() const;                          // sum of the simulation stages [ms]
+  double maxVonMisesPa = 0;  // structural phase, over alive tets
+  int removedTets = 0;       // by rupture this frame
+  double physicsMs() const;  // sum of the simulation stages [ms]
 };
 
 // times one stage into a record (monotonic clock)
@@ -91,8 +99,8 @@ struct PhaseSet {
 struct HeatSourceSpec {
   bool enabled = false;
   Vec3 centerM{0, 0, 0.01};
-  double radiusM = 0.003;            // Gaussian 1/e radius [m]
-  double powerDensityW_m3 = 1e8;     // peak [W/m^3]
+  double radiusM = 0.003;         // Gaussian 1/e radius [m]
+  double powerDensityW_m3 = 1e8;  // peak [W/m^3]
 };
 
 struct HotSpotSpec {
@@ -107,7 +115,7 @@ struct SimulationConfig {
   double frameDtS = 1.0 / 30.0;  // simulated time per frame [s]
 
   // electric
-  double conductivityS_m = 0.144;          // sigma at the initial temperature [S/m]
+  double conductivityS_m = 0.144;  // sigma at the initial temperature [S/m]
   double toolVoltageV = 72;
   double contactDistanceM = 0.0008;
   ElectrodeShape electrode;
@@ -129,6 +137,12 @@ struct SimulationConfig {
   HeatSourceSpec heatSource;
   HotSpotSpec hotSpot;
   bool coolTopSurface = false;  // convective faces: the boundary faces facing up (+z)
+
+  // structural and rupture
+  StructuralOptions structural;          // E, nu
+  double vaporLiquidVolumeRatio = 1602;  // v_gas / v_liq of water at boiling, 1 atm
+  double supportBandM = 1e-4;            // clamp the nodes this close to the lowest z [m]
+  double criticalStressPa = 2.45e4;      // von Mises stress that breaks a tet (paper)
 };
 
 // ---- the simulation ----
@@ -158,26 +172,34 @@ class Simulation {
   const std::vector<double>& joulePowerW_m3() const { return joule_; }
   const std::vector<double>& conductivityS_m() const { return sigma_; }
   const ThermalState* thermalState() const { return thermal_ ? &thermalState_ : nullptr; }
-  Eigen::VectorXd temperatureC() const;      // per node (initial value without thermal)
+  Eigen::VectorXd temperatureC() const;                 // per node (initial value without thermal)
   double energyDeliveredJ() const { return energyJ_; }  // integral of Joule power [J]
   double maxTemperatureSeenC() const { return maxTemperatureC_; }
   double electricMemoryBytes() const;
   std::string electricSolverName() const;
   bool hasElectric() const { return electric_ != nullptr; }
+  const std::vector<double>* vonMisesPa() const {
+    return structural_ ? &structural_->vonMisesPa() : nullptr;
+  }
+  int removedTets() const { return removedTets_; }  // by rupture since the start
 
  private:
   void refreshConductivity(FrameRecord& record);
   void prefetchScriptedPath();
   void buildSurfaceTopology();
+  void computeEigenstrain();
+  void removeTets(const std::vector<int>& broken);
 
   TetMesh mesh_;
   SimulationConfig config_;
   std::vector<TetGeometry> geo_;
   std::vector<BoundaryFace> surface_;
   std::vector<int> surfaceNodes_;
-  std::vector<int> surfaceVertexOf_;             // node -> snapshot vertex (-1 inside)
-  std::vector<float> surfacePositionsM_;         // snapshot vertex positions [m]
-  std::vector<std::uint32_t> surfaceTriangles_;  // snapshot triangles
+  std::vector<int> surfaceVertexOf_;              // node -> snapshot vertex (-1 inside)
+  std::vector<float> surfacePositionsM_;          // snapshot vertex positions [m]
+  std::vector<std::uint32_t> surfaceTriangles_;   // snapshot triangles
+  std::vector<float> surfaceCutWall_;             // snapshot vertex: 1 on a cut wall
+  std::vector<std::array<int, 3>> initialFaces_;  // sorted node ids of the initial boundary
   std::vector<int> ground_;
   ContactFinder contactFinder_;
 
@@ -193,6 +215,13 @@ class Simulation {
   std::unique_ptr<ThermalPhase> thermal_;
   ThermalState thermalState_;
   std::vector<double> prescribedSource_;  // thermal without electric: per tet [W/m^3]
+
+  // structural phase (null when not listed)
+  std::unique_ptr<StructuralPhase> structural_;
+  std::vector<Support> supports_;
+  ExpansionParams expansion_;
+  std::vector<double> eigenstrain_;  // per tet volumetric expansion
+  int removedTets_ = 0;
 
   int frame_ = 0;
   double timeS_ = 0;

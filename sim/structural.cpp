@@ -146,6 +146,7 @@ struct StructuralPhase::Impl {
   std::vector<double> vonMisesPa;
   double factorSeconds = 0;
   int islands = 0;
+  int numFree = 0;
 };
 
 StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& options,
@@ -195,7 +196,6 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   int nf = 0;
   for (size_t dof = 0; dof < held.size(); ++dof)
     if (!held[dof]) m.freeIndex[dof] = nf++;
-  ESIM_VERIFY(nf > 0, "structural: every displacement component is held; nothing to solve");
 
   // 2. K over the unknowns (lower triangle)
   std::vector<Eigen::Triplet<double>> triplets;
@@ -215,15 +215,16 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
       }
     }
   }
+  m.numFree = nf;
   SparseMatrix k(nf, nf);
   k.setFromTriplets(triplets.begin(), triplets.end());
   k.makeCompressed();
 
   // 3. factorization, once
   const auto t0 = std::chrono::steady_clock::now();
-  m.factor.compute(k);
+  if (nf > 0) m.factor.compute(k);  // nf == 0: everything held, nothing to solve
   m.factorSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  ESIM_VERIFY(m.factor.info() == Eigen::Success,
+  ESIM_VERIFY(nf == 0 || m.factor.info() == Eigen::Success,
               "structural: the stiffness matrix is not positive definite (degenerate tets, or "
               "supports that leave part of the body free)");
   m.u = Eigen::VectorXd::Zero(3 * n);
@@ -241,7 +242,7 @@ void StructuralPhase::solve(const std::vector<double>& ev) {
                   std::to_string(mesh.numTets()) + " tets");
   // f = sum_e V_e B_e^T D eps*_e; D eps* = K_b e_v (1,1,1,0,0,0), so node i of the tet
   // gets V_e K_b e_v grad N_i
-  m.rhs.setZero(m.factor.rows());
+  m.rhs.setZero(m.numFree);
   for (int t = 0; t < mesh.numTets(); ++t) {
     if (!mesh.isAlive(t) || ev[t] == 0) continue;
     ESIM_VERIFY(std::isfinite(ev[t]),
@@ -253,7 +254,7 @@ void StructuralPhase::solve(const std::vector<double>& ev) {
         if (fi >= 0) m.rhs(fi) += s * m.geo[t].grad(i, a);
       }
   }
-  m.freeSolution = m.factor.solve(m.rhs);
+  if (m.numFree > 0) m.freeSolution = m.factor.solve(m.rhs);
   m.u.setZero();
   for (size_t dof = 0; dof < m.freeIndex.size(); ++dof)
     if (m.freeIndex[dof] >= 0)
@@ -277,7 +278,7 @@ void StructuralPhase::solve(const std::vector<double>& ev) {
 const Eigen::VectorXd& StructuralPhase::displacementM() const { return impl_->u; }
 const std::vector<VoigtStress>& StructuralPhase::stressPa() const { return impl_->stress; }
 const std::vector<double>& StructuralPhase::vonMisesPa() const { return impl_->vonMisesPa; }
-int StructuralPhase::numFreeDofs() const { return static_cast<int>(impl_->factor.rows()); }
+int StructuralPhase::numFreeDofs() const { return impl_->numFree; }
 double StructuralPhase::factorizationSeconds() const { return impl_->factorSeconds; }
 int StructuralPhase::numFloatingIslands() const { return impl_->islands; }
 

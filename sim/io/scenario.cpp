@@ -188,6 +188,11 @@ const std::vector<Field>& schema() {
                        openHi(0.0, 0.5), "Poisson's ratio nu (paper Table 1)"));
     f.push_back(number("material.critical_stress_pa", ESIM_REF(material.criticalStressPa), "Pa",
                        positive(1e12), "von Mises stress that breaks an element (paper Table 1)"));
+    f.push_back(number("material.vapor_liquid_volume_ratio",
+                       ESIM_REF(material.vaporLiquidVolumeRatio), "", closed(1.0, 1e4),
+                       "volume of water vapour / liquid at boiling and 1 atm (steam tables: "
+                       "1.673 / 0.001044); the trapped vapour's expansion loads the structural "
+                       "phase"));
     f.push_back(number("material.density_kg_per_m3", ESIM_REF(material.densityKgPerM3), "kg/m^3",
                        positive(1e5), "tissue density rho"));
     f.push_back(number("material.water_fraction", ESIM_REF(material.waterFraction), "",
@@ -285,6 +290,10 @@ const std::vector<Field>& schema() {
     f.push_back(number("effects.surface_cooling.ambient_c",
                        ESIM_REF(effects.surfaceCoolingAmbientC), "C", closed(-50.0, 200.0),
                        "ambient temperature for surface cooling"));
+    f.push_back(number("effects.structural_clamp_band_m", ESIM_REF(effects.structuralClampBandM),
+                       "m", closed(0.0, 10.0),
+                       "structural: the surface nodes within this height of the lowest node "
+                       "are clamped (the tissue rests on the table)"));
     // solvers
     f.push_back(choice("solvers.electric.strategy", ESIM_REF(solvers.electricStrategy),
                        {"refactor", "dense-inverse", "capacitance", "pcg"},

@@ -86,6 +86,7 @@ struct ScenarioMaterial {
   double youngsModulusPa = 4.75e4;
   double poissonRatio = 0.4;
   double criticalStressPa = 2.45e4;  // von Mises breaking stress
+  double vaporLiquidVolumeRatio = 1602;  // v_gas / v_liq of water at boiling, 1 atm
   double densityKgPerM3 = 1060.0;
   double waterFraction = 0.78;        // mass fraction of water
   double latentHeatJPerKg = 2.256e6;  // vaporization of water
@@ -149,6 +150,7 @@ struct ScenarioEffects {
   bool thermalDamage = false;
   double surfaceCoolingHWPerM2K = 0.0;  // convective h on the free surface (0 = insulated)
   double surfaceCoolingAmbientC = 20.0;
+  double structuralClampBandM = 1e-4;  // clamp nodes this close to the lowest z (structural)
   bool operator==(const ScenarioEffects&) const = default;
 };
 

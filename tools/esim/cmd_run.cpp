@@ -112,6 +112,11 @@ SimulationConfig makeConfig(const Scenario& s) {
   c.hotSpot.centerM = s.initialHotSpot.centerM;
   c.hotSpot.radiusM = s.initialHotSpot.radiusM;
   c.hotSpot.temperatureC = s.initialHotSpot.temperatureC;
+  c.structural.youngsModulusPa = m.youngsModulusPa;
+  c.structural.poissonRatio = m.poissonRatio;
+  c.criticalStressPa = m.criticalStressPa;
+  c.vaporLiquidVolumeRatio = m.vaporLiquidVolumeRatio;
+  c.supportBandM = s.effects.structuralClampBandM;
   return c;
 }
 
