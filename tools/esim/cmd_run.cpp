@@ -191,6 +191,7 @@ void writeFields(const std::string& path, const Simulation& sim) {
     if (!t->vaporFractionTet.empty()) cell.push_back({"vapor_fraction", 1, t->vaporFractionTet});
     if (!t->coagulationTet.empty()) cell.push_back({"coagulation", 1, t->coagulationTet});
   }
+  if (const std::vector<double>* vm = sim.vonMisesPa()) cell.push_back({"von_mises", 1, *vm});
   std::vector<double> alive(m.numTets());
   for (int e = 0; e < m.numTets(); ++e) alive[e] = m.isAlive(e) ? 1.0 : 0.0;
   cell.push_back({"alive", 1, alive});
@@ -362,6 +363,10 @@ int runScenario(const RunOptions& opt) {
   extra["electric_solver"] = sim.electricSolverName();
   extra["build"] = {{"compiler", __VERSION__}, {"esim", "0.1.0"}};
   extra["electric_memory_mb"] = sim.electricMemoryBytes() / 1048576.0;
+  if (sim.config().phases.structural)
+    extra["structural"] = {{"removed_tets", sim.removedTets()},
+                           {"alive_tets", sim.mesh().numAlive()},
+                           {"rebuild", "synchronous (applied in the frame that breaks)"}};
   if (renderer) {
     extra["renderer"] = {{"gl_renderer", renderer->glRenderer()},
                          {"gl_version", renderer->glVersion()},
@@ -421,6 +426,17 @@ int runScenario(const RunOptions& opt) {
   sum.precision(3);
   sum << "  energy        " << sim.energyDeliveredJ() << " J delivered, peak power " << peak_power_w
       << " W\n";
+  if (sim.config().phases.structural) {
+    int cutFrames = 0;
+    double peakVm = 0;
+    for (const FrameRecord& r : records) {
+      cutFrames += r.removedTets > 0 ? 1 : 0;
+      peakVm = std::max(peakVm, r.maxVonMisesPa);
+    }
+    sum << "  structural    peak von Mises " << peakVm << " Pa; " << sim.removedTets()
+        << " tets removed in " << cutFrames << " frames (" << sim.mesh().numAlive() << " of "
+        << sim.mesh().numTets() << " alive)\n";
+  }
   if (encoder) encoder.reset();
   fs::remove_all(out);
   fs::rename(partial, out);

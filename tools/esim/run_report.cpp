@@ -76,7 +76,9 @@ std::string timingCsv(const std::vector<FrameRecord>& records) {
   std::ostringstream os;
   os << "frame,time_s";
   for (Stage s : present) os << ',' << stageName(s) << "_ms";
-  os << ",interactive_ms,over_budget,generator_on,contacts,power_w,max_temperature_c\n";
+  const bool structural = stagePresent(records, Stage::SolveStress);
+  os << ",interactive_ms,over_budget,generator_on,contacts,power_w,max_temperature_c";
+  os << (structural ? ",max_von_mises_pa,removed_tets\n" : "\n");
   os.setf(std::ios::fixed);
   for (const auto& r : records) {
     os.precision(4);
@@ -91,7 +93,9 @@ std::string timingCsv(const std::vector<FrameRecord>& records) {
     os << ',' << im << ',' << (im > kBudgetMs ? 1 : 0) << ',' << (r.generatorOn ? 1 : 0) << ','
        << r.contactNodes << ',';
     os.precision(6);
-    os << r.powerW << ',' << r.maxTemperatureC << '\n';
+    os << r.powerW << ',' << r.maxTemperatureC;
+    if (structural) os << ',' << r.maxVonMisesPa << ',' << r.removedTets;
+    os << '\n';
   }
   return os.str();
 }
