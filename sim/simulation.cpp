@@ -141,6 +141,7 @@ Simulation::Simulation(TetMesh mesh, SimulationConfig config)
     expansion_.initialTemperatureC = config_.thermal.initialTemperatureC;
     expansion_.boilingTemperatureC = config_.thermal.boilingTemperatureC;
     expansion_.vaporLiquidVolumeRatio = config_.vaporLiquidVolumeRatio;
+    expansion_.maxExpansion = config_.maxVaporExpansion;
     eigenstrain_.assign(mesh_.numTets(), 0.0);
     try {
       structural_ = std::make_unique<StructuralPhase>(mesh_, config_.structural, supports_);

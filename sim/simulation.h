@@ -141,6 +141,7 @@ struct SimulationConfig {
   // structural and rupture
   StructuralOptions structural;          // E, nu
   double vaporLiquidVolumeRatio = 1602;  // v_gas / v_liq of water at boiling, 1 atm
+  double maxVaporExpansion = 3.0;        // cap of dV/V (structural.h)
   double supportBandM = 1e-4;            // clamp the nodes this close to the lowest z [m]
   double criticalStressPa = 2.45e4;      // von Mises stress that breaks a tet (paper)
 };

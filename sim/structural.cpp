@@ -75,31 +75,46 @@ bool supportsFixRigidMotions(const TetMesh& mesh, const std::vector<Support>& su
   return eig.eigenvalues()(0) > 1e-10 * eig.eigenvalues()(5);
 }
 
-// connected pieces of the alive tets (tets sharing a node), per node: piece id or -1
+// rigid pieces of the alive tets: tets connected through shared faces (a piece joined
+// to another by an edge or a node only can still turn about it); per alive tet its piece
 std::vector<int> alivePieces(const TetMesh& mesh, int& count) {
-  std::vector<int> parent(mesh.numNodes());
-  for (int i = 0; i < mesh.numNodes(); ++i) parent[i] = i;
+  const int nt = mesh.numTets();
+  std::vector<int> parent(nt);
+  for (int t = 0; t < nt; ++t) parent[t] = t;
   auto find = [&](int i) {
     while (parent[i] != i) i = parent[i] = parent[parent[i]];
     return i;
   };
-  std::vector<std::uint8_t> used(mesh.numNodes(), 0);
-  for (int t = 0; t < mesh.numTets(); ++t) {
+  struct Face {
+    std::array<int, 3> key;
+    int tet;
+  };
+  std::vector<Face> faces;
+  faces.reserve(4 * static_cast<size_t>(nt));
+  for (int t = 0; t < nt; ++t) {
     if (!mesh.isAlive(t)) continue;
     const Tet& tet = mesh.tets[t];
-    for (int k = 0; k < 4; ++k) used[tet[k]] = 1;
-    for (int k = 1; k < 4; ++k) {
-      const int a = find(tet[0]), b = find(tet[k]);
-      if (a != b) parent[std::max(a, b)] = std::min(a, b);
+    for (int k = 0; k < 4; ++k) {
+      std::array<int, 3> key{tet[(k + 1) % 4], tet[(k + 2) % 4], tet[(k + 3) % 4]};
+      std::sort(key.begin(), key.end());
+      faces.push_back({key, t});
     }
   }
-  std::vector<int> piece(mesh.numNodes(), -1), idOfRoot(mesh.numNodes(), -1);
+  std::sort(faces.begin(), faces.end(), [](const Face& a, const Face& b) {
+    return a.key < b.key || (a.key == b.key && a.tet < b.tet);
+  });
+  for (size_t f = 1; f < faces.size(); ++f)
+    if (faces[f].key == faces[f - 1].key) {
+      const int a = find(faces[f].tet), b = find(faces[f - 1].tet);
+      if (a != b) parent[std::max(a, b)] = std::min(a, b);
+    }
+  std::vector<int> piece(nt, -1), idOfRoot(nt, -1);
   count = 0;
-  for (int i = 0; i < mesh.numNodes(); ++i) {
-    if (!used[i]) continue;
-    const int r = find(i);
+  for (int t = 0; t < nt; ++t) {
+    if (!mesh.isAlive(t)) continue;
+    const int r = find(t);
     if (idOfRoot[r] < 0) idOfRoot[r] = count++;
-    piece[i] = idOfRoot[r];
+    piece[t] = idOfRoot[r];
   }
   return piece;
 }
@@ -126,7 +141,7 @@ double volumetricExpansion(const ExpansionParams& p, double temperatureC, double
   const double phi = p.waterFraction * p.densityKg_m3 / rho0;
   const double liquid = rho0 / waterDensityKg_m3(std::min(temperatureC, p.boilingTemperatureC)) - 1;
   const double x = std::clamp(vaporFraction, 0.0, 1.0);
-  return phi * (liquid + x * (p.vaporLiquidVolumeRatio - 1));
+  return std::min(phi * (liquid + x * (p.vaporLiquidVolumeRatio - 1)), p.maxExpansion);
 }
 
 double vonMises(const VoigtStress& s) {
@@ -180,17 +195,31 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   ESIM_VERIFY(supportsFixRigidMotions(mesh, supports),
               "structural: the supports leave the body free to translate or rotate; hold at "
               "least 6 independent displacement components (e.g. clamp a face)");
-  // pieces without a support (cut loose) are held in place
+  // rigid pieces whose own supports leave a rigid motion free (cut loose, or hanging by an
+  // edge or a node) are held in place, all their nodes
   int pieces = 0;
-  const std::vector<int> piece = alivePieces(mesh, pieces);
+  const std::vector<int> pieceOfTet = alivePieces(mesh, pieces);
   if (pieces > 1) {
-    std::vector<std::uint8_t> supported(pieces, 0);
-    for (const Support& s : supports)
-      if (piece[s.node] >= 0) supported[piece[s.node]] = 1;
-    for (int p = 0; p < pieces; ++p) m.islands += supported[p] ? 0 : 1;
-    for (int v = 0; v < n; ++v)
-      if (piece[v] >= 0 && !supported[piece[v]])
+    std::vector<std::vector<int>> nodesOf(pieces);
+    for (int t = 0; t < mesh.numTets(); ++t)
+      if (pieceOfTet[t] >= 0)
+        for (int v : mesh.tets[t]) nodesOf[pieceOfTet[t]].push_back(v);
+    std::vector<std::uint8_t> inPiece(n, 0);
+    for (int p = 0; p < pieces; ++p) {
+      std::vector<int>& nodes = nodesOf[p];
+      std::sort(nodes.begin(), nodes.end());
+      nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+      for (int v : nodes) inPiece[v] = 1;
+      std::vector<Support> own;
+      for (const Support& s : supports)
+        if (inPiece[s.node]) own.push_back(s);
+      for (int v : nodes) inPiece[v] = 0;
+      if (supportsFixRigidMotions(mesh, own)) continue;
+      ++m.islands;
+      for (int v : nodes)
         for (int a = 0; a < 3; ++a) held[3 * v + a] = 1;
+    }
+    ESIM_VERIFY(m.islands < pieces, "structural: no piece of the body is held by the supports");
   }
   m.freeIndex.assign(3 * static_cast<size_t>(n), -1);
   int nf = 0;

@@ -193,6 +193,10 @@ const std::vector<Field>& schema() {
                        "volume of water vapour / liquid at boiling and 1 atm (steam tables: "
                        "1.673 / 0.001044); the trapped vapour's expansion loads the structural "
                        "phase"));
+    f.push_back(number("material.max_vapor_expansion", ESIM_REF(material.maxVaporExpansion), "",
+                       closed(0.0, 1e4),
+                       "cap of the tissue's volumetric expansion dV/V (the vapour vents once the "
+                       "tissue parts; see sim/structural.h for its effect on the cut)"));
     f.push_back(number("material.density_kg_per_m3", ESIM_REF(material.densityKgPerM3), "kg/m^3",
                        positive(1e5), "tissue density rho"));
     f.push_back(number("material.water_fraction", ESIM_REF(material.waterFraction), "",

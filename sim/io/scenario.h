@@ -87,6 +87,7 @@ struct ScenarioMaterial {
   double poissonRatio = 0.4;
   double criticalStressPa = 2.45e4;  // von Mises breaking stress
   double vaporLiquidVolumeRatio = 1602;  // v_gas / v_liq of water at boiling, 1 atm
+  double maxVaporExpansion = 3.0;        // cap of the volumetric expansion (vapour vents)
   double densityKgPerM3 = 1060.0;
   double waterFraction = 0.78;        // mass fraction of water
   double latentHeatJPerKg = 2.256e6;  // vaporization of water

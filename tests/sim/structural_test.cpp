@@ -176,6 +176,11 @@ TEST(Structural, ExpansionOfTheTissueWater) {
   EXPECT_NEAR(volumetricExpansion(p, 180, 0), liquid, 1e-12);  // held at Tb when dry
   // vapour: 1 per mille of the water boiled multiplies its volume fraction by 1.601
   EXPECT_NEAR(volumetricExpansion(p, 100, 1e-3), liquid + phi * 1.601, 1e-12);
+  // capped once the vapour would vent
+  EXPECT_EQ(volumetricExpansion(p, 100, 0.05), p.maxExpansion);
+  ExpansionParams uncapped = p;
+  uncapped.maxExpansion = 1e9;
+  EXPECT_NEAR(volumetricExpansion(uncapped, 100, 0.05), liquid + phi * 0.05 * 1601, 1e-9);
   // in a laterally constrained layer the von Mises stress E e_v / (3 (1 - nu)) reaches the
   // critical stress 2.45e4 Pa at e_v = 0.93 (REFERENCE.md: ~0.9), i.e. once 6.7e-4 of the
   // water has boiled

@@ -116,6 +116,7 @@ SimulationConfig makeConfig(const Scenario& s) {
   c.structural.poissonRatio = m.poissonRatio;
   c.criticalStressPa = m.criticalStressPa;
   c.vaporLiquidVolumeRatio = m.vaporLiquidVolumeRatio;
+  c.maxVaporExpansion = m.maxVaporExpansion;
   c.supportBandM = s.effects.structuralClampBandM;
   return c;
 }
