@@ -215,6 +215,27 @@ TEST(Structural, FloatingIslandIsHeldInPlace) {
   EXPECT_GT(maxVm, 0.0);
 }
 
+// two tets sharing one node: the upper one could turn about it (singular K) unless the
+// phase recognises it as a separate rigid piece and holds it
+TEST(Structural, PieceHangingByANodeIsHeld) {
+  TetMesh mesh;
+  const double h = 0.01;
+  mesh.nodes = {Vec3(0, 0, 0), Vec3(h, 0, 0), Vec3(0, h, 0), Vec3(0, 0, h),
+                Vec3(h, 0, h), Vec3(0, h, h), Vec3(0, 0, 2 * h)};
+  mesh.tets = {{0, 1, 2, 3}, {3, 4, 5, 6}};
+  mesh.alive = {1, 1};
+  std::vector<Support> s;
+  for (int v = 0; v < 3; ++v)
+    for (int a = 0; a < 3; ++a) s.push_back({v, a});
+  StructuralPhase phase(mesh, paper(), s);
+  EXPECT_EQ(phase.numFloatingIslands(), 1);
+  EXPECT_EQ(phase.numFreeDofs(), 0);  // node 3 is held with the hanging piece
+  phase.solve({kEv, kEv});
+  EXPECT_EQ(phase.displacementM().norm(), 0.0);
+  // fully held: the hydrostatic stress of a clamped body
+  EXPECT_NEAR(phase.stressPa()[0][0], -kE * kEv / (3 * (1 - 2 * kNu)), 1e-9);
+}
+
 TEST(Structural, RejectsBadInput) {
   const TetMesh mesh = distortedSlab();
   auto message = [](auto&& f) {
