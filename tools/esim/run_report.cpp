@@ -148,6 +148,8 @@ nlohmann::json chromeTrace(const std::vector<FrameRecord>& records,
   return {{"traceEvents", events}, {"displayTimeUnit", "ms"}};
 }
 
+extern "C" char* openblas_get_corename(void);
+
 nlohmann::json machineInfo() {
   nlohmann::json j;
   std::ifstream cpu("/proc/cpuinfo");
@@ -163,6 +165,8 @@ nlohmann::json machineInfo() {
   if (uname(&u) == 0) j["system"] = std::string(u.sysname) + " " + u.release + " " + u.machine;
   const char* lp = std::getenv("LP_NUM_THREADS");
   j["LP_NUM_THREADS"] = lp ? lp : "";
+  const char* core = openblas_get_corename();
+  j["openblas_core"] = core ? core : "";
   return j;
 }
 
