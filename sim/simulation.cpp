@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <future>
 #include <iterator>
 
 #include "sim/core_error.h"
@@ -99,6 +100,7 @@ Simulation::Simulation(TetMesh mesh, SimulationConfig config)
       }
     }
     config_.thermal = tp;
+    cooled_ = cooled;
     thermal_ = std::make_unique<ThermalPhase>(mesh_, geo_, tp, cooled);
     thermal_->initState(thermalState_);
     if (config_.hotSpot.enabled) {
@@ -145,6 +147,7 @@ Simulation::Simulation(TetMesh mesh, SimulationConfig config)
     eigenstrain_.assign(mesh_.numTets(), 0.0);
     try {
       structural_ = std::make_unique<StructuralPhase>(mesh_, config_.structural, supports_);
+      pending_.assign(mesh_.numTets(), 0);
     } catch (const Error& e) {
       throw Error(std::string(e.what()) + " (clamped: " + std::to_string(supports_.size() / 3) +
                   " bottom nodes within structural.support_band_m = " +
@@ -168,25 +171,103 @@ void Simulation::computeEigenstrain() {
   }
 }
 
-void Simulation::removeTets(const std::vector<int>& broken) {
-  for (int e : broken) mesh_.alive[e] = 0;
-  removedTets_ += static_cast<int>(broken.size());
-  ESIM_VERIFY(mesh_.numAlive() > 0, "rupture: every element of the tissue has been removed");
-  surface_ = boundaryFaces(mesh_);
-  surfaceNodes_ = boundaryNodes(mesh_, surface_);
-  buildSurfaceTopology();
-  if (thermal_) thermal_->rebuild(mesh_, geo_);
+// everything the removal of tets invalidates, built for a given alive set from the
+// immutable model only (nodes, tets, geometry, configuration, supports), so that it can
+// run on another thread while frames go on with the current structures
+struct Simulation::Rebuilt {
+  std::vector<std::uint8_t> alive;
+  std::vector<int> removed;  // the tets this rebuild removes
+  std::vector<BoundaryFace> surface;
+  std::vector<int> surfaceNodes, ground;
+  ContactFinder contactFinder;
+  std::vector<double> sigma;  // the conductivities K was assembled with
+  SparseMatrix stiffness;
+  std::unique_ptr<ElectricSolver> electric;
+  std::unique_ptr<ThermalPhase> thermal;
+  std::unique_ptr<StructuralPhase> structural;
+  double buildMs = 0;
+};
+
+std::unique_ptr<Simulation::Rebuilt> Simulation::buildRebuilt(std::vector<std::uint8_t> alive,
+                                                              std::vector<int> removed,
+                                                              std::vector<double> sigma) const {
+  const auto t0 = std::chrono::steady_clock::now();
+  auto r = std::make_unique<Rebuilt>();
+  TetMesh mesh;
+  mesh.nodes = mesh_.nodes;
+  mesh.tets = mesh_.tets;
+  mesh.alive = alive;
+  ESIM_VERIFY(mesh.numAlive() > 0, "rupture: every element of the tissue has been removed");
+  r->surface = boundaryFaces(mesh);
+  r->surfaceNodes = boundaryNodes(mesh, r->surface);
+  if (thermal_) {
+    std::vector<BoundaryFace> cooled;
+    for (const BoundaryFace& f : cooled_)
+      if (mesh.isAlive(f.tet)) cooled.push_back(f);
+    r->thermal = std::make_unique<ThermalPhase>(mesh, geo_, config_.thermal, cooled);
+    if (config_.thermal.integrator == ThermalIntegrator::Explicit)
+      r->thermal->stableExplicitDtS();  // computed here, not in the next frame
+  }
   if (electric_) {
-    ground_ = returnElectrodeNodes(mesh_, surfaceNodes_, config_.returnElectrode);
-    ESIM_VERIFY(!ground_.empty(),
+    r->ground = returnElectrodeNodes(mesh, r->surfaceNodes, config_.returnElectrode);
+    ESIM_VERIFY(!r->ground.empty(),
                 "rupture: the cut removed all the tissue on the return electrode");
-    contactFinder_ = ContactFinder(mesh_, surfaceNodes_);
-    stiffness_ = assembleStiffness(mesh_, geo_, sigmaAssembled_);
-    electric_->setContactCandidates(surfaceNodes_);
-    electric_->setMatrix(stiffness_, ground_);  // columns of new contacts come as needed
+    r->contactFinder = ContactFinder(mesh, r->surfaceNodes);
+    r->stiffness = assembleStiffness(mesh, geo_, sigma);
+    r->electric = makeElectricSolver(config_.electricSolver);
+    r->electric->setContactCandidates(r->surfaceNodes);
+    r->electric->setMatrix(r->stiffness, r->ground);  // columns of new contacts come as needed
   }
   if (structural_)
-    structural_ = std::make_unique<StructuralPhase>(mesh_, config_.structural, supports_);
+    r->structural = std::make_unique<StructuralPhase>(mesh, config_.structural, supports_);
+  r->alive = std::move(alive);
+  r->removed = std::move(removed);
+  r->sigma = std::move(sigma);
+  r->buildMs =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+void Simulation::swapIn(std::unique_ptr<Rebuilt> r, FrameRecord& rec) {
+  mesh_.alive = std::move(r->alive);
+  for (int e : r->removed) pending_[e] = 0;
+  removedTets_ += static_cast<int>(r->removed.size());
+  rec.removedTets = static_cast<int>(r->removed.size());
+  surface_ = std::move(r->surface);
+  surfaceNodes_ = std::move(r->surfaceNodes);
+  buildSurfaceTopology();
+  if (thermal_) thermal_ = std::move(r->thermal);
+  if (electric_) {
+    ground_ = std::move(r->ground);
+    contactFinder_ = std::move(r->contactFinder);
+    stiffness_ = std::move(r->stiffness);
+    sigmaAssembled_ = std::move(r->sigma);
+    electric_ = std::move(r->electric);
+  }
+  if (structural_) structural_ = std::move(r->structural);
+  ++rebuilds_;
+  rebuildBuildMs_ += r->buildMs;
+}
+
+void Simulation::startRebuild(const std::vector<int>& broken) {
+  std::vector<std::uint8_t> alive = mesh_.alive;
+  for (int e : broken) {
+    alive[e] = 0;
+    pending_[e] = 1;
+  }
+  std::vector<double> sigma = electric_ ? sigmaAssembled_ : std::vector<double>{};
+  if (!config_.backgroundRebuild) {
+    ready_ = buildRebuilt(std::move(alive), broken, std::move(sigma));
+    swapFrame_ = frame_;
+    return;
+  }
+  // a pure function of the immutable model and these copies: the result does not depend
+  // on when the thread runs, and it is swapped in at a fixed frame
+  job_ = std::async(std::launch::async,
+                    [this, alive = std::move(alive), broken, sigma = std::move(sigma)]() mutable {
+                      return buildRebuilt(std::move(alive), std::move(broken), std::move(sigma));
+                    });
+  swapFrame_ = frame_ + config_.rebuildLagFrames;
 }
 
 Simulation::~Simulation() = default;
@@ -319,23 +400,45 @@ const FrameRecord& Simulation::step() {
     rec.maxVonMisesPa = vm.empty() ? 0.0 : *std::max_element(vm.begin(), vm.end());
   }
 
-  // ---- 6. rupture: tets over the critical stress; 7. rebuild (applied now) ----
+  // ---- 6. rupture: tets over the critical stress (not already being removed);
+  //      7. rebuild: synchronous (built and swapped in now), or built on a thread and
+  //      swapped in config_.rebuildLagFrames frames later (frames meanwhile use the old
+  //      structures; tets that break meanwhile wait for the next rebuild) ----
   if (config_.phases.rupture) {
-    std::vector<int> broken;
     {
       StageTimer timer(rec, Stage::Rupture);
       const std::vector<double>& vm = structural_->vonMisesPa();
       for (int e = 0; e < mesh_.numTets(); ++e)
-        if (mesh_.isAlive(e) && vm[e] > config_.criticalStressPa) broken.push_back(e);
-      if (broken.empty()) timer.skip();
+        if (mesh_.isAlive(e) && !pending_[e] && vm[e] > config_.criticalStressPa) {
+          queued_.push_back(e);
+          pending_[e] = 1;
+        }
+      if (queued_.empty()) timer.skip();
     }
     StageTimer timer(rec, Stage::Rebuild);
-    if (broken.empty()) {
-      timer.skip();
-    } else {
-      removeTets(broken);
-      rec.removedTets = static_cast<int>(broken.size());
+    bool worked = false;
+    if (swapFrame_ < 0 && !queued_.empty()) {  // nothing in flight: start with the queue
+      std::vector<int> broken;
+      broken.swap(queued_);
+      for (int e : broken) pending_[e] = 0;
+      startRebuild(broken);
+      worked = true;
     }
+    if (swapFrame_ >= 0 && frame_ >= swapFrame_) {  // due: wait if needed, swap in
+      if (!ready_) {
+        const auto w0 = std::chrono::steady_clock::now();
+        ready_ = job_.get();
+        rec.rebuildWaitMs =
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - w0)
+                .count();
+        rebuildWaitMs_ = std::max(rebuildWaitMs_, rec.rebuildWaitMs);
+        if (rec.rebuildWaitMs > 1.0) ++rebuildsLate_;
+      }
+      swapIn(std::move(ready_), rec);
+      swapFrame_ = -1;
+      worked = true;
+    }
+    if (!worked) timer.skip();
   }
 
   ++frame_;

@@ -22,6 +22,7 @@
 
 #include <array>
 #include <chrono>
+#include <future>
 #include <memory>
 #include <string>
 #include <vector>
@@ -71,7 +72,8 @@ struct FrameRecord {
   double powerW = 0;          // Joule power this frame [W]
   double maxTemperatureC = 0;
   double maxVonMisesPa = 0;  // structural phase, over alive tets
-  int removedTets = 0;       // by rupture this frame
+  int removedTets = 0;       // by the rebuild swapped in this frame
+  double rebuildWaitMs = 0;  // background rebuild: the frame loop waited for it
   double physicsMs() const;  // sum of the simulation stages [ms]
 };
 
@@ -144,6 +146,8 @@ struct SimulationConfig {
   double maxVaporExpansion = 3.0;        // cap of dV/V (structural.h)
   double supportBandM = 1e-4;            // clamp the nodes this close to the lowest z [m]
   double criticalStressPa = 2.45e4;      // von Mises stress that breaks a tet (paper)
+  bool backgroundRebuild = false;        // build the new structures on a thread ...
+  int rebuildLagFrames = 3;              // ... swapped in this many frames after rupture
 };
 
 // ---- the simulation ----
@@ -182,14 +186,22 @@ class Simulation {
   const std::vector<double>* vonMisesPa() const {
     return structural_ ? &structural_->vonMisesPa() : nullptr;
   }
-  int removedTets() const { return removedTets_; }  // by rupture since the start
+  int removedTets() const { return removedTets_; }           // by rupture since the start
+  int rebuilds() const { return rebuilds_; }                 // swapped in so far
+  int rebuildsLate() const { return rebuildsLate_; }         // background: the frame loop waited
+  double rebuildBuildMs() const { return rebuildBuildMs_; }  // sum over rebuilds
+  double maxRebuildWaitMs() const { return rebuildWaitMs_; }
 
  private:
   void refreshConductivity(FrameRecord& record);
   void prefetchScriptedPath();
   void buildSurfaceTopology();
   void computeEigenstrain();
-  void removeTets(const std::vector<int>& broken);
+  struct Rebuilt;
+  std::unique_ptr<Rebuilt> buildRebuilt(std::vector<std::uint8_t> alive, std::vector<int> removed,
+                                        std::vector<double> sigma) const;
+  void startRebuild(const std::vector<int>& broken);
+  void swapIn(std::unique_ptr<Rebuilt> rebuilt, FrameRecord& record);
 
   TetMesh mesh_;
   SimulationConfig config_;
@@ -221,8 +233,18 @@ class Simulation {
   std::unique_ptr<StructuralPhase> structural_;
   std::vector<Support> supports_;
   ExpansionParams expansion_;
-  std::vector<double> eigenstrain_;  // per tet volumetric expansion
+  std::vector<double> eigenstrain_;   // per tet volumetric expansion
+  std::vector<BoundaryFace> cooled_;  // the thermal phase's cooled faces (initial)
+  // rupture and rebuild
+  std::vector<std::uint8_t> pending_;          // per tet: broken, waiting for (or in) a rebuild
+  std::vector<int> queued_;                    // broken since the rebuild in flight started
+  std::future<std::unique_ptr<Rebuilt>> job_;  // the rebuild in flight (background)
+  std::unique_ptr<Rebuilt> ready_;             // synchronous rebuild, or the job's result
+  int swapFrame_ = -1;                         // frame at which the rebuild in flight swaps in
   int removedTets_ = 0;
+  int rebuilds_ = 0, rebuildsLate_ = 0;  // swapped in; of which had to wait > 1 ms
+  double rebuildBuildMs_ = 0;            // sum of the rebuilds' build times
+  double rebuildWaitMs_ = 0;             // longest wait for a background rebuild
 
   int frame_ = 0;
   double timeS_ = 0;

@@ -13,6 +13,8 @@
 #include "sim/core_error.h"
 #include "sim/fem_p1.h"
 
+extern "C" void openblas_set_num_threads(int num_threads);
+
 namespace esim {
 namespace {
 
@@ -150,7 +152,8 @@ double vonMises(const VoigtStress& s) {
 }
 
 struct StructuralPhase::Impl {
-  const TetMesh* mesh = nullptr;
+  std::vector<Tet> tets;            // copied from the mesh: the phase outlives no mesh
+  std::vector<std::uint8_t> alive;  // per tet, 1 alive
   std::vector<TetGeometry> geo;
   std::vector<Mat6x12> db;     // D B_e per tet (stress from element displacements)
   std::vector<int> freeIndex;  // dof -> unknown, -1 when held
@@ -174,7 +177,9 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   ESIM_VERIFY(std::isfinite(nu) && nu >= 0 && nu < 0.5,
               "structural: poissonRatio must be in [0, 0.5), got " + std::to_string(nu));
   const int n = mesh.numNodes();
-  m.mesh = &mesh;
+  m.tets = mesh.tets;
+  m.alive.resize(mesh.numTets());
+  for (int t = 0; t < mesh.numTets(); ++t) m.alive[t] = mesh.isAlive(t) ? 1 : 0;
   m.geo = tetGeometry(mesh);
   const Mat6 d = elasticity(e, nu);
   m.bulkModulusPa = e / (3 * (1 - 2 * nu));
@@ -251,6 +256,7 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
 
   // 3. factorization, once
   const auto t0 = std::chrono::steady_clock::now();
+  openblas_set_num_threads(1);      // see StructuralOptions: BLAS threads only spin here
   if (nf > 0) m.factor.compute(k);  // nf == 0: everything held, nothing to solve
   m.factorSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   ESIM_VERIFY(nf == 0 || m.factor.info() == Eigen::Success,
@@ -265,38 +271,41 @@ StructuralPhase::~StructuralPhase() = default;
 
 void StructuralPhase::solve(const std::vector<double>& ev) {
   Impl& m = *impl_;
-  const TetMesh& mesh = *m.mesh;
-  ESIM_VERIFY(static_cast<int>(ev.size()) == mesh.numTets(),
-              "structural: " + std::to_string(ev.size()) + " eigenstrains for " +
-                  std::to_string(mesh.numTets()) + " tets");
+  const int nt = static_cast<int>(m.tets.size());
+  ESIM_VERIFY(static_cast<int>(ev.size()) == nt, "structural: " + std::to_string(ev.size()) +
+                                                     " eigenstrains for " + std::to_string(nt) +
+                                                     " tets");
   // f = sum_e V_e B_e^T D eps*_e; D eps* = K_b e_v (1,1,1,0,0,0), so node i of the tet
   // gets V_e K_b e_v grad N_i
   m.rhs.setZero(m.numFree);
-  for (int t = 0; t < mesh.numTets(); ++t) {
-    if (!mesh.isAlive(t) || ev[t] == 0) continue;
+  for (int t = 0; t < nt; ++t) {
+    if (!m.alive[t] || ev[t] == 0) continue;
     ESIM_VERIFY(std::isfinite(ev[t]),
                 "structural: eigenstrain of tet " + std::to_string(t) + " is not finite");
     const double s = m.geo[t].volume * m.bulkModulusPa * ev[t];
     for (int i = 0; i < 4; ++i)
       for (int a = 0; a < 3; ++a) {
-        const int fi = m.freeIndex[3 * mesh.tets[t][i] + a];
+        const int fi = m.freeIndex[3 * m.tets[t][i] + a];
         if (fi >= 0) m.rhs(fi) += s * m.geo[t].grad(i, a);
       }
   }
-  if (m.numFree > 0) m.freeSolution = m.factor.solve(m.rhs);
+  if (m.numFree > 0) {
+    openblas_set_num_threads(1);
+    m.freeSolution = m.factor.solve(m.rhs);
+  }
   m.u.setZero();
   for (size_t dof = 0; dof < m.freeIndex.size(); ++dof)
     if (m.freeIndex[dof] >= 0)
       m.u(static_cast<Eigen::Index>(dof)) = m.freeSolution(m.freeIndex[dof]);
   // sigma = D B u_e - K_b e_v (1, 1, 1, 0, 0, 0)
-  for (int t = 0; t < mesh.numTets(); ++t) {
-    if (!mesh.isAlive(t)) {
+  for (int t = 0; t < nt; ++t) {
+    if (!m.alive[t]) {
       m.stress[t] = VoigtStress{};
       m.vonMisesPa[t] = 0;
       continue;
     }
     Eigen::Matrix<double, 12, 1> ue;
-    for (int i = 0; i < 4; ++i) ue.segment<3>(3 * i) = m.u.segment<3>(3 * mesh.tets[t][i]);
+    for (int i = 0; i < 4; ++i) ue.segment<3>(3 * i) = m.u.segment<3>(3 * m.tets[t][i]);
     const Eigen::Matrix<double, 6, 1> s = m.db[t] * ue;
     const double p = m.bulkModulusPa * ev[t];
     m.stress[t] = {s(0) - p, s(1) - p, s(2) - p, s(3), s(4), s(5)};

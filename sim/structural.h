@@ -17,6 +17,10 @@
 // and its von Mises stress [Pa]. Displacement: 3 per node (x0, y0, z0, x1, ...) [m].
 // The supports must remove the rigid motions (at least 6 independent components,
 // e.g. a clamped face); otherwise the constructor throws esim::Error.
+// Ownership: the phase copies the tets and alive flags it needs; the mesh may go away.
+// Threads: CHOLMOD runs with one OpenBLAS thread (set before each factorization and
+// solve): on 2 shared cores more threads only spin (measured: simulation_test's background
+// rebuild test went from 6.1 s to 0.7 s), and results do not depend on the thread count.
 #pragma once
 
 #include <Eigen/Core>

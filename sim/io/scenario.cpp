@@ -324,6 +324,15 @@ const std::vector<Field>& schema() {
     f.push_back(boolean("solvers.thermal.allow_substepping",
                         ESIM_REF(solvers.thermalAllowSubstepping),
                         "split a frame into stable substeps when needed"));
+    f.push_back(choice("solvers.rebuild.mode", ESIM_REF(solvers.rebuildMode),
+                       {"synchronous", "background"},
+                       "after rupture: build the new model in the frame that breaks tets, or on "
+                       "a thread while frames go on with the old one (swapped in lag_frames "
+                       "later, deterministically)"));
+    f.push_back(integer("solvers.rebuild.lag_frames", ESIM_REF(solvers.rebuildLagFrames), "frames",
+                        closed(0, 1000),
+                        "background rebuild: frames between the rupture and the swap (the frame "
+                        "loop waits there if the build is not done)"));
     // time
     f.push_back(number("time.fps", ESIM_REF(time.fps), "1/s", positive(1000.0),
                        "frames per simulated second (one physics step per frame)"));

@@ -165,6 +165,8 @@ struct ScenarioSolvers {
   std::string thermalIntegrator = "explicit";  // explicit | backward-euler | crank-nicolson
   std::string thermalMass = "lumped";                // lumped | consistent
   bool thermalAllowSubstepping = true;
+  std::string rebuildMode = "synchronous";  // synchronous | background
+  int rebuildLagFrames = 3;                 // background: frames until the swap
   bool operator==(const ScenarioSolvers&) const = default;
 };
 

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <memory>
 
 #include "sim/core_error.h"
 #include "sim/mesh_slab.h"
@@ -280,6 +281,45 @@ TEST(Simulation, CutWithTheElectricPhaseConservesCurrentAfterRemoval) {
     EXPECT_NEAR(r.toolCurrentA, r.returnCurrentA, 1e-9 * std::abs(r.toolCurrentA));
     EXPECT_NEAR(r.powerW, c.toolVoltageV * r.toolCurrentA, 1e-9 * r.powerW);
   }
+}
+
+// background rebuild: the new structures are built on a thread and swapped in exactly
+// rebuildLagFrames frames after the rupture, whatever the thread's speed
+TEST(Simulation, BackgroundRebuildSwapsInAtAFixedFrameAndIsDeterministic) {
+  auto run = [](int lag, bool background, std::vector<int>* ruptureFrames,
+                std::vector<int>* swapFrames) {
+    SimulationConfig c = boilingSpot(true);
+    c.backgroundRebuild = background;
+    c.rebuildLagFrames = lag;
+    SlabSpec spec;  // a quarter of smallSlab() at the same spacing: 845 nodes
+    spec.sizeM = Vec3(0.03, 0.03, 0.01);
+    spec.nodesPerAxis = {13, 13, 5};
+    auto sim = std::make_unique<Simulation>(makeSlab(spec), c);
+    for (int f = 0; f < 30; ++f) {
+      const FrameRecord& r = sim->step();
+      if (ruptureFrames && r.status[static_cast<int>(Stage::Rupture)] == StageStatus::Ran)
+        ruptureFrames->push_back(f);
+      if (swapFrames && r.removedTets > 0) swapFrames->push_back(f);
+    }
+    return sim;
+  };
+  std::vector<int> ruptures, swaps;
+  const auto a = run(4, true, &ruptures, &swaps);
+  ASSERT_FALSE(swaps.empty());
+  ASSERT_FALSE(ruptures.empty());
+  EXPECT_EQ(swaps.front(), ruptures.front() + 4);  // the first rebuild swaps in at f + lag
+  for (size_t k = 1; k < swaps.size(); ++k) EXPECT_GE(swaps[k] - swaps[k - 1], 4);
+  EXPECT_EQ(a->rebuilds(), static_cast<int>(swaps.size()));
+  // the same run again: the same removals and temperatures, bit for bit
+  const auto b = run(4, true, nullptr, nullptr);
+  EXPECT_EQ(a->mesh().alive, b->mesh().alive);
+  EXPECT_EQ((a->temperatureC() - b->temperatureC()).cwiseAbs().maxCoeff(), 0.0);
+  // lag 0 on a thread is the synchronous rebuild
+  const auto sync = run(0, false, nullptr, nullptr);
+  const auto zero = run(0, true, nullptr, nullptr);
+  EXPECT_EQ(sync->mesh().alive, zero->mesh().alive);
+  EXPECT_EQ((sync->temperatureC() - zero->temperatureC()).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_GT(sync->removedTets(), 0);
 }
 
 }  // namespace

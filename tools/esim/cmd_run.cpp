@@ -118,6 +118,8 @@ SimulationConfig makeConfig(const Scenario& s) {
   c.vaporLiquidVolumeRatio = m.vaporLiquidVolumeRatio;
   c.maxVaporExpansion = m.maxVaporExpansion;
   c.supportBandM = s.effects.structuralClampBandM;
+  c.backgroundRebuild = s.solvers.rebuildMode == "background";
+  c.rebuildLagFrames = s.solvers.rebuildLagFrames;
   return c;
 }
 
@@ -178,8 +180,9 @@ void writeFields(const std::string& path, const Simulation& sim) {
   std::vector<VtuField> point, cell;
   std::vector<double> bc(m.numNodes(), 0.0);
   if (sim.hasElectric()) {
-    point.push_back({"potential", 1, std::vector<double>(sim.potentialV().data(),
-                                                         sim.potentialV().data() + m.numNodes())});
+    point.push_back(
+        {"potential", 1,
+         std::vector<double>(sim.potentialV().data(), sim.potentialV().data() + m.numNodes())});
     for (int v : sim.contactNodes()) bc[v] = 1;
     for (int v : sim.groundNodes()) bc[v] = 2;
     point.push_back({"bc", 1, bc});
@@ -187,8 +190,9 @@ void writeFields(const std::string& path, const Simulation& sim) {
     cell.push_back({"joule_power", 1, sim.joulePowerW_m3()});
   }
   if (const ThermalState* t = sim.thermalState()) {
-    point.push_back({"temperature", 1, std::vector<double>(t->temperatureC.data(),
-                                                           t->temperatureC.data() + m.numNodes())});
+    point.push_back(
+        {"temperature", 1,
+         std::vector<double>(t->temperatureC.data(), t->temperatureC.data() + m.numNodes())});
     if (!t->vaporFractionTet.empty()) cell.push_back({"vapor_fraction", 1, t->vaporFractionTet});
     if (!t->coagulationTet.empty()) cell.push_back({"coagulation", 1, t->coagulationTet});
   }
@@ -360,14 +364,21 @@ int runScenario(const RunOptions& opt) {
                       {"codec", encoder_codec},
                       {"note", "libav encoding on its own thread, not in the 30 Hz budget"}};
   extra["machine"] = machineInfo();
-  extra["threads"] = {{"blas", sc.solvers.electricThreads}, {"encoder", sc.output.reproducible ? 1 : 0}};
+  extra["threads"] = {{"blas", sc.solvers.electricThreads},
+                      {"encoder", sc.output.reproducible ? 1 : 0}};
   extra["electric_solver"] = sim.electricSolverName();
   extra["build"] = {{"compiler", __VERSION__}, {"esim", "0.1.0"}};
   extra["electric_memory_mb"] = sim.electricMemoryBytes() / 1048576.0;
   if (sim.config().phases.structural)
-    extra["structural"] = {{"removed_tets", sim.removedTets()},
-                           {"alive_tets", sim.mesh().numAlive()},
-                           {"rebuild", "synchronous (applied in the frame that breaks)"}};
+    extra["structural"] = {
+        {"removed_tets", sim.removedTets()},
+        {"alive_tets", sim.mesh().numAlive()},
+        {"rebuild_mode", sc.solvers.rebuildMode},
+        {"rebuild_lag_frames", sc.solvers.rebuildLagFrames},
+        {"rebuilds", sim.rebuilds()},
+        {"rebuilds_late", sim.rebuildsLate()},
+        {"rebuild_build_ms_mean", sim.rebuilds() > 0 ? sim.rebuildBuildMs() / sim.rebuilds() : 0.0},
+        {"rebuild_wait_ms_max", sim.maxRebuildWaitMs()}};
   if (renderer) {
     extra["renderer"] = {{"gl_renderer", renderer->glRenderer()},
                          {"gl_version", renderer->glVersion()},
@@ -408,8 +419,8 @@ int runScenario(const RunOptions& opt) {
     const StageStats st = stageStats(records, static_cast<Stage>(s));
     if (st.ran + st.skipped == 0) continue;
     char line[160];
-    std::snprintf(line, sizeof line, "  %-14s %10.3f %10.3f %9d\n", stageName(static_cast<Stage>(s)),
-                  st.p50Ms, st.p95Ms, st.skipped);
+    std::snprintf(line, sizeof line, "  %-14s %10.3f %10.3f %9d\n",
+                  stageName(static_cast<Stage>(s)), st.p50Ms, st.p95Ms, st.skipped);
     sum << line;
   }
   const StageStats inter = stageStatsInteractive(records);
@@ -437,6 +448,18 @@ int runScenario(const RunOptions& opt) {
     sum << "  structural    peak von Mises " << peakVm << " Pa; " << sim.removedTets()
         << " tets removed in " << cutFrames << " frames (" << sim.mesh().numAlive() << " of "
         << sim.mesh().numTets() << " alive)\n";
+    if (sim.config().phases.rupture && sim.rebuilds() > 0) {
+      sum << "  rebuild       " << sim.rebuilds() << " rebuilds, "
+          << (sim.config().backgroundRebuild
+                  ? "background, swapped in " + std::to_string(sim.config().rebuildLagFrames) +
+                        " frames after the rupture"
+                  : std::string("synchronous"))
+          << "; build " << sim.rebuildBuildMs() / sim.rebuilds() << " ms mean";
+      if (sim.config().backgroundRebuild)
+        sum << "; lag missed " << sim.rebuildsLate() << " times (longest wait "
+            << sim.maxRebuildWaitMs() << " ms)";
+      sum << "\n";
+    }
   }
   if (encoder) encoder.reset();
   fs::remove_all(out);
@@ -457,7 +480,8 @@ Registrar reg({"run"}, "Run a scenario: simulate, render, encode, report",
                 auto opt = std::make_shared<RunOptions>();
                 app.add_option("scenario", opt->scenario, "scenario YAML file")->required();
                 app.add_option("-o,--out", opt->outDir, "output folder (default out/<name>)");
-                app.add_option("--frames", opt->frames, "number of frames (default: duration x fps)")
+                app.add_option("--frames", opt->frames,
+                               "number of frames (default: duration x fps)")
                     ->check(CLI::PositiveNumber);
                 app.add_option("--fields", opt->fieldsEvery,
                                "write every Nth frame's fields as VTU (0: none)")
