@@ -261,6 +261,7 @@ void Simulation::startRebuild(const std::vector<int>& broken) {
     swapFrame_ = frame_;
     return;
   }
+  if (config_.recomputeLagFrames && config_.rebuildLagFrames > 0) takeCheckpoint();
   // a pure function of the immutable model and these copies: the result does not depend
   // on when the thread runs, and it is swapped in at a fixed frame
   job_ = std::async(std::launch::async,
@@ -329,6 +330,15 @@ void Simulation::refreshConductivity(FrameRecord& /*record*/) {
 const FrameRecord& Simulation::step() {
   FrameRecord& rec = record_;
   rec = FrameRecord{};
+  advance(rec);
+  if (config_.phases.rupture) ruptureAndRebuild(rec);
+  ++frame_;
+  timeS_ = frame_ * config_.frameDtS;
+  return rec;
+}
+
+// stages 1-5 of frame frame_ (at time timeS_): the physics on the current model
+void Simulation::advance(FrameRecord& rec) {
   rec.frame = frame_;
   rec.timeS = timeS_;
   const double dt = config_.frameDtS;
@@ -399,51 +409,112 @@ const FrameRecord& Simulation::step() {
     const std::vector<double>& vm = structural_->vonMisesPa();
     rec.maxVonMisesPa = vm.empty() ? 0.0 : *std::max_element(vm.begin(), vm.end());
   }
+}
 
-  // ---- 6. rupture: tets over the critical stress (not already being removed);
-  //      7. rebuild: synchronous (built and swapped in now), or built on a thread and
-  //      swapped in config_.rebuildLagFrames frames later (frames meanwhile use the old
-  //      structures; tets that break meanwhile wait for the next rebuild) ----
-  if (config_.phases.rupture) {
-    {
-      StageTimer timer(rec, Stage::Rupture);
-      const std::vector<double>& vm = structural_->vonMisesPa();
-      for (int e = 0; e < mesh_.numTets(); ++e)
-        if (mesh_.isAlive(e) && !pending_[e] && vm[e] > config_.criticalStressPa) {
-          queued_.push_back(e);
-          pending_[e] = 1;
-        }
-      if (queued_.empty()) timer.skip();
+// tets over the critical stress that no rebuild is removing yet join the queue
+void Simulation::detectRupture(FrameRecord& rec) {
+  StageTimer timer(rec, Stage::Rupture);
+  const std::vector<double>& vm = structural_->vonMisesPa();
+  for (int e = 0; e < mesh_.numTets(); ++e)
+    if (mesh_.isAlive(e) && !pending_[e] && vm[e] > config_.criticalStressPa) {
+      queued_.push_back(e);
+      pending_[e] = 1;
     }
-    StageTimer timer(rec, Stage::Rebuild);
-    bool worked = false;
-    if (swapFrame_ < 0 && !queued_.empty()) {  // nothing in flight: start with the queue
-      std::vector<int> broken;
-      broken.swap(queued_);
-      for (int e : broken) pending_[e] = 0;
-      startRebuild(broken);
-      worked = true;
-    }
-    if (swapFrame_ >= 0 && frame_ >= swapFrame_) {  // due: wait if needed, swap in
-      if (!ready_) {
-        const auto w0 = std::chrono::steady_clock::now();
-        ready_ = job_.get();
-        rec.rebuildWaitMs =
-            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - w0)
-                .count();
-        rebuildWaitMs_ = std::max(rebuildWaitMs_, rec.rebuildWaitMs);
-        if (rec.rebuildWaitMs > 1.0) ++rebuildsLate_;
-      }
-      swapIn(std::move(ready_), rec);
-      swapFrame_ = -1;
-      worked = true;
-    }
-    if (!worked) timer.skip();
+  if (queued_.empty()) timer.skip();
+}
+
+// 6. rupture; 7. rebuild: synchronous (built and swapped in now), or built on a thread and
+// swapped in config_.rebuildLagFrames frames later; frames meanwhile use the old model,
+// and tets that break meanwhile wait for the next rebuild. With recomputeLagFrames the
+// frames since the rupture are then computed again on the new model (from a checkpoint
+// taken when the rebuild started), so that only the timing of later ruptures differs from
+// a synchronous run.
+void Simulation::ruptureAndRebuild(FrameRecord& rec) {
+  detectRupture(rec);
+  StageTimer timer(rec, Stage::Rebuild);
+  bool worked = false;
+  if (swapFrame_ < 0 && !queued_.empty()) {  // nothing in flight: start with the queue
+    std::vector<int> broken;
+    broken.swap(queued_);
+    for (int e : broken) pending_[e] = 0;
+    startRebuild(broken);
+    worked = true;
   }
+  if (swapFrame_ >= 0 && frame_ >= swapFrame_) {  // due: wait if needed, swap in
+    if (!ready_) {
+      const auto w0 = std::chrono::steady_clock::now();
+      ready_ = job_.get();
+      rec.rebuildWaitMs =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - w0).count();
+      rebuildWaitMs_ = std::max(rebuildWaitMs_, rec.rebuildWaitMs);
+      if (rec.rebuildWaitMs > 1.0) ++rebuildsLate_;
+    }
+    swapIn(std::move(ready_), rec);
+    swapFrame_ = -1;
+    if (checkpoint_) recomputeSinceCheckpoint(rec);
+    worked = true;
+  }
+  if (!worked) timer.skip();
+}
 
-  ++frame_;
-  timeS_ = frame_ * dt;
-  return rec;
+struct Simulation::Checkpoint {
+  int nextFrame = 0;
+  ThermalState thermal;
+  Eigen::VectorXd potential;
+  std::vector<double> joule, sigma;
+  std::vector<int> contacts;
+  ToolPose pose;
+  bool generatorOn = false;
+  double energyJ = 0;
+};
+
+void Simulation::takeCheckpoint() {
+  checkpoint_ = std::make_unique<Checkpoint>();
+  Checkpoint& c = *checkpoint_;
+  c.nextFrame = frame_ + 1;
+  c.thermal = thermalState_;
+  c.potential = potential_;
+  c.joule = joule_;
+  c.sigma = sigma_;
+  c.contacts = contacts_;
+  c.pose = pose_;
+  c.generatorOn = generatorOn_;
+  c.energyJ = energyJ_;
+}
+
+void Simulation::recomputeSinceCheckpoint(FrameRecord& rec) {
+  std::unique_ptr<Checkpoint> c = std::move(checkpoint_);
+  // ruptures seen on the old model during the lag are forgotten: the recomputation finds
+  // its own
+  for (int e : queued_) pending_[e] = 0;
+  queued_.clear();
+  thermalState_ = std::move(c->thermal);
+  potential_ = std::move(c->potential);
+  joule_ = std::move(c->joule);
+  sigma_ = std::move(c->sigma);
+  contacts_ = std::move(c->contacts);
+  pose_ = c->pose;
+  generatorOn_ = c->generatorOn;
+  energyJ_ = c->energyJ;
+  const int now = frame_;
+  FrameRecord redo;
+  for (int k = c->nextFrame; k <= now; ++k) {
+    frame_ = k;
+    timeS_ = k * config_.frameDtS;
+    redo = FrameRecord{};
+    advance(redo);
+    detectRupture(redo);
+  }
+  frame_ = now;
+  timeS_ = now * config_.frameDtS;
+  // the frame's physics as recomputed
+  rec.contactNodes = redo.contactNodes;
+  rec.toolCurrentA = redo.toolCurrentA;
+  rec.returnCurrentA = redo.returnCurrentA;
+  rec.powerW = redo.powerW;
+  rec.maxTemperatureC = redo.maxTemperatureC;
+  rec.maxVonMisesPa = redo.maxVonMisesPa;
+  recomputedFrames_ += now - c->nextFrame + 1;
 }
 
 void Simulation::buildSurfaceTopology() {

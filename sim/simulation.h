@@ -148,6 +148,7 @@ struct SimulationConfig {
   double criticalStressPa = 2.45e4;      // von Mises stress that breaks a tet (paper)
   bool backgroundRebuild = false;        // build the new structures on a thread ...
   int rebuildLagFrames = 3;              // ... swapped in this many frames after rupture
+  bool recomputeLagFrames = true;        // ... then the lag frames again on the new model
 };
 
 // ---- the simulation ----
@@ -191,6 +192,7 @@ class Simulation {
   int rebuildsLate() const { return rebuildsLate_; }         // background: the frame loop waited
   double rebuildBuildMs() const { return rebuildBuildMs_; }  // sum over rebuilds
   double maxRebuildWaitMs() const { return rebuildWaitMs_; }
+  int recomputedFrames() const { return recomputedFrames_; }
 
  private:
   void refreshConductivity(FrameRecord& record);
@@ -201,6 +203,12 @@ class Simulation {
   std::unique_ptr<Rebuilt> buildRebuilt(std::vector<std::uint8_t> alive, std::vector<int> removed,
                                         std::vector<double> sigma) const;
   void startRebuild(const std::vector<int>& broken);
+  void advance(FrameRecord& record);
+  void detectRupture(FrameRecord& record);
+  void ruptureAndRebuild(FrameRecord& record);
+  struct Checkpoint;
+  void takeCheckpoint();
+  void recomputeSinceCheckpoint(FrameRecord& record);
   void swapIn(std::unique_ptr<Rebuilt> rebuilt, FrameRecord& record);
 
   TetMesh mesh_;
@@ -241,6 +249,8 @@ class Simulation {
   std::future<std::unique_ptr<Rebuilt>> job_;  // the rebuild in flight (background)
   std::unique_ptr<Rebuilt> ready_;             // synchronous rebuild, or the job's result
   int swapFrame_ = -1;                         // frame at which the rebuild in flight swaps in
+  std::unique_ptr<Checkpoint> checkpoint_;     // state when the rebuild in flight started
+  int recomputedFrames_ = 0;                   // frames computed again after swaps
   int removedTets_ = 0;
   int rebuilds_ = 0, rebuildsLate_ = 0;  // swapped in; of which had to wait > 1 ms
   double rebuildBuildMs_ = 0;            // sum of the rebuilds' build times

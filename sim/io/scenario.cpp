@@ -333,6 +333,10 @@ const std::vector<Field>& schema() {
                         closed(0, 1000),
                         "background rebuild: frames between the rupture and the swap (the frame "
                         "loop waits there if the build is not done)"));
+    f.push_back(boolean("solvers.rebuild.recompute", ESIM_REF(solvers.rebuildRecompute),
+                        "background rebuild: compute the frames since the rupture again on the "
+                        "new model at the swap (the paper's way; video frames already drawn "
+                        "stay as they were)"));
     // time
     f.push_back(number("time.fps", ESIM_REF(time.fps), "1/s", positive(1000.0),
                        "frames per simulated second (one physics step per frame)"));

@@ -167,6 +167,7 @@ struct ScenarioSolvers {
   bool thermalAllowSubstepping = true;
   std::string rebuildMode = "synchronous";  // synchronous | background
   int rebuildLagFrames = 3;                 // background: frames until the swap
+  bool rebuildRecompute = true;             // background: the lag frames again, new model
   bool operator==(const ScenarioSolvers&) const = default;
 };
 

@@ -322,5 +322,38 @@ TEST(Simulation, BackgroundRebuildSwapsInAtAFixedFrameAndIsDeterministic) {
   EXPECT_GT(sync->removedTets(), 0);
 }
 
+// background rebuild with the lag frames recomputed: up to the swap it is the synchronous
+// run, bit for bit, as long as no other tet breaks during the lag
+TEST(Simulation, RecomputedLagFramesMatchTheSynchronousRun) {
+  SlabSpec spec;
+  spec.sizeM = Vec3(0.03, 0.03, 0.01);
+  spec.nodesPerAxis = {13, 13, 5};
+  auto make = [&](bool background, int lag) {
+    SimulationConfig c = boilingSpot(true);
+    c.backgroundRebuild = background;
+    c.rebuildLagFrames = lag;
+    c.recomputeLagFrames = true;
+    return std::make_unique<Simulation>(makeSlab(spec), c);
+  };
+  // the synchronous run's first two removal frames
+  auto sync = make(false, 0);
+  std::vector<int> removals;
+  for (int f = 0; f < 40 && removals.size() < 2; ++f)
+    if (sync->step().removedTets > 0) removals.push_back(f);
+  ASSERT_EQ(removals.size(), 2u);
+  const int lag = removals[1] - removals[0] - 1;
+  ASSERT_GE(lag, 1) << "removals in consecutive frames: no lag to test";
+  auto bg = make(true, lag);
+  auto ref = make(false, 0);
+  for (int f = 0; f <= removals[0] + lag; ++f) {
+    const FrameRecord& r = bg->step();
+    ref->step();
+    if (f == removals[0] + lag) EXPECT_GT(r.removedTets, 0);  // the swap frame
+  }
+  EXPECT_EQ(bg->recomputedFrames(), lag);
+  EXPECT_EQ(bg->mesh().alive, ref->mesh().alive);
+  EXPECT_EQ((bg->temperatureC() - ref->temperatureC()).cwiseAbs().maxCoeff(), 0.0);
+}
+
 }  // namespace
 }  // namespace esim

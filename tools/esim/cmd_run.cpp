@@ -120,6 +120,7 @@ SimulationConfig makeConfig(const Scenario& s) {
   c.supportBandM = s.effects.structuralClampBandM;
   c.backgroundRebuild = s.solvers.rebuildMode == "background";
   c.rebuildLagFrames = s.solvers.rebuildLagFrames;
+  c.recomputeLagFrames = s.solvers.rebuildRecompute;
   return c;
 }
 
@@ -457,7 +458,7 @@ int runScenario(const RunOptions& opt) {
           << "; build " << sim.rebuildBuildMs() / sim.rebuilds() << " ms mean";
       if (sim.config().backgroundRebuild)
         sum << "; lag missed " << sim.rebuildsLate() << " times (longest wait "
-            << sim.maxRebuildWaitMs() << " ms)";
+            << sim.maxRebuildWaitMs() << " ms); " << sim.recomputedFrames() << " frames recomputed";
       sum << "\n";
     }
   }
