@@ -348,7 +348,9 @@ TEST(Simulation, RecomputedLagFramesMatchTheSynchronousRun) {
   for (int f = 0; f <= removals[0] + lag; ++f) {
     const FrameRecord& r = bg->step();
     ref->step();
-    if (f == removals[0] + lag) EXPECT_GT(r.removedTets, 0);  // the swap frame
+    if (f == removals[0] + lag) {
+      EXPECT_GT(r.removedTets, 0);  // the swap frame
+    }
   }
   EXPECT_EQ(bg->recomputedFrames(), lag);
   EXPECT_EQ(bg->mesh().alive, ref->mesh().alive);
