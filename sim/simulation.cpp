@@ -13,6 +13,8 @@ namespace esim {
 
 namespace {
 
+constexpr double kRebuildPrefetchS = 1.0;  // scripted path prefetched after a rebuild [s]
+
 constexpr const char* kStageNames[kStageCount] = {
     "move_tool", "find_contacts", "solve_potential", "heat",   "solve_stress",
     "rupture",   "rebuild",       "snapshot",        "render", "encode_wait"};
@@ -190,7 +192,8 @@ struct Simulation::Rebuilt {
 
 std::unique_ptr<Simulation::Rebuilt> Simulation::buildRebuilt(std::vector<std::uint8_t> alive,
                                                               std::vector<int> removed,
-                                                              std::vector<double> sigma) const {
+                                                              std::vector<double> sigma,
+                                                              int firstFrame) const {
   const auto t0 = std::chrono::steady_clock::now();
   auto r = std::make_unique<Rebuilt>();
   TetMesh mesh;
@@ -216,7 +219,17 @@ std::unique_ptr<Simulation::Rebuilt> Simulation::buildRebuilt(std::vector<std::u
     r->stiffness = assembleStiffness(mesh, geo_, sigma);
     r->electric = makeElectricSolver(config_.electricSolver);
     r->electric->setContactCandidates(r->surfaceNodes);
-    r->electric->setMatrix(r->stiffness, r->ground);  // columns of new contacts come as needed
+    r->electric->setMatrix(r->stiffness, r->ground);
+    // the columns the script will need on the new model (from firstFrame, its first frame
+    // with recomputation, to kRebuildPrefetchS after the swap; later contacts get theirs
+    // when they come): built here, off the frame loop in background mode
+    if (config_.prefetchUntilS > 0) {
+      const int last = static_cast<int>(std::ceil(config_.prefetchUntilS / config_.frameDtS));
+      const int to =
+          std::min(last, firstFrame + config_.rebuildLagFrames +
+                             static_cast<int>(std::ceil(kRebuildPrefetchS / config_.frameDtS)));
+      r->electric->prefetch(scriptedContacts(r->contactFinder, r->ground, firstFrame, to));
+    }
   }
   if (structural_)
     r->structural = std::make_unique<StructuralPhase>(mesh, config_.structural, supports_);
@@ -257,17 +270,17 @@ void Simulation::startRebuild(const std::vector<int>& broken) {
   }
   std::vector<double> sigma = electric_ ? sigmaAssembled_ : std::vector<double>{};
   if (!config_.backgroundRebuild) {
-    ready_ = buildRebuilt(std::move(alive), broken, std::move(sigma));
+    ready_ = buildRebuilt(std::move(alive), broken, std::move(sigma), frame_ + 1);
     swapFrame_ = frame_;
     return;
   }
   if (config_.recomputeLagFrames && config_.rebuildLagFrames > 0) takeCheckpoint();
   // a pure function of the immutable model and these copies: the result does not depend
   // on when the thread runs, and it is swapped in at a fixed frame
-  job_ = std::async(std::launch::async,
-                    [this, alive = std::move(alive), broken, sigma = std::move(sigma)]() mutable {
-                      return buildRebuilt(std::move(alive), std::move(broken), std::move(sigma));
-                    });
+  job_ = std::async(std::launch::async, [this, alive = std::move(alive), broken,
+                                         sigma = std::move(sigma), first = frame_ + 1]() mutable {
+    return buildRebuilt(std::move(alive), std::move(broken), std::move(sigma), first);
+  });
   swapFrame_ = frame_ + config_.rebuildLagFrames;
 }
 
@@ -284,24 +297,31 @@ double Simulation::electricMemoryBytes() const {
 
 std::string Simulation::electricSolverName() const { return electric_ ? electric_->name() : ""; }
 
-void Simulation::prefetchScriptedPath() {
-  if (config_.prefetchUntilS <= 0) return;
-  // the union of the contact sets the script will produce, frame by frame
+// the union of the contact sets the script produces in frames [fromFrame, toFrame] on the
+// surface `finder` was built for, without the grounded nodes (sorted)
+std::vector<int> Simulation::scriptedContacts(const ContactFinder& finder,
+                                              const std::vector<int>& ground, int fromFrame,
+                                              int toFrame) const {
   std::vector<int> nodes;
-  const int frames = static_cast<int>(std::ceil(config_.prefetchUntilS / config_.frameDtS));
-  for (int f = 0; f <= frames; ++f) {
+  for (int f = fromFrame; f <= toFrame; ++f) {
     const double t = f * config_.frameDtS;
     if (!config_.toolPath.generatorOnAt(t)) continue;
-    const auto c = contactFinder_.find(config_.electrode, config_.toolPath.poseAt(t),
-                                       config_.contactDistanceM);
+    const auto c =
+        finder.find(config_.electrode, config_.toolPath.poseAt(t), config_.contactDistanceM);
     nodes.insert(nodes.end(), c.begin(), c.end());
   }
   std::sort(nodes.begin(), nodes.end());
   nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
-  std::vector<int> not_ground;
-  std::set_difference(nodes.begin(), nodes.end(), ground_.begin(), ground_.end(),
-                      std::back_inserter(not_ground));
-  electric_->prefetch(not_ground);
+  std::vector<int> notGround;
+  std::set_difference(nodes.begin(), nodes.end(), ground.begin(), ground.end(),
+                      std::back_inserter(notGround));
+  return notGround;
+}
+
+void Simulation::prefetchScriptedPath() {
+  if (config_.prefetchUntilS <= 0) return;
+  const int frames = static_cast<int>(std::ceil(config_.prefetchUntilS / config_.frameDtS));
+  electric_->prefetch(scriptedContacts(contactFinder_, ground_, 0, frames));
 }
 
 void Simulation::refreshConductivity(FrameRecord& /*record*/) {

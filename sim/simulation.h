@@ -201,7 +201,9 @@ class Simulation {
   void computeEigenstrain();
   struct Rebuilt;
   std::unique_ptr<Rebuilt> buildRebuilt(std::vector<std::uint8_t> alive, std::vector<int> removed,
-                                        std::vector<double> sigma) const;
+                                        std::vector<double> sigma, int firstFrame) const;
+  std::vector<int> scriptedContacts(const ContactFinder& finder, const std::vector<int>& ground,
+                                    int fromFrame, int toFrame) const;
   void startRebuild(const std::vector<int>& broken);
   void advance(FrameRecord& record);
   void detectRupture(FrameRecord& record);
