@@ -55,8 +55,8 @@ TEST(RunCli, EveryShippedScenarioRuns) {
     const Result r = esimRun("scenarios/" + name + ".yaml --frames 3 --set output.video=false" +
                              std::string(kSmall) + " -o " + out.string());
     ASSERT_EQ(r.exitCode, 0) << name << ":\n" << r.output;
-    for (const char* f : {"timing.csv", "timing.json", "trace.json", "scenario.yaml",
-                          "hashes.json", "summary.txt"})
+    for (const char* f :
+         {"timing.csv", "timing.json", "trace.json", "scenario.yaml", "hashes.json", "summary.txt"})
       EXPECT_TRUE(fs::exists(out / f)) << name << " lacks " << f;
     const auto timing = nlohmann::json::parse(readFile(out / "timing.json"));
     EXPECT_EQ(timing["frames"], 3) << name;
@@ -67,8 +67,8 @@ TEST(RunCli, EveryShippedScenarioRuns) {
 
 TEST(RunCli, VideoAndSummary) {
   const fs::path out = tempOut("video");
-  const Result r = esimRun("scenarios/paper_slab.yaml --frames 15" + std::string(kSmall) +
-                           " -o " + out.string());
+  const Result r = esimRun("scenarios/paper_slab.yaml --frames 15" + std::string(kSmall) + " -o " +
+                           out.string());
   ASSERT_EQ(r.exitCode, 0) << r.output;
   ASSERT_TRUE(fs::exists(out / "video.mp4"));
   EXPECT_GT(fs::file_size(out / "video.mp4"), 1000u);
@@ -76,6 +76,30 @@ TEST(RunCli, VideoAndSummary) {
   EXPECT_NE(r.output.find("energy"), std::string::npos);
   EXPECT_NE(r.output.find("over 33.3 ms"), std::string::npos);
   fs::remove_all(out);
+}
+
+// a run whose tissue goes far past what the model describes says so (summary and
+// timing.json); a normal run has no warning
+TEST(RunCli, ImplausibleTemperaturesAreFlagged) {
+  const fs::path hot = tempOut("hot"), normal = tempOut("normal");
+  const Result h = esimRun(
+      "scenarios/paper_slab.yaml --frames 10 --no-video --set "
+      "tool.voltage_v=10000 --set output.hashes=false -q -o " +
+      hot.string());
+  ASSERT_EQ(h.exitCode, 0) << h.output;
+  EXPECT_NE(h.output.find("WARNING       the tissue reached"), std::string::npos) << h.output;
+  const auto th = nlohmann::json::parse(readFile(hot / "timing.json"));
+  ASSERT_EQ(th["warnings"].size(), 1u);
+  EXPECT_NE(th["warnings"][0].get<std::string>().find("chars and ablates"), std::string::npos);
+  const Result n = esimRun(
+      "scenarios/paper_slab.yaml --frames 10 --no-video --set "
+      "output.hashes=false -q -o " +
+      normal.string());
+  ASSERT_EQ(n.exitCode, 0) << n.output;
+  EXPECT_EQ(n.output.find("WARNING"), std::string::npos);
+  EXPECT_TRUE(nlohmann::json::parse(readFile(normal / "timing.json"))["warnings"].empty());
+  fs::remove_all(hot);
+  fs::remove_all(normal);
 }
 
 TEST(RunCli, FieldsHoldOnlyThePhasesOfTheScene) {

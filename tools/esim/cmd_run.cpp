@@ -56,6 +56,10 @@ struct RunOptions {
 };
 
 // ---- scenario -> simulation ----
+// above this the run's temperatures are outside what the model describes (no charring,
+// no ablation): the summary and timing.json say so [C]
+constexpr double kImplausibleTemperatureC = 300.0;
+
 SimulationConfig makeConfig(const Scenario& s) {
   SimulationConfig c;
   c.phases.electric = s.has(Phase::Electric);
@@ -370,6 +374,19 @@ int runScenario(const RunOptions& opt) {
   extra["electric_solver"] = sim.electricSolverName();
   extra["build"] = {{"compiler", __VERSION__}, {"esim", "0.1.0"}};
   extra["electric_memory_mb"] = sim.electricMemoryBytes() / 1048576.0;
+  // results a demanding user should not take at face value
+  std::vector<std::string> warnings;
+  if (sim.maxTemperatureSeenC() > kImplausibleTemperatureC) {
+    char w[400];
+    std::snprintf(w, sizeof w,
+                  "the tissue reached %.0f C: above ~%.0f C it chars and ablates, which the model "
+                  "does not include; lower tool.voltage_v, or enable "
+                  "effects.temperature_dependent_conductivity (drying cuts the current) or the "
+                  "structural and rupture phases (boiling tissue is removed)",
+                  sim.maxTemperatureSeenC(), kImplausibleTemperatureC);
+    warnings.push_back(w);
+  }
+  extra["warnings"] = warnings;
   if (sim.config().phases.structural)
     extra["structural"] = {
         {"removed_tets", sim.removedTets()},
@@ -436,6 +453,7 @@ int runScenario(const RunOptions& opt) {
   sum.precision(1);
   sum << "  temperature   max " << sim.maxTemperatureSeenC() << " C (now " << temp.maxCoeff()
       << " C)\n";
+  for (const std::string& w : warnings) sum << "  WARNING       " << w << "\n";
   sum.precision(3);
   sum << "  energy        " << sim.energyDeliveredJ() << " J delivered, peak power " << peak_power_w
       << " W\n";
