@@ -38,6 +38,7 @@
 #include "sim/electrode.h"
 #include "sim/fem_p1.h"
 #include "sim/mesh_slab.h"
+#include "tools/esim/bench_common.h"
 #include "tools/esim/command.h"
 
 namespace esim::cli {
@@ -64,24 +65,6 @@ double seconds(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();
 }
 
-std::vector<int> parseSizes(const std::string& text) {
-  std::vector<int> out;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    try {
-      size_t used = 0;
-      const int v = std::stoi(item, &used);
-      ESIM_VERIFY(used == item.size() && v >= 8, "");
-      out.push_back(v);
-    } catch (...) {
-      throw Error("bench electric: --sizes: '" + item +
-                  "' is not a node count >= 8 (expected e.g. 1013,50000)");
-    }
-  }
-  ESIM_VERIFY(!out.empty(), "bench electric: --sizes is empty");
-  return out;
-}
 
 std::vector<ElectricStrategy> parseStrategies(const std::string& text) {
   std::vector<ElectricStrategy> out;
@@ -311,7 +294,7 @@ void runFig9(const BenchElectricOptions& opt) {
 
 int benchElectric(const BenchElectricOptions& opt) {
   // 1. options
-  const std::vector<int> sizes = parseSizes(opt.sizes);
+  const std::vector<int> sizes = cli::parseNodeCounts(opt.sizes, "bench electric");
   const std::vector<ElectricStrategy> strategies = parseStrategies(opt.strategies);
   ESIM_VERIFY(opt.frames >= 1, "bench electric: --frames must be >= 1");
   ESIM_VERIFY(opt.threads >= 1, "bench electric: --threads must be >= 1");

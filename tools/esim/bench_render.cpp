@@ -32,6 +32,7 @@
 #include "render/renderer.h"
 #include "render/video_encoder.h"
 #include "sim/core_error.h"
+#include "tools/esim/bench_common.h"
 #include "tools/esim/command.h"
 #include "tools/esim/render_scenes.h"
 
@@ -53,14 +54,6 @@ struct BenchRenderOptions {
   std::string csv;
 };
 
-std::vector<std::string> splitList(const std::string& text) {
-  std::vector<std::string> out;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ','))
-    if (!item.empty()) out.push_back(item);
-  return out;
-}
 
 SurfaceSnapshot makeSurface(const std::string& name, const std::string& liverPath,
                             AnalyticCut& cut) {

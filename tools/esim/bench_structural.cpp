@@ -23,6 +23,7 @@
 #include "sim/core_error.h"
 #include "sim/mesh_slab.h"
 #include "sim/structural.h"
+#include "tools/esim/bench_common.h"
 #include "tools/esim/command.h"
 
 namespace esim {
@@ -35,20 +36,6 @@ struct BenchStructuralOptions {
   std::string csv;
 };
 
-std::vector<int> parseNodeCounts(const std::string& text) {
-  std::vector<int> out;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    char* end = nullptr;
-    const long v = std::strtol(item.c_str(), &end, 10);
-    ESIM_VERIFY(end != item.c_str() && *end == '\0' && v >= 8 && v <= 5000000,
-                "--sizes: '" + item + "' is not a node count (expected e.g. 1013,5000,20000)");
-    out.push_back(static_cast<int>(v));
-  }
-  ESIM_VERIFY(!out.empty(), "--sizes: empty list");
-  return out;
-}
 
 double msSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -56,7 +43,7 @@ double msSince(std::chrono::steady_clock::time_point t0) {
 
 int benchStructural(const BenchStructuralOptions& opt) {
   ESIM_VERIFY(opt.solves >= 1, "--solves must be >= 1");
-  const std::vector<int> sizes = parseNodeCounts(opt.sizes);
+  const std::vector<int> sizes = cli::parseNodeCounts(opt.sizes, "bench structural");
   std::unique_ptr<std::ofstream> csv;
   if (!opt.csv.empty()) {
     csv = std::make_unique<std::ofstream>(opt.csv);

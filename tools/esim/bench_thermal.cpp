@@ -23,6 +23,7 @@
 #include "sim/fem_p1.h"
 #include "sim/mesh_slab.h"
 #include "sim/thermal_step.h"
+#include "tools/esim/bench_common.h"
 #include "tools/esim/command.h"
 
 extern "C" void openblas_set_num_threads(int num_threads);
@@ -41,20 +42,6 @@ struct BenchThermalOptions {
   std::string csv;
 };
 
-std::vector<int> parseSizes(const std::string& text) {
-  std::vector<int> out;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    char* end = nullptr;
-    const long v = std::strtol(item.c_str(), &end, 10);
-    ESIM_VERIFY(end != item.c_str() && *end == '\0' && v >= 8 && v <= 5000000,
-                "--sizes: '" + item + "' is not a node count (expected e.g. 1013,20000,50000)");
-    out.push_back(static_cast<int>(v));
-  }
-  ESIM_VERIFY(!out.empty(), "--sizes: empty list");
-  return out;
-}
 
 // Joule-like source: Gaussian hot spot under the tool tip at time tS
 void toolSource(const std::vector<Vec3>& centroids, double tS, double topZ,
@@ -87,7 +74,7 @@ double threadCpuMs() {
 
 int benchThermal(const BenchThermalOptions& opt) {
   // 1. options
-  const std::vector<int> sizes = parseSizes(opt.sizes);
+  const std::vector<int> sizes = cli::parseNodeCounts(opt.sizes, "bench thermal");
   ESIM_VERIFY(opt.frames >= 1, "--frames must be >= 1");
   ESIM_VERIFY(opt.fps > 0, "--fps must be > 0");
   ESIM_VERIFY(opt.refSubsteps >= 2, "--ref-substeps must be >= 2");
