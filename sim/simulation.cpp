@@ -129,8 +129,8 @@ Simulation::Simulation(TetMesh mesh, SimulationConfig config)
 
   // ---- structural phase: clamped at the bottom ----
   if (ph.structural) {
-    ESIM_VERIFY(config_.supportBandM >= 0 && std::isfinite(config_.supportBandM),
-                "structural.support_band_m must be >= 0");
+    ESIM_VERIFY(config_.clampBandM >= 0 && std::isfinite(config_.clampBandM),
+                "effects.structural_clamp_band_m must be >= 0");
     ESIM_VERIFY(config_.criticalStressPa > 0 && std::isfinite(config_.criticalStressPa),
                 "material.critical_stress_pa must be > 0");
     ESIM_VERIFY(config_.vaporLiquidVolumeRatio >= 1,
@@ -138,7 +138,7 @@ Simulation::Simulation(TetMesh mesh, SimulationConfig config)
     double zMin = mesh_.nodes.front().z();
     for (const Vec3& p : mesh_.nodes) zMin = std::min(zMin, p.z());
     for (int v : surfaceNodes_)
-      if (mesh_.nodes[v].z() <= zMin + config_.supportBandM)
+      if (mesh_.nodes[v].z() <= zMin + config_.clampBandM)
         for (int a = 0; a < 3; ++a) supports_.push_back({v, a});
     expansion_.waterFraction = config_.thermal.waterFraction;
     expansion_.densityKg_m3 = config_.thermal.densityKg_m3;
@@ -152,8 +152,8 @@ Simulation::Simulation(TetMesh mesh, SimulationConfig config)
       pending_.assign(mesh_.numTets(), 0);
     } catch (const Error& e) {
       throw Error(std::string(e.what()) + " (clamped: " + std::to_string(supports_.size() / 3) +
-                  " bottom nodes within structural.support_band_m = " +
-                  std::to_string(config_.supportBandM) + " m of the lowest node)");
+                  " bottom nodes within effects.structural_clamp_band_m = " +
+                  std::to_string(config_.clampBandM) + " m of the lowest node)");
     }
   }
 }
@@ -264,10 +264,7 @@ void Simulation::swapIn(std::unique_ptr<Rebuilt> r, FrameRecord& rec) {
 
 void Simulation::startRebuild(const std::vector<int>& broken) {
   std::vector<std::uint8_t> alive = mesh_.alive;
-  for (int e : broken) {
-    alive[e] = 0;
-    pending_[e] = 1;
-  }
+  for (int e : broken) alive[e] = 0;
   std::vector<double> sigma = electric_ ? sigmaAssembled_ : std::vector<double>{};
   if (!config_.backgroundRebuild) {
     ready_ = buildRebuilt(std::move(alive), broken, std::move(sigma), frame_ + 1);
@@ -455,8 +452,7 @@ void Simulation::ruptureAndRebuild(FrameRecord& rec) {
   bool worked = false;
   if (swapFrame_ < 0 && !queued_.empty()) {  // nothing in flight: start with the queue
     std::vector<int> broken;
-    broken.swap(queued_);
-    for (int e : broken) pending_[e] = 0;
+    broken.swap(queued_);  // they stay pending until swapIn
     startRebuild(broken);
     worked = true;
   }

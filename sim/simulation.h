@@ -11,7 +11,7 @@
 // matrix and no stage (its timing is "absent"). A listed stage with nothing to do this
 // frame (generator off, no contact, zero source at rest) records "skipped".
 // Structural: the tissue water's expansion (liquid + trapped vapour, structural.h) loads a
-// linear elastic body clamped at its bottom (nodes within supportBandM of the lowest
+// linear elastic body clamped at its bottom (nodes within clampBandM of the lowest
 // node); per-tet von Mises stress. Rupture: alive tets whose von Mises stress exceeds
 // criticalStressPa are removed; rebuild (synchronous: applied in the same frame) then
 // refreshes the surface, the contact candidates, the electric matrix and solver, the
@@ -144,7 +144,7 @@ struct SimulationConfig {
   StructuralOptions structural;          // E, nu
   double vaporLiquidVolumeRatio = 1602;  // v_gas / v_liq of water at boiling, 1 atm
   double maxVaporExpansion = 3.0;        // cap of dV/V (structural.h)
-  double supportBandM = 1e-4;            // clamp the nodes this close to the lowest z [m]
+  double clampBandM = 1e-4;            // clamp the nodes this close to the lowest z [m]
   double criticalStressPa = 2.45e4;      // von Mises stress that breaks a tet (paper)
   bool backgroundRebuild = false;        // build the new structures on a thread ...
   int rebuildLagFrames = 3;              // ... swapped in this many frames after rupture

@@ -121,7 +121,7 @@ SimulationConfig makeConfig(const Scenario& s) {
   c.criticalStressPa = m.criticalStressPa;
   c.vaporLiquidVolumeRatio = m.vaporLiquidVolumeRatio;
   c.maxVaporExpansion = m.maxVaporExpansion;
-  c.supportBandM = s.effects.structuralClampBandM;
+  c.clampBandM = s.effects.structuralClampBandM;
   c.backgroundRebuild = s.solvers.rebuildMode == "background";
   c.rebuildLagFrames = s.solvers.rebuildLagFrames;
   c.recomputeLagFrames = s.solvers.rebuildRecompute;
