@@ -155,7 +155,7 @@ struct StructuralPhase::Impl {
   std::vector<Tet> tets;            // copied from the mesh: the phase outlives no mesh
   std::vector<std::uint8_t> alive;  // per tet, 1 alive
   std::vector<TetGeometry> geo;
-  std::vector<Mat6x12> db;     // D B_e per tet (stress from element displacements)
+  Mat6 d;                      // elasticity (Voigt); stress = D (B_e u_e - eps*)
   std::vector<int> freeIndex;  // dof -> unknown, -1 when held
   double bulkModulusPa = 0;    // lambda + 2 mu / 3: D eps* = K_b e_v (1, 1, 1, 0, 0, 0)
   Cholesky factor;
@@ -181,7 +181,7 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   m.alive.resize(mesh.numTets());
   for (int t = 0; t < mesh.numTets(); ++t) m.alive[t] = mesh.isAlive(t) ? 1 : 0;
   m.geo = tetGeometry(mesh);
-  const Mat6 d = elasticity(e, nu);
+  m.d = elasticity(e, nu);
   m.bulkModulusPa = e / (3 * (1 - 2 * nu));
 
   // 1. unknowns: every component not held, of nodes that touch an alive tet
@@ -234,12 +234,10 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   // 2. K over the unknowns (lower triangle)
   std::vector<Eigen::Triplet<double>> triplets;
   triplets.reserve(static_cast<size_t>(mesh.numAlive()) * 78);
-  m.db.resize(mesh.numTets());
   for (int t = 0; t < mesh.numTets(); ++t) {
     if (!mesh.isAlive(t)) continue;
     const Mat6x12 b = strainMatrix(m.geo[t]);
-    m.db[t] = d * b;
-    const Eigen::Matrix<double, 12, 12> ke = m.geo[t].volume * b.transpose() * m.db[t];
+    const Eigen::Matrix<double, 12, 12> ke = m.geo[t].volume * b.transpose() * (m.d * b);
     for (int i = 0; i < 12; ++i) {
       const int fi = m.freeIndex[3 * mesh.tets[t][i / 3] + i % 3];
       if (fi < 0) continue;
@@ -306,7 +304,9 @@ void StructuralPhase::solve(const std::vector<double>& ev) {
     }
     Eigen::Matrix<double, 12, 1> ue;
     for (int i = 0; i < 4; ++i) ue.segment<3>(3 * i) = m.u.segment<3>(3 * m.tets[t][i]);
-    const Eigen::Matrix<double, 6, 1> s = m.db[t] * ue;
+    // B_e rebuilt from the stored gradients: keeping D B_e per tet would cost 576 bytes
+    // a tet (92 MB for the liver's 161k tets, twice during a background rebuild)
+    const Eigen::Matrix<double, 6, 1> s = m.d * (strainMatrix(m.geo[t]) * ue);
     const double p = m.bulkModulusPa * ev[t];
     m.stress[t] = {s(0) - p, s(1) - p, s(2) - p, s(3), s(4), s(5)};
     m.vonMisesPa[t] = vonMises(m.stress[t]);
