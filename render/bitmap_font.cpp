@@ -7,8 +7,8 @@ namespace esim {
 namespace {
 
 struct Glyph {
-  const char* key;               // UTF-8 character
-  std::uint8_t rows[7];          // 5 bits per row, bit 4 = leftmost column
+  const char* key;       // UTF-8 character
+  std::uint8_t rows[7];  // 5 bits per row, bit 4 = leftmost column
 };
 
 // clang-format off
@@ -93,9 +93,12 @@ constexpr Glyph kUnknown = {"?", {0b11111, 0b10001, 0b10001, 0b10001, 0b10001, 0
 const Glyph& nextGlyph(const std::string& text, size_t& i) {
   const unsigned char lead = static_cast<unsigned char>(text[i]);
   size_t len = 1;
-  if (lead >= 0xF0) len = 4;
-  else if (lead >= 0xE0) len = 3;
-  else if (lead >= 0xC0) len = 2;
+  if (lead >= 0xF0)
+    len = 4;
+  else if (lead >= 0xE0)
+    len = 3;
+  else if (lead >= 0xC0)
+    len = 2;
   len = std::min(len, text.size() - i);
   for (const Glyph& g : kGlyphs) {
     if (std::strlen(g.key) == len && text.compare(i, len, g.key) == 0) {

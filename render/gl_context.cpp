@@ -13,9 +13,10 @@
 namespace esim {
 
 void GlContext::loadFunctions(void* (*getProc)(const char*)) {
-#define ESIM_GL_LOAD(type, name)                                                      \
-  gl_.name = reinterpret_cast<type>(getProc("gl" #name));                             \
-  ESIM_VERIFY(gl_.name != nullptr, "GL context (" + backend_ + "): entry point gl" #name \
+#define ESIM_GL_LOAD(type, name)                                 \
+  gl_.name = reinterpret_cast<type>(getProc("gl" #name));        \
+  ESIM_VERIFY(gl_.name != nullptr, "GL context (" + backend_ +   \
+                                       "): entry point gl" #name \
                                        " not found; an OpenGL 3.3 core driver is required");
   ESIM_GL_FUNCTIONS(ESIM_GL_LOAD)
 #undef ESIM_GL_LOAD
@@ -28,28 +29,37 @@ void GlContext::loadFunctions(void* (*getProc)(const char*)) {
   GLint major = 0, minor = 0;
   gl_.GetIntegerv(GL_MAJOR_VERSION, &major);
   gl_.GetIntegerv(GL_MINOR_VERSION, &minor);
-  ESIM_VERIFY(major > 3 || (major == 3 && minor >= 3),
-              "GL context (" + backend_ + "): got OpenGL " + version_ +
-                  ", expected a 3.3+ core profile");
+  ESIM_VERIFY(
+      major > 3 || (major == 3 && minor >= 3),
+      "GL context (" + backend_ + "): got OpenGL " + version_ + ", expected a 3.3+ core profile");
 }
 
 namespace {
 
 // ---- OSMesa ----
 
-void* osmesaProc(const char* name) {
-  return reinterpret_cast<void*>(OSMesaGetProcAddress(name));
-}
+void* osmesaProc(const char* name) { return reinterpret_cast<void*>(OSMesaGetProcAddress(name)); }
 
 class OsMesaContext final : public GlContext {
  public:
   OsMesaContext() {
     backend_ = "osmesa";
     platform_ = "OSMesa";
-    const int attribs[] = {OSMESA_FORMAT, OSMESA_RGBA, OSMESA_DEPTH_BITS, 0,
-                           OSMESA_STENCIL_BITS, 0, OSMESA_ACCUM_BITS, 0,
-                           OSMESA_PROFILE, OSMESA_CORE_PROFILE,
-                           OSMESA_CONTEXT_MAJOR_VERSION, 3, OSMESA_CONTEXT_MINOR_VERSION, 3, 0};
+    const int attribs[] = {OSMESA_FORMAT,
+                           OSMESA_RGBA,
+                           OSMESA_DEPTH_BITS,
+                           0,
+                           OSMESA_STENCIL_BITS,
+                           0,
+                           OSMESA_ACCUM_BITS,
+                           0,
+                           OSMESA_PROFILE,
+                           OSMESA_CORE_PROFILE,
+                           OSMESA_CONTEXT_MAJOR_VERSION,
+                           3,
+                           OSMESA_CONTEXT_MINOR_VERSION,
+                           3,
+                           0};
     ctx_ = OSMesaCreateContextAttribs(attribs, nullptr);
     ESIM_VERIFY(ctx_ != nullptr,
                 "GL context (osmesa): OSMesaCreateContextAttribs failed to create a 3.3 core "
@@ -97,7 +107,8 @@ class EglContext final : public GlContext {
     ESIM_VERIFY(getPlatformDisplay, "GL context (egl): eglGetPlatformDisplayEXT not found");
     std::string tried;
     if (hasExtension(clientExt, "EGL_MESA_platform_surfaceless")) {
-      EGLDisplay d = getPlatformDisplay(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr);
+      EGLDisplay d =
+          getPlatformDisplay(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr);
       if (d != EGL_NO_DISPLAY && eglInitialize(d, nullptr, nullptr)) {
         display_ = d;
         platform_ = "EGL surfaceless (EGL_MESA_platform_surfaceless)";
@@ -106,8 +117,8 @@ class EglContext final : public GlContext {
       }
     }
     if (display_ == EGL_NO_DISPLAY && hasExtension(clientExt, "EGL_EXT_platform_device")) {
-      auto queryDevices = reinterpret_cast<PFNEGLQUERYDEVICESEXTPROC>(
-          eglGetProcAddress("eglQueryDevicesEXT"));
+      auto queryDevices =
+          reinterpret_cast<PFNEGLQUERYDEVICESEXTPROC>(eglGetProcAddress("eglQueryDevicesEXT"));
       EGLDeviceEXT devices[16];
       EGLint count = 0;
       if (queryDevices && queryDevices(16, devices, &count)) {
@@ -141,12 +152,18 @@ class EglContext final : public GlContext {
                   "GL context (egl): no OpenGL config and no configless contexts");
       config = nullptr;  // EGL_NO_CONFIG_KHR
     }
-    const EGLint ctxAttribs[] = {EGL_CONTEXT_MAJOR_VERSION, 3, EGL_CONTEXT_MINOR_VERSION, 3,
+    const EGLint ctxAttribs[] = {EGL_CONTEXT_MAJOR_VERSION,
+                                 3,
+                                 EGL_CONTEXT_MINOR_VERSION,
+                                 3,
                                  EGL_CONTEXT_OPENGL_PROFILE_MASK,
-                                 EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
+                                 EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
+                                 EGL_NONE};
     ctx_ = eglCreateContext(display_, config, EGL_NO_CONTEXT, ctxAttribs);
-    ESIM_VERIFY(ctx_ != EGL_NO_CONTEXT, "GL context (egl): eglCreateContext (3.3 core) failed, "
-                                        "EGL error 0x" + hex(eglGetError()));
+    ESIM_VERIFY(ctx_ != EGL_NO_CONTEXT,
+                "GL context (egl): eglCreateContext (3.3 core) failed, "
+                "EGL error 0x" +
+                    hex(eglGetError()));
     makeCurrent();
     loadFunctions(&eglProc);
   }

@@ -17,8 +17,9 @@ namespace {
 void checkSize(const std::vector<std::uint8_t>& rgb, int width, int height, const char* what) {
   ESIM_VERIFY(width > 0 && height > 0 &&
                   rgb.size() == static_cast<size_t>(width) * static_cast<size_t>(height) * 3,
-              std::string(what) + ": image has " + std::to_string(rgb.size()) + " bytes, expected " +
-                  std::to_string(width) + "x" + std::to_string(height) + "x3 (RGB24)");
+              std::string(what) + ": image has " + std::to_string(rgb.size()) +
+                  " bytes, expected " + std::to_string(width) + "x" + std::to_string(height) +
+                  "x3 (RGB24)");
 }
 
 }  // namespace
@@ -48,7 +49,8 @@ std::uint64_t perceptualHash(const std::vector<std::uint8_t>& rgb, int width, in
           const std::uint8_t* p = &rgb[(static_cast<size_t>(y) * width + x) * 3];
           sum += 77u * p[0] + 150u * p[1] + 29u * p[2];
         }
-      cell[r][c] = static_cast<double>(sum) / ((std::min(y1, height) - y0) * (std::min(x1, width) - x0));
+      cell[r][c] =
+          static_cast<double>(sum) / ((std::min(y1, height) - y0) * (std::min(x1, width) - x0));
     }
   }
   std::uint64_t h = 0;
@@ -66,8 +68,9 @@ std::string hashToHex(std::uint64_t h) {
   return buf;
 }
 
-ImageComparison compareImages(const std::vector<std::uint8_t>& a, const std::vector<std::uint8_t>& b,
-                              int width, int height, int threshold) {
+ImageComparison compareImages(const std::vector<std::uint8_t>& a,
+                              const std::vector<std::uint8_t>& b, int width, int height,
+                              int threshold) {
   checkSize(a, width, height, "compareImages (first image)");
   checkSize(b, width, height, "compareImages (second image)");
   ImageComparison c;
@@ -84,8 +87,8 @@ ImageComparison compareImages(const std::vector<std::uint8_t>& a, const std::vec
     if (m > threshold) ++c.offPixels;
   }
   const double mse = static_cast<double>(sq) / (3.0 * static_cast<double>(n));
-  c.psnrDb = sq == 0 ? std::numeric_limits<double>::infinity()
-                     : 10.0 * std::log10(255.0 * 255.0 / mse);
+  c.psnrDb =
+      sq == 0 ? std::numeric_limits<double>::infinity() : 10.0 * std::log10(255.0 * 255.0 / mse);
   c.offShare = static_cast<double>(c.offPixels) / static_cast<double>(n);
   return c;
 }

@@ -58,15 +58,16 @@ int hammingDistance(std::uint64_t a, std::uint64_t b);
 std::string hashToHex(std::uint64_t h);
 
 struct ImageComparison {
-  double psnrDb = 0;         // +inf when identical
-  double offShare = 0;       // share of pixels off by more than the threshold [0,1]
-  int maxDiff = 0;           // largest channel difference [0..255]
-  long offPixels = 0;        // number of such pixels
+  double psnrDb = 0;    // +inf when identical
+  double offShare = 0;  // share of pixels off by more than the threshold [0,1]
+  int maxDiff = 0;      // largest channel difference [0..255]
+  long offPixels = 0;   // number of such pixels
 };
 
 // compares two RGB24 images of equal size; throws esim::Error on size mismatch
-ImageComparison compareImages(const std::vector<std::uint8_t>& a, const std::vector<std::uint8_t>& b,
-                              int width, int height, int threshold = kPixelDiffThreshold);
+ImageComparison compareImages(const std::vector<std::uint8_t>& a,
+                              const std::vector<std::uint8_t>& b, int width, int height,
+                              int threshold = kPixelDiffThreshold);
 
 // true when psnr >= minPsnrDb and offShare <= maxOffShare
 bool imagesMatch(const ImageComparison& c, double minPsnrDb = kMinPsnrDb,

@@ -35,7 +35,8 @@ void writePng(const std::string& path, const std::vector<std::uint8_t>& rgb, int
               int height) {
   ESIM_VERIFY(width > 0 && height > 0 && rgb.size() == static_cast<size_t>(width) * height * 3,
               "writePng(" + path + "): image has " + std::to_string(rgb.size()) +
-                  " bytes, expected " + std::to_string(width) + "x" + std::to_string(height) + "x3");
+                  " bytes, expected " + std::to_string(width) + "x" + std::to_string(height) +
+                  "x3");
   const AVCodec* codec = avcodec_find_encoder(AV_CODEC_ID_PNG);
   ESIM_VERIFY(codec, "writePng(" + path + "): libavcodec has no PNG encoder");
   std::unique_ptr<AVCodecContext, CodecCtxFree> ctx(avcodec_alloc_context3(codec));
@@ -99,9 +100,9 @@ RgbImage readPng(const std::string& path) {
   img.width = frame->width;
   img.height = frame->height;
   img.rgb.resize(static_cast<size_t>(img.width) * img.height * 3);
-  SwsContext* sws = sws_getContext(img.width, img.height, static_cast<AVPixelFormat>(frame->format),
-                                   img.width, img.height, AV_PIX_FMT_RGB24, SWS_POINT, nullptr,
-                                   nullptr, nullptr);
+  SwsContext* sws =
+      sws_getContext(img.width, img.height, static_cast<AVPixelFormat>(frame->format), img.width,
+                     img.height, AV_PIX_FMT_RGB24, SWS_POINT, nullptr, nullptr, nullptr);
   ESIM_VERIFY(sws, "readPng(" + path + "): unsupported pixel format");
   std::uint8_t* dst[4] = {img.rgb.data(), nullptr, nullptr, nullptr};
   int dstStride[4] = {img.width * 3, 0, 0, 0};

@@ -47,26 +47,26 @@ namespace esim {
 constexpr double kCreaseAngleDeg = 65.0;
 
 struct RenderOptions {
-  int width = 1280, height = 720;          // frame size [px]
-  std::string look = "temperature";        // "temperature", "tissue" or "potential"
-  std::array<float, 3> eyeM{0.0f, -0.085f, 0.095f};    // camera position [m]
-  std::array<float, 3> targetM{0.0f, 0.0f, 0.006f};    // point looked at [m]
-  std::array<float, 3> up{0.0f, 0.0f, 1.0f};            // world up direction
-  float fovDeg = 35;                       // vertical field of view [deg]
-  float tMinC = 37, tMaxC = 120;           // colour map range [C]
-  float vMinV = 0, vMaxV = 72;             // potential look: colour map range [V]
-  bool potentialLogScale = false;          // potential look: logarithmic map (needs vMinV > 0)
-  std::string colormap = "inferno";        // "inferno" or "viridis" (temperature, potential)
-  bool showColorBar = true;                // temperature and potential looks only
-  bool showTime = true;                    // "t = 1.25 s" at the top left
-  std::string backend = "osmesa";          // "osmesa" or "egl"
-  int msaaSamples = 4;                     // 0 (off), 2 or 4
-  bool lighting = true;                    // false: flat albedo (tests, colour checks)
-  std::string shading = "pixel";           // lighting "pixel" (Blinn-Phong per pixel) or
-                                           // "vertex" (per vertex, interpolated: faster,
-                                           // highlights follow the mesh); colours per pixel
-  bool cullBackFaces = true;               // skip triangles seen from behind (closed
-                                           // surfaces; false for open ones)
+  int width = 1280, height = 720;                    // frame size [px]
+  std::string look = "temperature";                  // "temperature", "tissue" or "potential"
+  std::array<float, 3> eyeM{0.0f, -0.085f, 0.095f};  // camera position [m]
+  std::array<float, 3> targetM{0.0f, 0.0f, 0.006f};  // point looked at [m]
+  std::array<float, 3> up{0.0f, 0.0f, 1.0f};         // world up direction
+  float fovDeg = 35;                                 // vertical field of view [deg]
+  float tMinC = 37, tMaxC = 120;                     // colour map range [C]
+  float vMinV = 0, vMaxV = 72;                       // potential look: colour map range [V]
+  bool potentialLogScale = false;    // potential look: logarithmic map (needs vMinV > 0)
+  std::string colormap = "inferno";  // "inferno" or "viridis" (temperature, potential)
+  bool showColorBar = true;          // temperature and potential looks only
+  bool showTime = true;              // "t = 1.25 s" at the top left
+  std::string backend = "osmesa";    // "osmesa" or "egl"
+  int msaaSamples = 4;               // 0 (off), 2 or 4
+  bool lighting = true;              // false: flat albedo (tests, colour checks)
+  std::string shading = "pixel";     // lighting "pixel" (Blinn-Phong per pixel) or
+                                     // "vertex" (per vertex, interpolated: faster,
+                                     // highlights follow the mesh); colours per pixel
+  bool cullBackFaces = true;         // skip triangles seen from behind (closed
+                                     // surfaces; false for open ones)
 };
 
 // wall-clock split of the last render() call [ms]
@@ -94,9 +94,9 @@ class Renderer {
   // throws esim::Error naming the field when the snapshot is inconsistent
   const std::vector<std::uint8_t>& render(const SurfaceSnapshot& snapshot);
 
-  std::string glRenderer() const;   // GL_RENDERER, e.g. "llvmpipe (LLVM 15.0.6, 256 bits)"
-  std::string glVersion() const;    // GL_VERSION, e.g. "4.5 (Core Profile) Mesa 22.3.6"
-  std::string glPlatform() const;   // "OSMesa", "EGL surfaceless (...)"
+  std::string glRenderer() const;  // GL_RENDERER, e.g. "llvmpipe (LLVM 15.0.6, 256 bits)"
+  std::string glVersion() const;   // GL_VERSION, e.g. "4.5 (Core Profile) Mesa 22.3.6"
+  std::string glPlatform() const;  // "OSMesa", "EGL surfaceless (...)"
   const RenderOptions& options() const;
   const RenderTimings& lastTimings() const;  // of the last render() call
 

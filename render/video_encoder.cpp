@@ -81,7 +81,8 @@ void VideoEncoder::open(const Options& o) {
                   ", expected even sizes >= 16 (yuv420p halves the chroma)");
   ESIM_VERIFY(o.fps >= 1 && o.fps <= 240,
               "video.fps: " + std::to_string(o.fps) + ", expected 1..240");
-  ESIM_VERIFY(o.crf >= 0 && o.crf <= 51, "video.crf: " + std::to_string(o.crf) + ", expected 0..51");
+  ESIM_VERIFY(o.crf >= 0 && o.crf <= 51,
+              "video.crf: " + std::to_string(o.crf) + ", expected 0..51");
   ESIM_VERIFY(o.queueCapacity >= 1, "video.queue_capacity: must be at least 1");
   opt_ = o;
   // libx264 and the muxer log every file at "info" level; keep stderr for warnings
@@ -100,8 +101,10 @@ void VideoEncoder::open(const Options& o) {
   // 1. encoder, with the documented fallback chain
   const AVCodec* codec = avcodec_find_encoder_by_name(o.codec.c_str());
   if (!codec) {
-    const std::string missing = "video: encoder '" + o.codec + "' is not available in this FFmpeg "
-                                "build (libavcodec " + std::to_string(LIBAVCODEC_VERSION_MAJOR) + ")";
+    const std::string missing = "video: encoder '" + o.codec +
+                                "' is not available in this FFmpeg "
+                                "build (libavcodec " +
+                                std::to_string(LIBAVCODEC_VERSION_MAJOR) + ")";
     ESIM_VERIFY(o.allowFallback, missing + "; install an FFmpeg with " + o.codec +
                                      " (Debian: libavcodec59 with libx264) or allow the fallback");
     for (const char* name : {"libopenh264", "mpeg4"}) {
@@ -169,8 +172,7 @@ void VideoEncoder::open(const Options& o) {
   a.headerWritten = true;
 
   // 3. colour conversion RGB24 (full range) -> YUV420P (limited), BT.709 matrix
-  a.sws = sws_getContext(o.width, o.height, AV_PIX_FMT_RGB24, o.width, o.height,
-                         AV_PIX_FMT_YUV420P,
+  a.sws = sws_getContext(o.width, o.height, AV_PIX_FMT_RGB24, o.width, o.height, AV_PIX_FMT_YUV420P,
                          SWS_BILINEAR | SWS_ACCURATE_RND | (o.reproducible ? SWS_BITEXACT : 0),
                          nullptr, nullptr, nullptr);
   ESIM_VERIFY(a.sws, "video: cannot create the RGB -> YUV420P converter");
@@ -200,9 +202,8 @@ void VideoEncoder::push(std::vector<std::uint8_t> rgb) {
                   std::to_string(opt_.width) + "x" + std::to_string(opt_.height) + "x3 (RGB24)");
   std::unique_lock<std::mutex> lock(mutex_);
   const std::int64_t t0 = nowNs();
-  notFull_.wait(lock, [&] {
-    return error_ || static_cast<int>(queue_.size()) < opt_.queueCapacity;
-  });
+  notFull_.wait(lock,
+                [&] { return error_ || static_cast<int>(queue_.size()) < opt_.queueCapacity; });
   pushWaitNs_ += nowNs() - t0;
   if (error_) {
     lock.unlock();
@@ -227,8 +228,9 @@ void VideoEncoder::close() {
     avio_closep(&av_->fmt->pb);
     std::error_code ec;
     std::filesystem::rename(tmpPath_, opt_.path, ec);
-    if (ec) err = std::make_exception_ptr(Error("video.path: cannot rename '" + tmpPath_ +
-                                                "' to '" + opt_.path + "': " + ec.message()));
+    if (ec)
+      err = std::make_exception_ptr(Error("video.path: cannot rename '" + tmpPath_ + "' to '" +
+                                          opt_.path + "': " + ec.message()));
   }
   av_.reset();
   if (err) {

@@ -66,11 +66,11 @@ class VideoEncoder {
 
   bool isOpen() const { return thread_.joinable(); }
   int framesEncoded() const { return framesEncoded_.load(); }
-  double encodeSeconds() const { return encodeNs_.load() * 1e-9; }   // encoder + muxer time
-  double convertSeconds() const { return convertNs_.load() * 1e-9; } // RGB -> YUV time
-  double pushWaitSeconds() const { return pushWaitNs_.load() * 1e-9; } // push() blocked
-  const std::string& codecName() const { return codecName_; }        // encoder in use
-  const std::string& notes() const { return notes_; }                // fallback message
+  double encodeSeconds() const { return encodeNs_.load() * 1e-9; }      // encoder + muxer time
+  double convertSeconds() const { return convertNs_.load() * 1e-9; }    // RGB -> YUV time
+  double pushWaitSeconds() const { return pushWaitNs_.load() * 1e-9; }  // push() blocked
+  const std::string& codecName() const { return codecName_; }           // encoder in use
+  const std::string& notes() const { return notes_; }                   // fallback message
 
   // "libavcodec 59.37.100, libavformat 59.27.100, libswscale 6.7.100"
   static std::string libraryVersions();

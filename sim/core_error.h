@@ -20,9 +20,9 @@ class Error : public std::runtime_error {
 
 }  // namespace esim
 
-#define ESIM_VERIFY(cond, msg)                  \
-  do {                                          \
-    if (!(cond)) throw ::esim::Error(msg);      \
+#define ESIM_VERIFY(cond, msg)             \
+  do {                                     \
+    if (!(cond)) throw ::esim::Error(msg); \
   } while (0)
 
 #ifdef NDEBUG

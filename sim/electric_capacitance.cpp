@@ -118,7 +118,7 @@ class CapacitanceSolver final : public ElectricSolver {
     }
     std::sort(missing.begin(), missing.end());
     missing.erase(std::unique(missing.begin(), missing.end()), missing.end());
-    ++frame_;  // prefetched columns count as used now
+    ++frame_;                             // prefetched columns count as used now
     computeColumns(missing, maxSlots());  // never more than the cache holds
   }
 
@@ -231,16 +231,16 @@ class CapacitanceSolver final : public ElectricSolver {
 
   ElectricSolverOptions options_;
   NodeClasses classes_;
-  SparseMatrix kff_;                      // K restricted to the free nodes (patch graph)
+  SparseMatrix kff_;  // K restricted to the free nodes (patch graph)
   CholmodFactor factor_;
-  std::vector<int> candidates_;           // node ids the tool may touch (sorted)
-  std::vector<int> patchOf_;              // free index -> patch (-1: solved alone)
+  std::vector<int> candidates_;            // node ids the tool may touch (sorted)
+  std::vector<int> patchOf_;               // free index -> patch (-1: solved alone)
   std::vector<std::vector<int>> patches_;  // sorted free indices per patch
-  std::vector<Eigen::VectorXd> columns_;  // cached K_ff^-1 e_j
-  std::vector<int> slotNode_;             // slot -> free index j (-1: empty)
-  std::vector<long> lastUsed_;            // slot -> frame of last use
-  std::vector<int> slotOf_;               // free index -> slot (-1: not cached)
-  Eigen::MatrixXd rhs_, block_;           // identity columns and their solutions
+  std::vector<Eigen::VectorXd> columns_;   // cached K_ff^-1 e_j
+  std::vector<int> slotNode_;              // slot -> free index j (-1: empty)
+  std::vector<long> lastUsed_;             // slot -> frame of last use
+  std::vector<int> slotOf_;                // free index -> slot (-1: not cached)
+  Eigen::MatrixXd rhs_, block_;            // identity columns and their solutions
   long frame_ = 0;
 };
 

@@ -60,8 +60,7 @@ class PcgSolver final : public ElectricSolver {
     Eigen::VectorXd x;
     if (options_.pcgPreconditioner == PcgPreconditioner::IncompleteCholesky) {
       if (!prepared_ || cf != preparedContact_) ic_.compute(system_);
-      ESIM_VERIFY(ic_.info() == Eigen::Success,
-                  "pcg: incomplete Cholesky preconditioner failed");
+      ESIM_VERIFY(ic_.info() == Eigen::Success, "pcg: incomplete Cholesky preconditioner failed");
       x = ic_.solveWithGuess(b, x0);
       stats.iterations = static_cast<int>(ic_.iterations());
       stats.residual = ic_.error();
@@ -87,9 +86,9 @@ class PcgSolver final : public ElectricSolver {
   const char* name() const override { return "pcg"; }
 
  private:
-  using Ic = Eigen::ConjugateGradient<SparseMatrix, Eigen::Lower | Eigen::Upper,
-                                      Eigen::IncompleteCholesky<double, Eigen::Lower,
-                                                                Eigen::AMDOrdering<int>>>;
+  using Ic = Eigen::ConjugateGradient<
+      SparseMatrix, Eigen::Lower | Eigen::Upper,
+      Eigen::IncompleteCholesky<double, Eigen::Lower, Eigen::AMDOrdering<int>>>;
   using Jacobi = Eigen::ConjugateGradient<SparseMatrix, Eigen::Lower | Eigen::Upper,
                                           Eigen::DiagonalPreconditioner<double>>;
 

@@ -17,9 +17,9 @@ void validateConductivity(const TetMesh& mesh, const std::vector<double>& conduc
   for (int e = 0; e < mesh.numTets(); ++e) {
     if (!mesh.isAlive(e)) continue;
     const double s = conductivityS_m[e];
-    ESIM_VERIFY(std::isfinite(s) && s > 0,
-                "electric conductivity: tet " + std::to_string(e) + " has sigma = " +
-                    std::to_string(s) + " S/m; expected a finite value > 0");
+    ESIM_VERIFY(std::isfinite(s) && s > 0, "electric conductivity: tet " + std::to_string(e) +
+                                               " has sigma = " + std::to_string(s) +
+                                               " S/m; expected a finite value > 0");
   }
 }
 
@@ -30,9 +30,8 @@ SparseMatrix assembleElectricStiffness(const TetMesh& mesh, const std::vector<Te
 }
 
 ElectricTotals computeJoulePower(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
-                                 const std::vector<double>& conductivityS_m,
-                                 const SparseMatrix& K, const Eigen::VectorXd& potentialV,
-                                 const std::vector<int>& contact,
+                                 const std::vector<double>& conductivityS_m, const SparseMatrix& K,
+                                 const Eigen::VectorXd& potentialV, const std::vector<int>& contact,
                                  const std::vector<int>& grounded, double toolVoltageV,
                                  std::vector<double>& joulePowerW_m3) {
   const int n = mesh.numNodes();
@@ -76,9 +75,9 @@ ElectricFields computeElectricFields(const TetMesh& mesh, const std::vector<TetG
                                      const std::vector<int>& grounded, double toolVoltageV) {
   validateConductivity(mesh, conductivityS_m);
   ElectricFields out;
-  const ElectricTotals totals = computeJoulePower(mesh, geo, conductivityS_m, K, potentialV,
-                                                  contact, grounded, toolVoltageV,
-                                                  out.joulePowerW_m3);
+  const ElectricTotals totals =
+      computeJoulePower(mesh, geo, conductivityS_m, K, potentialV, contact, grounded, toolVoltageV,
+                        out.joulePowerW_m3);
   out.potentialV = potentialV;
   out.toolCurrentA = totals.toolCurrentA;
   out.returnCurrentA = totals.returnCurrentA;

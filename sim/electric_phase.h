@@ -51,9 +51,8 @@ struct ElectricTotals {
 // reactions (K u)_i at the fixed nodes only, row i taken as column i of the symmetric K,
 // so no full product is formed. sigma is assumed validated (assembleElectricStiffness).
 ElectricTotals computeJoulePower(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
-                                 const std::vector<double>& conductivityS_m,
-                                 const SparseMatrix& K, const Eigen::VectorXd& potentialV,
-                                 const std::vector<int>& contact,
+                                 const std::vector<double>& conductivityS_m, const SparseMatrix& K,
+                                 const Eigen::VectorXd& potentialV, const std::vector<int>& contact,
                                  const std::vector<int>& grounded, double toolVoltageV,
                                  std::vector<double>& joulePowerW_m3);
 

@@ -28,10 +28,14 @@ ElectricStrategy parseElectricStrategy(const std::string& name) {
 
 const char* electricStrategyName(ElectricStrategy strategy) {
   switch (strategy) {
-    case ElectricStrategy::Refactor: return "refactor";
-    case ElectricStrategy::DenseInverse: return "dense-inverse";
-    case ElectricStrategy::Capacitance: return "capacitance";
-    case ElectricStrategy::Pcg: return "pcg";
+    case ElectricStrategy::Refactor:
+      return "refactor";
+    case ElectricStrategy::DenseInverse:
+      return "dense-inverse";
+    case ElectricStrategy::Capacitance:
+      return "capacitance";
+    case ElectricStrategy::Pcg:
+      return "pcg";
   }
   return "?";
 }
@@ -42,10 +46,14 @@ std::unique_ptr<ElectricSolver> makeElectricSolver(const ElectricSolverOptions& 
               "electric solver: pcgTolerance must be a positive number");
   ESIM_VERIFY(options.pcgMaxIterations >= 1, "electric solver: pcgMaxIterations must be >= 1");
   switch (options.strategy) {
-    case ElectricStrategy::Refactor: return electric_detail::makeRefactorSolver(options);
-    case ElectricStrategy::DenseInverse: return electric_detail::makeDenseInverseSolver(options);
-    case ElectricStrategy::Capacitance: return electric_detail::makeCapacitanceSolver(options);
-    case ElectricStrategy::Pcg: return electric_detail::makePcgSolver(options);
+    case ElectricStrategy::Refactor:
+      return electric_detail::makeRefactorSolver(options);
+    case ElectricStrategy::DenseInverse:
+      return electric_detail::makeDenseInverseSolver(options);
+    case ElectricStrategy::Capacitance:
+      return electric_detail::makeCapacitanceSolver(options);
+    case ElectricStrategy::Pcg:
+      return electric_detail::makePcgSolver(options);
   }
   throw Error("electric solver: bad strategy value");
 }
@@ -108,9 +116,9 @@ std::vector<int> NodeClasses::contactFreeIndices(const std::vector<int>& contact
                                      " out of range [0, " + std::to_string(n) + ")");
     ESIM_VERIFY(k == 0 || contact[k - 1] < c,
                 "electric solver: contact node ids must be sorted and unique");
-    ESIM_VERIFY(!isGrounded[c],
-                "electric solver: short circuit: the tool touches node " + std::to_string(c) +
-                    ", which belongs to the return electrode (grounded)");
+    ESIM_VERIFY(!isGrounded[c], "electric solver: short circuit: the tool touches node " +
+                                    std::to_string(c) +
+                                    ", which belongs to the return electrode (grounded)");
     if (freeIndex[c] >= 0) out.push_back(freeIndex[c]);
   }
   return out;
@@ -143,8 +151,8 @@ void scatterPotential(const NodeClasses& classes, const Eigen::VectorXd& freeVal
   for (int c : contactFree) potential[classes.freeNodes[c]] = voltageV;
 }
 
-void dirichletSystem(const SparseMatrix& Kff, const std::vector<int>& contactFree,
-                     double voltageV, SparseMatrix& A, Eigen::VectorXd& b) {
+void dirichletSystem(const SparseMatrix& Kff, const std::vector<int>& contactFree, double voltageV,
+                     SparseMatrix& A, Eigen::VectorXd& b) {
   const int nf = static_cast<int>(Kff.rows());
   std::vector<std::uint8_t> isContact(nf, 0);
   for (int c : contactFree) isContact[c] = 1;
@@ -220,8 +228,9 @@ void CholmodFactor::analyze(const SparseMatrix& A) {
   factorized_ = false;
   cholmod_sparse s = viewLower(A);
   impl_->factor = cholmod_analyze(&s, c);
-  ESIM_VERIFY(impl_->factor != nullptr, "electric solver: CHOLMOD symbolic analysis failed "
-                                        "(out of memory?)");
+  ESIM_VERIFY(impl_->factor != nullptr,
+              "electric solver: CHOLMOD symbolic analysis failed "
+              "(out of memory?)");
 }
 
 void CholmodFactor::factorize(const SparseMatrix& A, const char* what) {
@@ -230,11 +239,10 @@ void CholmodFactor::factorize(const SparseMatrix& A, const char* what) {
   cholmod_sparse s = viewLower(A);
   const int ok = cholmod_factorize(&s, impl_->factor, c);
   factorized_ = ok && c->status == CHOLMOD_OK && impl_->factor->minor == impl_->factor->n;
-  ESIM_VERIFY(factorized_, std::string(what) +
-                               ": the matrix is not positive definite (CHOLMOD status " +
-                               std::to_string(c->status) + ", column " +
-                               std::to_string(impl_->factor->minor) +
-                               "); a conductivity <= 0 or a NaN in K?");
+  ESIM_VERIFY(factorized_,
+              std::string(what) + ": the matrix is not positive definite (CHOLMOD status " +
+                  std::to_string(c->status) + ", column " + std::to_string(impl_->factor->minor) +
+                  "); a conductivity <= 0 or a NaN in K?");
 }
 
 void CholmodFactor::solve(const double* b, double* x, int ncols) {
@@ -255,16 +263,16 @@ void CholmodFactor::solve(const double* b, double* x, int ncols) {
   std::copy_n(static_cast<const double*>(impl_->x->x), static_cast<size_t>(n) * ncols, x);
 }
 
-int CholmodFactor::size() const {
-  return impl_->factor ? static_cast<int>(impl_->factor->n) : 0;
-}
+int CholmodFactor::size() const { return impl_->factor ? static_cast<int>(impl_->factor->n) : 0; }
 
 double CholmodFactor::memoryBytes() const {
   const cholmod_factor* f = impl_->factor;
   if (!f) return 0;
   double bytes = 8.0 * static_cast<double>(f->xsize) + 4.0 * static_cast<double>(f->n) * 3;
-  if (f->is_super) bytes += 4.0 * static_cast<double>(f->ssize + 4 * f->nsuper);
-  else bytes += 4.0 * static_cast<double>(f->nzmax + 4 * f->n);
+  if (f->is_super)
+    bytes += 4.0 * static_cast<double>(f->ssize + 4 * f->nsuper);
+  else
+    bytes += 4.0 * static_cast<double>(f->nzmax + 4 * f->n);
   return bytes;
 }
 

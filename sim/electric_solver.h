@@ -70,13 +70,13 @@ const char* electricStrategyName(ElectricStrategy strategy);
 
 struct ElectricSolverOptions {
   ElectricStrategy strategy = ElectricStrategy::Capacitance;
-  double pcgTolerance = 1e-8;           // relative residual ||b - A x|| / ||b||
+  double pcgTolerance = 1e-8;  // relative residual ||b - A x|| / ||b||
   int pcgMaxIterations = 5000;
   PcgPreconditioner pcgPreconditioner = PcgPreconditioner::Jacobi;  // or IncompleteCholesky
-  double denseMemoryLimitBytes = 2e9;   // dense-inverse refuses above this
-  double cacheMemoryLimitBytes = 1e9;   // capacitance column cache cap (LRU eviction)
-  int capacitancePatchNodes = 16;       // capacitance: candidates solved together
-  int threads = 1;                      // BLAS threads (CHOLMOD supernodal uses BLAS)
+  double denseMemoryLimitBytes = 2e9;  // dense-inverse refuses above this
+  double cacheMemoryLimitBytes = 1e9;  // capacitance column cache cap (LRU eviction)
+  int capacitancePatchNodes = 16;      // capacitance: candidates solved together
+  int threads = 1;                     // BLAS threads (CHOLMOD supernodal uses BLAS)
 };
 
 struct ElectricSolveStats {
@@ -120,8 +120,8 @@ namespace electric_detail {
 // the node classes of one (K, grounded) pair, see the header comment
 struct NodeClasses {
   int n = 0;
-  std::vector<int> freeNodes;           // sorted node ids of the free nodes
-  std::vector<int> freeIndex;           // node -> index in freeNodes, -1 if not free
+  std::vector<int> freeNodes;            // sorted node ids of the free nodes
+  std::vector<int> freeIndex;            // node -> index in freeNodes, -1 if not free
   std::vector<std::uint8_t> isGrounded;  // per node
 
   // throws Error for a non-square K, empty/unsorted/out-of-range grounded
@@ -159,8 +159,8 @@ void scatterPotential(const NodeClasses& classes, const Eigen::VectorXd& freeVal
 // A_ff with the rows/columns of `contactFree` replaced by the identity (pattern kept,
 // values rewritten in place from Kff), and the right-hand side b (b_c = V, b_o =
 // -K_oc V). `A` must have Kff's pattern.
-void dirichletSystem(const SparseMatrix& Kff, const std::vector<int>& contactFree,
-                     double voltageV, SparseMatrix& A, Eigen::VectorXd& b);
+void dirichletSystem(const SparseMatrix& Kff, const std::vector<int>& contactFree, double voltageV,
+                     SparseMatrix& A, Eigen::VectorXd& b);
 
 // RAII supernodal LL^T factorization with CHOLMOD (int indices, double)
 class CholmodFactor {

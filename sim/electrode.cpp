@@ -119,10 +119,10 @@ std::vector<int> ContactFinder::find(const ElectrodeShape& shape, const ToolPose
   if (!box.intersects(bounds_)) return out;
   Eigen::Array3i lo, hi;
   for (int a = 0; a < 3; ++a) {
-    lo[a] = std::clamp(static_cast<int>(std::floor((box.min()[a] - bounds_.min()[a]) / cellM_)),
-                       0, dims_[a] - 1);
-    hi[a] = std::clamp(static_cast<int>(std::floor((box.max()[a] - bounds_.min()[a]) / cellM_)),
-                       0, dims_[a] - 1);
+    lo[a] = std::clamp(static_cast<int>(std::floor((box.min()[a] - bounds_.min()[a]) / cellM_)), 0,
+                       dims_[a] - 1);
+    hi[a] = std::clamp(static_cast<int>(std::floor((box.max()[a] - bounds_.min()[a]) / cellM_)), 0,
+                       dims_[a] - 1);
   }
   for (int k = lo[2]; k <= hi[2]; ++k)
     for (int j = lo[1]; j <= hi[1]; ++j)

@@ -33,7 +33,7 @@ struct ElectrodeShape {
 };
 
 struct ToolPose {
-  Vec3 tipM{0, 0, 0};                                            // tip position [m]
+  Vec3 tipM{0, 0, 0};                                               // tip position [m]
   Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  // local -> world
 };
 

@@ -39,8 +39,8 @@ Eigen::VectorXd lumpedMass(const TetMesh& mesh, const std::vector<TetGeometry>& 
                            const std::vector<double>& coeff);
 
 // gradient of a nodal field in tet e (constant per tet)
-inline Eigen::Vector3d tetGradient(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
-                                   int e, const Eigen::VectorXd& field) {
+inline Eigen::Vector3d tetGradient(const TetMesh& mesh, const std::vector<TetGeometry>& geo, int e,
+                                   const Eigen::VectorXd& field) {
   const Tet& t = mesh.tets[e];
   return geo[e].grad.transpose() *
          Eigen::Vector4d(field[t[0]], field[t[1]], field[t[2]], field[t[3]]);

@@ -118,7 +118,8 @@ TetMesh makeSlab(const SlabSpec& spec) {
             t[s + 1] = id(c[0], c[1], c[2]);
           }
           t[3] = id(i + 1, j + 1, k + 1);
-          if (tetSignedVolume(mesh.nodes[t[0]], mesh.nodes[t[1]], mesh.nodes[t[2]], mesh.nodes[t[3]]) < 0)
+          if (tetSignedVolume(mesh.nodes[t[0]], mesh.nodes[t[1]], mesh.nodes[t[2]],
+                              mesh.nodes[t[3]]) < 0)
             std::swap(t[2], t[3]);
           mesh.tets.push_back(t);
         }

@@ -26,8 +26,8 @@ struct SlabGrading {
 };
 
 struct SlabSpec {
-  Vec3 sizeM{0.1, 0.1, 0.01};  // Lx, Ly, Lz [m]
-  int targetNodes = 1013;      // requested node count (used when divisions are 0)
+  Vec3 sizeM{0.1, 0.1, 0.01};                // Lx, Ly, Lz [m]
+  int targetNodes = 1013;                    // requested node count (used when divisions are 0)
   std::array<int, 3> nodesPerAxis{0, 0, 0};  // explicit px, py, pz (> 1) or zeros
   SlabGrading grading;
 };

@@ -215,10 +215,11 @@ MeshQuality meshQuality(const TetMesh& mesh) {
 void validateMesh(const TetMesh& mesh, const std::string& source) {
   ESIM_VERIFY(mesh.numNodes() > 0 && mesh.numAlive() > 0,
               source + ": mesh is empty (" + std::to_string(mesh.numNodes()) + " nodes, " +
-                  std::to_string(mesh.numAlive()) + " tetrahedra); expected at least one tetrahedron");
+                  std::to_string(mesh.numAlive()) +
+                  " tetrahedra); expected at least one tetrahedron");
   ESIM_VERIFY(mesh.alive.empty() || mesh.alive.size() == mesh.tets.size(),
-              source + ": alive flags have " + std::to_string(mesh.alive.size()) +
-                  " entries for " + std::to_string(mesh.tets.size()) + " tetrahedra");
+              source + ": alive flags have " + std::to_string(mesh.alive.size()) + " entries for " +
+                  std::to_string(mesh.tets.size()) + " tetrahedra");
   for (int i = 0; i < mesh.numNodes(); ++i) {
     ESIM_VERIFY(mesh.nodes[i].allFinite(),
                 source + ": node " + std::to_string(i) + " has a non-finite coordinate");
@@ -226,10 +227,10 @@ void validateMesh(const TetMesh& mesh, const std::string& source) {
   double mean_abs = 0;
   for (int e = 0; e < mesh.numTets(); ++e) {
     for (int v : mesh.tets[e]) {
-      ESIM_VERIFY(v >= 0 && v < mesh.numNodes(),
-                  source + ": tetrahedron " + std::to_string(e) + " refers to node " +
-                      std::to_string(v) + " but the mesh has " + std::to_string(mesh.numNodes()) +
-                      " nodes");
+      ESIM_VERIFY(v >= 0 && v < mesh.numNodes(), source + ": tetrahedron " + std::to_string(e) +
+                                                     " refers to node " + std::to_string(v) +
+                                                     " but the mesh has " +
+                                                     std::to_string(mesh.numNodes()) + " nodes");
     }
     if (mesh.isAlive(e)) mean_abs += std::abs(tetVolume(mesh, e));
   }
@@ -241,8 +242,7 @@ void validateMesh(const TetMesh& mesh, const std::string& source) {
     msg << source << ": tetrahedron " << e << " (nodes " << mesh.tets[e][0] << " "
         << mesh.tets[e][1] << " " << mesh.tets[e][2] << " " << mesh.tets[e][3] << ") ";
     if (vol < 0 && std::abs(vol) > 1e-10 * mean_abs) {
-      msg << "is inverted (signed volume " << vol
-          << " m^3); expected positive orientation";
+      msg << "is inverted (signed volume " << vol << " m^3); expected positive orientation";
       throw Error(msg.str());
     }
     if (!(std::abs(vol) > 1e-10 * mean_abs)) {

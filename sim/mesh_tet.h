@@ -23,14 +23,14 @@ using Tet = std::array<int, 4>;
 using Tri = std::array<int, 3>;
 
 struct TetMesh {
-  std::vector<Vec3> nodes;                              // positions [m]
-  std::vector<Tet> tets;                                // node ids, positive orientation
-  std::vector<std::uint8_t> alive;                      // per tet: 1 alive, 0 removed
-  std::map<std::string, std::vector<int>> nodeSets;     // named sorted node ids
+  std::vector<Vec3> nodes;                           // positions [m]
+  std::vector<Tet> tets;                             // node ids, positive orientation
+  std::vector<std::uint8_t> alive;                   // per tet: 1 alive, 0 removed
+  std::map<std::string, std::vector<int>> nodeSets;  // named sorted node ids
 
   int numNodes() const { return static_cast<int>(nodes.size()); }
   int numTets() const { return static_cast<int>(tets.size()); }
-  int numAlive() const;                                  // number of alive tets
+  int numAlive() const;  // number of alive tets
   bool isAlive(int tet) const { return alive.empty() || alive[tet] != 0; }
 };
 

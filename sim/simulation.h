@@ -144,7 +144,7 @@ struct SimulationConfig {
   StructuralOptions structural;          // E, nu
   double vaporLiquidVolumeRatio = 1602;  // v_gas / v_liq of water at boiling, 1 atm
   double maxVaporExpansion = 3.0;        // cap of dV/V (structural.h)
-  double clampBandM = 1e-4;            // clamp the nodes this close to the lowest z [m]
+  double clampBandM = 1e-4;              // clamp the nodes this close to the lowest z [m]
   double criticalStressPa = 2.45e4;      // von Mises stress that breaks a tet (paper)
   bool backgroundRebuild = false;        // build the new structures on a thread ...
   int rebuildLagFrames = 3;              // ... swapped in this many frames after rupture

@@ -15,14 +15,14 @@ namespace esim {
 enum class ElectrodeKind : int { Sphere = 0, Blade = 1 };
 
 struct ToolSnapshot {
-  bool present = false;                          // draw the electrode at all
-  bool generatorOn = false;                      // current flowing this frame
+  bool present = false;      // draw the electrode at all
+  bool generatorOn = false;  // current flowing this frame
   ElectrodeKind kind = ElectrodeKind::Blade;
-  std::array<float, 3> tipM{0, 0, 0};            // tip position [m]
+  std::array<float, 3> tipM{0, 0, 0};                // tip position [m]
   std::array<float, 4> orientationWxyz{1, 0, 0, 0};  // local +z = tool axis, tip to handle
-  float radiusM = 0.0005f;   // sphere radius or blade edge half-thickness [m]
-  float lengthM = 0.02f;     // shaft/blade length along the axis [m]
-  float widthM = 0.003f;     // blade width (local x) [m]
+  float radiusM = 0.0005f;  // sphere radius or blade edge half-thickness [m]
+  float lengthM = 0.02f;    // shaft/blade length along the axis [m]
+  float widthM = 0.003f;    // blade width (local x) [m]
 };
 
 struct SurfaceSnapshot {

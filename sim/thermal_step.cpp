@@ -52,9 +52,12 @@ ThermalIntegrator parseThermalIntegrator(const std::string& name) {
 
 std::string thermalIntegratorName(ThermalIntegrator integrator) {
   switch (integrator) {
-    case ThermalIntegrator::Explicit: return "explicit";
-    case ThermalIntegrator::BackwardEuler: return "backward-euler";
-    case ThermalIntegrator::CrankNicolson: return "crank-nicolson";
+    case ThermalIntegrator::Explicit:
+      return "explicit";
+    case ThermalIntegrator::BackwardEuler:
+      return "backward-euler";
+    case ThermalIntegrator::CrankNicolson:
+      return "crank-nicolson";
   }
   return "?";
 }
@@ -62,8 +65,7 @@ std::string thermalIntegratorName(ThermalIntegrator integrator) {
 void validateThermalParams(const ThermalParams& p, const std::string& where) {
   requirePositive(p.heatCapacityJ_m3K, where, "heat_capacity_j_m3k",
                   "volumetric heat capacity c*rho [J/(K m^3)]");
-  requirePositive(p.conductivityW_mK, where, "conductivity_w_mk",
-                  "thermal conductivity [W/(m K)]");
+  requirePositive(p.conductivityW_mK, where, "conductivity_w_mk", "thermal conductivity [W/(m K)]");
   ESIM_VERIFY(std::isfinite(p.initialTemperatureC) && p.initialTemperatureC > -kKelvinOffset,
               where + ".initial_temperature_c = " + fmt(p.initialTemperatureC) +
                   ": must be finite and above absolute zero (-273.15 C)");
@@ -75,11 +77,11 @@ void validateThermalParams(const ThermalParams& p, const std::string& where) {
     ESIM_VERIFY(std::isfinite(p.latentHeatJ_kg) && p.latentHeatJ_kg >= 0,
                 where + ".latent_heat_j_kg = " + fmt(p.latentHeatJ_kg) +
                     ": must be >= 0 and finite (latent heat of vaporisation [J/kg])");
-    ESIM_VERIFY(std::isfinite(p.boilingTemperatureC) &&
-                    p.boilingTemperatureC > p.initialTemperatureC,
-                where + ".boiling_temperature_c = " + fmt(p.boilingTemperatureC) +
-                    ": must be finite and above the initial temperature " +
-                    fmt(p.initialTemperatureC) + " C");
+    ESIM_VERIFY(
+        std::isfinite(p.boilingTemperatureC) && p.boilingTemperatureC > p.initialTemperatureC,
+        where + ".boiling_temperature_c = " + fmt(p.boilingTemperatureC) +
+            ": must be finite and above the initial temperature " + fmt(p.initialTemperatureC) +
+            " C");
   }
   ESIM_VERIFY(std::isfinite(p.nonlinearToleranceK) && p.nonlinearToleranceK > 0,
               where + ".nonlinear_tolerance_k = " + fmt(p.nonlinearToleranceK) + ": must be > 0");
@@ -94,23 +96,22 @@ void validateThermalParams(const ThermalParams& p, const std::string& where) {
                   ": must be finite and above absolute zero");
   if (p.damage) {
     requirePositive(p.arrheniusA_s, where, "arrhenius_a_s", "frequency factor [1/s]");
-    requirePositive(p.arrheniusEa_J_mol, where, "arrhenius_ea_j_mol",
-                    "activation energy [J/mol]");
+    requirePositive(p.arrheniusEa_J_mol, where, "arrhenius_ea_j_mol", "activation energy [J/mol]");
   }
 }
 
 // ---- operators, caches and workspace ----
 
 struct ThermalPhase::Impl {
-  Adjacency nodeTets;              // node -> alive tets
-  SparseMatrix stiffness;          // conduction + convection [W/K], column major
-  RowMatrix stiffnessRows;         // the same, row major for products
-  Eigen::VectorXd massM3;          // lumped mass (row sums) [m^3]; 0 on orphan nodes
-  SparseMatrix massConsistent;     // consistent mass [m^3] (consistent mode only)
+  Adjacency nodeTets;                // node -> alive tets
+  SparseMatrix stiffness;            // conduction + convection [W/K], column major
+  RowMatrix stiffnessRows;           // the same, row major for products
+  Eigen::VectorXd massM3;            // lumped mass (row sums) [m^3]; 0 on orphan nodes
+  SparseMatrix massConsistent;       // consistent mass [m^3] (consistent mode only)
   std::vector<std::uint8_t> active;  // node has an alive tet
-  Eigen::VectorXd stiffnessDiag;   // K_ii
-  Eigen::VectorXd stiffnessAbsRow; // sum_j |K_ij| (Gershgorin)
-  Eigen::VectorXd convectionLoadW; // h T_amb A/3 per node [W]
+  Eigen::VectorXd stiffnessDiag;     // K_ii
+  Eigen::VectorXd stiffnessAbsRow;   // sum_j |K_ij| (Gershgorin)
+  Eigen::VectorXd convectionLoadW;   // h T_amb A/3 per node [W]
   Eigen::VectorXd convectionColSum;  // sum_i (K_h)_ij [W/K]: loss = colsum . T - sum(load)
   double convectionLoadTotalW = 0;
   bool convectionActive = false;
@@ -128,8 +129,8 @@ struct ThermalPhase::Impl {
   mutable double stableDt = -1;  // explicit limit, computed on first use
 
   // workspace
-  Eigen::VectorXd load, flux, rhs, g, tempNew, kTemp, tempOld, enthalpy0, work, cgR, cgZ, cgP,
-      cgAp, cgKp, diagS, diagPrec;
+  Eigen::VectorXd load, flux, rhs, g, tempNew, kTemp, tempOld, enthalpy0, work, cgR, cgZ, cgP, cgAp,
+      cgKp, diagS, diagPrec;
 };
 
 ThermalPhase::ThermalPhase(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
@@ -178,9 +179,9 @@ void ThermalPhase::buildOperators(const TetMesh& mesh, const std::vector<TetGeom
     std::vector<Eigen::Triplet<double>> trip;
     const double h = params_.convectionW_m2K;
     for (const BoundaryFace& f : cooledFaces_) {
-      ESIM_VERIFY(f.tet >= 0 && f.tet < mesh.numTets(),
-                  "thermal: cooled face names tet " + std::to_string(f.tet) + " of " +
-                      std::to_string(mesh.numTets()));
+      ESIM_VERIFY(f.tet >= 0 && f.tet < mesh.numTets(), "thermal: cooled face names tet " +
+                                                            std::to_string(f.tet) + " of " +
+                                                            std::to_string(mesh.numTets()));
       for (int v : f.nodes)
         ESIM_VERIFY(v >= 0 && v < n, "thermal: cooled face node " + std::to_string(v) +
                                          " out of range (" + std::to_string(n) + " nodes)");
@@ -281,7 +282,6 @@ Derived derivedOf(const ThermalParams& p) {
 
 }  // namespace
 
-
 double ThermalPhase::temperatureOfEnthalpy(double h) const {
   return derivedOf(params_).temperature(h);
 }
@@ -302,8 +302,8 @@ void ThermalPhase::initState(ThermalState& s) const {
 
 void ThermalPhase::setTemperature(ThermalState& s, const Eigen::VectorXd& temperatureC) const {
   ESIM_VERIFY(temperatureC.size() == numNodes_,
-              "thermal setTemperature: " + std::to_string(temperatureC.size()) +
-                  " values for " + std::to_string(numNodes_) + " nodes");
+              "thermal setTemperature: " + std::to_string(temperatureC.size()) + " values for " +
+                  std::to_string(numNodes_) + " nodes");
   if (s.enthalpyJ_m3.size() != numNodes_) initState(s);
   const Derived d = derivedOf(params_);
   for (int i = 0; i < numNodes_; ++i) {
@@ -337,10 +337,9 @@ void ThermalPhase::setTemperature(ThermalState& s, const Eigen::VectorXd& temper
 }
 
 double ThermalPhase::storedEnergyJ(const ThermalState& s) const {
-  ESIM_VERIFY(s.enthalpyJ_m3.size() == numNodes_, "thermal storedEnergyJ: state has " +
-                                                       std::to_string(s.enthalpyJ_m3.size()) +
-                                                       " nodes, the phase " +
-                                                       std::to_string(numNodes_));
+  ESIM_VERIFY(s.enthalpyJ_m3.size() == numNodes_,
+              "thermal storedEnergyJ: state has " + std::to_string(s.enthalpyJ_m3.size()) +
+                  " nodes, the phase " + std::to_string(numNodes_));
   return impl_->massM3.dot(s.enthalpyJ_m3);
 }
 
@@ -354,8 +353,10 @@ double ThermalPhase::stableExplicitDtS() const {
   const int n = numNodes_;
   const bool lumped = params_.lumpedMass;
   auto applyMass = [&](const Eigen::VectorXd& x, Eigen::VectorXd& y) {
-    if (lumped) y = m.massM3.cwiseProduct(x);
-    else y = m.massConsistent * x;
+    if (lumped)
+      y = m.massM3.cwiseProduct(x);
+    else
+      y = m.massConsistent * x;
   };
   auto solveMass = [&](const Eigen::VectorXd& x, Eigen::VectorXd& y) {
     if (lumped) {
@@ -407,8 +408,8 @@ double ThermalPhase::stableExplicitDtS() const {
   }
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(tri, Eigen::EigenvaluesOnly);
   const double lambdaMax = eig.eigenvalues().maxCoeff() / params_.heatCapacityJ_m3K;  // [1/s]
-  m.stableDt = lambdaMax > 0 ? kStabilityMargin * 2.0 / lambdaMax
-                             : std::numeric_limits<double>::infinity();
+  m.stableDt =
+      lambdaMax > 0 ? kStabilityMargin * 2.0 / lambdaMax : std::numeric_limits<double>::infinity();
   return m.stableDt;
 }
 
@@ -425,12 +426,11 @@ ThermalPhase::StepStats ThermalPhase::step(double dtS, const std::vector<double>
   ESIM_VERIFY(sourceW_m3.size() == tets_.size(),
               "thermal step: source has " + std::to_string(sourceW_m3.size()) +
                   " values, the mesh has " + std::to_string(tets_.size()) + " tets");
-  ESIM_VERIFY(s.enthalpyJ_m3.size() == n && s.temperatureC.size() == n &&
-                  s.vaporFraction.size() == n && s.damageOmega.size() == tets_.size() &&
-                  s.coagulationTet.size() == tets_.size() &&
-                  s.vaporFractionTet.size() == tets_.size() &&
-                  s.desiccatedTet.size() == tets_.size(),
-              "thermal step: the state does not match the mesh (call initState)");
+  ESIM_VERIFY(
+      s.enthalpyJ_m3.size() == n && s.temperatureC.size() == n && s.vaporFraction.size() == n &&
+          s.damageOmega.size() == tets_.size() && s.coagulationTet.size() == tets_.size() &&
+          s.vaporFractionTet.size() == tets_.size() && s.desiccatedTet.size() == tets_.size(),
+      "thermal step: the state does not match the mesh (call initState)");
 
   // ---- nodal source load F_i = sum_e Q_e V_e / 4 [W] ----
   m.load.setZero();
@@ -475,8 +475,11 @@ ThermalPhase::StepStats ThermalPhase::step(double dtS, const std::vector<double>
     bool first = true;
     for (int i = 0; i < n && uniform; ++i) {
       if (!m.active[i]) continue;
-      if (first) { h0 = enth[i]; first = false; }
-      else if (enth[i] != h0) uniform = false;
+      if (first) {
+        h0 = enth[i];
+        first = false;
+      } else if (enth[i] != h0)
+        uniform = false;
     }
     if (uniform) {
       accumulateDamage(dtS, temp, temp);
@@ -505,8 +508,8 @@ ThermalPhase::StepStats ThermalPhase::step(double dtS, const std::vector<double>
     int substeps = 1;
     if (dtS > limit) {
       ESIM_VERIFY(p.allowSubstepping,
-                  "thermal explicit step: dt = " + fmt(dtS) +
-                      " s exceeds the stability limit " + fmt(limit) +
+                  "thermal explicit step: dt = " + fmt(dtS) + " s exceeds the stability limit " +
+                      fmt(limit) +
                       " s of this mesh; enable sub-stepping (allow_substepping) or use "
                       "backward-euler / crank-nicolson");
       substeps = static_cast<int>(std::ceil(dtS / limit));
@@ -654,8 +657,10 @@ ThermalPhase::StepStats ThermalPhase::step(double dtS, const std::vector<double>
       } else {
         for (int i = 0; i < n; ++i) m.work[i] = crho * temp[i] - (enth[i] - m.enthalpy0[i]);
       }
-      if (p.lumpedMass) m.rhs = g + (m.massM3.cwiseProduct(m.work)) / dtS;
-      else m.rhs = g + (m.massConsistent * m.work) / dtS;
+      if (p.lumpedMass)
+        m.rhs = g + (m.massM3.cwiseProduct(m.work)) / dtS;
+      else
+        m.rhs = g + (m.massConsistent * m.work) / dtS;
       // later solves need only an error well below what this iteration will leave (the
       // iteration contracts by ~theta dt lambda_max, < 1e-2 at frame steps)
       // (the first solve: 1e-3 of the tolerance)
@@ -684,8 +689,8 @@ ThermalPhase::StepStats ThermalPhase::step(double dtS, const std::vector<double>
       }
     }
     if (m.convectionActive)
-      s.convectedJ += dtS * (theta * convectedPowerW(m.tempNew) +
-                             (1 - theta) * convectedPowerW(m.tempOld));
+      s.convectedJ +=
+          dtS * (theta * convectedPowerW(m.tempNew) + (1 - theta) * convectedPowerW(m.tempOld));
     accumulateDamage(dtS, m.tempOld, temp);
     stats.substeps = 1;
   }

@@ -82,25 +82,25 @@ struct ThermalParams {
   double conductivityW_mK = 0.502;    // lambda [W/(m K)] (paper Table 1)
   double initialTemperatureC = 37;    // initial and body temperature [C]
 
-  bool boiling = false;               // latent heat of the tissue water at boilingTemperatureC
-  double boilingTemperatureC = 100;   // [C]
-  double waterFraction = 0.78;        // water mass fraction w (liver) [0..1]
-  double densityKg_m3 = 1060;         // tissue density rho [kg/m^3]
-  double latentHeatJ_kg = 2.256e6;    // L [J/kg]
+  bool boiling = false;              // latent heat of the tissue water at boilingTemperatureC
+  double boilingTemperatureC = 100;  // [C]
+  double waterFraction = 0.78;       // water mass fraction w (liver) [0..1]
+  double densityKg_m3 = 1060;        // tissue density rho [kg/m^3]
+  double latentHeatJ_kg = 2.256e6;   // L [J/kg]
 
   ThermalIntegrator integrator = ThermalIntegrator::BackwardEuler;
-  bool lumpedMass = true;             // lumped (row-sum) or consistent P1 mass
-  bool allowSubstepping = true;       // explicit: sub-step below the stability limit
+  bool lumpedMass = true;        // lumped (row-sum) or consistent P1 mass
+  bool allowSubstepping = true;  // explicit: sub-step below the stability limit
   ThermalLinearSolver linearSolver = ThermalLinearSolver::Auto;
   double nonlinearToleranceK = 1e-9;  // boiling iteration: max |T_k - T(H_k)| [K]
   int maxNonlinearIterations = 100;
 
-  double convectionW_m2K = 0;         // h on `cooledFaces` [W/(m^2 K)]
-  double ambientTemperatureC = 20;    // [C]
+  double convectionW_m2K = 0;       // h on `cooledFaces` [W/(m^2 K)]
+  double ambientTemperatureC = 20;  // [C]
 
-  bool damage = false;                // Arrhenius coagulation (liver)
-  double arrheniusA_s = 7.39e39;      // frequency factor A [1/s]
-  double arrheniusEa_J_mol = 2.577e5; // activation energy Ea [J/mol]
+  bool damage = false;                 // Arrhenius coagulation (liver)
+  double arrheniusA_s = 7.39e39;       // frequency factor A [1/s]
+  double arrheniusEa_J_mol = 2.577e5;  // activation energy Ea [J/mol]
 };
 
 // Checks the parameters; throws Error "<where>.<field> = <value>: must be ..." naming the
@@ -109,18 +109,18 @@ void validateThermalParams(const ThermalParams& params, const std::string& where
 
 // Per-node and per-tet thermal state (plain data, owned by the caller).
 struct ThermalState {
-  Eigen::VectorXd temperatureC;         // per node [C] (derived from the enthalpy)
-  Eigen::VectorXd enthalpyJ_m3;         // per node [J/m^3], relative to the initial state
-  Eigen::VectorXd vaporFraction;        // per node, vaporised fraction of the water 0..1
-  std::vector<double> vaporFractionTet; // per tet: mean of its nodes 0..1
-  std::vector<double> damageOmega;      // per tet: Arrhenius damage integral Omega
-  std::vector<double> coagulationTet;   // per tet: 1 - exp(-Omega)
+  Eigen::VectorXd temperatureC;             // per node [C] (derived from the enthalpy)
+  Eigen::VectorXd enthalpyJ_m3;             // per node [J/m^3], relative to the initial state
+  Eigen::VectorXd vaporFraction;            // per node, vaporised fraction of the water 0..1
+  std::vector<double> vaporFractionTet;     // per tet: mean of its nodes 0..1
+  std::vector<double> damageOmega;          // per tet: Arrhenius damage integral Omega
+  std::vector<double> coagulationTet;       // per tet: 1 - exp(-Omega)
   std::vector<std::uint8_t> desiccatedTet;  // per tet: 1 once all its nodes were dry (sticky)
-  double timeS = 0;                     // simulated time [s]
-  double sensibleJ = 0;                 // stored sensible heat, relative to T0 [J]
-  double latentJ = 0;                   // stored latent heat (vaporised water) [J]
-  double sourceJ = 0;                   // integral of the source power over time [J]
-  double convectedJ = 0;                // heat lost through the cooled faces [J]
+  double timeS = 0;                         // simulated time [s]
+  double sensibleJ = 0;                     // stored sensible heat, relative to T0 [J]
+  double latentJ = 0;                       // stored latent heat (vaporised water) [J]
+  double sourceJ = 0;                       // integral of the source power over time [J]
+  double convectedJ = 0;                    // heat lost through the cooled faces [J]
 };
 
 class ThermalPhase {
@@ -128,8 +128,7 @@ class ThermalPhase {
   // Builds the operators of the alive tets. `cooledFaces` (boundary faces, e.g. the top
   // surface) exchange heat with the ambient when params.convectionW_m2K > 0.
   ThermalPhase(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
-               const ThermalParams& params,
-               const std::vector<BoundaryFace>& cooledFaces = {});
+               const ThermalParams& params, const std::vector<BoundaryFace>& cooledFaces = {});
   ~ThermalPhase();
   ThermalPhase(ThermalPhase&&) noexcept;
   ThermalPhase& operator=(ThermalPhase&&) noexcept;
@@ -141,11 +140,11 @@ class ThermalPhase {
   void setTemperature(ThermalState& state, const Eigen::VectorXd& temperatureC) const;
 
   struct StepStats {
-    int substeps = 0;     // explicit sub-steps (1 for implicit)
-    int iterations = 0;   // linear solves (boiling iterations; CG iterations not counted)
-    bool skipped = false; // nothing to do: zero source, uniform field (see header)
-    bool converged = true;      // boiling iteration reached nonlinearToleranceK
-    int cgIterations = 0;       // total CG iterations (0 with a direct solver)
+    int substeps = 0;       // explicit sub-steps (1 for implicit)
+    int iterations = 0;     // linear solves (boiling iterations; CG iterations not counted)
+    bool skipped = false;   // nothing to do: zero source, uniform field (see header)
+    bool converged = true;  // boiling iteration reached nonlinearToleranceK
+    int cgIterations = 0;   // total CG iterations (0 with a direct solver)
   };
 
   // Advances the state by dtS [s] with the per-tet source sourceW_m3 [W/m^3] (size

@@ -253,9 +253,8 @@ TetMesh tetrahedralize(const SurfaceMesh& surface, const MeshingOptions& options
                 sourceName + ": refinement cell size must be > 0 m and <= the cell size " +
                     std::to_string(opt.cellSizeM) + " m (got " + std::to_string(ref.cellSizeM) +
                     ")");
-    ESIM_VERIFY(positive(ref.widthM),
-                sourceName + ": refinement width must be > 0 m (got " +
-                    std::to_string(ref.widthM) + ")");
+    ESIM_VERIFY(positive(ref.widthM), sourceName + ": refinement width must be > 0 m (got " +
+                                          std::to_string(ref.widthM) + ")");
     ESIM_VERIFY(ref.fromM.allFinite() && ref.toM.allFinite() && ref.fromM != ref.toM,
                 sourceName + ": refinement segment needs two distinct finite ends (from " +
                     formatPoint(ref.fromM) + " to " + formatPoint(ref.toM) + " m)");
@@ -275,8 +274,8 @@ TetMesh tetrahedralize(const SurfaceMesh& surface, const MeshingOptions& options
     std::ostringstream msg;
     msg << sourceName << ": cell size " << opt.cellSizeM << " m";
     if (ref.enabled) msg << " (" << ref.cellSizeM << " m near the refinement segment)";
-    msg << " would give about " << expectedTets
-        << " tetrahedra for an enclosed volume of " << volume
+    msg << " would give about " << expectedTets << " tetrahedra for an enclosed volume of "
+        << volume
         << " m^3; check the units (the surface must be in metres) or use a larger cell size";
     throw Error(msg.str());
   }

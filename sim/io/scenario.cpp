@@ -373,9 +373,10 @@ const std::vector<Field>& schema() {
                         "frame width (even, for yuv420p video)"));
     f.push_back(integer("look.height", ESIM_REF(look.height), "px", closed(16, 4320),
                         "frame height (even, for yuv420p video)"));
-    f.push_back(integer("look.msaa", ESIM_REF(look.msaa), "samples", closed(0, 4),
-                        "multisample anti-aliasing: 0 (off: about half the render time on llvmpipe), 2 or 4 "
-                        "(llvmpipe: 2 costs as much as 4; see esim bench render)"));
+    f.push_back(integer(
+        "look.msaa", ESIM_REF(look.msaa), "samples", closed(0, 4),
+        "multisample anti-aliasing: 0 (off: about half the render time on llvmpipe), 2 or 4 "
+        "(llvmpipe: 2 costs as much as 4; see esim bench render)"));
     f.push_back(choice("look.shading", ESIM_REF(look.shading), {"pixel", "vertex"},
                        "lighting per vertex and interpolated (faster; highlights follow the "
                        "mesh, which shows on coarse curved meshes) or per pixel; colours are "

@@ -85,7 +85,7 @@ struct ScenarioMaterial {
   double electricConductivitySPerM = 0.144;  // sigma at 37 C
   double youngsModulusPa = 4.75e4;
   double poissonRatio = 0.4;
-  double criticalStressPa = 2.45e4;  // von Mises breaking stress
+  double criticalStressPa = 2.45e4;      // von Mises breaking stress
   double vaporLiquidVolumeRatio = 1602;  // v_gas / v_liq of water at boiling, 1 atm
   double maxVaporExpansion = 3.0;        // cap of the volumetric expansion (vapour vents)
   double densityKgPerM3 = 1060.0;
@@ -161,9 +161,9 @@ struct ScenarioSolvers {
   int electricMaxIterations = 5000;
   int electricDenseMemoryLimitMb = 2048;  // dense-inverse refuses above this
   int electricThreads = 1;
-  bool electricPrefetchPath = true;  // precompute what the scripted tool path touches
+  bool electricPrefetchPath = true;            // precompute what the scripted tool path touches
   std::string thermalIntegrator = "explicit";  // explicit | backward-euler | crank-nicolson
-  std::string thermalMass = "lumped";                // lumped | consistent
+  std::string thermalMass = "lumped";          // lumped | consistent
   bool thermalAllowSubstepping = true;
   std::string rebuildMode = "synchronous";  // synchronous | background
   int rebuildLagFrames = 3;                 // background: frames until the swap
@@ -190,12 +190,12 @@ struct ScenarioLook {
   std::string colormap = "inferno";   // inferno | viridis
   double tMinC = 37.0;
   double tMaxC = 120.0;
-  double vMinV = 0.0;  // potential colour map range [V]
-  double vMaxV = 0.0;  // 0 = tool.voltageV
+  double vMinV = 0.0;                     // potential colour map range [V]
+  double vMaxV = 0.0;                     // 0 = tool.voltageV
   std::string potentialScale = "linear";  // linear | log (log needs vMinV > 0)
   int width = 1280;
   int height = 720;
-  int msaa = 4;  // multisample anti-aliasing samples: 0 (off, fastest), 2 or 4
+  int msaa = 4;                    // multisample anti-aliasing samples: 0 (off, fastest), 2 or 4
   std::string shading = "vertex";  // lighting "vertex" (interpolated, faster) or "pixel"
   bool colorBar = true;
   bool showTime = true;

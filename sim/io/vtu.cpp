@@ -69,9 +69,8 @@ std::string encodeArray(const std::vector<T>& data) {
 
 void writeDataArray(std::ostream& os, const char* type, const std::string& name, int components,
                     const std::string& payload) {
-  os << "        <DataArray type=\"" << type << "\" Name=\"" << name
-     << "\" NumberOfComponents=\"" << components << "\" format=\"binary\">\n          "
-     << payload << "\n        </DataArray>\n";
+  os << "        <DataArray type=\"" << type << "\" Name=\"" << name << "\" NumberOfComponents=\""
+     << components << "\" format=\"binary\">\n          " << payload << "\n        </DataArray>\n";
 }
 
 std::string attribute(const std::string& tag, const std::string& key) {
@@ -110,13 +109,20 @@ std::vector<double> decodeArray(const std::string& type, const std::string& form
       out[i] = static_cast<double>(v);
     }
   };
-  if (type == "Float64") read(double{});
-  else if (type == "Float32") read(float{});
-  else if (type == "Int64") read(std::int64_t{});
-  else if (type == "Int32") read(std::int32_t{});
-  else if (type == "UInt8") read(std::uint8_t{});
-  else if (type == "UInt64") read(std::uint64_t{});
-  else throw Error(path + ": DataArray type '" + type + "' is not supported");
+  if (type == "Float64")
+    read(double{});
+  else if (type == "Float32")
+    read(float{});
+  else if (type == "Int64")
+    read(std::int64_t{});
+  else if (type == "Int32")
+    read(std::int32_t{});
+  else if (type == "UInt8")
+    read(std::uint8_t{});
+  else if (type == "UInt64")
+    read(std::uint64_t{});
+  else
+    throw Error(path + ": DataArray type '" + type + "' is not supported");
   return out;
 }
 
@@ -187,7 +193,8 @@ void writeVtu(const std::string& path, const TetMesh& mesh, const std::vector<Vt
       std::vector<double> alive_values;
       alive_values.reserve(cells.size() * f.components);
       for (int e : cells)
-        for (int c = 0; c < f.components; ++c) alive_values.push_back(f.values[e * f.components + c]);
+        for (int c = 0; c < f.components; ++c)
+          alive_values.push_back(f.values[e * f.components + c]);
       writeDataArray(os, "Float64", f.name, f.components, encodeArray(alive_values));
     }
     os << "      </CellData>\n    </Piece>\n  </UnstructuredGrid>\n</VTKFile>\n";
@@ -212,8 +219,8 @@ VtuData readVtu(const std::string& path) {
               path + ": not a VTK XML UnstructuredGrid file");
   ESIM_VERIFY(text.find("compressor=") == std::string::npos,
               path + ": compressed VTU is not supported; write it uncompressed");
-  const std::string header_type = attribute(text.substr(0, text.find('>', text.find("<VTKFile"))),
-                                            "header_type");
+  const std::string header_type =
+      attribute(text.substr(0, text.find('>', text.find("<VTKFile"))), "header_type");
   ESIM_VERIFY(header_type.empty() || header_type == "UInt64",
               path + ": header_type '" + header_type + "' is not supported; expected UInt64");
 
@@ -229,11 +236,16 @@ VtuData readVtu(const std::string& path) {
     ESIM_VERIFY(gt != std::string::npos, path + ": truncated XML");
     const std::string tag = text.substr(lt, gt - lt + 1);
     pos = gt + 1;
-    if (tag.rfind("<Points", 0) == 0) block = Block::Points;
-    else if (tag.rfind("<Cells", 0) == 0) block = Block::Cells;
-    else if (tag.rfind("<PointData", 0) == 0) block = Block::PointData;
-    else if (tag.rfind("<CellData", 0) == 0) block = Block::CellData;
-    else if (tag.rfind("</", 0) == 0 && tag.find("DataArray") == std::string::npos) block = Block::None;
+    if (tag.rfind("<Points", 0) == 0)
+      block = Block::Points;
+    else if (tag.rfind("<Cells", 0) == 0)
+      block = Block::Cells;
+    else if (tag.rfind("<PointData", 0) == 0)
+      block = Block::PointData;
+    else if (tag.rfind("<CellData", 0) == 0)
+      block = Block::CellData;
+    else if (tag.rfind("</", 0) == 0 && tag.find("DataArray") == std::string::npos)
+      block = Block::None;
     if (tag.rfind("<DataArray", 0) != 0) continue;
     const size_t end = text.find("</DataArray>", pos);
     ESIM_VERIFY(end != std::string::npos, path + ": DataArray without closing tag");
@@ -250,8 +262,10 @@ VtuData readVtu(const std::string& path) {
           data.points.emplace_back(values[i], values[i + 1], values[i + 2]);
         break;
       case Block::Cells:
-        if (name == "connectivity") conn = std::move(values);
-        else if (name == "offsets") offsets = std::move(values);
+        if (name == "connectivity")
+          conn = std::move(values);
+        else if (name == "offsets")
+          offsets = std::move(values);
         else if (name == "types")
           for (double t : values)
             ESIM_VERIFY(t == 10, path + ": cell type " + std::to_string(static_cast<int>(t)) +

@@ -24,10 +24,10 @@ struct VtuField {
 };
 
 struct VtuData {
-  std::vector<Vec3> points;           // [m]
+  std::vector<Vec3> points;  // [m]
   std::vector<Tet> tets;
   std::vector<VtuField> pointData;
-  std::vector<VtuField> cellData;     // per written (alive) tet
+  std::vector<VtuField> cellData;  // per written (alive) tet
 
   const VtuField* findPointField(const std::string& name) const;
   const VtuField* findCellField(const std::string& name) const;

@@ -345,15 +345,17 @@ TEST(MeshImport, BadRefinementOptionsAreReported) {
     return errorOf([&] { tetrahedralize(box, bad, "box.obj"); });
   };
   using R = MeshingOptions::Refinement;
-  EXPECT_EQ(errorWith([](R& r) { r.cellSizeM = 0; })
-                .rfind("box.obj: refinement cell size must be > 0 m and <= the cell size 0.004", 0),
+  EXPECT_EQ(errorWith([](R& r) {
+              r.cellSizeM = 0;
+            }).rfind("box.obj: refinement cell size must be > 0 m and <= the cell size 0.004", 0),
             0u);
-  EXPECT_EQ(errorWith([](R& r) { r.cellSizeM = 0.005; })
-                .rfind("box.obj: refinement cell size must be > 0 m and <= the cell size", 0),
+  EXPECT_EQ(errorWith([](R& r) {
+              r.cellSizeM = 0.005;
+            }).rfind("box.obj: refinement cell size must be > 0 m and <= the cell size", 0),
             0u);
-  EXPECT_EQ(errorWith([](R& r) { r.widthM = -1; })
-                .rfind("box.obj: refinement width must be > 0 m", 0),
-            0u);
+  EXPECT_EQ(
+      errorWith([](R& r) { r.widthM = -1; }).rfind("box.obj: refinement width must be > 0 m", 0),
+      0u);
   EXPECT_EQ(errorWith([](R& r) { r.toM = r.fromM; })
                 .rfind("box.obj: refinement segment needs two distinct finite ends (from (0, "
                        "0.01, 0.02) to (0, 0.01, 0.02) m)",

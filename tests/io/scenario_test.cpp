@@ -473,12 +473,12 @@ TEST(Scenario, FileMeshRefinementKeysMapToMeshingOptions) {
   EXPECT_EQ(o.refinement.toM, r.toM);
   EXPECT_EQ(o.refinement.cellSizeM, 0.0015);
   EXPECT_EQ(o.refinement.widthM, 0.004);
-  EXPECT_NE(scenarioSummary(parseScenario(
-                                "mesh: {source: file, file: {path: assets/liver.obj, refine: "
-                                "{enabled: true}}}\n",
-                                (kRoot / "scenarios/x.yaml").string()))
-                .find("(cell 4 mm, 1 mm near the cut)"),
-            std::string::npos);
+  EXPECT_NE(
+      scenarioSummary(parseScenario("mesh: {source: file, file: {path: assets/liver.obj, refine: "
+                                    "{enabled: true}}}\n",
+                                    (kRoot / "scenarios/x.yaml").string()))
+          .find("(cell 4 mm, 1 mm near the cut)"),
+      std::string::npos);
   // overrides reach the nested group
   EXPECT_EQ(parseScenario("", "o.yaml", {"mesh.file.refine.width_m=0.007"}).mesh.file.refine.widthM,
             0.007);
@@ -513,19 +513,21 @@ TEST(Scenario, PotentialLookFieldsAndChecks) {
                 {"bad.yaml:3:15: look.style = potential needs the electric phase",
                  "physics [thermal]", "add electric"});
   EXPECT_NO_THROW(parseScenario(
-      "physics: [thermal]\nheat_source: {kind: gaussian}\nlook: {style: temperature}\n", "ok.yaml"));
+      "physics: [thermal]\nheat_source: {kind: gaussian}\nlook: {style: temperature}\n",
+      "ok.yaml"));
   // range: v_max_v (or the tool voltage it defaults to) above v_min_v
   expectMessage(errorOf("look: {style: potential, v_min_v: 10, v_max_v: 5}\n"),
                 {"look.v_max_v = 5 must be above look.v_min_v = 10"});
   expectMessage(errorOf("tool: {voltage_v: 40}\nlook: {style: potential, v_min_v: 50}\n"),
-                {"look.v_min_v", "look.v_max_v = 40 (0 = tool.voltage_v) must be above "
-                                 "look.v_min_v = 50"});
+                {"look.v_min_v",
+                 "look.v_max_v = 40 (0 = tool.voltage_v) must be above "
+                 "look.v_min_v = 50"});
   expectMessage(errorOf("look: {v_max_v: 1e5}\n"), {"look.v_max_v = 100000 is outside"});
   // logarithmic scale: read, and needs v_min_v > 0
   EXPECT_EQ(d.look.potentialScale, "linear");
-  EXPECT_EQ(parseScenario("look: {potential_scale: log, v_min_v: 0.01}\n", "ok.yaml")
-                .look.potentialScale,
-            "log");
+  EXPECT_EQ(
+      parseScenario("look: {potential_scale: log, v_min_v: 0.01}\n", "ok.yaml").look.potentialScale,
+      "log");
   expectMessage(errorOf("look: {style: potential, potential_scale: log}\n"),
                 {"look.v_min_v = 0 must be above 0 with look.potential_scale = log"});
   expectMessage(errorOf("look: {potential_scale: decibel}\n"),

@@ -61,9 +61,8 @@ TEST(ImageHash, PerceptualHashOfRampsAndNoise) {
   // bright-left ramp: every cell brighter than its right neighbour -> all bits set
   EXPECT_EQ(perceptualHash(ramp(true), kW, kH), ~std::uint64_t{0});
   EXPECT_EQ(perceptualHash(ramp(false), kW, kH), std::uint64_t{0});
-  EXPECT_EQ(hammingDistance(perceptualHash(ramp(true), kW, kH),
-                            perceptualHash(ramp(false), kW, kH)),
-            64);
+  EXPECT_EQ(
+      hammingDistance(perceptualHash(ramp(true), kW, kH), perceptualHash(ramp(false), kW, kH)), 64);
   // small noise (+-2 levels) on a textured image changes at most a few bits
   std::vector<std::uint8_t> tex(kW * kH * 3), noisy;
   for (int y = 0; y < kH; ++y)
@@ -73,7 +72,8 @@ TEST(ImageHash, PerceptualHashOfRampsAndNoise) {
             static_cast<std::uint8_t>(128 + 100 * std::sin(0.07 * x) * std::cos(0.05 * y + k));
   noisy = tex;
   for (size_t i = 0; i < noisy.size(); ++i)
-    noisy[i] = static_cast<std::uint8_t>(std::clamp<int>(noisy[i] + static_cast<int>(i % 5) - 2, 0, 255));
+    noisy[i] =
+        static_cast<std::uint8_t>(std::clamp<int>(noisy[i] + static_cast<int>(i % 5) - 2, 0, 255));
   EXPECT_LE(hammingDistance(perceptualHash(tex, kW, kH), perceptualHash(noisy, kW, kH)), 4);
   EXPECT_THROW(perceptualHash(tex, kW, kH + 1), Error);
 }

@@ -71,7 +71,8 @@ TEST(ElectricPhase, PatchTestLinearPotentialBetweenPlatesIsExactForEveryStrategy
     for (int e = 0; e < m.numTets(); ++e) {
       EXPECT_NEAR(f.fieldV_m[e].z(), -V0 / H, 1e-8 * V0 / H);
       EXPECT_NEAR(f.currentDensityA_m2[e].z(), -kSigma * V0 / H, 1e-8 * kSigma * V0 / H);
-      EXPECT_NEAR(f.joulePowerW_m3[e], kSigma * V0 * V0 / (H * H), 1e-8 * kSigma * V0 * V0 / (H * H));
+      EXPECT_NEAR(f.joulePowerW_m3[e], kSigma * V0 * V0 / (H * H),
+                  1e-8 * kSigma * V0 * V0 / (H * H));
     }
   }
 }
@@ -144,8 +145,10 @@ double discResistance(int m, double a) {
     for (SparseMatrix::InnerIterator it(K, j); it; ++it) {
       const int i = static_cast<int>(it.row());
       if (idx[i] < 0) continue;
-      if (idx[j] >= 0) t.emplace_back(idx[i], idx[j], it.value());
-      else b[idx[i]] -= it.value() * u[j];
+      if (idx[j] >= 0)
+        t.emplace_back(idx[i], idx[j], it.value());
+      else
+        b[idx[i]] -= it.value() * u[j];
     }
   SparseMatrix kff(nf, nf);
   kff.setFromTriplets(t.begin(), t.end());
@@ -178,8 +181,8 @@ TEST(ElectricPhase, DiscElectrodeResistanceConvergesToOneOverFourSigmaA) {
               << "), relative error " << err.back();
     if (err.size() > 1) {
       const size_t k = err.size() - 1;
-      const double rate = std::log(err[k - 1] / err[k]) /
-                          std::log(static_cast<double>(levels[k]) / levels[k - 1]);
+      const double rate =
+          std::log(err[k - 1] / err[k]) / std::log(static_cast<double>(levels[k]) / levels[k - 1]);
       std::cout << ", observed rate " << rate;
     }
     std::cout << "\n";

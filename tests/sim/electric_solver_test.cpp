@@ -36,7 +36,8 @@ Problem paperSlab(int targetNodes = 1013) {
   SlabSpec s;
   s.targetNodes = targetNodes;
   p.mesh = makeSlab(s);
-  p.K = assembleStiffness(p.mesh, tetGeometry(p.mesh), std::vector<double>(p.mesh.numTets(), kSigma));
+  p.K =
+      assembleStiffness(p.mesh, tetGeometry(p.mesh), std::vector<double>(p.mesh.numTets(), kSigma));
   const auto surface = boundaryNodes(p.mesh, boundaryFaces(p.mesh));
   p.grounded = returnElectrodeNodes(p.mesh, surface, ReturnElectrode{});
   p.top = p.mesh.nodeSets.at("top");
@@ -60,8 +61,10 @@ Eigen::VectorXd referenceSolve(const SparseMatrix& K, const std::vector<int>& gr
     for (SparseMatrix::InnerIterator it(K, j); it; ++it) {
       const int i = static_cast<int>(it.row());
       if (idx[i] < 0) continue;
-      if (idx[j] >= 0) t.emplace_back(idx[i], idx[j], it.value());
-      else if (fixedValue[j] == 1) b[idx[i]] -= it.value() * v;
+      if (idx[j] >= 0)
+        t.emplace_back(idx[i], idx[j], it.value());
+      else if (fixedValue[j] == 1)
+        b[idx[i]] -= it.value() * v;
     }
   SparseMatrix a(m, m);
   a.setFromTriplets(t.begin(), t.end());
@@ -83,7 +86,7 @@ std::vector<std::vector<int>> sampleContacts(const Problem& p) {
   const double ztop = 0.01;
   const struct {
     double x, y, r;
-  } spots[] = {{0.0, 0.0, 0.008}, {0.003, 0.0, 0.008}, {-0.03, 0.02, 0.012},
+  } spots[] = {{0.0, 0.0, 0.008}, {0.003, 0.0, 0.008},   {-0.03, 0.02, 0.012},
                {0.0, 0.0, 0.008}, {0.045, -0.045, 0.01}, {0.01, 0.01, 0.02}};
   for (const auto& s : spots) {
     ElectrodeShape sphere{ElectrodeKind::Sphere, s.r, 0, 0};
@@ -147,7 +150,8 @@ TEST(ElectricSolver, PcgMeetsItsToleranceAndWarmStartSavesIterations) {
     const Eigen::VectorXd ref = referenceSolve(p.K, p.grounded, sets[0], kVolt);
     EXPECT_LE(cold.residual, 1e-6);
     EXPECT_GT(cold.iterations, 0);
-    std::cout << "pcg tol 1e-6: rel error " << relError(u, ref) << " iterations " << cold.iterations << "\n";
+    std::cout << "pcg tol 1e-6: rel error " << relError(u, ref) << " iterations " << cold.iterations
+              << "\n";
     EXPECT_LT(relError(u, ref), 1e-5);  // bounded by cond(A) * tolerance; ~tolerance here
     // warm start from the previous answer on a nearby contact set vs a cold start
     const ElectricSolveStats warm = solver->solve(sets[1], kVolt, u);
@@ -355,7 +359,8 @@ TEST(ElectricSolver, FloatingNodesAndIslandsAreHeldAtZeroAndDoNotBreakTheSolve) 
   m.tets.push_back({n0, n0 + 1, n0 + 2, n0 + 3});
   m.alive.push_back(1);
   m.nodes.push_back(Vec3(0.3, 0, 0));  // an orphan node: zero row and column
-  const SparseMatrix K = assembleStiffness(m, tetGeometry(m), std::vector<double>(m.numTets(), kSigma));
+  const SparseMatrix K =
+      assembleStiffness(m, tetGeometry(m), std::vector<double>(m.numTets(), kSigma));
   std::vector<int> contact = sets[0];
   contact.push_back(n0 + 1);  // touching the island: ignored
   contact.push_back(n0 + 4);  // touching the orphan: ignored

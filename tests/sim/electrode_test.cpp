@@ -42,10 +42,10 @@ TEST(Electrode, SphereAndBladeDistances) {
   const ToolPose rot{Vec3(0, 0, 0.001),
                      Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Vec3::UnitZ()))};
   EXPECT_NEAR(electrodeDistance(blade, rot, Vec3(0, 0.002, 0.001)), -0.0005, 1e-12);  // edge corner
-  EXPECT_NEAR(electrodeDistance(blade, rot, Vec3(0, 0.003, 0.001)), 0.0005, 1e-12);   // beyond width
-  EXPECT_NEAR(electrodeDistance(blade, rot, Vec3(0.002, 0, 0.005)), 0.0015, 1e-12);   // off the face
-  EXPECT_NEAR(electrodeDistance(blade, rot, Vec3(0, 0, -0.001)), 0.0015, 1e-12);      // below the tip
-  EXPECT_NEAR(electrodeDistance(blade, rot, Vec3(0, 0, 0.013)), 0.0015, 1e-12);       // above the top
+  EXPECT_NEAR(electrodeDistance(blade, rot, Vec3(0, 0.003, 0.001)), 0.0005, 1e-12);  // beyond width
+  EXPECT_NEAR(electrodeDistance(blade, rot, Vec3(0.002, 0, 0.005)), 0.0015, 1e-12);  // off the face
+  EXPECT_NEAR(electrodeDistance(blade, rot, Vec3(0, 0, -0.001)), 0.0015, 1e-12);  // below the tip
+  EXPECT_NEAR(electrodeDistance(blade, rot, Vec3(0, 0, 0.013)), 0.0015, 1e-12);   // above the top
   // corner region: below the tip and beyond the width
   EXPECT_NEAR(electrodeDistance(blade, rot, Vec3(0, 0.005, -0.003)),
               std::sqrt(0.003 * 0.003 + 0.004 * 0.004) - 0.0005, 1e-12);
@@ -74,8 +74,7 @@ TEST(Electrode, BladeSweptAcrossTinySlabTouchesTheExpectedNodes) {
   // a sphere on the side face x = +2 mm touches exactly one node
   const ElectrodeShape sphere{ElectrodeKind::Sphere, 0.0002, 0, 0};
   const ToolPose side{Vec3(0.0023, 0.001, 0.001), Eigen::Quaterniond::Identity()};
-  EXPECT_EQ(findContacts(m, surface, sphere, side, 0.00015),
-            std::vector<int>{nodeAt(m, 2, 1, 1)});
+  EXPECT_EQ(findContacts(m, surface, sphere, side, 0.00015), std::vector<int>{nodeAt(m, 2, 1, 1)});
 }
 
 TEST(Electrode, GridFinderMatchesBruteForceForRandomPoses) {
@@ -94,8 +93,9 @@ TEST(Electrode, GridFinderMatchesBruteForceForRandomPoses) {
     ElectrodeShape shape;
     shape.kind = trial % 3 == 0 ? ElectrodeKind::Sphere : ElectrodeKind::Blade;
     shape.radiusM = 0.0005 + 0.002 * (trial % 5);
-    const ToolPose pose{Vec3(px(rng), px(rng), pz(rng)),
-                        Eigen::Quaterniond(Eigen::AngleAxisd(ang(rng), Vec3(px(rng), px(rng), 0.03).normalized()))};
+    const ToolPose pose{
+        Vec3(px(rng), px(rng), pz(rng)),
+        Eigen::Quaterniond(Eigen::AngleAxisd(ang(rng), Vec3(px(rng), px(rng), 0.03).normalized()))};
     const double dist = 0.001 * (trial % 4);
     // brute force: every surface node, the distance function, no prefilter
     std::vector<int> brute;

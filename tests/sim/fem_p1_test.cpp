@@ -20,8 +20,8 @@ TetMesh jitteredSlab() {
   std::uniform_real_distribution<double> u(-0.15, 0.15);
   const double h = 0.02 / 4;
   for (auto& p : m.nodes) {
-    const bool interior = std::abs(p.x()) < 0.0099 && std::abs(p.y()) < 0.0099 &&
-                          p.z() > 1e-6 && p.z() < 0.01 - 1e-6;
+    const bool interior =
+        std::abs(p.x()) < 0.0099 && std::abs(p.y()) < 0.0099 && p.z() > 1e-6 && p.z() < 0.01 - 1e-6;
     if (interior) p += Vec3(u(rng), u(rng), u(rng)) * h;
   }
   return m;
@@ -45,8 +45,7 @@ TEST(FemP1, LinearFieldIsExact) {
   Eigen::VectorXd u(m.numNodes());
   const Vec3 g(3.0, -2.0, 5.0);
   for (int i = 0; i < m.numNodes(); ++i) u[i] = 1.5 + g.dot(m.nodes[i]);
-  for (int e = 0; e < m.numTets(); ++e)
-    EXPECT_LT((tetGradient(m, geo, e, u) - g).norm(), 1e-10);
+  for (int e = 0; e < m.numTets(); ++e) EXPECT_LT((tetGradient(m, geo, e, u) - g).norm(), 1e-10);
   // K u vanishes at interior nodes (the discrete Laplacian of a linear field)
   const SparseMatrix k = assembleStiffness(m, geo, std::vector<double>(m.numTets(), 1.0));
   const Eigen::VectorXd ku = k * u;

@@ -103,9 +103,10 @@ TEST(MeshTet, ValidateNamesTheProblem) {
             "empty.vtu: mesh is empty (0 nodes, 0 tetrahedra); expected at least one tetrahedron");
   TetMesh inverted = twoTets();
   std::swap(inverted.tets[1][0], inverted.tets[1][1]);
-  EXPECT_EQ(validationMessage(inverted, "inv.vtu").rfind(
-                "inv.vtu: tetrahedron 1 (nodes 4 1 2 3) is inverted (signed volume -0.333", 0),
-            0u)
+  EXPECT_EQ(
+      validationMessage(inverted, "inv.vtu")
+          .rfind("inv.vtu: tetrahedron 1 (nodes 4 1 2 3) is inverted (signed volume -0.333", 0),
+      0u)
       << validationMessage(inverted, "inv.vtu");
   TetMesh flat = twoTets();
   flat.nodes[4] = Vec3(0.5, 0.5, 0);  // coplanar with nodes 1, 2 ... and 3? make it degenerate:

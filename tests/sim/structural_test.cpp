@@ -220,7 +220,7 @@ TEST(Structural, FloatingIslandIsHeldInPlace) {
 TEST(Structural, PieceHangingByANodeIsHeld) {
   TetMesh mesh;
   const double h = 0.01;
-  mesh.nodes = {Vec3(0, 0, 0), Vec3(h, 0, 0), Vec3(0, h, 0), Vec3(0, 0, h),
+  mesh.nodes = {Vec3(0, 0, 0), Vec3(h, 0, 0), Vec3(0, h, 0),    Vec3(0, 0, h),
                 Vec3(h, 0, h), Vec3(0, h, h), Vec3(0, 0, 2 * h)};
   mesh.tets = {{0, 1, 2, 3}, {3, 4, 5, 6}};
   mesh.alive = {1, 1};

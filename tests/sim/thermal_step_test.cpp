@@ -9,9 +9,9 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <functional>
-#include <cstdio>
 
 #include "sim/core_error.h"
 #include "sim/mesh_slab.h"
@@ -169,9 +169,8 @@ TEST(ThermalStep, ExplicitLimitMatchesTheDenseEigenvalue) {
     const std::vector<double> lam(mesh.tets.size(), p.conductivityW_mK);
     const std::vector<double> crho(mesh.tets.size(), p.heatCapacityJ_m3K);
     const Eigen::MatrixXd k(assembleStiffness(mesh, geo, lam));
-    const Eigen::MatrixXd m =
-        lumped ? Eigen::MatrixXd(lumpedMass(mesh, geo, crho).asDiagonal())
-               : Eigen::MatrixXd(assembleMass(mesh, geo, crho));
+    const Eigen::MatrixXd m = lumped ? Eigen::MatrixXd(lumpedMass(mesh, geo, crho).asDiagonal())
+                                     : Eigen::MatrixXd(assembleMass(mesh, geo, crho));
     Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> eig(k, m, Eigen::EigenvaluesOnly);
     const double exactLimit = 2.0 / eig.eigenvalues().maxCoeff();
     const double limit = phase.stableExplicitDtS();
@@ -192,8 +191,8 @@ TEST(ThermalStep, SubsteppingKeepsExplicitStable) {
   Eigen::VectorXd t0(mesh.numNodes());
   for (int i = 0; i < mesh.numNodes(); ++i) {
     const Vec3& x = mesh.nodes[i];
-    const int parity = static_cast<int>(std::lround(x.x() / 0.0025 + x.y() / 0.0025 +
-                                                    x.z() / 0.0025 + 100));
+    const int parity =
+        static_cast<int>(std::lround(x.x() / 0.0025 + x.y() / 0.0025 + x.z() / 0.0025 + 100));
     t0[i] = 37 + (parity % 2 ? 10.0 : -10.0);
   }
   ThermalState s;
@@ -252,7 +251,7 @@ TEST(ThermalStep, BoilingPlateauLastsWaterLatentHeatOverSource) {
     p.integrator = v.integrator;
     p.lumpedMass = v.lumped;
     const double lv = p.waterFraction * p.densityKg_m3 * p.latentHeatJ_kg;  // [J/m^3]
-    const double q = lv / 10.0;  // plateau of 10 s
+    const double q = lv / 10.0;                                             // plateau of 10 s
     const double plateauS = lv / q;
     const double onsetS = p.heatCapacityJ_m3K * (100 - p.initialTemperatureC) / q;
     ThermalPhase phase(mesh, geo, p);

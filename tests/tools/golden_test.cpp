@@ -57,8 +57,10 @@ void checkGolden(const std::string& name) {
                                << why.str() << "re-bless with tools/bless-golden " << name
                                << " if the change is intended";
   } else {
-    std::printf("[ NOTE ] %s: renderer or library versions differ from the golden run; "
-                "comparing key frames with tolerance instead of exact hashes\n", name.c_str());
+    std::printf(
+        "[ NOTE ] %s: renderer or library versions differ from the golden run; "
+        "comparing key frames with tolerance instead of exact hashes\n",
+        name.c_str());
     int compared = 0;
     for (const auto& d : r.diffs) {
       if (!d.hasImages) continue;

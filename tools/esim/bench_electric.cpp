@@ -65,7 +65,6 @@ double seconds(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();
 }
 
-
 std::vector<ElectricStrategy> parseStrategies(const std::string& text) {
   std::vector<ElectricStrategy> out;
   std::stringstream ss(text);
@@ -101,7 +100,8 @@ Scene buildScene(int targetNodes) {
   s.mesh = makeSlab(spec);
   const auto px = slabNodesPerAxis(spec);
   s.spacingM = spec.sizeM.x() / (px[0] - 1);
-  s.K = assembleStiffness(s.mesh, tetGeometry(s.mesh), std::vector<double>(s.mesh.numTets(), 0.144));
+  s.K =
+      assembleStiffness(s.mesh, tetGeometry(s.mesh), std::vector<double>(s.mesh.numTets(), 0.144));
   s.surface = boundaryNodes(s.mesh, boundaryFaces(s.mesh));
   s.grounded = returnElectrodeNodes(s.mesh, s.surface, ReturnElectrode{});
   return s;
@@ -255,9 +255,11 @@ std::string csvQuote(const std::string& s) {
 // ---- Fig. 9(a) ----
 
 void runFig9(const BenchElectricOptions& opt) {
-  std::printf("\nFig. 9(a) of the paper: conventional (refactor) vs proposed (dense-inverse), "
-              "1 and 2 BLAS threads,\na new contact set every frame (the tool jumps), %d frames, "
-              "mean ms per frame (best of 3 runs):\n", opt.fig9Frames);
+  std::printf(
+      "\nFig. 9(a) of the paper: conventional (refactor) vs proposed (dense-inverse), "
+      "1 and 2 BLAS threads,\na new contact set every frame (the tool jumps), %d frames, "
+      "mean ms per frame (best of 3 runs):\n",
+      opt.fig9Frames);
   std::printf("%7s %14s %14s %14s %14s %9s %9s %9s\n", "nodes", "refactor 1t", "refactor 2t",
               "dense 1t", "dense 2t", "threads", "method", "both");
   for (int n : {506, 1013}) {
@@ -272,23 +274,25 @@ void runFig9(const BenchElectricOptions& opt) {
         mean[m][t - 1] = 1e300;
         for (int rep = 0; rep < 3; ++rep) {
           std::vector<double> ms;
-          runStrategy(s, m == 0 ? ElectricStrategy::Refactor : ElectricStrategy::DenseInverse,
-                      o, {}, {}, &ms);
+          runStrategy(s, m == 0 ? ElectricStrategy::Refactor : ElectricStrategy::DenseInverse, o,
+                      {}, {}, &ms);
           double sum = 0;
           for (double x : ms) sum += x;
           mean[m][t - 1] = std::min(mean[m][t - 1], sum / std::max<size_t>(1, ms.size()));
         }
       }
     const double base = mean[0][0];
-    std::printf("%7d %14.4f %14.4f %14.4f %14.4f %8.1f%% %8.1f%% %8.1f%%\n",
-                s.mesh.numNodes(), mean[0][0], mean[0][1], mean[1][0], mean[1][1],
-                100 * (mean[0][1] - base) / base, 100 * (mean[1][0] - base) / base,
-                100 * (mean[1][1] - base) / base);
+    std::printf("%7d %14.4f %14.4f %14.4f %14.4f %8.1f%% %8.1f%% %8.1f%%\n", s.mesh.numNodes(),
+                mean[0][0], mean[0][1], mean[1][0], mean[1][1], 100 * (mean[0][1] - base) / base,
+                100 * (mean[1][0] - base) / base, 100 * (mean[1][1] - base) / base);
   }
-  std::printf("%7s %14s %14s %14s %14s %8.1f%% %8.1f%% %8.1f%%   (paper, 1013 nodes, MKL, "
-              "3 threads)\n", "paper", "", "", "", "", -26.6, -45.1, -59.7);
-  std::printf("threads: refactor 2t vs 1t; method: dense 1t vs refactor 1t; both: dense 2t vs "
-              "refactor 1t.\n");
+  std::printf(
+      "%7s %14s %14s %14s %14s %8.1f%% %8.1f%% %8.1f%%   (paper, 1013 nodes, MKL, "
+      "3 threads)\n",
+      "paper", "", "", "", "", -26.6, -45.1, -59.7);
+  std::printf(
+      "threads: refactor 2t vs 1t; method: dense 1t vs refactor 1t; both: dense 2t vs "
+      "refactor 1t.\n");
   setBlasThreads(1);
 }
 
@@ -299,9 +303,10 @@ int benchElectric(const BenchElectricOptions& opt) {
   ESIM_VERIFY(opt.frames >= 1, "bench electric: --frames must be >= 1");
   ESIM_VERIFY(opt.threads >= 1, "bench electric: --threads must be >= 1");
   std::vector<Row> rows;
-  std::printf("esim bench electric: blade cutting x = -40..40 mm by one grid spacing per frame "
-              "(serpentine passes) on the 100x100x10 mm slab, %d frames, %d BLAS thread(s), pcg tol %.0e\n", opt.frames, opt.threads,
-              opt.pcgTolerance);
+  std::printf(
+      "esim bench electric: blade cutting x = -40..40 mm by one grid spacing per frame "
+      "(serpentine passes) on the 100x100x10 mm slab, %d frames, %d BLAS thread(s), pcg tol %.0e\n",
+      opt.frames, opt.threads, opt.pcgTolerance);
   std::printf("(timings on a shared machine: other jobs may be running)\n\n");
   std::printf("%-21s %7s %11s %10s %10s %10s %10s %10s %9s %9s  %s\n", "strategy", "nodes",
               "precomp_s", "median_ms", "p95_ms", "mean_ms", "memory_mb", "max_err", "/dense",
@@ -320,7 +325,8 @@ int benchElectric(const BenchElectricOptions& opt) {
     std::vector<int> sampleFrames;
     const int ns = std::max(1, std::min(opt.errorFrames, opt.frames));
     for (int k = 0; k < ns; ++k) {
-      const int f = static_cast<int>(std::lround(double(k) * (opt.frames - 1) / std::max(1, ns - 1)));
+      const int f =
+          static_cast<int>(std::lround(double(k) * (opt.frames - 1) / std::max(1, ns - 1)));
       if (sampleFrames.empty() || sampleFrames.back() != f) sampleFrames.push_back(f);
     }
     std::vector<Eigen::VectorXd> refs;
@@ -338,8 +344,10 @@ int benchElectric(const BenchElectricOptions& opt) {
       if (r.strategy == "dense-inverse") dense = r.medianMs;
       if (r.strategy == "refactor") refac = r.medianMs;
     }
-    std::printf("-- %d nodes, %.1f contact nodes/frame on average, contact set changed in %.0f "
-                "of %d frames\n", s.mesh.numNodes(), meanContacts, changes, opt.frames);
+    std::printf(
+        "-- %d nodes, %.1f contact nodes/frame on average, contact set changed in %.0f "
+        "of %d frames\n",
+        s.mesh.numNodes(), meanContacts, changes, opt.frames);
     for (const Row& r : sizeRows) {
       std::optional<double> toDense, toRefac;
       if (r.medianMs && dense && *dense > 0) toDense = *r.medianMs / *dense;
@@ -347,9 +355,8 @@ int benchElectric(const BenchElectricOptions& opt) {
       std::printf("%-21s %7d %11s %10s %10s %10s %10s %10s %9s %9s  %s\n", r.strategy.c_str(),
                   r.nodes, fmt(r.precomputeS, "%.4f").c_str(), fmt(r.medianMs, "%.4f").c_str(),
                   fmt(r.p95Ms, "%.4f").c_str(), fmt(r.meanMs, "%.4f").c_str(),
-                  fmt(r.memoryMb, "%.1f").c_str(),
-                  fmt(r.maxRelError, "%.1e").c_str(), fmt(toDense, "%.3g").c_str(),
-                  fmt(toRefac, "%.3g").c_str(), r.note.c_str());
+                  fmt(r.memoryMb, "%.1f").c_str(), fmt(r.maxRelError, "%.1e").c_str(),
+                  fmt(toDense, "%.3g").c_str(), fmt(toRefac, "%.3g").c_str(), r.note.c_str());
       std::fflush(stdout);
     }
     rows.insert(rows.end(), sizeRows.begin(), sizeRows.end());
@@ -362,8 +369,8 @@ int benchElectric(const BenchElectricOptions& opt) {
     for (const Row& r : rows)
       out << r.strategy << ',' << r.nodes << ',' << fmt(r.precomputeS, "%.6f") << ','
           << fmt(r.medianMs, "%.6f") << ',' << fmt(r.p95Ms, "%.6f") << ','
-          << fmt(r.memoryMb, "%.3f") << ',' << fmt(r.maxRelError, "%.3e") << ','
-          << csvQuote(r.note) << '\n';
+          << fmt(r.memoryMb, "%.3f") << ',' << fmt(r.maxRelError, "%.3e") << ',' << csvQuote(r.note)
+          << '\n';
     ESIM_VERIFY(out.good(), "bench electric: writing '" + opt.csv + "' failed");
     std::printf("\nwrote %s\n", opt.csv.c_str());
   }

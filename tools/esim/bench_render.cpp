@@ -54,7 +54,6 @@ struct BenchRenderOptions {
   std::string csv;
 };
 
-
 SurfaceSnapshot makeSurface(const std::string& name, const std::string& liverPath,
                             AnalyticCut& cut) {
   if (name == "slab" || name == "slab20k") {

@@ -36,7 +36,6 @@ struct BenchStructuralOptions {
   std::string csv;
 };
 
-
 double msSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }

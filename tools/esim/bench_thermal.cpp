@@ -12,9 +12,9 @@
 // A benchmark, never a pass/fail test. BLAS runs on one thread.
 #include <algorithm>
 #include <chrono>
-#include <ctime>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <fstream>
 #include <memory>
 #include <sstream>
@@ -41,7 +41,6 @@ struct BenchThermalOptions {
   double nonlinearTolK = ThermalParams{}.nonlinearToleranceK;
   std::string csv;
 };
-
 
 // Joule-like source: Gaussian hot spot under the tool tip at time tS
 void toolSource(const std::vector<Vec3>& centroids, double tS, double topZ,
@@ -80,9 +79,12 @@ int benchThermal(const BenchThermalOptions& opt) {
   ESIM_VERIFY(opt.refSubsteps >= 2, "--ref-substeps must be >= 2");
   ESIM_VERIFY(opt.nonlinearTolK > 0, "--nonlinear-tol must be > 0");
   ThermalLinearSolver solver = ThermalLinearSolver::Auto;
-  if (opt.solver == "direct") solver = ThermalLinearSolver::Direct;
-  else if (opt.solver == "cg") solver = ThermalLinearSolver::Cg;
-  else ESIM_VERIFY(opt.solver == "auto", "--solver '" + opt.solver + "': expected auto, direct or cg");
+  if (opt.solver == "direct")
+    solver = ThermalLinearSolver::Direct;
+  else if (opt.solver == "cg")
+    solver = ThermalLinearSolver::Cg;
+  else
+    ESIM_VERIFY(opt.solver == "auto", "--solver '" + opt.solver + "': expected auto, direct or cg");
   openblas_set_num_threads(1);
   const double dt = 1.0 / opt.fps;
 
@@ -92,11 +94,12 @@ int benchThermal(const BenchThermalOptions& opt) {
     ESIM_VERIFY(csv->good(), "--csv: cannot write '" + opt.csv + "'");
     *csv << "integrator,nodes,dt_s,median_ms,p95_ms,max_abs_error_K\n";
   }
-  std::printf("esim bench thermal: %d frames of %.4f s, boiling %s, hot spot 5e8 W/m^3 r 2 mm "
-              "moving 5 mm/s; reference CN x%d sub-steps; solver %s; boiling tolerance %.0e K; "
-              "1 thread\n",
-              opt.frames, dt, opt.noBoiling ? "off" : "on", opt.refSubsteps, opt.solver.c_str(),
-              opt.nonlinearTolK);
+  std::printf(
+      "esim bench thermal: %d frames of %.4f s, boiling %s, hot spot 5e8 W/m^3 r 2 mm "
+      "moving 5 mm/s; reference CN x%d sub-steps; solver %s; boiling tolerance %.0e K; "
+      "1 thread\n",
+      opt.frames, dt, opt.noBoiling ? "off" : "on", opt.refSubsteps, opt.solver.c_str(),
+      opt.nonlinearTolK);
   std::printf("%-15s %7s %8s %9s %9s %9s %9s %9s %6s %6s %6s %-8s %10s %7s\n", "integrator",
               "nodes", "tets", "setup_ms", "median_ms", "p95_ms", "max_ms", "cpu_med", "subst",
               "iters", "cg_its", "solver", "max_err_K", "Tmax_C");
@@ -169,12 +172,13 @@ int benchThermal(const BenchThermalOptions& opt) {
       const double mx = *std::max_element(frameMs.begin(), frameMs.end());
       const double cpuMed = percentile(frameCpuMs, 0.5);
       const std::string name = thermalIntegratorName(integrator);
-      std::printf("%-15s %7d %8d %9.2f %9.3f %9.3f %9.3f %9.3f %6.2f %6.2f %6.2f %-8s %10.3e %7.2f\n",
-                  name.c_str(), mesh.numNodes(), mesh.numTets(), setupMs, med, p95, mx, cpuMed,
-                  double(substeps) / opt.frames, double(iterations) / opt.frames,
-                  double(cgIterations) / opt.frames,
-                  integrator == ThermalIntegrator::Explicit ? "-" : phase.lastSolverName().c_str(),
-                  maxErr, s.temperatureC.maxCoeff());
+      std::printf(
+          "%-15s %7d %8d %9.2f %9.3f %9.3f %9.3f %9.3f %6.2f %6.2f %6.2f %-8s %10.3e %7.2f\n",
+          name.c_str(), mesh.numNodes(), mesh.numTets(), setupMs, med, p95, mx, cpuMed,
+          double(substeps) / opt.frames, double(iterations) / opt.frames,
+          double(cgIterations) / opt.frames,
+          integrator == ThermalIntegrator::Explicit ? "-" : phase.lastSolverName().c_str(), maxErr,
+          s.temperatureC.maxCoeff());
       if (csv)
         *csv << name << "," << mesh.numNodes() << "," << dt << "," << med << "," << p95 << ","
              << maxErr << "\n";
@@ -203,8 +207,9 @@ cli::Registrar registerBenchThermal(
       app.add_option("--nonlinear-tol", opt->nonlinearTolK,
                      "boiling iteration tolerance [K] (ThermalParams::nonlinearToleranceK)")
           ->capture_default_str();
-      app.add_option("--csv", opt->csv, "write integrator,nodes,dt_s,median_ms,p95_ms,"
-                                        "max_abs_error_K to FILE");
+      app.add_option("--csv", opt->csv,
+                     "write integrator,nodes,dt_s,median_ms,p95_ms,"
+                     "max_abs_error_K to FILE");
       return [opt] { return benchThermal(*opt); };
     });
 

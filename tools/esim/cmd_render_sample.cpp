@@ -61,8 +61,8 @@ int runRenderSample(const RenderSampleOptions& opt) {
     const auto& rgb = renderer.render(snap);
     const std::string path = opt.out + "/sample_" + look + ".png";
     writePng(path, rgb, ro.width, ro.height);
-    std::printf("%s: %dx%d, %d triangles, xxh3 %s, GL %s | %s\n", path.c_str(), ro.width,
-                ro.height, snap.numTriangles(), hashToHex(hashFrame(rgb)).c_str(),
+    std::printf("%s: %dx%d, %d triangles, xxh3 %s, GL %s | %s\n", path.c_str(), ro.width, ro.height,
+                snap.numTriangles(), hashToHex(hashFrame(rgb)).c_str(),
                 renderer.glRenderer().c_str(), renderer.glVersion().c_str());
   }
   return kExitOk;

@@ -41,8 +41,8 @@ struct Registrar {
 
 // exit codes (documented in README)
 constexpr int kExitOk = 0;
-constexpr int kExitFailure = 1;    // the run failed (solver diverged, output could not be written)
-constexpr int kExitBadInput = 2;   // bad scenario, mesh file or option
-constexpr int kExitMismatch = 3;   // compare/hash-check found differences
+constexpr int kExitFailure = 1;   // the run failed (solver diverged, output could not be written)
+constexpr int kExitBadInput = 2;  // bad scenario, mesh file or option
+constexpr int kExitMismatch = 3;  // compare/hash-check found differences
 
 }  // namespace esim::cli

@@ -41,9 +41,8 @@ CompareResult compareRuns(const std::string& runA, const std::string& runB,
   const nlohmann::json b = readJson(fs::path(runB) / "hashes.json");
   CompareResult r;
   ESIM_VERIFY(a.at("width") == b.at("width") && a.at("height") == b.at("height"),
-              "compare: frame sizes differ (" + a.at("width").dump() + "x" +
-                  a.at("height").dump() + " vs " + b.at("width").dump() + "x" +
-                  b.at("height").dump() + ")");
+              "compare: frame sizes differ (" + a.at("width").dump() + "x" + a.at("height").dump() +
+                  " vs " + b.at("width").dump() + "x" + b.at("height").dump() + ")");
   const int w = a.at("width"), h = a.at("height");
   r.sameRenderer = a.value("renderer", nlohmann::json()) == b.value("renderer", nlohmann::json()) &&
                    a.value("libraries", "") == b.value("libraries", "");

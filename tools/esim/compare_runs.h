@@ -8,17 +8,17 @@ namespace esim::cli {
 
 struct FrameDiff {
   int frame = 0;
-  int dhashBits = 0;         // perceptual hash distance (0..64)
-  bool hasImages = false;    // both runs have this frame as PNG
+  int dhashBits = 0;       // perceptual hash distance (0..64)
+  bool hasImages = false;  // both runs have this frame as PNG
   double psnrDb = 0;
-  double offShare = 0;       // share of pixels off by more than 16 levels
+  double offShare = 0;  // share of pixels off by more than 16 levels
   int maxDiff = 0;
   bool withinTolerance = false;
 };
 
 struct CompareResult {
   int framesA = 0, framesB = 0;
-  bool sameRenderer = false;  // renderer strings and library versions equal
+  bool sameRenderer = false;     // renderer strings and library versions equal
   std::vector<FrameDiff> diffs;  // frames whose exact hash differs
   bool identical() const { return framesA == framesB && diffs.empty(); }
   bool withinTolerance() const;

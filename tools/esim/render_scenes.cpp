@@ -71,7 +71,8 @@ SurfaceSnapshot icosphereSurface(double radiusM, int level, std::array<double, 3
   SurfaceSnapshot s;
   for (const auto& p : v) {
     const double n = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
-    for (int k = 0; k < 3; ++k) s.positionsM.push_back(static_cast<float>(c[k] + radiusM * p[k] / n));
+    for (int k = 0; k < 3; ++k)
+      s.positionsM.push_back(static_cast<float>(c[k] + radiusM * p[k] / n));
   }
   for (const auto& tri : f)
     for (int k : tri) s.triangles.push_back(static_cast<std::uint32_t>(k));
@@ -148,8 +149,8 @@ void applyAnalyticCut(const AnalyticCut& cut, double timeS, SurfaceSnapshot& s) 
     const double peakC = 37.0 + 95.0 * std::exp(-d2 / (2 * 0.0021 * 0.0021));
     const double tx = p[0] - tip[0], ty = p[1] - tip[1], tz = p[2] - tip[2];
     const double tip2 = tx * tx + ty * ty + tz * tz;
-    const double nowC = 37.0 + 70.0 * std::exp(-d2 / (2 * 0.0026 * 0.0026)) *
-                                   std::exp(-behindM / 0.022) +
+    const double nowC = 37.0 +
+                        70.0 * std::exp(-d2 / (2 * 0.0026 * 0.0026)) * std::exp(-behindM / 0.022) +
                         55.0 * std::exp(-tip2 / (2 * 0.0022 * 0.0022));
     s.temperatureC[v] = static_cast<float>(std::max(nowC, 37.0));
     s.coagulation[v] = static_cast<float>(smoothstep(58.0, 72.0, peakC));
@@ -157,7 +158,8 @@ void applyAnalyticCut(const AnalyticCut& cut, double timeS, SurfaceSnapshot& s) 
     // groove on the top face along the finished part of the cut
     if (std::abs(p[2] - topZ) < 1e-7) {
       const double g2 = dx * dx + dy * dy;
-      const double depth = cut.grooveDepthM * std::exp(-g2 / (2 * cut.grooveSigmaM * cut.grooveSigmaM));
+      const double depth =
+          cut.grooveDepthM * std::exp(-g2 / (2 * cut.grooveSigmaM * cut.grooveSigmaM));
       p[2] = static_cast<float>(topZ - depth);
       s.cutWall[v] = static_cast<float>(smoothstep(0.15, 0.5, depth / cut.grooveDepthM));
     }
@@ -166,7 +168,8 @@ void applyAnalyticCut(const AnalyticCut& cut, double timeS, SurfaceSnapshot& s) 
   s.tool.present = true;
   s.tool.generatorOn = true;
   s.tool.kind = ElectrodeKind::Blade;
-  s.tool.tipM = {static_cast<float>(tip[0]), static_cast<float>(tip[1]), static_cast<float>(tip[2])};
+  s.tool.tipM = {static_cast<float>(tip[0]), static_cast<float>(tip[1]),
+                 static_cast<float>(tip[2])};
   s.tool.orientationWxyz = toolOrientation({-0.30, 0.18, 0.94});
   s.tool.radiusM = 0.0004f;
   s.tool.widthM = 0.0024f;

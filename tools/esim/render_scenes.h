@@ -27,9 +27,9 @@ SurfaceSnapshot fileSurface(const std::string& path);
 
 // the analytic cut: tool moving along +x at y = 0 on the top face z = topZ
 struct AnalyticCut {
-  double startXM = -0.035;   // where the cut began [m]
-  double tipXM = 0.010;      // where the tool is now [m]
-  double topZM = 0.010;      // top face height [m]
+  double startXM = -0.035;  // where the cut began [m]
+  double tipXM = 0.010;     // where the tool is now [m]
+  double topZM = 0.010;     // top face height [m]
   double grooveDepthM = 0.0012;
   double grooveSigmaM = 0.0008;
 };

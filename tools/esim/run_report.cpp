@@ -85,9 +85,12 @@ std::string timingCsv(const std::vector<FrameRecord>& records) {
     os << r.frame << ',' << r.timeS;
     for (Stage s : present) {
       const int i = static_cast<int>(s);
-      if (r.status[i] == StageStatus::Skipped) os << ",skipped";
-      else if (r.status[i] == StageStatus::Absent) os << ",";
-      else os << ',' << r.ms[i];
+      if (r.status[i] == StageStatus::Skipped)
+        os << ",skipped";
+      else if (r.status[i] == StageStatus::Absent)
+        os << ",";
+      else
+        os << ',' << r.ms[i];
     }
     const double im = interactiveMs(r);
     os << ',' << im << ',' << (im > kBudgetMs ? 1 : 0) << ',' << (r.generatorOn ? 1 : 0) << ','

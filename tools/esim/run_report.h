@@ -6,10 +6,9 @@
 // encoding runs on its own thread and is reported apart.
 #pragma once
 
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "sim/simulation.h"
 
