@@ -1,22 +1,66 @@
-// core_error.h - ESim's error type and always-on checks.
+// core_error.h - ESim's errors, of three kinds, and its checks.
 //
-// ESIM_VERIFY(cond, msg) is always on and throws esim::Error with msg; it guards
-// user input and invariants whose failure must give a message, never a crash.
-// ESIM_ASSERT(cond) is for internal invariants and is compiled out in release.
-// The command-line front end catches esim::Error, prints it and exits non-zero.
+// Like MFEM's MFEM_VERIFY / MFEM_ASSERT pair, an error says what it is:
+//   ErrorKind::Input     bad input (scenario, mesh, option, parameter): the front end exits 2
+//                        and writes nothing;
+//   ErrorKind::Run       a run that cannot go on (a solve that failed, all tissue removed,
+//                        out of memory, an output that cannot be written): exit 1, the
+//                        outputs so far are kept and marked partial;
+//   ErrorKind::Internal  a broken internal invariant (a bug): exit 4, the message gives the
+//                        condition, file and line.
+// Checks:
+//   ESIM_VERIFY(cond, msg)      always on; throws an Input error with msg (user input)
+//   ESIM_RUN_CHECK(cond, msg)   always on; throws a Run error with msg (a solve, a resource)
+//   ESIM_CHECK(cond)            always on; throws an Internal error "cond (file:line)"
+//   ESIM_ASSERT(cond)           ESIM_CHECK in debug builds, nothing in release (hot loops)
+// The core never exits or aborts: the front end (tools/app) maps the kind to the exit code.
 #pragma once
 
-#include <cassert>
 #include <stdexcept>
 #include <string>
 
 namespace esim {
 
-// An error caused by input (scenario, mesh, option) or by a failed solve.
+enum class ErrorKind { Input, Run, Internal };
+
+// an ESim error; thrown as is it is an Input error
 class Error : public std::runtime_error {
  public:
-  using std::runtime_error::runtime_error;
+  explicit Error(const std::string& message, ErrorKind kind = ErrorKind::Input)
+      : std::runtime_error(message), kind_(kind) {}
+  ErrorKind kind() const { return kind_; }
+
+ private:
+  ErrorKind kind_;
 };
+
+// a run that cannot go on (exit 1, outputs so far kept)
+class RunError : public Error {
+ public:
+  explicit RunError(const std::string& message) : Error(message, ErrorKind::Run) {}
+};
+
+// a broken internal invariant (exit 4): condition, file and line
+class InternalError : public Error {
+ public:
+  InternalError(const char* condition, const char* file, int line)
+      : Error(std::string("internal check failed: ") + condition + " (" + file + ":" +
+                  std::to_string(line) + ")",
+              ErrorKind::Internal) {}
+};
+
+// "input", "run", "internal"
+inline const char* errorKindName(ErrorKind kind) {
+  switch (kind) {
+    case ErrorKind::Input:
+      return "input";
+    case ErrorKind::Run:
+      return "run";
+    case ErrorKind::Internal:
+      return "internal";
+  }
+  return "?";
+}
 
 }  // namespace esim
 
@@ -25,8 +69,18 @@ class Error : public std::runtime_error {
     if (!(cond)) throw ::esim::Error(msg); \
   } while (0)
 
+#define ESIM_RUN_CHECK(cond, msg)             \
+  do {                                        \
+    if (!(cond)) throw ::esim::RunError(msg); \
+  } while (0)
+
+#define ESIM_CHECK(cond)                                                 \
+  do {                                                                   \
+    if (!(cond)) throw ::esim::InternalError(#cond, __FILE__, __LINE__); \
+  } while (0)
+
 #ifdef NDEBUG
 #define ESIM_ASSERT(cond) ((void)0)
 #else
-#define ESIM_ASSERT(cond) assert(cond)
+#define ESIM_ASSERT(cond) ESIM_CHECK(cond)
 #endif

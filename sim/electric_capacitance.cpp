@@ -70,7 +70,7 @@ class CapacitanceSolver final : public ElectricSolver {
 
   ElectricSolveStats solve(const std::vector<int>& contact, double voltageV,
                            Eigen::VectorXd& potential) override {
-    ESIM_VERIFY(classes_.n > 0, "capacitance: setMatrix must be called before solve");
+    ESIM_CHECK(classes_.n > 0);  // setMatrix before solve
     ElectricSolveStats stats;
     const std::vector<int> cf = classes_.contactFreeIndices(contact);
     if (cf.empty()) {

@@ -41,7 +41,8 @@ class DenseInverseSolver final : public ElectricSolver {
       throw Error("dense-inverse: the inverse of the " + std::to_string(nf) + " x " +
                   std::to_string(nf) + " reduced matrix needs " + formatGb(need) +
                   ", above the limit of " + formatGb(options_.denseMemoryLimitBytes) +
-                  " (denseMemoryLimitBytes); use the 'capacitance' strategy, which gives the "
+                  " (solvers.electric.dense_memory_limit_mb); use the 'capacitance' strategy, "
+                  "which gives the "
                   "same answer from one sparse factorization and cached columns");
     }
     inverse_.resize(nf, nf);
@@ -63,7 +64,7 @@ class DenseInverseSolver final : public ElectricSolver {
 
   ElectricSolveStats solve(const std::vector<int>& contact, double voltageV,
                            Eigen::VectorXd& potential) override {
-    ESIM_VERIFY(classes_.n > 0, "dense-inverse: setMatrix must be called before solve");
+    ESIM_CHECK(classes_.n > 0);  // setMatrix before solve
     const std::vector<int> cf = classes_.contactFreeIndices(contact);
     if (cf.empty()) {
       potential.setZero(classes_.n);

@@ -40,7 +40,7 @@ class PcgSolver final : public ElectricSolver {
 
   ElectricSolveStats solve(const std::vector<int>& contact, double voltageV,
                            Eigen::VectorXd& potential) override {
-    ESIM_VERIFY(classes_.n > 0, "pcg: setMatrix must be called before solve");
+    ESIM_CHECK(classes_.n > 0);  // setMatrix before solve
     ElectricSolveStats stats;
     const std::vector<int> cf = classes_.contactFreeIndices(contact);
     if (cf.empty()) {
@@ -72,7 +72,18 @@ class PcgSolver final : public ElectricSolver {
     }
     prepared_ = true;
     preparedContact_ = cf;
-    ESIM_VERIFY(x.allFinite(), "pcg: the iteration produced a non-finite potential");
+    ESIM_RUN_CHECK(x.allFinite(), "pcg: the iteration produced a non-finite potential");
+    // an unconverged potential is an error, never a silent result (its energy can be off
+    // by tens of per cent)
+    ESIM_RUN_CHECK(stats.residual <= options_.pcgTolerance,
+                   "solve_potential: pcg did not converge: relative residual " +
+                       std::to_string(stats.residual) + " after " +
+                       std::to_string(stats.iterations) +
+                       " iterations, above solvers.electric.tolerance = " +
+                       std::to_string(options_.pcgTolerance) +
+                       "; raise solvers.electric.max_iterations (now " +
+                       std::to_string(options_.pcgMaxIterations) +
+                       "), loosen the tolerance, or use a direct strategy (capacitance)");
     scatterPotential(classes_, x, cf, voltageV, potential);
     return stats;
   }

@@ -40,11 +40,17 @@ const char* electricStrategyName(ElectricStrategy strategy) {
   return "?";
 }
 
-std::unique_ptr<ElectricSolver> makeElectricSolver(const ElectricSolverOptions& options) {
-  ESIM_VERIFY(options.threads >= 1, "electric solver: threads must be >= 1");
+void validateElectricSolverOptions(const ElectricSolverOptions& options) {
+  ESIM_VERIFY(options.threads >= 1, "solvers.electric.threads must be >= 1");
   ESIM_VERIFY(options.pcgTolerance > 0 && std::isfinite(options.pcgTolerance),
-              "electric solver: pcgTolerance must be a positive number");
-  ESIM_VERIFY(options.pcgMaxIterations >= 1, "electric solver: pcgMaxIterations must be >= 1");
+              "solvers.electric.tolerance must be a positive number");
+  ESIM_VERIFY(options.pcgMaxIterations >= 1, "solvers.electric.max_iterations must be >= 1");
+  ESIM_VERIFY(options.denseMemoryLimitBytes > 0,
+              "solvers.electric.dense_memory_limit_mb must be > 0");
+}
+
+std::unique_ptr<ElectricSolver> makeElectricSolver(const ElectricSolverOptions& options) {
+  validateElectricSolverOptions(options);
   switch (options.strategy) {
     case ElectricStrategy::Refactor:
       return electric_detail::makeRefactorSolver(options);
@@ -222,31 +228,32 @@ CholmodFactor::~CholmodFactor() {
 }
 
 void CholmodFactor::analyze(const SparseMatrix& A) {
-  ESIM_VERIFY(A.isCompressed(), "CholmodFactor: matrix must be compressed");
+  ESIM_CHECK(A.isCompressed());
   cholmod_common* c = &impl_->common;
   if (impl_->factor) cholmod_free_factor(&impl_->factor, c);
   factorized_ = false;
   cholmod_sparse s = viewLower(A);
   impl_->factor = cholmod_analyze(&s, c);
-  ESIM_VERIFY(impl_->factor != nullptr,
-              "electric solver: CHOLMOD symbolic analysis failed "
-              "(out of memory?)");
+  ESIM_RUN_CHECK(impl_->factor != nullptr,
+                 "electric solver: CHOLMOD symbolic analysis failed "
+                 "(out of memory?)");
 }
 
 void CholmodFactor::factorize(const SparseMatrix& A, const char* what) {
-  ESIM_VERIFY(impl_->factor != nullptr, "CholmodFactor: analyze before factorize");
+  ESIM_CHECK(impl_->factor != nullptr);  // analyze before factorize
   cholmod_common* c = &impl_->common;
   cholmod_sparse s = viewLower(A);
   const int ok = cholmod_factorize(&s, impl_->factor, c);
   factorized_ = ok && c->status == CHOLMOD_OK && impl_->factor->minor == impl_->factor->n;
-  ESIM_VERIFY(factorized_,
-              std::string(what) + ": the matrix is not positive definite (CHOLMOD status " +
-                  std::to_string(c->status) + ", column " + std::to_string(impl_->factor->minor) +
-                  "); a conductivity <= 0 or a NaN in K?");
+  ESIM_RUN_CHECK(factorized_, std::string(what) +
+                                  ": the matrix is not positive definite (CHOLMOD status " +
+                                  std::to_string(c->status) + ", column " +
+                                  std::to_string(impl_->factor->minor) +
+                                  "); a conductivity <= 0 or a NaN in K?");
 }
 
 void CholmodFactor::solve(const double* b, double* x, int ncols) {
-  ESIM_VERIFY(factorized_, "CholmodFactor: solve before a successful factorization");
+  ESIM_CHECK(factorized_);  // solve after a successful factorization
   cholmod_common* c = &impl_->common;
   const int n = size();
   cholmod_dense bd{};
@@ -259,7 +266,7 @@ void CholmodFactor::solve(const double* b, double* x, int ncols) {
   bd.dtype = CHOLMOD_DOUBLE;
   const int ok = cholmod_solve2(CHOLMOD_A, impl_->factor, &bd, nullptr, &impl_->x, nullptr,
                                 &impl_->y, &impl_->e, c);
-  ESIM_VERIFY(ok, "electric solver: CHOLMOD solve failed (out of memory?)");
+  ESIM_RUN_CHECK(ok, "electric solver: CHOLMOD solve failed (out of memory?)");
   std::copy_n(static_cast<const double*>(impl_->x->x), static_cast<size_t>(n) * ncols, x);
 }
 

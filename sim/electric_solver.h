@@ -73,11 +73,14 @@ struct ElectricSolverOptions {
   double pcgTolerance = 1e-8;  // relative residual ||b - A x|| / ||b||
   int pcgMaxIterations = 5000;
   PcgPreconditioner pcgPreconditioner = PcgPreconditioner::Jacobi;  // or IncompleteCholesky
-  double denseMemoryLimitBytes = 2e9;  // dense-inverse refuses above this
-  double cacheMemoryLimitBytes = 1e9;  // capacitance column cache cap (LRU eviction)
-  int capacitancePatchNodes = 16;      // capacitance: candidates solved together
-  int threads = 1;                     // BLAS threads (CHOLMOD supernodal uses BLAS)
+  double denseMemoryLimitBytes = 2048.0 * 1048576.0;  // dense-inverse refuses above (2 GiB)
+  double cacheMemoryLimitBytes = 1e9;                 // capacitance column cache cap (LRU eviction)
+  int capacitancePatchNodes = 16;                     // capacitance: candidates solved together
+  int threads = 1;                                    // BLAS threads (CHOLMOD supernodal uses BLAS)
 };
+
+// Checks the options; throws Error naming the scenario key (solvers.electric.*).
+void validateElectricSolverOptions(const ElectricSolverOptions& options);
 
 struct ElectricSolveStats {
   bool refactored = false;  // refactor: the matrix was factorized in this solve

@@ -36,263 +36,369 @@ StageTimer::~StageTimer() {
   record_.status[s] = skipped_ ? StageStatus::Skipped : StageStatus::Ran;
 }
 
-Simulation::Simulation(TetMesh mesh, SimulationConfig config)
-    : mesh_(std::move(mesh)), config_(std::move(config)) {
-  const PhaseSet& ph = config_.phases;
+const SimulationConfig& defaultSimulationConfig() {
+  static const SimulationConfig config;
+  return config;
+}
+
+// ---- checks (the constructor's, also run by `esim validate`) ----
+
+void validateSimulationConfig(const SimulationConfig& config) {
+  const PhaseSet& ph = config.phases;
   ESIM_VERIFY(!ph.structural || (ph.thermal && ph.boiling),
               "physics: 'structural' needs 'thermal' and 'boiling' (its load is the water's "
               "expansion)");
   ESIM_VERIFY(!ph.rupture || ph.structural,
               "physics: 'rupture' needs 'structural' (the stress that breaks elements)");
   ESIM_VERIFY(ph.electric || ph.thermal, "physics: the scene lists no phase to simulate");
-  ESIM_VERIFY(config_.frameDtS > 0 && std::isfinite(config_.frameDtS),
-              "time: frame step must be positive (fps > 0)");
-  if (mesh_.alive.empty()) mesh_.alive.assign(mesh_.tets.size(), 1);
-  validateMesh(mesh_, "mesh");
-
-  // ---- model: geometry and surface (shared by every phase) ----
-  geo_ = tetGeometry(mesh_);
-  surface_ = boundaryFaces(mesh_);
-  surfaceNodes_ = boundaryNodes(mesh_, surface_);
-  for (const auto& f : surface_) {
-    std::array<int, 3> key{f.nodes[0], f.nodes[1], f.nodes[2]};
-    std::sort(key.begin(), key.end());
-    initialFaces_.push_back(key);
-  }
-  std::sort(initialFaces_.begin(), initialFaces_.end());
-  buildSurfaceTopology();
-  potential_ = Eigen::VectorXd::Zero(mesh_.numNodes());
-  joule_.assign(mesh_.numTets(), 0.0);
-
-  // ---- electric phase ----
+  ESIM_VERIFY(config.frameDtS > 0 && std::isfinite(config.frameDtS),
+              "time.fps: the frame step 1/fps must be positive and finite");
   if (ph.electric) {
-    ESIM_VERIFY(config_.conductivityS_m > 0 && std::isfinite(config_.conductivityS_m),
+    ESIM_VERIFY(config.conductivityS_m > 0 && std::isfinite(config.conductivityS_m),
                 "material.electric_conductivity_s_per_m must be a positive finite number");
-    ESIM_VERIFY(std::isfinite(config_.toolVoltageV), "tool.voltage_v must be finite");
-    validateToolPath(config_.toolPath);
-    ground_ = returnElectrodeNodes(mesh_, surfaceNodes_, config_.returnElectrode);
-    ESIM_VERIFY(!ground_.empty(),
-                "return_electrode: no mesh node lies on the return electrode disc (centre " +
-                    std::to_string(config_.returnElectrode.centerM.x()) + " " +
-                    std::to_string(config_.returnElectrode.centerM.y()) + " " +
-                    std::to_string(config_.returnElectrode.centerM.z()) + " m, radius " +
-                    std::to_string(config_.returnElectrode.radiusM) +
-                    " m); move it onto the tissue surface or enlarge radius_m/tolerance_m");
-    contactFinder_ = ContactFinder(mesh_, surfaceNodes_);
-    sigma_.assign(mesh_.numTets(), config_.conductivityS_m);
-    sigmaAssembled_ = sigma_;
-    stiffness_ = assembleStiffness(mesh_, geo_, sigma_);
-    electric_ = makeElectricSolver(config_.electricSolver);
-    electric_->setContactCandidates(surfaceNodes_);
-    electric_->setMatrix(stiffness_, ground_);
-    prefetchScriptedPath();
+    ESIM_VERIFY(std::isfinite(config.toolVoltageV), "tool.voltage_v must be finite");
+    validateToolPath(config.toolPath);
+    validateElectricSolverOptions(config.electricSolver);
   }
-
-  // ---- thermal phase ----
   if (ph.thermal) {
-    ThermalParams tp = config_.thermal;
+    ThermalParams tp = config.thermal;
     tp.boiling = ph.boiling;
     validateThermalParams(tp, "material");
-    std::vector<BoundaryFace> cooled;
-    if (config_.coolTopSurface && tp.convectionW_m2K > 0) {
-      for (const auto& f : surface_) {
-        const Vec3& a = mesh_.nodes[f.nodes[0]];
-        const Vec3 n = (mesh_.nodes[f.nodes[1]] - a).cross(mesh_.nodes[f.nodes[2]] - a);
-        if (n.z() > 0.5 * n.norm()) cooled.push_back(f);
-      }
-    }
-    config_.thermal = tp;
-    cooled_ = cooled;
-    thermal_ = std::make_unique<ThermalPhase>(mesh_, geo_, tp, cooled);
-    thermal_->initState(thermalState_);
-    if (config_.hotSpot.enabled) {
-      Eigen::VectorXd t = thermalState_.temperatureC;
-      for (int i = 0; i < mesh_.numNodes(); ++i)
-        if ((mesh_.nodes[i] - config_.hotSpot.centerM).norm() <= config_.hotSpot.radiusM)
-          t[i] = config_.hotSpot.temperatureC;
-      thermal_->setTemperature(thermalState_, t);
-    }
-    if (!ph.electric) prescribedSource_.assign(mesh_.numTets(), 0.0);  // zero without a source
-    if (!ph.electric && config_.heatSource.enabled) {
-      const double r2 = config_.heatSource.radiusM * config_.heatSource.radiusM;
-      for (int e = 0; e < mesh_.numTets(); ++e) {
-        Vec3 c = Vec3::Zero();
-        for (int v : mesh_.tets[e]) c += 0.25 * mesh_.nodes[v];
-        prescribedSource_[e] = config_.heatSource.powerDensityW_m3 *
-                               std::exp(-(c - config_.heatSource.centerM).squaredNorm() / r2);
-      }
-    }
-    maxTemperatureC_ = thermalState_.temperatureC.maxCoeff();
-  } else {
-    maxTemperatureC_ = config_.thermal.initialTemperatureC;
   }
-
-  // ---- structural phase: clamped at the bottom ----
   if (ph.structural) {
-    ESIM_VERIFY(config_.clampBandM >= 0 && std::isfinite(config_.clampBandM),
+    ESIM_VERIFY(config.clampBandM >= 0 && std::isfinite(config.clampBandM),
                 "effects.structural_clamp_band_m must be >= 0");
-    ESIM_VERIFY(config_.criticalStressPa > 0 && std::isfinite(config_.criticalStressPa),
+    ESIM_VERIFY(config.criticalStressPa > 0 && std::isfinite(config.criticalStressPa),
                 "material.critical_stress_pa must be > 0");
-    ESIM_VERIFY(config_.vaporLiquidVolumeRatio >= 1,
+    ESIM_VERIFY(config.vaporLiquidVolumeRatio >= 1,
                 "material.vapor_liquid_volume_ratio must be >= 1");
-    double zMin = mesh_.nodes.front().z();
-    for (const Vec3& p : mesh_.nodes) zMin = std::min(zMin, p.z());
-    for (int v : surfaceNodes_)
-      if (mesh_.nodes[v].z() <= zMin + config_.clampBandM)
-        for (int a = 0; a < 3; ++a) supports_.push_back({v, a});
-    expansion_.waterFraction = config_.thermal.waterFraction;
-    expansion_.densityKg_m3 = config_.thermal.densityKg_m3;
-    expansion_.initialTemperatureC = config_.thermal.initialTemperatureC;
-    expansion_.boilingTemperatureC = config_.thermal.boilingTemperatureC;
-    expansion_.vaporLiquidVolumeRatio = config_.vaporLiquidVolumeRatio;
-    expansion_.maxExpansion = config_.maxVaporExpansion;
-    eigenstrain_.assign(mesh_.numTets(), 0.0);
-    try {
-      structural_ = std::make_unique<StructuralPhase>(mesh_, config_.structural, supports_);
-      pending_.assign(mesh_.numTets(), 0);
-    } catch (const Error& e) {
-      throw Error(std::string(e.what()) + " (clamped: " + std::to_string(supports_.size() / 3) +
-                  " bottom nodes within effects.structural_clamp_band_m = " +
-                  std::to_string(config_.clampBandM) + " m of the lowest node)");
+  }
+}
+
+namespace {
+
+// the nodes the structural phase clamps: surface nodes within the clamp band of the lowest
+std::vector<Support> clampedSupports(const TetMesh& mesh, const std::vector<int>& surfaceNodes,
+                                     double clampBandM) {
+  double zMin = mesh.nodes.front().z();
+  for (const Vec3& p : mesh.nodes) zMin = std::min(zMin, p.z());
+  std::vector<Support> supports;
+  for (int v : surfaceNodes)
+    if (mesh.nodes[v].z() <= zMin + clampBandM)
+      for (int a = 0; a < 3; ++a) supports.push_back({v, a});
+  return supports;
+}
+
+std::string returnElectrodeMessage(const ReturnElectrode& r) {
+  return "return_electrode: no mesh node lies on the return electrode disc (centre " +
+         std::to_string(r.centerM.x()) + " " + std::to_string(r.centerM.y()) + " " +
+         std::to_string(r.centerM.z()) + " m, radius " + std::to_string(r.radiusM) +
+         " m); move it onto the tissue surface or enlarge radius_m/tolerance_m";
+}
+
+}  // namespace
+
+void validateSimulationMesh(const TetMesh& meshIn, const SimulationConfig& config) {
+  TetMesh mesh = meshIn;
+  if (mesh.alive.empty()) mesh.alive.assign(mesh.tets.size(), 1);
+  validateMesh(mesh, "mesh");
+  const std::vector<BoundaryFace> surface = boundaryFaces(mesh);
+  const std::vector<int> surfaceNodes = boundaryNodes(mesh, surface);
+  if (config.phases.electric)
+    ESIM_VERIFY(!returnElectrodeNodes(mesh, surfaceNodes, config.returnElectrode).empty(),
+                returnElectrodeMessage(config.returnElectrode));
+  if (config.phases.electric && config.electricSolver.strategy == ElectricStrategy::DenseInverse) {
+    const double nf = mesh.numNodes() -
+                      static_cast<double>(
+                          returnElectrodeNodes(mesh, surfaceNodes, config.returnElectrode).size());
+    const double need = 8.0 * nf * nf;
+    ESIM_VERIFY(need <= config.electricSolver.denseMemoryLimitBytes,
+                "solvers.electric.strategy: dense-inverse needs " + std::to_string(need / 1e9) +
+                    " GB for this mesh, above solvers.electric.dense_memory_limit_mb = " +
+                    std::to_string(config.electricSolver.denseMemoryLimitBytes / 1048576.0) +
+                    " MiB; use 'capacitance' (the same answer with sparse memory)");
+  }
+  if (config.phases.structural)
+    ESIM_VERIFY(!clampedSupports(mesh, surfaceNodes, config.clampBandM).empty(),
+                "effects.structural_clamp_band_m = " + std::to_string(config.clampBandM) +
+                    " m: no surface node lies within it of the lowest node (nothing holds the "
+                    "tissue)");
+}
+
+// ---- building ----
+
+Simulation::Simulation(TetMesh mesh, SimulationConfig config) : config_(std::move(config)) {
+  validateSimulationConfig(config_);
+  if (mesh.alive.empty()) mesh.alive.assign(mesh.tets.size(), 1);
+  validateMesh(mesh, "mesh");
+  config_.thermal.boiling = config_.phases.boiling;
+  buildInitialModel(std::move(mesh));
+  initState();
+}
+
+// the parts of the model that no removal changes (geometry, initial surface, cooled
+// faces, supports, prescribed source), then the topology-dependent parts (buildModel)
+void Simulation::buildInitialModel(TetMesh mesh) {
+  auto fixed = std::make_unique<SimModel>();
+  SimModel& m = *fixed;
+  m.geo = std::make_shared<const std::vector<TetGeometry>>(tetGeometry(mesh));
+  const std::vector<BoundaryFace> surface = boundaryFaces(mesh);
+  const std::vector<int> surfaceNodes = boundaryNodes(mesh, surface);
+  auto initialFaces = std::make_shared<std::vector<std::array<int, 3>>>();
+  for (const auto& f : surface) {
+    std::array<int, 3> key{f.nodes[0], f.nodes[1], f.nodes[2]};
+    std::sort(key.begin(), key.end());
+    initialFaces->push_back(key);
+  }
+  std::sort(initialFaces->begin(), initialFaces->end());
+  m.initialFaces = std::move(initialFaces);
+  const PhaseSet& ph = config_.phases;
+  if (ph.electric) {
+    ESIM_VERIFY(!returnElectrodeNodes(mesh, surfaceNodes, config_.returnElectrode).empty(),
+                returnElectrodeMessage(config_.returnElectrode));
+  }
+  if (ph.thermal && config_.coolTopSurface && config_.thermal.convectionW_m2K > 0) {
+    for (const auto& f : surface) {
+      const Vec3& a = mesh.nodes[f.nodes[0]];
+      const Vec3 n = (mesh.nodes[f.nodes[1]] - a).cross(mesh.nodes[f.nodes[2]] - a);
+      if (n.z() > 0.5 * n.norm()) m.cooledInitial.push_back(f);
     }
   }
+  if (ph.thermal && !ph.electric) {
+    m.prescribedSource.assign(mesh.numTets(), 0.0);  // zero without a source
+    if (config_.heatSource.enabled) {
+      const double r2 = config_.heatSource.radiusM * config_.heatSource.radiusM;
+      for (int e = 0; e < mesh.numTets(); ++e) {
+        Vec3 c = Vec3::Zero();
+        for (int v : mesh.tets[e]) c += 0.25 * mesh.nodes[v];
+        m.prescribedSource[e] = config_.heatSource.powerDensityW_m3 *
+                                std::exp(-(c - config_.heatSource.centerM).squaredNorm() / r2);
+      }
+    }
+  }
+  if (ph.structural) {
+    m.supports = clampedSupports(mesh, surfaceNodes, config_.clampBandM);
+    ExpansionParams& x = m.expansion;
+    x.waterFraction = config_.thermal.waterFraction;
+    x.densityKg_m3 = config_.thermal.densityKg_m3;
+    x.initialTemperatureC = config_.thermal.initialTemperatureC;
+    x.boilingTemperatureC = config_.thermal.boilingTemperatureC;
+    x.vaporLiquidVolumeRatio = config_.vaporLiquidVolumeRatio;
+    x.maxExpansion = config_.maxVaporExpansion;
+    pending_.assign(mesh.numTets(), 0);
+  }
+  std::vector<std::uint8_t> alive = mesh.alive;
+  m.mesh = std::move(mesh);
+  model_ = std::move(fixed);
+  const int prefetchTo =
+      config_.prefetchUntilS > 0
+          ? static_cast<int>(std::ceil(config_.prefetchUntilS / config_.frameDtS))
+          : -1;
+  try {
+    model_ = buildModel(
+        std::move(alive),
+        std::vector<double>(ph.electric ? model_->mesh.numTets() : 0, config_.conductivityS_m), 0,
+        prefetchTo);
+  } catch (const Error& e) {
+    if (std::string(e.what()).rfind("structural", 0) != 0) throw;
+    throw RunError(std::string(e.what()) +
+                   " (clamped: " + std::to_string(model_->supports.size() / 3) +
+                   " bottom nodes within effects.structural_clamp_band_m = " +
+                   std::to_string(config_.clampBandM) + " m of the lowest node)");
+  }
+}
+
+void Simulation::initState() {
+  SimState& s = state_;
+  const int n = model_->mesh.numNodes(), nt = model_->mesh.numTets();
+  s.potentialV = Eigen::VectorXd::Zero(n);
+  s.joulePowerW_m3.assign(nt, 0.0);
+  if (model_->electric) s.conductivityS_m.assign(nt, config_.conductivityS_m);
+  s.maxTemperatureC = config_.thermal.initialTemperatureC;
+  if (model_->thermal) {
+    model_->thermal->initState(s.thermal);
+    if (config_.hotSpot.enabled) {
+      Eigen::VectorXd t = s.thermal.temperatureC;
+      for (int i = 0; i < n; ++i)
+        if ((model_->mesh.nodes[i] - config_.hotSpot.centerM).norm() <= config_.hotSpot.radiusM)
+          t[i] = config_.hotSpot.temperatureC;
+      model_->thermal->setTemperature(s.thermal, t);
+    }
+    s.maxTemperatureC = s.thermal.temperatureC.maxCoeff();
+  }
+  if (model_->structural) s.eigenstrain.assign(nt, 0.0);
 }
 
 void Simulation::computeEigenstrain() {
-  const Eigen::VectorXd& t = thermalState_.temperatureC;
-  for (int e = 0; e < mesh_.numTets(); ++e) {
-    if (!mesh_.isAlive(e)) {
-      eigenstrain_[e] = 0;
+  const TetMesh& mesh = model_->mesh;
+  const ThermalState& th = state_.thermal;
+  const Eigen::VectorXd& t = th.temperatureC;
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    if (!mesh.isAlive(e)) {
+      state_.eigenstrain[e] = 0;
       continue;
     }
-    const Tet& tet = mesh_.tets[e];
+    const Tet& tet = mesh.tets[e];
     const double te = 0.25 * (t[tet[0]] + t[tet[1]] + t[tet[2]] + t[tet[3]]);
-    const double x =
-        thermalState_.vaporFractionTet.empty() ? 0.0 : thermalState_.vaporFractionTet[e];
-    eigenstrain_[e] = volumetricExpansion(expansion_, te, x);
+    const double x = th.vaporFractionTet.empty() ? 0.0 : th.vaporFractionTet[e];
+    state_.eigenstrain[e] = volumetricExpansion(model_->expansion, te, x);
   }
 }
 
-// everything the removal of tets invalidates, built for a given alive set from the
-// immutable model only (nodes, tets, geometry, configuration, supports), so that it can
-// run on another thread while frames go on with the current structures
+namespace {
+
+// surface vertex numbering, triangles and cut walls of the snapshot: fixed until the
+// topology changes
+void buildSnapshotTopology(SimModel& m) {
+  m.surfaceVertexOf.assign(m.mesh.numNodes(), -1);
+  m.surfacePositionsM.clear();
+  for (int v : m.surfaceNodes) {
+    m.surfaceVertexOf[v] = static_cast<int>(m.surfacePositionsM.size() / 3);
+    for (int c = 0; c < 3; ++c)
+      m.surfacePositionsM.push_back(static_cast<float>(m.mesh.nodes[v][c]));
+  }
+  m.surfaceTriangles.clear();
+  m.surfaceTriangles.reserve(m.surface.size() * 3);
+  for (const auto& f : m.surface)
+    for (int v : f.nodes)
+      m.surfaceTriangles.push_back(static_cast<std::uint32_t>(m.surfaceVertexOf[v]));
+  // cut walls: vertices of faces that were inside the initial tissue
+  m.surfaceCutWall.assign(m.surfacePositionsM.size() / 3, 0.0f);
+  for (const auto& f : m.surface) {
+    std::array<int, 3> key{f.nodes[0], f.nodes[1], f.nodes[2]};
+    std::sort(key.begin(), key.end());
+    if (std::binary_search(m.initialFaces->begin(), m.initialFaces->end(), key)) continue;
+    for (int v : f.nodes) m.surfaceCutWall[m.surfaceVertexOf[v]] = 1.0f;
+  }
+}
+
+}  // namespace
+
+// A model for the given alive set, built from the parts no removal changes (model_'s
+// nodes, tets, geometry, initial faces, cooled faces, supports) and the configuration
+// only, so that it can run on another thread while frames go on with model_ (which the
+// frame loop changes only in its electric matrix, not read here). The electric columns of
+// the scripted contacts in frames [prefetchFrom, prefetchTo] are prefetched (none when
+// prefetchTo < prefetchFrom).
+std::unique_ptr<SimModel> Simulation::buildModel(std::vector<std::uint8_t> alive,
+                                                 std::vector<double> sigma, int prefetchFrom,
+                                                 int prefetchTo) const {
+  const auto t0 = std::chrono::steady_clock::now();
+  const SimModel& base = *model_;
+  auto out = std::make_unique<SimModel>();
+  SimModel& m = *out;
+  m.mesh.nodes = base.mesh.nodes;
+  m.mesh.tets = base.mesh.tets;
+  m.mesh.alive = std::move(alive);
+  ESIM_RUN_CHECK(m.mesh.numAlive() > 0, "rupture: every element of the tissue has been removed");
+  m.geo = base.geo;
+  m.initialFaces = base.initialFaces;
+  m.cooledInitial = base.cooledInitial;
+  m.prescribedSource = base.prescribedSource;
+  m.supports = base.supports;
+  m.expansion = base.expansion;
+  m.surface = boundaryFaces(m.mesh);
+  m.surfaceNodes = boundaryNodes(m.mesh, m.surface);
+  buildSnapshotTopology(m);
+  if (config_.phases.thermal) {
+    std::vector<BoundaryFace> cooled;
+    for (const BoundaryFace& f : m.cooledInitial)
+      if (m.mesh.isAlive(f.tet)) cooled.push_back(f);
+    m.thermal = std::make_unique<ThermalPhase>(m.mesh, *m.geo, config_.thermal, cooled);
+    if (config_.thermal.integrator == ThermalIntegrator::Explicit)
+      m.thermal->stableExplicitDtS();  // computed here, not in the next frame
+  }
+  if (config_.phases.electric) {
+    m.ground = returnElectrodeNodes(m.mesh, m.surfaceNodes, config_.returnElectrode);
+    ESIM_RUN_CHECK(!m.ground.empty(),
+                   "rupture: the cut removed all the tissue on the return electrode");
+    m.contactFinder = ContactFinder(m.mesh, m.surfaceNodes);
+    m.sigmaAssembled = std::move(sigma);
+    m.stiffness = assembleStiffness(m.mesh, *m.geo, m.sigmaAssembled);
+    m.electric = makeElectricSolver(config_.electricSolver);
+    m.electric->setContactCandidates(m.surfaceNodes);
+    m.electric->setMatrix(m.stiffness, m.ground);
+    if (prefetchTo >= prefetchFrom)
+      m.electric->prefetch(scriptedContacts(m.contactFinder, m.ground, prefetchFrom, prefetchTo));
+  }
+  if (config_.phases.structural)
+    m.structural = std::make_unique<StructuralPhase>(m.mesh, config_.structural, m.supports);
+  m.buildMs =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+// ---- rebuild after rupture ----
+
+// a model built for a new alive set, and the tets it removes
 struct Simulation::Rebuilt {
-  std::vector<std::uint8_t> alive;
-  std::vector<int> removed;  // the tets this rebuild removes
-  std::vector<BoundaryFace> surface;
-  std::vector<int> surfaceNodes, ground;
-  ContactFinder contactFinder;
-  std::vector<double> sigma;  // the conductivities K was assembled with
-  SparseMatrix stiffness;
-  std::unique_ptr<ElectricSolver> electric;
-  std::unique_ptr<ThermalPhase> thermal;
-  std::unique_ptr<StructuralPhase> structural;
-  double buildMs = 0;
+  std::unique_ptr<SimModel> model;
+  std::vector<int> removed;
 };
 
-std::unique_ptr<Simulation::Rebuilt> Simulation::buildRebuilt(std::vector<std::uint8_t> alive,
-                                                              std::vector<int> removed,
-                                                              std::vector<double> sigma,
-                                                              int firstFrame) const {
-  const auto t0 = std::chrono::steady_clock::now();
-  auto r = std::make_unique<Rebuilt>();
-  TetMesh mesh;
-  mesh.nodes = mesh_.nodes;
-  mesh.tets = mesh_.tets;
-  mesh.alive = alive;
-  ESIM_VERIFY(mesh.numAlive() > 0, "rupture: every element of the tissue has been removed");
-  r->surface = boundaryFaces(mesh);
-  r->surfaceNodes = boundaryNodes(mesh, r->surface);
-  if (thermal_) {
-    std::vector<BoundaryFace> cooled;
-    for (const BoundaryFace& f : cooled_)
-      if (mesh.isAlive(f.tet)) cooled.push_back(f);
-    r->thermal = std::make_unique<ThermalPhase>(mesh, geo_, config_.thermal, cooled);
-    if (config_.thermal.integrator == ThermalIntegrator::Explicit)
-      r->thermal->stableExplicitDtS();  // computed here, not in the next frame
-  }
-  if (electric_) {
-    r->ground = returnElectrodeNodes(mesh, r->surfaceNodes, config_.returnElectrode);
-    ESIM_VERIFY(!r->ground.empty(),
-                "rupture: the cut removed all the tissue on the return electrode");
-    r->contactFinder = ContactFinder(mesh, r->surfaceNodes);
-    r->stiffness = assembleStiffness(mesh, geo_, sigma);
-    r->electric = makeElectricSolver(config_.electricSolver);
-    r->electric->setContactCandidates(r->surfaceNodes);
-    r->electric->setMatrix(r->stiffness, r->ground);
-    // the columns the script will need on the new model (from firstFrame, its first frame
-    // with recomputation, to kRebuildPrefetchS after the swap; later contacts get theirs
-    // when they come): built here, off the frame loop in background mode
-    if (config_.prefetchUntilS > 0) {
-      const int last = static_cast<int>(std::ceil(config_.prefetchUntilS / config_.frameDtS));
-      const int to =
-          std::min(last, firstFrame + config_.rebuildLagFrames +
-                             static_cast<int>(std::ceil(kRebuildPrefetchS / config_.frameDtS)));
-      r->electric->prefetch(scriptedContacts(r->contactFinder, r->ground, firstFrame, to));
-    }
-  }
-  if (structural_)
-    r->structural = std::make_unique<StructuralPhase>(mesh, config_.structural, supports_);
-  r->alive = std::move(alive);
-  r->removed = std::move(removed);
-  r->sigma = std::move(sigma);
-  r->buildMs =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  return r;
-}
-
 void Simulation::swapIn(std::unique_ptr<Rebuilt> r, FrameRecord& rec) {
-  mesh_.alive = std::move(r->alive);
   for (int e : r->removed) pending_[e] = 0;
   removedTets_ += static_cast<int>(r->removed.size());
   rec.removedTets = static_cast<int>(r->removed.size());
-  surface_ = std::move(r->surface);
-  surfaceNodes_ = std::move(r->surfaceNodes);
-  buildSurfaceTopology();
-  if (thermal_) thermal_ = std::move(r->thermal);
-  if (electric_) {
-    ground_ = std::move(r->ground);
-    contactFinder_ = std::move(r->contactFinder);
-    stiffness_ = std::move(r->stiffness);
-    sigmaAssembled_ = std::move(r->sigma);
-    electric_ = std::move(r->electric);
-  }
-  if (structural_) structural_ = std::move(r->structural);
+  rebuildBuildMs_ += r->model->buildMs;
+  model_ = std::move(r->model);
   ++rebuilds_;
-  rebuildBuildMs_ += r->buildMs;
 }
 
 void Simulation::startRebuild(const std::vector<int>& broken) {
-  std::vector<std::uint8_t> alive = mesh_.alive;
+  std::vector<std::uint8_t> alive = model_->mesh.alive;
   for (int e : broken) alive[e] = 0;
-  std::vector<double> sigma = electric_ ? sigmaAssembled_ : std::vector<double>{};
+  std::vector<double> sigma = model_->electric ? model_->sigmaAssembled : std::vector<double>{};
+  // the columns the script will need on the new model: from its first frame with
+  // recomputation to kRebuildPrefetchS after the swap (later contacts get theirs when they
+  // come); built with the model, off the frame loop in background mode
+  const int first = state_.frame + 1;
+  int prefetchTo = -1;
+  if (config_.prefetchUntilS > 0) {
+    const int last = static_cast<int>(std::ceil(config_.prefetchUntilS / config_.frameDtS));
+    prefetchTo =
+        std::min(last, first + config_.rebuildLagFrames +
+                           static_cast<int>(std::ceil(kRebuildPrefetchS / config_.frameDtS)));
+  }
   if (!config_.backgroundRebuild) {
-    ready_ = buildRebuilt(std::move(alive), broken, std::move(sigma), frame_ + 1);
-    swapFrame_ = frame_;
+    ready_ = std::make_unique<Rebuilt>();
+    ready_->model = buildModel(std::move(alive), std::move(sigma), first, prefetchTo);
+    ready_->removed = broken;
+    swapFrame_ = state_.frame;
     return;
   }
-  if (config_.recomputeLagFrames && config_.rebuildLagFrames > 0) takeCheckpoint();
-  // a pure function of the immutable model and these copies: the result does not depend
-  // on when the thread runs, and it is swapped in at a fixed frame
+  if (config_.recomputeLagFrames && config_.rebuildLagFrames > 0) {
+    checkpoint_ = std::make_unique<SimState>(state_);
+    checkpoint_->frame = state_.frame + 1;  // the first frame to compute again
+  }
+  // a pure function of the fixed parts of the model and these copies: the result does not
+  // depend on when the thread runs, and it is swapped in at a fixed frame
   job_ = std::async(std::launch::async, [this, alive = std::move(alive), broken,
-                                         sigma = std::move(sigma), first = frame_ + 1]() mutable {
-    return buildRebuilt(std::move(alive), std::move(broken), std::move(sigma), first);
+                                         sigma = std::move(sigma), first, prefetchTo]() mutable {
+    auto r = std::make_unique<Rebuilt>();
+    r->model = buildModel(std::move(alive), std::move(sigma), first, prefetchTo);
+    r->removed = std::move(broken);
+    return r;
   });
-  swapFrame_ = frame_ + config_.rebuildLagFrames;
+  swapFrame_ = state_.frame + config_.rebuildLagFrames;
 }
 
-Simulation::~Simulation() = default;
+Simulation::~Simulation() {
+  if (job_.valid()) job_.wait();  // the job reads model_
+}
 
 Eigen::VectorXd Simulation::temperatureC() const {
-  if (thermal_) return thermalState_.temperatureC;
-  return Eigen::VectorXd::Constant(mesh_.numNodes(), config_.thermal.initialTemperatureC);
+  if (model_->thermal) return state_.thermal.temperatureC;
+  return Eigen::VectorXd::Constant(model_->mesh.numNodes(), config_.thermal.initialTemperatureC);
 }
 
 double Simulation::electricMemoryBytes() const {
-  return electric_ ? electric_->memoryBytes() : 0.0;
+  return model_->electric ? model_->electric->memoryBytes() : 0.0;
 }
 
-std::string Simulation::electricSolverName() const { return electric_ ? electric_->name() : ""; }
+std::string Simulation::electricSolverName() const {
+  return model_->electric ? model_->electric->name() : "";
+}
 
 // the union of the contact sets the script produces in frames [fromFrame, toFrame] on the
 // surface `finder` was built for, without the grounded nodes (sorted)
@@ -315,32 +421,31 @@ std::vector<int> Simulation::scriptedContacts(const ContactFinder& finder,
   return notGround;
 }
 
-void Simulation::prefetchScriptedPath() {
-  if (config_.prefetchUntilS <= 0) return;
-  const int frames = static_cast<int>(std::ceil(config_.prefetchUntilS / config_.frameDtS));
-  electric_->prefetch(scriptedContacts(contactFinder_, ground_, 0, frames));
-}
+// ---- the frame ----
 
-void Simulation::refreshConductivity(FrameRecord& /*record*/) {
+void Simulation::refreshConductivity() {
   // sigma(T) per tet from the mean nodal temperature; refresh K when it moved enough
+  SimModel& m = *model_;
+  SimState& st = state_;
   const double t0 = config_.thermal.initialTemperatureC;
   const double tb = config_.thermal.boilingTemperatureC;
   double max_rel = 0;
-  for (int e = 0; e < mesh_.numTets(); ++e) {
-    if (!mesh_.isAlive(e)) continue;
+  for (int e = 0; e < m.mesh.numTets(); ++e) {
+    if (!m.mesh.isAlive(e)) continue;
     double t = 0;
-    for (int v : mesh_.tets[e]) t += 0.25 * thermalState_.temperatureC[v];
+    for (int v : m.mesh.tets[e]) t += 0.25 * st.thermal.temperatureC[v];
     t = std::min(t, tb);
     double s = config_.conductivityS_m * (1.0 + config_.conductivityTempCoeffPerK * (t - t0));
-    if (!thermalState_.desiccatedTet.empty() && thermalState_.desiccatedTet[e])
+    if (!st.thermal.desiccatedTet.empty() && st.thermal.desiccatedTet[e])
       s *= config_.desiccatedConductivityFactor;
-    sigma_[e] = std::max(s, 1e-6 * config_.conductivityS_m);
-    max_rel = std::max(max_rel, std::abs(sigma_[e] - sigmaAssembled_[e]) / sigmaAssembled_[e]);
+    st.conductivityS_m[e] = std::max(s, 1e-6 * config_.conductivityS_m);
+    max_rel = std::max(max_rel,
+                       std::abs(st.conductivityS_m[e] - m.sigmaAssembled[e]) / m.sigmaAssembled[e]);
   }
   if (max_rel > config_.conductivityRefreshTolerance) {
-    sigmaAssembled_ = sigma_;
-    stiffness_ = assembleStiffness(mesh_, geo_, sigmaAssembled_);
-    electric_->setMatrix(stiffness_, ground_);
+    m.sigmaAssembled = st.conductivityS_m;
+    m.stiffness = assembleStiffness(m.mesh, *m.geo, m.sigmaAssembled);
+    m.electric->setMatrix(m.stiffness, m.ground);
   }
 }
 
@@ -349,81 +454,86 @@ const FrameRecord& Simulation::step() {
   rec = FrameRecord{};
   advance(rec);
   if (config_.phases.rupture) ruptureAndRebuild(rec);
-  ++frame_;
-  timeS_ = frame_ * config_.frameDtS;
+  ++state_.frame;
+  state_.timeS = state_.frame * config_.frameDtS;
   return rec;
 }
 
-// stages 1-5 of frame frame_ (at time timeS_): the physics on the current model
+// stages 1-5 of frame state_.frame (at time state_.timeS): the physics on the current model
 void Simulation::advance(FrameRecord& rec) {
-  rec.frame = frame_;
-  rec.timeS = timeS_;
+  SimModel& m = *model_;
+  SimState& st = state_;
+  rec.frame = st.frame;
+  rec.timeS = st.timeS;
   const double dt = config_.frameDtS;
 
   // ---- 1. move the tool ----
-  if (electric_) {
+  if (m.electric) {
     StageTimer timer(rec, Stage::MoveTool);
-    pose_ = config_.toolPath.poseAt(timeS_);
-    generatorOn_ = config_.toolPath.generatorOnAt(timeS_);
+    st.pose = config_.toolPath.poseAt(st.timeS);
+    st.generatorOn = config_.toolPath.generatorOnAt(st.timeS);
   }
-  rec.generatorOn = generatorOn_;
+  rec.generatorOn = st.generatorOn;
 
   // ---- 2. contacts ----
-  if (electric_) {
+  if (m.electric) {
     StageTimer timer(rec, Stage::FindContacts);
-    if (generatorOn_) {
-      contacts_ = contactFinder_.find(config_.electrode, pose_, config_.contactDistanceM);
+    if (st.generatorOn) {
+      st.contacts = m.contactFinder.find(config_.electrode, st.pose, config_.contactDistanceM);
     } else {
-      contacts_.clear();
+      st.contacts.clear();
       timer.skip();
     }
   }
-  rec.contactNodes = static_cast<int>(contacts_.size());
+  rec.contactNodes = static_cast<int>(st.contacts.size());
 
   // ---- 3. potential and Joule heat ----
   double power_w = 0;
-  if (electric_) {
+  if (m.electric) {
     StageTimer timer(rec, Stage::SolvePotential);
-    if (contacts_.empty()) {
-      potential_.setZero();
-      std::fill(joule_.begin(), joule_.end(), 0.0);
+    if (st.contacts.empty()) {
+      st.potentialV.setZero();
+      std::fill(st.joulePowerW_m3.begin(), st.joulePowerW_m3.end(), 0.0);
       timer.skip();
     } else {
-      if (thermal_ && config_.temperatureDependentConductivity) refreshConductivity(rec);
-      electric_->solve(contacts_, config_.toolVoltageV, potential_);
-      // Joule power density (into joule_, reused) and currents with the assembled sigma
+      if (m.thermal && config_.temperatureDependentConductivity) refreshConductivity();
+      m.electric->solve(st.contacts, config_.toolVoltageV, st.potentialV);
+      // Joule power density (into the state's buffer, reused) and currents with the
+      // assembled sigma
       const ElectricTotals totals =
-          computeJoulePower(mesh_, geo_, sigmaAssembled_, stiffness_, potential_, contacts_,
-                            ground_, config_.toolVoltageV, joule_);
+          computeJoulePower(m.mesh, *m.geo, m.sigmaAssembled, m.stiffness, st.potentialV,
+                            st.contacts, m.ground, config_.toolVoltageV, st.joulePowerW_m3);
       power_w = totals.powerW;
       rec.toolCurrentA = totals.toolCurrentA;
       rec.returnCurrentA = totals.returnCurrentA;
     }
   }
   rec.powerW = power_w;
-  energyJ_ += power_w * dt;
+  st.energyJ += power_w * dt;
 
   // ---- 4. heat: Joule (or prescribed) source, conduction, boiling ----
-  if (thermal_) {
+  if (m.thermal) {
     StageTimer timer(rec, Stage::Heat);
-    const auto stats = thermal_->step(dt, electric_ ? joule_ : prescribedSource_, thermalState_);
+    const auto stats =
+        m.thermal->step(dt, m.electric ? st.joulePowerW_m3 : m.prescribedSource, st.thermal);
     if (stats.skipped) timer.skip();
-    rec.maxTemperatureC = thermalState_.temperatureC.maxCoeff();
-    maxTemperatureC_ = std::max(maxTemperatureC_, rec.maxTemperatureC);
+    rec.maxTemperatureC = st.thermal.temperatureC.maxCoeff();
+    st.maxTemperatureC = std::max(st.maxTemperatureC, rec.maxTemperatureC);
   } else {
     rec.maxTemperatureC = config_.thermal.initialTemperatureC;
   }
 
   // ---- 5. stress from the water's expansion ----
-  if (structural_) {
+  if (m.structural) {
     StageTimer timer(rec, Stage::SolveStress);
     computeEigenstrain();
-    if (std::all_of(eigenstrain_.begin(), eigenstrain_.end(), [](double v) { return v == 0; })) {
+    if (std::all_of(st.eigenstrain.begin(), st.eigenstrain.end(),
+                    [](double v) { return v == 0; })) {
       timer.skip();  // at rest: no load, and the last stresses are zero too
     } else {
-      structural_->solve(eigenstrain_);
+      m.structural->solve(st.eigenstrain);
     }
-    const std::vector<double>& vm = structural_->vonMisesPa();
+    const std::vector<double>& vm = m.structural->vonMisesPa();
     rec.maxVonMisesPa = vm.empty() ? 0.0 : *std::max_element(vm.begin(), vm.end());
   }
 }
@@ -431,9 +541,10 @@ void Simulation::advance(FrameRecord& rec) {
 // tets over the critical stress that no rebuild is removing yet join the queue
 void Simulation::detectRupture(FrameRecord& rec) {
   StageTimer timer(rec, Stage::Rupture);
-  const std::vector<double>& vm = structural_->vonMisesPa();
-  for (int e = 0; e < mesh_.numTets(); ++e)
-    if (mesh_.isAlive(e) && !pending_[e] && vm[e] > config_.criticalStressPa) {
+  const TetMesh& mesh = model_->mesh;
+  const std::vector<double>& vm = model_->structural->vonMisesPa();
+  for (int e = 0; e < mesh.numTets(); ++e)
+    if (mesh.isAlive(e) && !pending_[e] && vm[e] > config_.criticalStressPa) {
       queued_.push_back(e);
       pending_[e] = 1;
     }
@@ -443,9 +554,9 @@ void Simulation::detectRupture(FrameRecord& rec) {
 // 6. rupture; 7. rebuild: synchronous (built and swapped in now), or built on a thread and
 // swapped in config_.rebuildLagFrames frames later; frames meanwhile use the old model,
 // and tets that break meanwhile wait for the next rebuild. With recomputeLagFrames the
-// frames since the rupture are then computed again on the new model (from a checkpoint
-// taken when the rebuild started), so that only the timing of later ruptures differs from
-// a synchronous run.
+// frames since the rupture are then computed again on the new model (from a checkpoint,
+// a copy of the state, taken when the rebuild started), so that only the timing of later
+// ruptures differs from a synchronous run.
 void Simulation::ruptureAndRebuild(FrameRecord& rec) {
   detectRupture(rec);
   StageTimer timer(rec, Stage::Rebuild);
@@ -456,7 +567,7 @@ void Simulation::ruptureAndRebuild(FrameRecord& rec) {
     startRebuild(broken);
     worked = true;
   }
-  if (swapFrame_ >= 0 && frame_ >= swapFrame_) {  // due: wait if needed, swap in
+  if (swapFrame_ >= 0 && state_.frame >= swapFrame_) {  // due: wait if needed, swap in
     if (!ready_) {
       const auto w0 = std::chrono::steady_clock::now();
       ready_ = job_.get();
@@ -473,56 +584,25 @@ void Simulation::ruptureAndRebuild(FrameRecord& rec) {
   if (!worked) timer.skip();
 }
 
-struct Simulation::Checkpoint {
-  int nextFrame = 0;
-  ThermalState thermal;
-  Eigen::VectorXd potential;
-  std::vector<double> joule, sigma;
-  std::vector<int> contacts;
-  ToolPose pose;
-  bool generatorOn = false;
-  double energyJ = 0;
-};
-
-void Simulation::takeCheckpoint() {
-  checkpoint_ = std::make_unique<Checkpoint>();
-  Checkpoint& c = *checkpoint_;
-  c.nextFrame = frame_ + 1;
-  c.thermal = thermalState_;
-  c.potential = potential_;
-  c.joule = joule_;
-  c.sigma = sigma_;
-  c.contacts = contacts_;
-  c.pose = pose_;
-  c.generatorOn = generatorOn_;
-  c.energyJ = energyJ_;
-}
-
 void Simulation::recomputeSinceCheckpoint(FrameRecord& rec) {
-  std::unique_ptr<Checkpoint> c = std::move(checkpoint_);
   // ruptures seen on the old model during the lag are forgotten: the recomputation finds
   // its own
   for (int e : queued_) pending_[e] = 0;
   queued_.clear();
-  thermalState_ = std::move(c->thermal);
-  potential_ = std::move(c->potential);
-  joule_ = std::move(c->joule);
-  sigma_ = std::move(c->sigma);
-  contacts_ = std::move(c->contacts);
-  pose_ = c->pose;
-  generatorOn_ = c->generatorOn;
-  energyJ_ = c->energyJ;
-  const int now = frame_;
+  const int now = state_.frame;
+  state_ = std::move(*checkpoint_);
+  checkpoint_.reset();
+  const int first = state_.frame;
   FrameRecord redo;
-  for (int k = c->nextFrame; k <= now; ++k) {
-    frame_ = k;
-    timeS_ = k * config_.frameDtS;
+  for (int k = first; k <= now; ++k) {
+    state_.frame = k;
+    state_.timeS = k * config_.frameDtS;
     redo = FrameRecord{};
     advance(redo);
     detectRupture(redo);
   }
-  frame_ = now;
-  timeS_ = now * config_.frameDtS;
+  state_.frame = now;
+  state_.timeS = now * config_.frameDtS;
   // the frame's physics as recomputed
   rec.contactNodes = redo.contactNodes;
   rec.toolCurrentA = redo.toolCurrentA;
@@ -530,72 +610,54 @@ void Simulation::recomputeSinceCheckpoint(FrameRecord& rec) {
   rec.powerW = redo.powerW;
   rec.maxTemperatureC = redo.maxTemperatureC;
   rec.maxVonMisesPa = redo.maxVonMisesPa;
-  recomputedFrames_ += now - c->nextFrame + 1;
+  recomputedFrames_ += now - first + 1;
 }
 
-void Simulation::buildSurfaceTopology() {
-  // surface vertex numbering and triangles: fixed until the topology changes
-  surfaceVertexOf_.assign(mesh_.numNodes(), -1);
-  surfacePositionsM_.clear();
-  for (int v : surfaceNodes_) {
-    surfaceVertexOf_[v] = static_cast<int>(surfacePositionsM_.size() / 3);
-    for (int c = 0; c < 3; ++c) surfacePositionsM_.push_back(static_cast<float>(mesh_.nodes[v][c]));
-  }
-  surfaceTriangles_.clear();
-  surfaceTriangles_.reserve(surface_.size() * 3);
-  for (const auto& f : surface_)
-    for (int v : f.nodes)
-      surfaceTriangles_.push_back(static_cast<std::uint32_t>(surfaceVertexOf_[v]));
-  // cut walls: vertices of faces that were inside the initial tissue
-  surfaceCutWall_.assign(surfacePositionsM_.size() / 3, 0.0f);
-  for (const auto& f : surface_) {
-    std::array<int, 3> key{f.nodes[0], f.nodes[1], f.nodes[2]};
-    std::sort(key.begin(), key.end());
-    if (std::binary_search(initialFaces_.begin(), initialFaces_.end(), key)) continue;
-    for (int v : f.nodes) surfaceCutWall_[surfaceVertexOf_[v]] = 1.0f;
-  }
-}
+// ---- the snapshot ----
 
 SurfaceSnapshot Simulation::snapshot() {
   StageTimer timer(record_, Stage::Snapshot);
+  const SimModel& m = *model_;
+  const SimState& st = state_;
   SurfaceSnapshot snap;
   snap.frame = record_.frame;
-  snap.timeS = timeS_;
-  const std::vector<int>& vertex_of = surfaceVertexOf_;
-  snap.positionsM = surfacePositionsM_;
-  snap.triangles = surfaceTriangles_;
+  snap.timeS = st.timeS;
+  const std::vector<int>& vertex_of = m.surfaceVertexOf;
+  snap.positionsM = m.surfacePositionsM;
+  snap.triangles = m.surfaceTriangles;
   const int nv = snap.numVertices();
   snap.temperatureC.assign(nv, static_cast<float>(config_.thermal.initialTemperatureC));
   snap.coagulation.assign(nv, 0.0f);
   snap.desiccation.assign(nv, 0.0f);
-  snap.cutWall = surfaceCutWall_;
-  if (thermal_) {
+  snap.cutWall = m.surfaceCutWall;
+  if (m.thermal) {
     std::vector<float> coag_sum(nv, 0.0f), count(nv, 0.0f);
-    for (const auto& f : surface_) {
-      const float c = thermalState_.coagulationTet.empty()
+    for (const auto& f : m.surface) {
+      const float c = st.thermal.coagulationTet.empty()
                           ? 0.0f
-                          : static_cast<float>(thermalState_.coagulationTet[f.tet]);
+                          : static_cast<float>(st.thermal.coagulationTet[f.tet]);
       for (int v : f.nodes) {
         coag_sum[vertex_of[v]] += c;
         count[vertex_of[v]] += 1;
       }
     }
-    for (int v : surfaceNodes_) {
+    for (int v : m.surfaceNodes) {
       const int i = vertex_of[v];
-      snap.temperatureC[i] = static_cast<float>(thermalState_.temperatureC[v]);
-      snap.desiccation[i] = static_cast<float>(thermalState_.vaporFraction[v]);
+      snap.temperatureC[i] = static_cast<float>(st.thermal.temperatureC[v]);
+      snap.desiccation[i] = static_cast<float>(st.thermal.vaporFraction[v]);
       snap.coagulation[i] = count[i] > 0 ? coag_sum[i] / count[i] : 0.0f;
     }
   }
-  if (electric_) {
+  if (m.electric) {
     snap.potentialV.resize(nv);
-    for (int v : surfaceNodes_) snap.potentialV[vertex_of[v]] = static_cast<float>(potential_[v]);
+    for (int v : m.surfaceNodes)
+      snap.potentialV[vertex_of[v]] = static_cast<float>(st.potentialV[v]);
     ToolSnapshot& t = snap.tool;
     t.present = true;
-    t.generatorOn = generatorOn_;
+    t.generatorOn = st.generatorOn;
     t.kind = config_.electrode.kind;
-    for (int c = 0; c < 3; ++c) t.tipM[c] = static_cast<float>(pose_.tipM[c]);
-    const Eigen::Quaterniond q = pose_.orientation.normalized();
+    for (int c = 0; c < 3; ++c) t.tipM[c] = static_cast<float>(st.pose.tipM[c]);
+    const Eigen::Quaterniond q = st.pose.orientation.normalized();
     t.orientationWxyz = {static_cast<float>(q.w()), static_cast<float>(q.x()),
                          static_cast<float>(q.y()), static_cast<float>(q.z())};
     t.radiusM = static_cast<float>(config_.electrode.radiusM);

@@ -1,8 +1,9 @@
 // simulation.h - one run of the physics: the fixed pipeline of named, timed stages.
 //
-// A Simulation owns the read-only model (mesh, geometry, surface, electrodes, the
-// phase set and solver choices) and the mutable state (time, tool pose, contacts,
-// potential, thermal state). step() advances one frame of config.frameDtS seconds:
+// A Simulation owns its configuration, the model (SimModel: mesh, geometry, surface,
+// operators and factorizations of one topology) and the state (SimState: time, tool pose,
+// contacts, potential, thermal state, energies). step() advances one frame of
+// config.frameDtS seconds:
 //
 //   moveTool -> findContacts -> solvePotential -> heat -> [solveStress -> rupture ->
 //   rebuild] -> snapshot
@@ -141,14 +142,77 @@ struct SimulationConfig {
   bool coolTopSurface = false;  // convective faces: the boundary faces facing up (+z)
 
   // structural and rupture
-  StructuralOptions structural;          // E, nu
-  double vaporLiquidVolumeRatio = 1602;  // v_gas / v_liq of water at boiling, 1 atm
-  double maxVaporExpansion = 3.0;        // cap of dV/V (structural.h)
-  double clampBandM = 1e-4;              // clamp the nodes this close to the lowest z [m]
-  double criticalStressPa = 2.45e4;      // von Mises stress that breaks a tet (paper)
-  bool backgroundRebuild = false;        // build the new structures on a thread ...
-  int rebuildLagFrames = 3;              // ... swapped in this many frames after rupture
-  bool recomputeLagFrames = true;        // ... then the lag frames again on the new model
+  StructuralOptions structural;                                              // E, nu
+  double vaporLiquidVolumeRatio = ExpansionParams{}.vaporLiquidVolumeRatio;  // v_gas / v_liq
+  double maxVaporExpansion = ExpansionParams{}.maxExpansion;  // cap of dV/V (structural.h)
+  double clampBandM = 1e-4;          // clamp the nodes this close to the lowest z [m]
+  double criticalStressPa = 2.45e4;  // von Mises stress that breaks a tet (paper)
+  bool backgroundRebuild = false;    // build the new structures on a thread ...
+  int rebuildLagFrames = 3;          // ... swapped in this many frames after rupture
+  bool recomputeLagFrames = true;    // ... then the lag frames again on the new model
+};
+
+// The core's defaults (like MuJoCo's mj_defaultOption): the one source of every default
+// of the scenario schema (sim/io/scenario.h reads its member defaults from here).
+const SimulationConfig& defaultSimulationConfig();
+
+// Checks the configuration alone (phases and their dependencies, frame step, materials,
+// tool path, solver options); throws Error naming the scenario key. The constructor runs
+// it; `esim validate` runs it too, so that a valid scenario never fails at set-up.
+void validateSimulationConfig(const SimulationConfig& config);
+
+// Checks what the configuration needs of the mesh: a valid mesh, nodes on the return
+// electrode (electric), nodes in the clamp band (structural). The constructor runs it.
+void validateSimulationMesh(const TetMesh& mesh, const SimulationConfig& config);
+
+// ---- model and state ----
+
+// The model of one topology (one alive set): mesh, geometry, surface, contact candidates
+// and every phase's operators and factorizations. Built by the constructor and again by
+// each rebuild after rupture (a new SimModel, never an edit the solvers could miss);
+// read-only between builds, except the electric matrix, which sigma(T) refreshes.
+struct SimModel {
+  TetMesh mesh;  // nodes, tets and the alive set this model is built for
+  std::shared_ptr<const std::vector<TetGeometry>> geo;  // per tet (all tets; shared by builds)
+  std::shared_ptr<const std::vector<std::array<int, 3>>> initialFaces;  // sorted node ids
+  std::vector<BoundaryFace> surface;  // boundary faces of the alive tets
+  std::vector<int> surfaceNodes;      // sorted
+  std::vector<int> ground;            // return-electrode nodes (electric)
+  ContactFinder contactFinder;        // over surfaceNodes (electric)
+  // the snapshot's surface: fixed until the topology changes
+  std::vector<int> surfaceVertexOf;             // node -> snapshot vertex (-1 inside)
+  std::vector<float> surfacePositionsM;         // snapshot vertex positions [m]
+  std::vector<std::uint32_t> surfaceTriangles;  // snapshot triangles
+  std::vector<float> surfaceCutWall;            // snapshot vertex: 1 on a cut wall
+  // electric phase (null when not listed)
+  std::unique_ptr<ElectricSolver> electric;
+  SparseMatrix stiffness;              // K assembled with sigmaAssembled
+  std::vector<double> sigmaAssembled;  // per tet [S/m]
+  // thermal phase (null when not listed)
+  std::unique_ptr<ThermalPhase> thermal;
+  std::vector<BoundaryFace> cooledInitial;  // convective faces of the initial surface
+  std::vector<double> prescribedSource;     // thermal without electric: per tet [W/m^3]
+  // structural phase (null when not listed)
+  std::unique_ptr<StructuralPhase> structural;
+  std::vector<Support> supports;
+  ExpansionParams expansion;
+  double buildMs = 0;  // wall time of the build [ms]
+};
+
+// The state: everything a frame changes. A checkpoint is a copy of it.
+struct SimState {
+  int frame = 0;     // frames done
+  double timeS = 0;  // simulated time [s]
+  ToolPose pose;
+  bool generatorOn = false;
+  std::vector<int> contacts;            // sorted nodes touching the tool
+  Eigen::VectorXd potentialV;           // per node [V]
+  std::vector<double> joulePowerW_m3;   // per tet [W/m^3]
+  std::vector<double> conductivityS_m;  // per tet: sigma(T) [S/m]
+  ThermalState thermal;                 // enthalpy, temperature, vapour, damage
+  std::vector<double> eigenstrain;      // per tet: volumetric expansion (structural load)
+  double energyJ = 0;                   // Joule energy delivered so far [J]
+  double maxTemperatureC = 0;           // highest temperature seen so far [C]
 };
 
 // ---- the simulation ----
@@ -167,25 +231,27 @@ class Simulation {
   SurfaceSnapshot snapshot();
 
   // ---- read access ----
+  const SimModel& model() const { return *model_; }
+  const SimState& state() const { return state_; }
   const FrameRecord& lastRecord() const { return record_; }  // of the last step (+ snapshot)
-  const TetMesh& mesh() const { return mesh_; }
+  const TetMesh& mesh() const { return model_->mesh; }
   const SimulationConfig& config() const { return config_; }
-  int frame() const { return frame_; }
-  double timeS() const { return timeS_; }
-  const std::vector<int>& groundNodes() const { return ground_; }
-  const std::vector<int>& contactNodes() const { return contacts_; }
-  const Eigen::VectorXd& potentialV() const { return potential_; }
-  const std::vector<double>& joulePowerW_m3() const { return joule_; }
-  const std::vector<double>& conductivityS_m() const { return sigma_; }
-  const ThermalState* thermalState() const { return thermal_ ? &thermalState_ : nullptr; }
-  Eigen::VectorXd temperatureC() const;                 // per node (initial value without thermal)
-  double energyDeliveredJ() const { return energyJ_; }  // integral of Joule power [J]
-  double maxTemperatureSeenC() const { return maxTemperatureC_; }
+  int frame() const { return state_.frame; }
+  double timeS() const { return state_.timeS; }
+  const std::vector<int>& groundNodes() const { return model_->ground; }
+  const std::vector<int>& contactNodes() const { return state_.contacts; }
+  const Eigen::VectorXd& potentialV() const { return state_.potentialV; }
+  const std::vector<double>& joulePowerW_m3() const { return state_.joulePowerW_m3; }
+  const std::vector<double>& conductivityS_m() const { return state_.conductivityS_m; }
+  const ThermalState* thermalState() const { return model_->thermal ? &state_.thermal : nullptr; }
+  Eigen::VectorXd temperatureC() const;  // per node (initial value without thermal)
+  double energyDeliveredJ() const { return state_.energyJ; }  // integral of Joule power [J]
+  double maxTemperatureSeenC() const { return state_.maxTemperatureC; }
   double electricMemoryBytes() const;
   std::string electricSolverName() const;
-  bool hasElectric() const { return electric_ != nullptr; }
+  bool hasElectric() const { return model_->electric != nullptr; }
   const std::vector<double>* vonMisesPa() const {
-    return structural_ ? &structural_->vonMisesPa() : nullptr;
+    return model_->structural ? &model_->structural->vonMisesPa() : nullptr;
   }
   int removedTets() const { return removedTets_; }           // by rupture since the start
   int rebuilds() const { return rebuilds_; }                 // swapped in so far
@@ -195,76 +261,39 @@ class Simulation {
   int recomputedFrames() const { return recomputedFrames_; }
 
  private:
-  void refreshConductivity(FrameRecord& record);
-  void prefetchScriptedPath();
-  void buildSurfaceTopology();
-  void computeEigenstrain();
   struct Rebuilt;
-  std::unique_ptr<Rebuilt> buildRebuilt(std::vector<std::uint8_t> alive, std::vector<int> removed,
-                                        std::vector<double> sigma, int firstFrame) const;
+  void buildInitialModel(TetMesh mesh);
+  std::unique_ptr<SimModel> buildModel(std::vector<std::uint8_t> alive, std::vector<double> sigma,
+                                       int prefetchFrom, int prefetchTo) const;
+  void initState();
+  void refreshConductivity();
+  void computeEigenstrain();
   std::vector<int> scriptedContacts(const ContactFinder& finder, const std::vector<int>& ground,
                                     int fromFrame, int toFrame) const;
   void startRebuild(const std::vector<int>& broken);
   void advance(FrameRecord& record);
   void detectRupture(FrameRecord& record);
   void ruptureAndRebuild(FrameRecord& record);
-  struct Checkpoint;
-  void takeCheckpoint();
   void recomputeSinceCheckpoint(FrameRecord& record);
   void swapIn(std::unique_ptr<Rebuilt> rebuilt, FrameRecord& record);
 
-  TetMesh mesh_;
   SimulationConfig config_;
-  std::vector<TetGeometry> geo_;
-  std::vector<BoundaryFace> surface_;
-  std::vector<int> surfaceNodes_;
-  std::vector<int> surfaceVertexOf_;              // node -> snapshot vertex (-1 inside)
-  std::vector<float> surfacePositionsM_;          // snapshot vertex positions [m]
-  std::vector<std::uint32_t> surfaceTriangles_;   // snapshot triangles
-  std::vector<float> surfaceCutWall_;             // snapshot vertex: 1 on a cut wall
-  std::vector<std::array<int, 3>> initialFaces_;  // sorted node ids of the initial boundary
-  std::vector<int> ground_;
-  ContactFinder contactFinder_;
+  std::unique_ptr<SimModel> model_;
+  SimState state_;
+  FrameRecord record_;
 
-  // electric phase (null when not listed)
-  std::unique_ptr<ElectricSolver> electric_;
-  SparseMatrix stiffness_;
-  std::vector<double> sigma_, sigmaAssembled_;
-  Eigen::VectorXd potential_;
-  std::vector<double> joule_;
-  std::vector<int> contacts_;
-
-  // thermal phase (null when not listed)
-  std::unique_ptr<ThermalPhase> thermal_;
-  ThermalState thermalState_;
-  std::vector<double> prescribedSource_;  // thermal without electric: per tet [W/m^3]
-
-  // structural phase (null when not listed)
-  std::unique_ptr<StructuralPhase> structural_;
-  std::vector<Support> supports_;
-  ExpansionParams expansion_;
-  std::vector<double> eigenstrain_;   // per tet volumetric expansion
-  std::vector<BoundaryFace> cooled_;  // the thermal phase's cooled faces (initial)
   // rupture and rebuild
   std::vector<std::uint8_t> pending_;          // per tet: broken, waiting for (or in) a rebuild
   std::vector<int> queued_;                    // broken since the rebuild in flight started
   std::future<std::unique_ptr<Rebuilt>> job_;  // the rebuild in flight (background)
   std::unique_ptr<Rebuilt> ready_;             // synchronous rebuild, or the job's result
   int swapFrame_ = -1;                         // frame at which the rebuild in flight swaps in
-  std::unique_ptr<Checkpoint> checkpoint_;     // state when the rebuild in flight started
+  std::unique_ptr<SimState> checkpoint_;       // state when the rebuild in flight started
   int recomputedFrames_ = 0;                   // frames computed again after swaps
   int removedTets_ = 0;
   int rebuilds_ = 0, rebuildsLate_ = 0;  // swapped in; of which had to wait > 1 ms
   double rebuildBuildMs_ = 0;            // sum of the rebuilds' build times
   double rebuildWaitMs_ = 0;             // longest wait for a background rebuild
-
-  int frame_ = 0;
-  double timeS_ = 0;
-  double energyJ_ = 0;
-  double maxTemperatureC_ = 0;
-  FrameRecord record_;
-  ToolPose pose_;
-  bool generatorOn_ = false;
 };
 
 }  // namespace esim

@@ -257,9 +257,9 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   openblas_set_num_threads(1);      // see StructuralOptions: BLAS threads only spin here
   if (nf > 0) m.factor.compute(k);  // nf == 0: everything held, nothing to solve
   m.factorSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  ESIM_VERIFY(nf == 0 || m.factor.info() == Eigen::Success,
-              "structural: the stiffness matrix is not positive definite (degenerate tets, or "
-              "supports that leave part of the body free)");
+  ESIM_RUN_CHECK(nf == 0 || m.factor.info() == Eigen::Success,
+                 "structural: the stiffness matrix is not positive definite (degenerate tets, or "
+                 "supports that leave part of the body free)");
   m.u = Eigen::VectorXd::Zero(3 * n);
   m.stress.assign(mesh.numTets(), VoigtStress{});
   m.vonMisesPa.assign(mesh.numTets(), 0.0);

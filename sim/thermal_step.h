@@ -88,7 +88,7 @@ struct ThermalParams {
   double densityKg_m3 = 1060;        // tissue density rho [kg/m^3]
   double latentHeatJ_kg = 2.256e6;   // L [J/kg]
 
-  ThermalIntegrator integrator = ThermalIntegrator::BackwardEuler;
+  ThermalIntegrator integrator = ThermalIntegrator::Explicit;  // lumped mass, sub-stepped
   bool lumpedMass = true;        // lumped (row-sum) or consistent P1 mass
   bool allowSubstepping = true;  // explicit: sub-step below the stability limit
   ThermalLinearSolver linearSolver = ThermalLinearSolver::Auto;

@@ -22,9 +22,15 @@
 #include "sim/io/mesh_import.h"
 #include "sim/mesh_slab.h"
 #include "sim/mesh_tet.h"
+#include "sim/simulation.h"
 #include "sim/tool_path.h"
 
 namespace esim {
+
+namespace scenario_detail {
+// the core's defaults: the one source of the physical and solver defaults below
+inline const SimulationConfig& core() { return defaultSimulationConfig(); }
+}  // namespace scenario_detail
 
 // physics phases, in pipeline order
 enum class Phase : int { Electric = 0, Thermal, Boiling, Structural, Rupture };
@@ -79,32 +85,48 @@ struct ScenarioMesh {
 };
 
 // ---- material (paper Table 1, porcine liver) ----
+// The physical and solver defaults below are the core's (scenario_detail::core(), that is
+// defaultSimulationConfig() in sim/simulation.h): one source, never a second literal.
 struct ScenarioMaterial {
-  double heatCapacityJPerM3K = 3.82e6;       // c*rho
-  double thermalConductivityWPerMK = 0.502;  // lambda
-  double electricConductivitySPerM = 0.144;  // sigma at 37 C
-  double youngsModulusPa = 4.75e4;
-  double poissonRatio = 0.4;
-  double criticalStressPa = 2.45e4;      // von Mises breaking stress
-  double vaporLiquidVolumeRatio = 1602;  // v_gas / v_liq of water at boiling, 1 atm
-  double maxVaporExpansion = 3.0;        // cap of the volumetric expansion (vapour vents)
-  double densityKgPerM3 = 1060.0;
-  double waterFraction = 0.78;        // mass fraction of water
-  double latentHeatJPerKg = 2.256e6;  // vaporization of water
-  double boilingTemperatureC = 100.0;
-  double initialTemperatureC = 37.0;
-  double conductivityTempCoeffPerK = 0.02;     // sigma(T) = sigma0 (1 + a (T - T0))
-  double desiccatedConductivityFactor = 0.01;  // sigma multiplier once dried
-  double arrheniusAPerS = 7.39e39;             // damage frequency factor
-  double arrheniusEaJPerMol = 2.577e5;         // damage activation energy
+  // c*rho
+  double heatCapacityJPerM3K = scenario_detail::core().thermal.heatCapacityJ_m3K;
+  // lambda
+  double thermalConductivityWPerMK = scenario_detail::core().thermal.conductivityW_mK;
+  // sigma at 37 C
+  double electricConductivitySPerM = scenario_detail::core().conductivityS_m;
+  double youngsModulusPa = scenario_detail::core().structural.youngsModulusPa;
+  double poissonRatio = scenario_detail::core().structural.poissonRatio;
+  // von Mises breaking stress
+  double criticalStressPa = scenario_detail::core().criticalStressPa;
+  // v_gas / v_liq of water at boiling, 1 atm
+  double vaporLiquidVolumeRatio = scenario_detail::core().vaporLiquidVolumeRatio;
+  // cap of the volumetric expansion (vapour vents)
+  double maxVaporExpansion = scenario_detail::core().maxVaporExpansion;
+  double densityKgPerM3 = scenario_detail::core().thermal.densityKg_m3;
+  // mass fraction of water
+  double waterFraction = scenario_detail::core().thermal.waterFraction;
+  // vaporization of water
+  double latentHeatJPerKg = scenario_detail::core().thermal.latentHeatJ_kg;
+  double boilingTemperatureC = scenario_detail::core().thermal.boilingTemperatureC;
+  double initialTemperatureC = scenario_detail::core().thermal.initialTemperatureC;
+  // sigma(T) = sigma0 (1 + a (T - T0))
+  double conductivityTempCoeffPerK = scenario_detail::core().conductivityTempCoeffPerK;
+  // sigma multiplier once dried
+  double desiccatedConductivityFactor = scenario_detail::core().desiccatedConductivityFactor;
+  // damage frequency factor
+  double arrheniusAPerS = scenario_detail::core().thermal.arrheniusA_s;
+  // damage activation energy
+  double arrheniusEaJPerMol = scenario_detail::core().thermal.arrheniusEa_J_mol;
   bool operator==(const ScenarioMaterial&) const = default;
 };
 
 struct ScenarioReturnElectrode {
-  Vec3 centerM{0.0, 0.0, 0.0};
-  Vec3 normal{0.0, 0.0, -1.0};  // outward normal of the disc (normalized by the user of it)
-  double radiusM = 0.04;
-  double toleranceM = 1e-4;  // boundary nodes within this distance of the disc plane
+  Vec3 centerM = scenario_detail::core().returnElectrode.centerM;
+  // outward normal of the disc (normalized by the user of it)
+  Vec3 normal = scenario_detail::core().returnElectrode.normal;
+  double radiusM = scenario_detail::core().returnElectrode.radiusM;
+  // boundary nodes within this distance of the disc plane
+  double toleranceM = scenario_detail::core().returnElectrode.toleranceM;
   bool operator==(const ScenarioReturnElectrode&) const = default;
 };
 
@@ -118,11 +140,14 @@ struct ScenarioKeyframe {
 
 struct ScenarioTool {
   std::string shape = "blade";  // "blade" | "sphere"
-  double radiusM = 0.0005;      // sphere radius / blade edge half-thickness
-  double lengthM = 0.02;
-  double widthM = 0.003;  // blade width
-  double voltageV = 72.0;
-  double contactDistanceM = 0.0008;  // nodes this close to the tool surface are in contact
+  // sphere radius / blade edge half-thickness
+  double radiusM = scenario_detail::core().electrode.radiusM;
+  double lengthM = scenario_detail::core().electrode.lengthM;
+  // blade width
+  double widthM = scenario_detail::core().electrode.widthM;
+  double voltageV = scenario_detail::core().toolVoltageV;
+  // nodes this close to the tool surface are in contact
+  double contactDistanceM = scenario_detail::core().contactDistanceM;
   std::vector<ScenarioKeyframe> path{ScenarioKeyframe{}};
   // [on, off) intervals [s]; the default [[0, inf]] is always on; [] is never on
   std::vector<std::array<double, 2>> generatorOnS{{0.0, std::numeric_limits<double>::infinity()}};
@@ -132,17 +157,20 @@ struct ScenarioTool {
 // ---- heat source for thermal scenes without the electric phase ----
 struct ScenarioHeatSource {
   std::string kind = "none";  // "none" | "gaussian"
-  Vec3 centerM{0.0, 0.0, 0.01};
-  double radiusM = 0.003;           // Gaussian 1/e radius [m]
-  double powerDensityWPerM3 = 1e8;  // peak q [W/m^3]
+  Vec3 centerM = scenario_detail::core().heatSource.centerM;
+  // Gaussian 1/e radius [m]
+  double radiusM = scenario_detail::core().heatSource.radiusM;
+  // peak q [W/m^3]
+  double powerDensityWPerM3 = scenario_detail::core().heatSource.powerDensityW_m3;
   bool operator==(const ScenarioHeatSource&) const = default;
 };
 
 struct ScenarioHotSpot {
   bool enabled = false;
-  Vec3 centerM{0.0, 0.0, 0.01};
-  double radiusM = 0.003;
-  double temperatureC = 90.0;  // nodes within radius start at this temperature
+  Vec3 centerM = scenario_detail::core().hotSpot.centerM;
+  double radiusM = scenario_detail::core().hotSpot.radiusM;
+  // nodes within radius start at this temperature
+  double temperatureC = scenario_detail::core().hotSpot.temperatureC;
   bool operator==(const ScenarioHotSpot&) const = default;
 };
 
@@ -150,24 +178,36 @@ struct ScenarioEffects {
   bool temperatureDependentConductivity = false;
   bool thermalDamage = false;
   double surfaceCoolingHWPerM2K = 0.0;  // convective h on the free surface (0 = insulated)
-  double surfaceCoolingAmbientC = 20.0;
-  double structuralClampBandM = 1e-4;  // clamp nodes this close to the lowest z (structural)
+  double surfaceCoolingAmbientC = scenario_detail::core().thermal.ambientTemperatureC;
+  // clamp nodes this close to the lowest z (structural)
+  double structuralClampBandM = scenario_detail::core().clampBandM;
   bool operator==(const ScenarioEffects&) const = default;
 };
 
 struct ScenarioSolvers {
-  std::string electricStrategy = "capacitance";  // refactor|dense-inverse|capacitance|pcg
-  double electricTolerance = 1e-8;               // pcg relative residual
-  int electricMaxIterations = 5000;
-  int electricDenseMemoryLimitMb = 2048;  // dense-inverse refuses above this
-  int electricThreads = 1;
-  bool electricPrefetchPath = true;            // precompute what the scripted tool path touches
-  std::string thermalIntegrator = "explicit";  // explicit | backward-euler | crank-nicolson
-  std::string thermalMass = "lumped";          // lumped | consistent
-  bool thermalAllowSubstepping = true;
-  std::string rebuildMode = "synchronous";  // synchronous | background
-  int rebuildLagFrames = 3;                 // background: frames until the swap
-  bool rebuildRecompute = true;             // background: the lag frames again, new model
+  // refactor|dense-inverse|capacitance|pcg
+  std::string electricStrategy =
+      electricStrategyName(scenario_detail::core().electricSolver.strategy);
+  // pcg relative residual
+  double electricTolerance = scenario_detail::core().electricSolver.pcgTolerance;
+  int electricMaxIterations = scenario_detail::core().electricSolver.pcgMaxIterations;
+  // dense-inverse refuses above this
+  int electricDenseMemoryLimitMb =
+      static_cast<int>(scenario_detail::core().electricSolver.denseMemoryLimitBytes / 1048576.0);
+  int electricThreads = scenario_detail::core().electricSolver.threads;
+  bool electricPrefetchPath = true;  // precompute what the scripted tool path touches
+  // explicit | backward-euler | crank-nicolson
+  std::string thermalIntegrator = thermalIntegratorName(scenario_detail::core().thermal.integrator);
+  // lumped | consistent
+  std::string thermalMass = scenario_detail::core().thermal.lumpedMass ? "lumped" : "consistent";
+  bool thermalAllowSubstepping = scenario_detail::core().thermal.allowSubstepping;
+  // synchronous | background
+  std::string rebuildMode =
+      scenario_detail::core().backgroundRebuild ? "background" : "synchronous";
+  // background: frames until the swap
+  int rebuildLagFrames = scenario_detail::core().rebuildLagFrames;
+  // background: the lag frames again, new model
+  bool rebuildRecompute = scenario_detail::core().recomputeLagFrames;
   bool operator==(const ScenarioSolvers&) const = default;
 };
 

@@ -227,7 +227,7 @@ TEST(ElectricSolver, DenseInverseRefusesAboveItsMemoryLimitAndNamesCapacitance) 
     const std::string msg = e.what();
     EXPECT_NE(msg.find("capacitance"), std::string::npos) << msg;
     EXPECT_NE(msg.find("GB"), std::string::npos) << msg;
-    EXPECT_NE(msg.find("denseMemoryLimitBytes"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("solvers.electric.dense_memory_limit_mb"), std::string::npos) << msg;
   }
   // a refused setMatrix leaves the solver unusable with a message, not half-built
   Eigen::VectorXd u;

@@ -11,9 +11,9 @@
 #include <fstream>
 #include <sstream>
 
-#include "tools/esim/compare_runs.h"
+#include "tools/app/compare_runs.h"
 
-namespace esim::cli {
+namespace esim::app {
 namespace {
 
 namespace fs = std::filesystem;
@@ -96,4 +96,4 @@ TEST(Golden, SameRunTwiceAndAcrossLlvmpipeThreadsIsIdentical) {
 }
 
 }  // namespace
-}  // namespace esim::cli
+}  // namespace esim::app

@@ -190,4 +190,74 @@ TEST(RunCli, BadInputExitsTwoAndWritesNothing) {
   fs::remove(bad_yaml);
 }
 
+// ---- outputs that never destroy; errors of each kind with their exit codes ----
+
+TEST(RunCli, OutputNeverReplacesWhatTheRunDidNotCreate) {
+  const fs::path root = tempOut("user_files");
+  fs::create_directories(root / "mine");
+  std::ofstream(root / "mine" / "thesis.tex") << "user data\n";
+  std::ofstream(root / "notes.txt") << "user data\n";
+  const std::string args = "scenarios/paper_slab.yaml --frames 2 --no-video" + std::string(kSmall);
+  for (const std::string target : {"mine", "notes.txt"}) {
+    const Result r = esimRun(args + " --overwrite -o " + (root / target).string());
+    EXPECT_EQ(r.exitCode, 2) << r.output;
+  }
+  EXPECT_EQ(readFile(root / "mine" / "thesis.tex"), "user data\n");
+  EXPECT_EQ(readFile(root / "notes.txt"), "user data\n");
+  EXPECT_FALSE(fs::exists(root / "mine.partial"));
+  // the working folder (the source tree here): refused, nothing touched
+  const Result dot = esimRun(args + " --overwrite -o .");
+  EXPECT_EQ(dot.exitCode, 2) << dot.output;
+  EXPECT_NE(dot.output.find("not an ESim run"), std::string::npos) << dot.output;
+  EXPECT_TRUE(fs::exists(fs::path(ESIM_SOURCE_DIR) / "CMakeLists.txt"));
+  // an earlier run: only with --overwrite
+  const fs::path run = root / "run";
+  ASSERT_EQ(esimRun(args + " -o " + run.string()).exitCode, 0);
+  const std::string first = readFile(run / "summary.txt");
+  const Result again = esimRun(args + " -o " + run.string());
+  EXPECT_EQ(again.exitCode, 2) << again.output;
+  EXPECT_NE(again.output.find("--overwrite"), std::string::npos) << again.output;
+  EXPECT_EQ(readFile(run / "summary.txt"), first);
+  EXPECT_EQ(esimRun(args + " --overwrite -o " + run.string()).exitCode, 0);
+  fs::remove_all(root);
+}
+
+TEST(RunCli, AFailedRunExitsOneAndKeepsItsFramesMarkedPartial) {
+  const fs::path out = tempOut("failed");
+  fs::remove_all(out.string() + ".partial");
+  // pcg capped at 2 iterations cannot reach 1e-12: the first solve fails
+  const Result r = esimRun(
+      "scenarios/paper_slab.yaml --frames 4 --no-video --set solvers.electric.strategy=pcg "
+      "--set solvers.electric.max_iterations=2 --set solvers.electric.tolerance=1e-12" +
+      std::string(kSmall) + " -o " + out.string());
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  EXPECT_NE(r.output.find("pcg did not converge"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("solvers.electric.max_iterations"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(out)) << "a failed run is never renamed as complete";
+  const fs::path partial = out.string() + ".partial";
+  ASSERT_TRUE(fs::exists(partial / "timing.json"));
+  const auto timing = nlohmann::json::parse(readFile(partial / "timing.json"));
+  EXPECT_FALSE(timing["complete"].get<bool>());
+  EXPECT_NE(timing["failure"].get<std::string>().find("frame 0"), std::string::npos);
+  EXPECT_NE(readFile(partial / "summary.txt").find("FAILED: partial"), std::string::npos);
+  fs::remove_all(partial);
+}
+
+TEST(RunCli, ExitCodesOfEachKind) {
+  // input: 2 (a key that does not exist), nothing written
+  const fs::path out = tempOut("kinds");
+  const Result bad = esimRun("scenarios/paper_slab.yaml --set tool.voltage=3 -o " + out.string());
+  EXPECT_EQ(bad.exitCode, 2) << bad.output;
+  EXPECT_FALSE(fs::exists(out.string() + ".partial"));
+  // a rule only the core checked before: refused at load by `validate` and `run` alike
+  const std::string rule = " --set material.boiling_temperature_c=30";
+  const Result run = esimRun("scenarios/paper_slab.yaml" + rule + " -o " + out.string());
+  EXPECT_EQ(run.exitCode, 2) << run.output;
+  EXPECT_NE(run.output.find("material.boiling_temperature_c"), std::string::npos) << run.output;
+  const std::string validate = std::string("cd ") + ESIM_SOURCE_DIR + " && " + ESIM_EXE +
+                               " validate scenarios/paper_slab.yaml" + rule + " >/dev/null 2>&1";
+  const int status = std::system(validate.c_str());
+  EXPECT_EQ(WEXITSTATUS(status), 2);
+}
+
 }  // namespace

@@ -38,10 +38,11 @@
 #include "sim/electrode.h"
 #include "sim/fem_p1.h"
 #include "sim/mesh_slab.h"
-#include "tools/esim/bench_common.h"
+#include "tools/app/bench_common.h"
 #include "tools/esim/command.h"
 
 namespace esim::cli {
+using namespace ::esim::app;
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -298,7 +299,7 @@ void runFig9(const BenchElectricOptions& opt) {
 
 int benchElectric(const BenchElectricOptions& opt) {
   // 1. options
-  const std::vector<int> sizes = cli::parseNodeCounts(opt.sizes, "bench electric");
+  const std::vector<int> sizes = app::parseNodeCounts(opt.sizes, "bench electric");
   const std::vector<ElectricStrategy> strategies = parseStrategies(opt.strategies);
   ESIM_VERIFY(opt.frames >= 1, "bench electric: --frames must be >= 1");
   ESIM_VERIFY(opt.threads >= 1, "bench electric: --threads must be >= 1");

@@ -32,11 +32,12 @@
 #include "render/renderer.h"
 #include "render/video_encoder.h"
 #include "sim/core_error.h"
-#include "tools/esim/bench_common.h"
+#include "tools/app/bench_common.h"
+#include "tools/app/render_scenes.h"
 #include "tools/esim/command.h"
-#include "tools/esim/render_scenes.h"
 
 namespace esim::cli {
+using namespace ::esim::app;
 namespace {
 
 struct BenchRenderOptions {

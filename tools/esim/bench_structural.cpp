@@ -23,7 +23,7 @@
 #include "sim/core_error.h"
 #include "sim/mesh_slab.h"
 #include "sim/structural.h"
-#include "tools/esim/bench_common.h"
+#include "tools/app/bench_common.h"
 #include "tools/esim/command.h"
 
 namespace esim {
@@ -42,7 +42,7 @@ double msSince(std::chrono::steady_clock::time_point t0) {
 
 int benchStructural(const BenchStructuralOptions& opt) {
   ESIM_VERIFY(opt.solves >= 1, "--solves must be >= 1");
-  const std::vector<int> sizes = cli::parseNodeCounts(opt.sizes, "bench structural");
+  const std::vector<int> sizes = app::parseNodeCounts(opt.sizes, "bench structural");
   std::unique_ptr<std::ofstream> csv;
   if (!opt.csv.empty()) {
     csv = std::make_unique<std::ofstream>(opt.csv);

@@ -23,7 +23,7 @@
 #include "sim/fem_p1.h"
 #include "sim/mesh_slab.h"
 #include "sim/thermal_step.h"
-#include "tools/esim/bench_common.h"
+#include "tools/app/bench_common.h"
 #include "tools/esim/command.h"
 
 extern "C" void openblas_set_num_threads(int num_threads);
@@ -73,7 +73,7 @@ double threadCpuMs() {
 
 int benchThermal(const BenchThermalOptions& opt) {
   // 1. options
-  const std::vector<int> sizes = cli::parseNodeCounts(opt.sizes, "bench thermal");
+  const std::vector<int> sizes = app::parseNodeCounts(opt.sizes, "bench thermal");
   ESIM_VERIFY(opt.frames >= 1, "--frames must be >= 1");
   ESIM_VERIFY(opt.fps > 0, "--fps must be > 0");
   ESIM_VERIFY(opt.refSubsteps >= 2, "--ref-substeps must be >= 2");

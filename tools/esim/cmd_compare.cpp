@@ -16,10 +16,11 @@
 
 #include "render/image_hash.h"
 #include "sim/core_error.h"
+#include "tools/app/compare_runs.h"
 #include "tools/esim/command.h"
-#include "tools/esim/compare_runs.h"
 
 namespace esim::cli {
+using namespace ::esim::app;
 
 namespace fs = std::filesystem;
 

@@ -14,10 +14,11 @@
 #include "render/image_png.h"
 #include "render/renderer.h"
 #include "sim/core_error.h"
+#include "tools/app/render_scenes.h"
 #include "tools/esim/command.h"
-#include "tools/esim/render_scenes.h"
 
 namespace esim::cli {
+using namespace ::esim::app;
 namespace {
 
 struct RenderSampleOptions {

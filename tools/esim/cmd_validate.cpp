@@ -1,7 +1,9 @@
 // cmd_validate.cpp - `esim validate SCENARIO... [--set k=v ...] [--reference]`.
 //
 // 1. Load each scenario with the overrides (sim/io/scenario.h): keys, types, ranges,
-//    phase dependencies, tool path and asset files are all checked.
+//    phase dependencies, tool path and asset files are all checked; then every check the
+//    set-up of `esim run` makes before its first frame (tools/app/run_config.h:
+//    checkRunnable), so that a file that validates never fails at set-up.
 // 2. Print "ok <file>: <summary>" or the error with file:line:col, and go on.
 // 3. Exit 2 when any file is invalid. `--reference` prints the Markdown schema reference.
 #include <iostream>
@@ -11,6 +13,7 @@
 
 #include "sim/core_error.h"
 #include "sim/io/scenario.h"
+#include "tools/app/run_config.h"
 #include "tools/esim/command.h"
 
 namespace {
@@ -32,6 +35,7 @@ int runValidate(const ValidateOptions& opt) {
   for (const auto& file : opt.files) {
     try {
       const esim::Scenario s = esim::loadScenario(file, opt.overrides);
+      esim::app::checkRunnable(s);
       std::cout << "ok " << file << ": " << esim::scenarioSummary(s) << "\n";
     } catch (const esim::Error& e) {
       std::cerr << "error: " << e.what() << "\n";

@@ -10,14 +10,16 @@
 //       return [opt] { return benchElectric(*opt); };   // returns the exit code
 //     });
 //
-// A runner returns the process exit code; it reports bad input by throwing
-// esim::Error, which main prints as "esim: error: <message>" and exits with 2.
+// A runner returns the process exit code; it reports errors by throwing esim::Error, which
+// main prints as "esim: error: <message>" and turns into the exit code of its kind.
 #pragma once
 
 #include <CLI/CLI.hpp>
 #include <functional>
 #include <string>
 #include <vector>
+
+#include "sim/core_error.h"
 
 namespace esim::cli {
 
@@ -41,8 +43,22 @@ struct Registrar {
 
 // exit codes (documented in README)
 constexpr int kExitOk = 0;
-constexpr int kExitFailure = 1;   // the run failed (solver diverged, output could not be written)
+constexpr int kExitFailure = 1;   // the run failed or was interrupted (outputs kept, partial)
 constexpr int kExitBadInput = 2;  // bad scenario, mesh file or option
 constexpr int kExitMismatch = 3;  // compare/hash-check found differences
+constexpr int kExitInternal = 4;  // an internal check failed (a bug)
+
+// the exit code of an error of this kind
+inline int exitCodeOf(ErrorKind kind) {
+  switch (kind) {
+    case ErrorKind::Input:
+      return kExitBadInput;
+    case ErrorKind::Run:
+      return kExitFailure;
+    case ErrorKind::Internal:
+      return kExitInternal;
+  }
+  return kExitInternal;
+}
 
 }  // namespace esim::cli

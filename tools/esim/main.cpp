@@ -2,12 +2,14 @@
 //
 // 1. Build the command tree from the registry (tools/esim/command.h).
 // 2. Parse; CLI11 prints --help and usage errors.
-// 3. Run the chosen command; esim::Error becomes a message and exit code 2.
+// 3. Run the chosen command; an esim::Error becomes a message and the exit code of its kind
+//    (input 2, run 1, internal 4: command.h).
 // Before all that, OpenBLAS's kernels: see useFastBlasKernels().
 #include <unistd.h>
 
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <iostream>
 #include <map>
 
@@ -24,6 +26,13 @@ std::vector<CommandSpec>& commandRegistry() {
 extern "C" char* openblas_get_corename(void);
 
 namespace {
+
+// prints an ESim error and returns its exit code (see command.h)
+int reportError(const esim::Error& e) {
+  std::cerr << (e.kind() == esim::ErrorKind::Internal ? "esim: internal error: " : "esim: error: ")
+            << e.what() << "\n";
+  return esim::cli::exitCodeOf(e.kind());
+}
 
 // OpenBLAS 0.3.21 (Debian 12) picks its kernels from the CPU model; a model it does not
 // know (this machine reports "Intel(R) Xeon(R) Processor", an AVX-512 part) gets the
@@ -61,8 +70,8 @@ int main(int argc, char** argv) {
       "  esim validate scenarios/*.yaml\n"
       "  esim mesh-info assets/liver.obj\n"
       "  esim bench electric --sizes 1013,50000 --csv electric.csv\n"
-      "Exit codes: 0 ok, 1 run failed, 2 bad input (scenario, mesh, option), 3 comparison "
-      "mismatch."};
+      "Exit codes: 0 ok, 1 run failed (outputs so far kept, marked partial), 2 bad input "
+      "(scenario, mesh, option), 3 comparison mismatch, 4 internal error (a bug)."};
   app.require_subcommand(1);
   app.set_help_all_flag("--help-all", "Show help for all sub-commands");
 
@@ -93,8 +102,7 @@ int main(int argc, char** argv) {
     const int code = app.exit(e);
     return code == 0 ? kExitOk : kExitBadInput;
   } catch (const esim::Error& e) {
-    std::cerr << "esim: error: " << e.what() << "\n";
-    return kExitBadInput;
+    return reportError(e);
   }
 
   // 3. run the deepest chosen sub-command
@@ -108,10 +116,16 @@ int main(int argc, char** argv) {
   try {
     return it->second();
   } catch (const esim::Error& e) {
+    return reportError(e);
+  } catch (const std::bad_alloc&) {
+    std::cerr << "esim: error: out of memory (a smaller mesh, or another electric strategy: "
+                 "see timing.json's electric_memory_mb)\n";
+    return kExitFailure;
+  } catch (const std::filesystem::filesystem_error& e) {
     std::cerr << "esim: error: " << e.what() << "\n";
-    return kExitBadInput;
+    return kExitFailure;
   } catch (const std::exception& e) {
     std::cerr << "esim: internal error: " << e.what() << "\n";
-    return kExitFailure;
+    return kExitInternal;
   }
 }

@@ -14,7 +14,7 @@
 #include "sim/mesh_slab.h"
 #include "sim/snapshot.h"
 
-namespace esim::cli {
+namespace esim::app {
 
 // boundary surface of the slab with per-vertex fields at 37 C (body temperature)
 SurfaceSnapshot slabSurface(const SlabSpec& spec);
@@ -42,4 +42,4 @@ void applyAnalyticCut(const AnalyticCut& cut, double timeS, SurfaceSnapshot& sna
 // the world x direction made perpendicular to it
 std::array<float, 4> toolOrientation(std::array<double, 3> axis);
 
-}  // namespace esim::cli
+}  // namespace esim::app

@@ -1,5 +1,5 @@
 // render_scenes.cpp - analytic snapshots for bench/samples (see render_scenes.h).
-#include "tools/esim/render_scenes.h"
+#include "tools/app/render_scenes.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,7 +8,7 @@
 #include "sim/core_error.h"
 #include "sim/io/mesh_import.h"
 
-namespace esim::cli {
+namespace esim::app {
 namespace {
 
 void fillDefaults(SurfaceSnapshot& s) {
@@ -176,4 +176,4 @@ void applyAnalyticCut(const AnalyticCut& cut, double timeS, SurfaceSnapshot& s) 
   s.tool.lengthM = 0.03f;
 }
 
-}  // namespace esim::cli
+}  // namespace esim::app

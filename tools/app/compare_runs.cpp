@@ -1,5 +1,5 @@
 // compare_runs.cpp - frame-by-frame comparison of two run folders (see compare_runs.h).
-#include "tools/esim/compare_runs.h"
+#include "tools/app/compare_runs.h"
 
 #include <filesystem>
 #include <fstream>
@@ -11,7 +11,7 @@
 #include "render/image_png.h"
 #include "sim/core_error.h"
 
-namespace esim::cli {
+namespace esim::app {
 
 namespace fs = std::filesystem;
 
@@ -108,4 +108,4 @@ bool CompareResult::withinTolerance() const {
   return true;
 }
 
-}  // namespace esim::cli
+}  // namespace esim::app

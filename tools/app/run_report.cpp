@@ -1,5 +1,5 @@
 // run_report.cpp - timing statistics and report files (see run_report.h).
-#include "tools/esim/run_report.h"
+#include "tools/app/run_report.h"
 
 #include <sys/utsname.h>
 #include <unistd.h>
@@ -10,7 +10,7 @@
 #include <sstream>
 #include <thread>
 
-namespace esim::cli {
+namespace esim::app {
 
 namespace {
 
@@ -173,4 +173,4 @@ nlohmann::json machineInfo() {
   return j;
 }
 
-}  // namespace esim::cli
+}  // namespace esim::app

@@ -4,7 +4,7 @@
 #include <string>
 #include <vector>
 
-namespace esim::cli {
+namespace esim::app {
 
 // "a,b,c" -> {"a", "b", "c"} (empty items dropped)
 std::vector<std::string> splitList(const std::string& text);
@@ -13,4 +13,4 @@ std::vector<std::string> splitList(const std::string& text);
 // `command`'s --sizes option and the bad item
 std::vector<int> parseNodeCounts(const std::string& text, const std::string& command);
 
-}  // namespace esim::cli
+}  // namespace esim::app

@@ -4,7 +4,7 @@
 #include <string>
 #include <vector>
 
-namespace esim::cli {
+namespace esim::app {
 
 struct FrameDiff {
   int frame = 0;
@@ -29,4 +29,4 @@ struct CompareResult {
 CompareResult compareRuns(const std::string& runA, const std::string& runB,
                           const std::string& reportDir, bool writeDiffs);
 
-}  // namespace esim::cli
+}  // namespace esim::app

@@ -12,7 +12,7 @@
 
 #include "sim/simulation.h"
 
-namespace esim::cli {
+namespace esim::app {
 
 struct StageStats {
   int ran = 0, skipped = 0;
@@ -44,4 +44,4 @@ nlohmann::json chromeTrace(const std::vector<FrameRecord>& records,
 // "Intel(R) Xeon(R) ..." from /proc/cpuinfo, and the core count
 nlohmann::json machineInfo();
 
-}  // namespace esim::cli
+}  // namespace esim::app

@@ -1,12 +1,12 @@
 // bench_common.cpp - option parsing shared by the `esim bench` commands (bench_common.h).
-#include "tools/esim/bench_common.h"
+#include "tools/app/bench_common.h"
 
 #include <cstdlib>
 #include <sstream>
 
 #include "sim/core_error.h"
 
-namespace esim::cli {
+namespace esim::app {
 
 std::vector<std::string> splitList(const std::string& text) {
   std::vector<std::string> out;
@@ -31,4 +31,4 @@ std::vector<int> parseNodeCounts(const std::string& text, const std::string& com
   return out;
 }
 
-}  // namespace esim::cli
+}  // namespace esim::app

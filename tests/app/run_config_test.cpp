@@ -1,0 +1,130 @@
+// run_config_test.cpp - the scenario -> configuration mapping (tools/app/run_config.cpp):
+// one source for every default (the core's), and `esim validate`'s checks equal to the
+// run's set-up.
+#include "tools/app/run_config.h"
+
+#include <gtest/gtest.h>
+
+#include "sim/core_error.h"
+#include "sim/io/scenario.h"
+
+namespace esim::app {
+namespace {
+
+Scenario defaults() { return parseScenario("name: defaults\n", "defaults.yaml"); }
+
+std::string schemaDefault(const std::string& path) {
+  for (const ScenarioFieldInfo& f : scenarioFields())
+    if (f.path == path) return f.defaultYaml;
+  ADD_FAILURE() << "no schema field " << path;
+  return "";
+}
+
+// the two defaults that had drifted apart: read through the scenario and through the core
+TEST(RunConfig, ThermalIntegratorDefaultIsOne) {
+  const SimulationConfig& core = defaultSimulationConfig();
+  EXPECT_EQ(core.thermal.integrator, ThermalParams{}.integrator);
+  EXPECT_EQ(makeSimulationConfig(defaults()).thermal.integrator, core.thermal.integrator);
+  EXPECT_EQ(schemaDefault("solvers.thermal.integrator"),
+            thermalIntegratorName(ThermalParams{}.integrator));
+  EXPECT_EQ(ThermalParams{}.integrator, ThermalIntegrator::Explicit);  // README: the default
+}
+
+TEST(RunConfig, DenseMemoryLimitDefaultIsOne) {
+  const double core = ElectricSolverOptions{}.denseMemoryLimitBytes;
+  EXPECT_EQ(defaultSimulationConfig().electricSolver.denseMemoryLimitBytes, core);
+  EXPECT_EQ(makeSimulationConfig(defaults()).electricSolver.denseMemoryLimitBytes, core);
+  EXPECT_EQ(schemaDefault("solvers.electric.dense_memory_limit_mb"), "2048");
+  EXPECT_EQ(core, 2048.0 * 1048576.0);
+}
+
+// every mapped field of a default scenario equals the core's default
+TEST(RunConfig, EveryDefaultComesFromTheCore) {
+  const SimulationConfig& d = defaultSimulationConfig();
+  const SimulationConfig c = makeSimulationConfig(defaults());
+  EXPECT_EQ(c.conductivityS_m, d.conductivityS_m);
+  EXPECT_EQ(c.toolVoltageV, d.toolVoltageV);
+  EXPECT_EQ(c.contactDistanceM, d.contactDistanceM);
+  EXPECT_EQ(c.electrode.radiusM, d.electrode.radiusM);
+  EXPECT_EQ(c.electrode.lengthM, d.electrode.lengthM);
+  EXPECT_EQ(c.electrode.widthM, d.electrode.widthM);
+  EXPECT_EQ(c.returnElectrode.centerM, d.returnElectrode.centerM);
+  EXPECT_EQ(c.returnElectrode.normal, d.returnElectrode.normal);
+  EXPECT_EQ(c.returnElectrode.radiusM, d.returnElectrode.radiusM);
+  EXPECT_EQ(c.returnElectrode.toleranceM, d.returnElectrode.toleranceM);
+  EXPECT_EQ(c.electricSolver.strategy, d.electricSolver.strategy);
+  EXPECT_EQ(c.electricSolver.pcgTolerance, d.electricSolver.pcgTolerance);
+  EXPECT_EQ(c.electricSolver.pcgMaxIterations, d.electricSolver.pcgMaxIterations);
+  EXPECT_EQ(c.electricSolver.threads, d.electricSolver.threads);
+  EXPECT_EQ(c.conductivityTempCoeffPerK, d.conductivityTempCoeffPerK);
+  EXPECT_EQ(c.desiccatedConductivityFactor, d.desiccatedConductivityFactor);
+  const ThermalParams &t = c.thermal, &dt = d.thermal;
+  EXPECT_EQ(t.heatCapacityJ_m3K, dt.heatCapacityJ_m3K);
+  EXPECT_EQ(t.conductivityW_mK, dt.conductivityW_mK);
+  EXPECT_EQ(t.initialTemperatureC, dt.initialTemperatureC);
+  EXPECT_EQ(t.boilingTemperatureC, dt.boilingTemperatureC);
+  EXPECT_EQ(t.waterFraction, dt.waterFraction);
+  EXPECT_EQ(t.densityKg_m3, dt.densityKg_m3);
+  EXPECT_EQ(t.latentHeatJ_kg, dt.latentHeatJ_kg);
+  EXPECT_EQ(t.lumpedMass, dt.lumpedMass);
+  EXPECT_EQ(t.allowSubstepping, dt.allowSubstepping);
+  EXPECT_EQ(t.ambientTemperatureC, dt.ambientTemperatureC);
+  EXPECT_EQ(t.arrheniusA_s, dt.arrheniusA_s);
+  EXPECT_EQ(t.arrheniusEa_J_mol, dt.arrheniusEa_J_mol);
+  EXPECT_EQ(c.heatSource.centerM, d.heatSource.centerM);
+  EXPECT_EQ(c.heatSource.radiusM, d.heatSource.radiusM);
+  EXPECT_EQ(c.heatSource.powerDensityW_m3, d.heatSource.powerDensityW_m3);
+  EXPECT_EQ(c.hotSpot.temperatureC, d.hotSpot.temperatureC);
+  EXPECT_EQ(c.structural.youngsModulusPa, d.structural.youngsModulusPa);
+  EXPECT_EQ(c.structural.poissonRatio, d.structural.poissonRatio);
+  EXPECT_EQ(c.criticalStressPa, d.criticalStressPa);
+  EXPECT_EQ(c.vaporLiquidVolumeRatio, d.vaporLiquidVolumeRatio);
+  EXPECT_EQ(c.vaporLiquidVolumeRatio, ExpansionParams{}.vaporLiquidVolumeRatio);
+  EXPECT_EQ(c.maxVaporExpansion, ExpansionParams{}.maxExpansion);
+  EXPECT_EQ(c.clampBandM, d.clampBandM);
+  EXPECT_EQ(c.backgroundRebuild, d.backgroundRebuild);
+  EXPECT_EQ(c.rebuildLagFrames, d.rebuildLagFrames);
+  EXPECT_EQ(c.recomputeLagFrames, d.recomputeLagFrames);
+}
+
+void expectRefused(const Scenario& s, const std::string& part) {
+  try {
+    checkRunnable(s);
+    ADD_FAILURE() << "accepted; expected an error with '" << part << "'";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Input);
+    EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
+  }
+}
+
+// rules that only the core checked passed `esim validate` and failed at `esim run`
+TEST(RunConfig, ValidateRunsTheSetUpChecks) {
+  EXPECT_NO_THROW(checkRunnable(defaults()));
+  // boiling below the initial temperature (the core's rule), named by its scenario key
+  expectRefused(parseScenario("material: {boiling_temperature_c: 30}\n", "b.yaml"),
+                "material.boiling_temperature_c");
+  // a return electrode off the tissue (needs the mesh)
+  expectRefused(parseScenario("return_electrode: {center_m: [0, 0, 0.5]}\n", "r.yaml"),
+                "return_electrode");
+  // the dense inverse above its memory limit (needs the mesh's size)
+  expectRefused(parseScenario("solvers: {electric: {strategy: dense-inverse, "
+                              "dense_memory_limit_mb: 1}}\n",
+                              "d.yaml"),
+                "solvers.electric.dense_memory_limit_mb");
+}
+
+TEST(RunConfig, ChecksAreTheConstructorsChecks) {
+  // the same rule refuses the configuration in the core's constructor, by the same key
+  SimulationConfig c = makeSimulationConfig(defaults());
+  c.thermal.boilingTemperatureC = 30;
+  try {
+    Simulation sim(buildMesh(defaults()), c);
+    ADD_FAILURE() << "accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("material.boiling_temperature_c"), std::string::npos)
+        << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace esim::app

@@ -1,0 +1,132 @@
+// run_output_test.cpp - the output folder never destroys what the run did not create
+// (tools/app/run_output.cpp).
+#include "tools/app/run_output.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <fstream>
+
+#include "sim/core_error.h"
+
+namespace esim::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+class RunOutputTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    root_ = fs::temp_directory_path() / ("esim_run_output_" + std::to_string(::getpid()) + "_" +
+                                         ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(root_);
+    fs::create_directories(root_);
+  }
+  void TearDown() override { fs::remove_all(root_); }
+  static void touch(const fs::path& p, const std::string& text = "user data\n") {
+    std::ofstream(p) << text;
+  }
+  static std::string read(const fs::path& p) {
+    std::ifstream is(p);
+    return std::string(std::istreambuf_iterator<char>(is), {});
+  }
+  fs::path root_;
+};
+
+void expectInputError(const std::function<void()>& f, const std::string& part) {
+  try {
+    f();
+    ADD_FAILURE() << "no error; expected '" << part << "'";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Input);
+    EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(RunOutputTest, NewFolderIsCreatedAndCommitted) {
+  RunOutput out(root_ / "run", false);
+  out.create();
+  EXPECT_TRUE(fs::is_directory(root_ / "run.partial"));
+  touch(out.partial() / "timing.json");
+  out.commit();
+  EXPECT_TRUE(fs::exists(root_ / "run" / "timing.json"));
+  EXPECT_FALSE(fs::exists(root_ / "run.partial"));
+}
+
+TEST_F(RunOutputTest, AFileIsRefusedAndKept) {
+  touch(root_ / "notes.txt");
+  expectInputError([&] { RunOutput(root_ / "notes.txt", true); }, "a file is there");
+  EXPECT_EQ(read(root_ / "notes.txt"), "user data\n");
+}
+
+TEST_F(RunOutputTest, AFolderOfUserFilesIsRefusedEvenWithOverwrite) {
+  fs::create_directories(root_ / "mine");
+  touch(root_ / "mine" / "thesis.tex");
+  for (bool overwrite : {false, true})
+    expectInputError([&] { RunOutput(root_ / "mine", overwrite); }, "not an ESim run");
+  EXPECT_EQ(read(root_ / "mine" / "thesis.tex"), "user data\n");
+}
+
+TEST_F(RunOutputTest, TheWorkingFolderIsRefused) {
+  touch(root_ / "keep.txt");
+  const fs::path cwd = fs::current_path();
+  fs::current_path(root_);
+  expectInputError([&] { RunOutput(".", true); }, "not an ESim run");
+  expectInputError([&] { RunOutput("./", true); }, "not an ESim run");
+  fs::current_path(cwd);
+  EXPECT_TRUE(fs::exists(root_ / "keep.txt"));
+  expectInputError([&] { RunOutput("/", true); }, "the root");
+}
+
+TEST_F(RunOutputTest, AnEarlierRunNeedsOverwrite) {
+  {
+    RunOutput first(root_ / "run", false);
+    first.create();
+    touch(first.partial() / "summary.txt", "first\n");
+    first.commit();
+  }
+  expectInputError([&] { RunOutput(root_ / "run", false); }, "--overwrite");
+  EXPECT_EQ(read(root_ / "run" / "summary.txt"), "first\n");
+  RunOutput second(root_ / "run", true);
+  second.create();
+  EXPECT_EQ(read(root_ / "run" / "summary.txt"), "first\n");  // untouched until the commit
+  touch(second.partial() / "summary.txt", "second\n");
+  second.commit();
+  EXPECT_EQ(read(root_ / "run" / "summary.txt"), "second\n");
+}
+
+TEST_F(RunOutputTest, APartialFolderOfUserFilesIsRefused) {
+  fs::create_directories(root_ / "run.partial");
+  touch(root_ / "run.partial" / "data.csv");
+  expectInputError([&] { RunOutput(root_ / "run", false); }, "not an ESim run's partial");
+  EXPECT_TRUE(fs::exists(root_ / "run.partial" / "data.csv"));
+}
+
+TEST_F(RunOutputTest, AnEarlierPartialRunIsReplaced) {
+  {
+    RunOutput first(root_ / "run", false);
+    first.create();
+    touch(first.partial() / "timing.json", "old\n");  // interrupted: never committed
+  }
+  RunOutput again(root_ / "run", false);
+  again.create();
+  EXPECT_FALSE(fs::exists(root_ / "run.partial" / "timing.json"));
+  again.discard();
+  EXPECT_FALSE(fs::exists(root_ / "run.partial"));
+}
+
+TEST_F(RunOutputTest, AnUnwritableLocationIsRefused) {
+  if (::geteuid() == 0) {
+    // root writes everywhere: a location under a file stands in for "cannot be created"
+    touch(root_ / "file");
+    expectInputError([&] { RunOutput(root_ / "file" / "run", false); }, "is not a folder");
+    return;
+  }
+  fs::create_directories(root_ / "ro");
+  fs::permissions(root_ / "ro", fs::perms::owner_read | fs::perms::owner_exec);
+  expectInputError([&] { RunOutput(root_ / "ro" / "run", false); }, "cannot write");
+  fs::permissions(root_ / "ro", fs::perms::owner_all);
+}
+
+}  // namespace
+}  // namespace esim::app

@@ -1,0 +1,483 @@
+// run.cpp - one run of a scenario (see run.h).
+//
+// Outline:
+//   ---- set-up ----        scenario, output folder, mesh, simulation, renderer
+//   ---- frame outputs ---- video, hashes, PNGs and VTU fields of each frame
+//   ---- reports ----       timing.json's extra block, hashes.json, summary.txt
+//   ---- the run ----       runScenario: set-up, frame loop, reports, rename
+#include "tools/app/run.h"
+
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <sstream>
+
+#include "render/image_hash.h"
+#include "render/image_png.h"
+#include "render/renderer.h"
+#include "render/video_encoder.h"
+#include "sim/core_error.h"
+#include "sim/io/scenario.h"
+#include "sim/io/vtu.h"
+#include "sim/simulation.h"
+#include "tools/app/run_config.h"
+#include "tools/app/run_output.h"
+#include "tools/app/run_report.h"
+
+namespace esim::app {
+
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+std::atomic<bool> gStop{false};
+extern "C" void onSignal(int) { gStop = true; }
+
+// above this the run's temperatures are outside what the model describes (no charring,
+// no ablation): the summary and timing.json say so [C]
+constexpr double kImplausibleTemperatureC = 300.0;
+
+double secondsSince(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+void writeText(const fs::path& path, const std::string& text) {
+  std::ofstream os(path, std::ios::binary);
+  os << text;
+  ESIM_RUN_CHECK(os.good(), path.string() + ": write failed (disk full?)");
+}
+
+// peak resident memory of this process so far [MB]
+double peakRssMb() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return u.ru_maxrss / 1024.0;  // ru_maxrss is in kB on Linux
+}
+
+std::string numbered(const char* prefix, int frame, const char* ext) {
+  std::ostringstream name;
+  name << prefix << std::setw(5) << std::setfill('0') << frame << ext;
+  return name.str();
+}
+
+// ---- set-up ----
+
+struct Setup {
+  Scenario scenario;
+  int frames = 0;
+  int fieldsEvery = 0;
+  bool video = false;
+  int nodes = 0, tets = 0;
+  double meshS = 0, setupS = 0, rssAfterSetupMb = 0;
+  std::unique_ptr<Simulation> sim;
+  std::unique_ptr<Renderer> renderer;  // null when nothing is drawn
+};
+
+// the mesh, phases and renderer of a loaded scenario; throws Error (nothing written)
+Setup setUp(const RunOptions& opt, Scenario scenario) {
+  Setup s;
+  s.scenario = std::move(scenario);
+  const Scenario& sc = s.scenario;
+  s.frames = opt.frames > 0 ? opt.frames : frameCount(sc);
+  s.fieldsEvery = opt.fieldsEvery >= 0 ? opt.fieldsEvery : sc.output.fieldsEvery;
+  s.video = sc.output.video && !opt.noVideo;
+  const SimulationConfig config = makeSimulationConfig(sc);
+  validateSimulationConfig(config);  // before the mesh, which can take seconds
+  const auto t0 = Clock::now();
+  TetMesh mesh = buildMesh(sc);
+  s.meshS = secondsSince(t0);
+  s.nodes = mesh.numNodes();
+  s.tets = mesh.numTets();
+  const auto t1 = Clock::now();
+  s.sim = std::make_unique<Simulation>(std::move(mesh), config);
+  s.setupS = secondsSince(t1);
+  s.rssAfterSetupMb = peakRssMb();
+  if (s.video || sc.output.pngEvery > 0 || sc.output.hashes)
+    s.renderer = std::make_unique<Renderer>(makeRenderOptions(sc));
+  return s;
+}
+
+// ---- frame outputs ----
+
+class FrameOutputs {
+ public:
+  FrameOutputs(const Setup& s, const fs::path& dir) : s_(s), dir_(dir) {
+    const Scenario& sc = s.scenario;
+    if (s.video) {
+      VideoEncoder::Options vo;
+      vo.path = (dir / "video.mp4").string();
+      vo.width = sc.look.width;
+      vo.height = sc.look.height;
+      vo.fps = static_cast<int>(std::lround(sc.time.fps));
+      vo.crf = sc.output.crf;
+      vo.preset = sc.output.preset;
+      vo.reproducible = sc.output.reproducible;
+      encoder_ = std::make_unique<VideoEncoder>();
+      encoder_->open(vo);
+    }
+    if (sc.output.pngEvery > 0) fs::create_directories(dir / "frames");
+    if (s.fieldsEvery > 0) fs::create_directories(dir / "fields");
+  }
+
+  // renders the frame (timed into rec) and hands it to the encoder, hashes and PNGs;
+  // writes the VTU fields on their frames
+  void add(int f, Simulation& sim, FrameRecord& rec) {
+    const Scenario& sc = s_.scenario;
+    if (s_.renderer) {
+      const SurfaceSnapshot snap = sim.snapshot();
+      rec = sim.lastRecord();
+      const std::vector<std::uint8_t>* rgb = nullptr;
+      {
+        StageTimer timer(rec, Stage::Render);
+        rgb = &s_.renderer->render(snap);
+      }
+      const std::uint64_t h = hashFrame(*rgb);
+      allHash_.add(h);
+      hashes_.push_back(
+          {{"frame", f},
+           {"xxh3", hashToHex(h)},
+           {"dhash", hashToHex(perceptualHash(*rgb, sc.look.width, sc.look.height))}});
+      if (sc.output.pngEvery > 0 && f % sc.output.pngEvery == 0)
+        writePng((dir_ / "frames" / numbered("frame_", f, ".png")).string(), *rgb,
+                 sc.look.width, sc.look.height);
+      if (encoder_) {
+        StageTimer timer(rec, Stage::Encode);
+        encoder_->push(*rgb);
+      }
+    }
+    if (s_.fieldsEvery > 0 && f % s_.fieldsEvery == 0)
+      writeFields((dir_ / "fields" / numbered("frame_", f, ".vtu")).string(), sim);
+  }
+
+  // closes the video (playable however many frames it has)
+  void close() {
+    if (!encoder_) return;
+    encoder_->close();
+    encodeS_ = encoder_->encodeSeconds();
+    codec_ = encoder_->codecName();
+    encoder_.reset();
+  }
+
+  double encodeSeconds() const { return encodeS_; }
+  const std::string& codec() const { return codec_; }
+  const nlohmann::json& frameHashes() const { return hashes_; }
+  std::uint64_t allFramesHash() const { return allHash_.combined(); }
+
+ private:
+  // fields of the phases the scene has, as VTU (README: fields for inspection)
+  static void writeFields(const std::string& path, const Simulation& sim) {
+    const TetMesh& m = sim.mesh();
+    std::vector<VtuField> point, cell;
+    std::vector<double> bc(m.numNodes(), 0.0);
+    if (sim.hasElectric()) {
+      const Eigen::VectorXd& u = sim.potentialV();
+      point.push_back({"potential", 1, std::vector<double>(u.data(), u.data() + m.numNodes())});
+      for (int v : sim.contactNodes()) bc[v] = 1;
+      for (int v : sim.groundNodes()) bc[v] = 2;
+      point.push_back({"bc", 1, bc});
+      cell.push_back({"conductivity", 1, sim.conductivityS_m()});
+      cell.push_back({"joule_power", 1, sim.joulePowerW_m3()});
+    }
+    if (const ThermalState* t = sim.thermalState()) {
+      const Eigen::VectorXd& tc = t->temperatureC;
+      point.push_back({"temperature", 1, std::vector<double>(tc.data(), tc.data() + m.numNodes())});
+      if (!t->vaporFractionTet.empty()) cell.push_back({"vapor_fraction", 1, t->vaporFractionTet});
+      if (!t->coagulationTet.empty()) cell.push_back({"coagulation", 1, t->coagulationTet});
+    }
+    if (const std::vector<double>* vm = sim.vonMisesPa()) cell.push_back({"von_mises", 1, *vm});
+    std::vector<double> alive(m.numTets());
+    for (int e = 0; e < m.numTets(); ++e) alive[e] = m.isAlive(e) ? 1.0 : 0.0;
+    cell.push_back({"alive", 1, alive});
+    writeVtu(path, m, point, cell);
+  }
+
+  const Setup& s_;
+  fs::path dir_;
+  std::unique_ptr<VideoEncoder> encoder_;
+  nlohmann::json hashes_ = nlohmann::json::array();
+  FrameHashSequence allHash_;
+  double encodeS_ = 0;
+  std::string codec_;
+};
+
+// ---- progress ----
+
+class Progress {
+ public:
+  Progress(int total, bool quiet) : total_(total), quiet_(quiet), tty_(isatty(2) != 0) {}
+  void update(int done, double simTimeS) {
+    if (quiet_) return;
+    const double wall = secondsSince(start_);
+    const double fps = wall > 0 ? done / wall : 0;
+    const double eta = fps > 0 ? (total_ - done) / fps : 0;
+    if (tty_) {
+      const int width = 30, fill = total_ ? width * done / total_ : width;
+      std::fprintf(stderr, "\r[%s%s] %d/%d frames  t=%.2f s  %.1f fps  ETA %.0f s ",
+                   std::string(fill, '#').c_str(), std::string(width - fill, '-').c_str(), done,
+                   total_, simTimeS, fps, eta);
+      if (done == total_) std::fprintf(stderr, "\n");
+    } else if (wall - lastLine_ >= 5.0 || done == total_) {
+      lastLine_ = wall;
+      std::fprintf(stderr, "esim: %d/%d frames, t=%.2f s, %.1f fps, ETA %.0f s\n", done, total_,
+                   simTimeS, fps, eta);
+    }
+  }
+
+ private:
+  int total_;
+  bool quiet_, tty_;
+  Clock::time_point start_ = Clock::now();
+  double lastLine_ = -1e9;
+};
+
+// ---- reports ----
+
+// how the frame loop ended
+struct LoopResult {
+  std::vector<FrameRecord> records;
+  std::vector<double> frameStartUs;
+  double loopS = 0;
+  double peakPowerW = 0;
+  bool interrupted = false;
+  std::string failure;  // the run error that stopped the loop ("" = none)
+  bool complete() const { return !interrupted && failure.empty(); }
+};
+
+std::vector<std::string> runWarnings(const Simulation& sim) {
+  std::vector<std::string> warnings;
+  if (sim.maxTemperatureSeenC() > kImplausibleTemperatureC) {
+    char w[400];
+    std::snprintf(w, sizeof w,
+                  "the tissue reached %.0f C: above ~%.0f C it chars and ablates, which the model "
+                  "does not include; lower tool.voltage_v, or enable "
+                  "effects.temperature_dependent_conductivity (drying cuts the current) or the "
+                  "structural and rupture phases (boiling tissue is removed)",
+                  sim.maxTemperatureSeenC(), kImplausibleTemperatureC);
+    warnings.push_back(w);
+  }
+  return warnings;
+}
+
+// timing.json's block beyond the per-stage statistics
+nlohmann::json timingExtra(const Setup& s, const FrameOutputs& out, const LoopResult& loop) {
+  const Scenario& sc = s.scenario;
+  const Simulation& sim = *s.sim;
+  nlohmann::json extra;
+  extra["scenario"] = sc.name;
+  extra["scenario_hash"] = hashToHex(scenarioHash(sc));
+  extra["interrupted"] = loop.interrupted;
+  extra["complete"] = loop.complete();
+  if (!loop.failure.empty()) extra["failure"] = loop.failure;
+  extra["mesh"] = {{"nodes", s.nodes}, {"tets", s.tets}, {"build_s", s.meshS}};
+  extra["setup_s"] = s.setupS;
+  extra["peak_rss_mb"] = peakRssMb();
+  extra["peak_rss_after_setup_mb"] = s.rssAfterSetupMb;
+  extra["frame_loop_s"] = loop.loopS;
+  extra["offline"] = {{"encode_s", out.encodeSeconds()},
+                      {"codec", out.codec()},
+                      {"note", "libav encoding on its own thread, not in the 30 Hz budget"}};
+  extra["machine"] = machineInfo();
+  extra["threads"] = {{"blas", sc.solvers.electricThreads},
+                      {"encoder", sc.output.reproducible ? 1 : 0}};
+  extra["electric_solver"] = sim.electricSolverName();
+  extra["build"] = {{"compiler", __VERSION__}, {"esim", "0.1.0"}};
+  extra["electric_memory_mb"] = sim.electricMemoryBytes() / 1048576.0;
+  extra["warnings"] = runWarnings(sim);
+  if (sim.config().phases.structural)
+    extra["structural"] = {
+        {"removed_tets", sim.removedTets()},
+        {"alive_tets", sim.mesh().numAlive()},
+        {"rebuild_mode", sc.solvers.rebuildMode},
+        {"rebuild_lag_frames", sc.solvers.rebuildLagFrames},
+        {"rebuilds", sim.rebuilds()},
+        {"rebuilds_late", sim.rebuildsLate()},
+        {"rebuild_build_ms_mean", sim.rebuilds() > 0 ? sim.rebuildBuildMs() / sim.rebuilds() : 0.0},
+        {"rebuild_wait_ms_max", sim.maxRebuildWaitMs()},
+        {"recomputed_frames", sim.recomputedFrames()}};
+  if (s.renderer)
+    extra["renderer"] = {{"gl_renderer", s.renderer->glRenderer()},
+                         {"gl_version", s.renderer->glVersion()},
+                         {"platform", s.renderer->glPlatform()}};
+  return extra;
+}
+
+nlohmann::json hashesJson(const Setup& s, const FrameOutputs& out, const nlohmann::json& extra) {
+  const Scenario& sc = s.scenario;
+  nlohmann::json hj;
+  hj["frames"] = out.frameHashes();
+  hj["all_frames_xxh3"] = hashToHex(out.allFramesHash());
+  hj["hash_definition"] =
+      "xxh3-64 (seed 0) of the raw RGB24 bytes, top row first; all_frames: xxh3-64 of the "
+      "frame hashes as little-endian uint64; dhash: 64-bit difference hash (render/image_hash.h)";
+  hj["width"] = sc.look.width;
+  hj["height"] = sc.look.height;
+  hj["renderer"] = extra["renderer"];
+  hj["libraries"] = VideoEncoder::libraryVersions();
+  hj["png_every"] = sc.output.pngEvery;
+  hj["scenario_hash"] = extra["scenario_hash"];
+  hj["complete"] = extra["complete"];
+  return hj;
+}
+
+void summaryStages(std::ostringstream& sum, const LoopResult& loop, const nlohmann::json& timing) {
+  sum << "  stage          median ms     p95 ms   skipped\n";
+  char line[200];
+  for (int s = 0; s < kStageCount; ++s) {
+    const StageStats st = stageStats(loop.records, static_cast<Stage>(s));
+    if (st.ran + st.skipped == 0) continue;
+    std::snprintf(line, sizeof line, "  %-14s %10.3f %10.3f %9d\n",
+                  stageName(static_cast<Stage>(s)), st.p50Ms, st.p95Ms, st.skipped);
+    sum << line;
+  }
+  std::vector<double> ms;
+  for (const auto& r : loop.records) ms.push_back(interactiveMs(r));
+  const StageStats inter = seriesStats(ms);
+  std::snprintf(line, sizeof line,
+                "  interactive    %10.3f %10.3f   (physics+render; %d of %d frames over 33.3 ms)\n",
+                inter.p50Ms, inter.p95Ms, timing["frames_over_budget"].get<int>(),
+                static_cast<int>(loop.records.size()));
+  sum << line;
+}
+
+void summaryStructural(std::ostringstream& sum, const Simulation& sim, const LoopResult& loop) {
+  double peakVm = 0;
+  for (const FrameRecord& r : loop.records) peakVm = std::max(peakVm, r.maxVonMisesPa);
+  sum << "  structural    peak von Mises " << peakVm << " Pa; " << sim.removedTets()
+      << " tets removed in " << sim.rebuilds() << " frames (" << sim.mesh().numAlive() << " of "
+      << sim.mesh().numTets() << " alive)\n";
+  if (!sim.config().phases.rupture || sim.rebuilds() == 0) return;
+  const SimulationConfig& c = sim.config();
+  sum << "  rebuild       " << sim.rebuilds() << " rebuilds, "
+      << (c.backgroundRebuild ? "background, swapped in " + std::to_string(c.rebuildLagFrames) +
+                                    " frames after the rupture"
+                              : std::string("synchronous"))
+      << "; build " << sim.rebuildBuildMs() / sim.rebuilds() << " ms mean";
+  if (c.backgroundRebuild)
+    sum << "; lag missed " << sim.rebuildsLate() << " times (longest wait "
+        << sim.maxRebuildWaitMs() << " ms); " << sim.recomputedFrames() << " frames recomputed";
+  sum << "\n";
+}
+
+std::string summaryText(const Setup& s, const FrameOutputs& out, const LoopResult& loop,
+                        const nlohmann::json& timing, const fs::path& dir) {
+  const Scenario& sc = s.scenario;
+  const Simulation& sim = *s.sim;
+  std::ostringstream sum;
+  sum << std::fixed;
+  sum.precision(2);
+  sum << "esim run " << sc.name << (loop.interrupted ? "  (INTERRUPTED: partial)" : "")
+      << (loop.failure.empty() ? "" : "  (FAILED: partial)") << "\n";
+  if (!loop.failure.empty()) sum << "  error         " << loop.failure << "\n";
+  sum << "  mesh        " << s.nodes << " nodes, " << s.tets << " tets (built in " << s.meshS
+      << " s), setup " << s.setupS << " s\n";
+  sum << "  frames      " << loop.records.size() << " of " << s.frames << ", simulated "
+      << sim.timeS() << " s at " << sc.time.fps << " fps, wall " << loop.loopS << " s\n";
+  summaryStages(sum, loop, timing);
+  sum << "  encode        " << out.encodeSeconds() << " s offline (own thread)\n";
+  sum << "  memory        peak " << peakRssMb() << " MB resident (" << s.rssAfterSetupMb
+      << " MB after setup)\n";
+  sum.precision(1);
+  sum << "  temperature   max " << sim.maxTemperatureSeenC() << " C (now "
+      << sim.temperatureC().maxCoeff() << " C)\n";
+  for (const std::string& w : runWarnings(sim)) sum << "  WARNING       " << w << "\n";
+  sum.precision(3);
+  sum << "  energy        " << sim.energyDeliveredJ() << " J delivered, peak power "
+      << loop.peakPowerW << " W\n";
+  if (sim.config().phases.structural) summaryStructural(sum, sim, loop);
+  sum << "  outputs       " << dir.string() << "/ {" << (s.video ? "video.mp4, " : "")
+      << "timing.csv, timing.json, trace.json, scenario.yaml"
+      << (s.renderer && sc.output.hashes ? ", hashes.json" : "")
+      << (sc.output.pngEvery > 0 ? ", frames/" : "") << (s.fieldsEvery > 0 ? ", fields/" : "")
+      << "}\n";
+  return sum.str();
+}
+
+// every report of the frames done (complete or not) into dir; returns the summary
+std::string writeReports(const Setup& s, const FrameOutputs& out, const LoopResult& loop,
+                         const fs::path& dir, const fs::path& finalDir) {
+  const nlohmann::json extra = timingExtra(s, out, loop);
+  const nlohmann::json timing = timingJson(loop.records, extra);
+  writeText(dir / "timing.json", timing.dump(2) + "\n");
+  writeText(dir / "timing.csv", timingCsv(loop.records));
+  writeText(dir / "trace.json", chromeTrace(loop.records, loop.frameStartUs).dump() + "\n");
+  writeText(dir / "scenario.yaml", scenarioToYaml(s.scenario));
+  if (s.renderer && s.scenario.output.hashes)
+    writeText(dir / "hashes.json", hashesJson(s, out, extra).dump(2) + "\n");
+  const std::string summary = summaryText(s, out, loop, timing, finalDir);
+  writeText(dir / "summary.txt", summary);
+  return summary;
+}
+
+// ---- the frame loop ----
+
+LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet) {
+  LoopResult loop;
+  Progress progress(s.frames, quiet);
+  const auto t0 = Clock::now();
+  for (int f = 0; f < s.frames && !gStop; ++f) {
+    loop.frameStartUs.push_back(std::chrono::duration<double, std::micro>(Clock::now() - t0).count());
+    try {
+      FrameRecord rec = s.sim->step();
+      out.add(f, *s.sim, rec);
+      loop.peakPowerW = std::max(loop.peakPowerW, rec.powerW);
+      loop.records.push_back(rec);
+    } catch (const Error& e) {
+      if (e.kind() == ErrorKind::Input) throw;  // a bug in the checks: reported as such
+      loop.failure = "frame " + std::to_string(f) + ": " + e.what();
+      loop.frameStartUs.pop_back();
+      break;
+    }
+    progress.update(f + 1, s.sim->timeS());
+  }
+  loop.interrupted = gStop.load();
+  loop.loopS = secondsSince(t0);
+  return loop;
+}
+
+}  // namespace
+
+void requestStop() { gStop = true; }
+
+int runScenario(const RunOptions& opt) {
+  // ---- 1. scenario and output folder (checked before anything is built) ----
+  Scenario scenario = loadScenario(opt.scenario, opt.sets);
+  RunOutput output(opt.outDir.empty() ? fs::path("out") / scenario.name : fs::path(opt.outDir),
+                   opt.overwrite);
+  // ---- 2. mesh, physics, renderer ----
+  Setup s = setUp(opt, std::move(scenario));
+  // ---- 3. the partial folder and the video ----
+  output.create();
+  std::optional<FrameOutputs> out;
+  try {
+    out.emplace(s, output.partial());
+  } catch (...) {
+    output.discard();
+    throw;
+  }
+  // ---- 4. frames ----
+  gStop = false;
+  std::signal(SIGINT, onSignal);
+  std::signal(SIGTERM, onSignal);
+  const LoopResult loop = frameLoop(s, *out, opt.quiet);
+  // ---- 5. close the video, write the reports, rename when complete ----
+  out->close();
+  const fs::path where = loop.complete() ? output.final() : output.partial();
+  const std::string summary = writeReports(s, *out, loop, output.partial(), where);
+  if (loop.complete()) output.commit();
+  std::cout << summary;
+  if (!loop.failure.empty()) std::cerr << "esim: error: " << loop.failure << "\n";
+  return loop.complete() ? 0 : 1;
+}
+
+}  // namespace esim::app

@@ -1,0 +1,38 @@
+// run.h - one run of a scenario: simulate, render, encode, report (`esim run`).
+//
+// 1. Load and check the scenario (+ --set overrides); check the output folder.
+// 2. Build the mesh and the phases the scene lists; open the renderer.
+// 3. Create DIR.partial/; open the video.
+// 4. Frame loop: physics stages -> snapshot -> render -> encoder / PNG / hashes / VTU.
+// 5. Close the video; write timing.csv, timing.json, trace.json, hashes.json,
+//    scenario.yaml, summary.txt; rename DIR.partial/ to DIR/.
+// Errors (sim/core_error.h): bad input (steps 1-3) is thrown with nothing left on disk; a
+// run error in the frame loop (a failed solve, all tissue removed) and an interruption
+// (SIGINT, SIGTERM) stop the loop, write the reports of the frames done, marked
+// "complete": false, keep DIR.partial/ and return exit code 1.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace esim::app {
+
+struct RunOptions {
+  std::string scenario;           // scenario YAML file
+  std::string outDir;             // "" = out/<name>
+  int frames = 0;                 // 0: from the scenario
+  int fieldsEvery = -1;           // -1: from the scenario
+  std::vector<std::string> sets;  // key.path=value overrides
+  bool noVideo = false;
+  bool quiet = false;
+  bool overwrite = false;  // replace an earlier ESim run in outDir
+};
+
+// runs the scenario; returns the exit code (0 complete, 1 failed or interrupted, outputs
+// kept in DIR.partial/); throws Error for bad input, before anything is written
+int runScenario(const RunOptions& options);
+
+// asks the frame loop to stop after the current frame (signal-safe)
+void requestStop();
+
+}  // namespace esim::app

@@ -1,0 +1,103 @@
+// run_output.cpp - the output folder of a run (see run_output.h).
+#include "tools/app/run_output.h"
+
+#include <unistd.h>
+
+#include <fstream>
+
+#include "sim/core_error.h"
+
+namespace esim::app {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr const char* kMarker = ".esim-run";
+
+bool isEmptyFolder(const fs::path& dir) {
+  std::error_code ec;
+  return fs::is_directory(dir, ec) && fs::directory_iterator(dir, ec) == fs::directory_iterator();
+}
+
+// the nearest existing ancestor of p (p itself when it exists)
+fs::path existingAncestor(fs::path p) {
+  std::error_code ec;
+  p = fs::absolute(p, ec);
+  while (!p.empty() && !fs::exists(p, ec)) {
+    const fs::path parent = p.parent_path();
+    if (parent == p) break;
+    p = parent;
+  }
+  return p;
+}
+
+}  // namespace
+
+bool isEsimRunFolder(const fs::path& dir) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) return false;
+  if (fs::exists(dir / kMarker, ec)) return true;
+  return fs::exists(dir / "timing.json", ec) && fs::exists(dir / "scenario.yaml", ec) &&
+         fs::exists(dir / "summary.txt", ec);
+}
+
+RunOutput::RunOutput(fs::path dir, bool overwrite)
+    : dir_(std::move(dir)), overwrite_(overwrite) {
+  ESIM_VERIFY(!dir_.empty(), "-o: the output folder is empty");
+  // "out/x/" -> "out/x", "." -> the working folder: the partial folder is a sibling
+  fs::path norm = fs::absolute(dir_).lexically_normal();
+  if (!norm.has_filename()) norm = norm.parent_path();
+  ESIM_VERIFY(norm != norm.root_path(),
+              "-o " + dir_.string() + ": not a folder a run can own (the root)");
+  partial_ = fs::path(norm.string() + ".partial");
+  dir_ = norm;
+  std::error_code ec;
+  if (fs::exists(dir_, ec)) {
+    ESIM_VERIFY(fs::is_directory(dir_, ec),
+                "-o " + dir_.string() + ": a file is there; give another folder (a run never "
+                "replaces a file)");
+    if (!isEmptyFolder(dir_)) {
+      ESIM_VERIFY(isEsimRunFolder(dir_),
+                  "-o " + dir_.string() + ": the folder exists and holds files that are not an "
+                  "ESim run; give a new or empty folder (nothing was changed)");
+      ESIM_VERIFY(overwrite_, "-o " + dir_.string() +
+                                  ": holds an earlier ESim run; add --overwrite to replace it, "
+                                  "or give another folder (nothing was changed)");
+    }
+  }
+  if (fs::exists(partial_, ec))
+    ESIM_VERIFY(isEsimRunFolder(partial_) || isEmptyFolder(partial_),
+                partial_.string() + ": exists and is not an ESim run's partial output; move it "
+                "away or give another -o folder (nothing was changed)");
+  const fs::path anchor = existingAncestor(dir_.parent_path());
+  ESIM_VERIFY(fs::is_directory(anchor, ec),
+              "-o " + dir_.string() + ": " + anchor.string() + " is not a folder");
+  ESIM_VERIFY(::access(anchor.c_str(), W_OK | X_OK) == 0,
+              "-o " + dir_.string() + ": cannot write in " + anchor.string() +
+                  " (permission denied); give a writable folder");
+}
+
+void RunOutput::create() {
+  std::error_code ec;
+  if (fs::exists(partial_, ec)) fs::remove_all(partial_);  // an earlier run's (checked)
+  fs::create_directories(partial_);
+  std::ofstream(partial_ / kMarker) << "esim run output (partial until renamed)\n";
+}
+
+void RunOutput::commit() {
+  std::error_code ec;
+  if (fs::exists(dir_, ec)) {
+    // checked in the constructor: empty, or an earlier ESim run with overwrite
+    ESIM_CHECK(isEmptyFolder(dir_) || (overwrite_ && isEsimRunFolder(dir_)));
+    fs::remove_all(dir_);
+  }
+  fs::rename(partial_, dir_);
+}
+
+void RunOutput::discard() {
+  std::error_code ec;
+  if (isEsimRunFolder(partial_)) fs::remove_all(partial_, ec);
+}
+
+}  // namespace esim::app

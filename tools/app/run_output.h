@@ -1,0 +1,49 @@
+// run_output.h - the output folder of a run: never destroys what the run did not create.
+//
+// A run writes into DIR.partial/ (marked by a file `.esim-run`) and renames it to DIR/ only
+// when it completed. Before anything is computed, prepare() refuses (Input error, nothing
+// touched):
+//   - DIR that is a file, or a folder that is not empty and does not hold an earlier ESim
+//     run (its `.esim-run` marker, or timing.json + scenario.yaml + summary.txt);
+//   - a folder holding an earlier run, unless overwrite is set (then it is replaced, at the
+//     end, by the complete run);
+//   - DIR.partial/ that exists and is not an ESim run's;
+//   - a location whose parent cannot be created or written.
+// A run that fails or is interrupted stays DIR.partial/ with what it wrote (its reports say
+// "complete": false); a set-up that fails before the first frame removes DIR.partial/, which
+// it created itself.
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+namespace esim::app {
+
+class RunOutput {
+ public:
+  // checks the location (see above); throws Error naming the folder and the remedy
+  RunOutput(std::filesystem::path dir, bool overwrite);
+
+  // creates DIR.partial/ with its marker (after a DIR.partial of an earlier run is removed)
+  void create();
+
+  // the folder being written (DIR.partial/)
+  const std::filesystem::path& partial() const { return partial_; }
+  // the final folder (DIR/)
+  const std::filesystem::path& final() const { return dir_; }
+
+  // the run completed: DIR.partial/ becomes DIR/ (an earlier run there is replaced)
+  void commit();
+
+  // set-up failed before the first frame: remove DIR.partial/ (ours)
+  void discard();
+
+ private:
+  std::filesystem::path dir_, partial_;
+  bool overwrite_ = false;
+};
+
+// true when the folder holds an ESim run (complete or partial)
+bool isEsimRunFolder(const std::filesystem::path& dir);
+
+}  // namespace esim::app
