@@ -149,8 +149,8 @@ class FrameOutputs {
            {"xxh3", hashToHex(h)},
            {"dhash", hashToHex(perceptualHash(*rgb, sc.look.width, sc.look.height))}});
       if (sc.output.pngEvery > 0 && f % sc.output.pngEvery == 0)
-        writePng((dir_ / "frames" / numbered("frame_", f, ".png")).string(), *rgb,
-                 sc.look.width, sc.look.height);
+        writePng((dir_ / "frames" / numbered("frame_", f, ".png")).string(), *rgb, sc.look.width,
+                 sc.look.height);
       if (encoder_) {
         StageTimer timer(rec, Stage::Encode);
         encoder_->push(*rgb);
@@ -426,7 +426,8 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet) {
   Progress progress(s.frames, quiet);
   const auto t0 = Clock::now();
   for (int f = 0; f < s.frames && !gStop; ++f) {
-    loop.frameStartUs.push_back(std::chrono::duration<double, std::micro>(Clock::now() - t0).count());
+    loop.frameStartUs.push_back(
+        std::chrono::duration<double, std::micro>(Clock::now() - t0).count());
     try {
       FrameRecord rec = s.sim->step();
       out.add(f, *s.sim, rec);

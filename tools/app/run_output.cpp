@@ -42,8 +42,7 @@ bool isEsimRunFolder(const fs::path& dir) {
          fs::exists(dir / "summary.txt", ec);
 }
 
-RunOutput::RunOutput(fs::path dir, bool overwrite)
-    : dir_(std::move(dir)), overwrite_(overwrite) {
+RunOutput::RunOutput(fs::path dir, bool overwrite) : dir_(std::move(dir)), overwrite_(overwrite) {
   ESIM_VERIFY(!dir_.empty(), "-o: the output folder is empty");
   // "out/x/" -> "out/x", "." -> the working folder: the partial folder is a sibling
   fs::path norm = fs::absolute(dir_).lexically_normal();
@@ -55,12 +54,14 @@ RunOutput::RunOutput(fs::path dir, bool overwrite)
   std::error_code ec;
   if (fs::exists(dir_, ec)) {
     ESIM_VERIFY(fs::is_directory(dir_, ec),
-                "-o " + dir_.string() + ": a file is there; give another folder (a run never "
-                "replaces a file)");
+                "-o " + dir_.string() +
+                    ": a file is there; give another folder (a run never "
+                    "replaces a file)");
     if (!isEmptyFolder(dir_)) {
       ESIM_VERIFY(isEsimRunFolder(dir_),
-                  "-o " + dir_.string() + ": the folder exists and holds files that are not an "
-                  "ESim run; give a new or empty folder (nothing was changed)");
+                  "-o " + dir_.string() +
+                      ": the folder exists and holds files that are not an "
+                      "ESim run; give a new or empty folder (nothing was changed)");
       ESIM_VERIFY(overwrite_, "-o " + dir_.string() +
                                   ": holds an earlier ESim run; add --overwrite to replace it, "
                                   "or give another folder (nothing was changed)");
@@ -68,8 +69,9 @@ RunOutput::RunOutput(fs::path dir, bool overwrite)
   }
   if (fs::exists(partial_, ec))
     ESIM_VERIFY(isEsimRunFolder(partial_) || isEmptyFolder(partial_),
-                partial_.string() + ": exists and is not an ESim run's partial output; move it "
-                "away or give another -o folder (nothing was changed)");
+                partial_.string() +
+                    ": exists and is not an ESim run's partial output; move it "
+                    "away or give another -o folder (nothing was changed)");
   const fs::path anchor = existingAncestor(dir_.parent_path());
   ESIM_VERIFY(fs::is_directory(anchor, ec),
               "-o " + dir_.string() + ": " + anchor.string() + " is not a folder");
