@@ -10,73 +10,12 @@
 #include "render/bitmap_font.h"
 #include "render/colormap.h"
 #include "render/gl_context.h"
+#include "render/view_math.h"
 #include "sim/core_error.h"
 
 namespace esim {
+using namespace render_detail;
 namespace {
-
-// ---- small vector/matrix helpers (float, column-major 4x4 as OpenGL wants) ----
-
-using V3 = std::array<float, 3>;
-using M4 = std::array<float, 16>;
-
-V3 sub(V3 a, V3 b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
-V3 add(V3 a, V3 b) { return {a[0] + b[0], a[1] + b[1], a[2] + b[2]}; }
-V3 mul(V3 a, float s) { return {a[0] * s, a[1] * s, a[2] * s}; }
-float dot(V3 a, V3 b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-V3 cross(V3 a, V3 b) {
-  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-}
-float norm(V3 a) { return std::sqrt(dot(a, a)); }
-V3 normalized(V3 a) {
-  const float n = norm(a);
-  return n > 0 ? mul(a, 1.0f / n) : V3{0, 0, 1};
-}
-
-M4 matMul(const M4& a, const M4& b) {
-  M4 r{};
-  for (int c = 0; c < 4; ++c)
-    for (int rr = 0; rr < 4; ++rr) {
-      float s = 0;
-      for (int k = 0; k < 4; ++k) s += a[k * 4 + rr] * b[c * 4 + k];
-      r[c * 4 + rr] = s;
-    }
-  return r;
-}
-
-M4 lookAt(V3 eye, V3 target, V3 up) {
-  const V3 f = normalized(sub(target, eye));
-  const V3 s = normalized(cross(f, up));
-  const V3 u = cross(s, f);
-  // clang-format off
-  return {s[0], u[0], -f[0], 0, s[1], u[1], -f[1], 0, s[2], u[2], -f[2], 0,
-          -dot(s, eye), -dot(u, eye), dot(f, eye), 1};
-  // clang-format on
-}
-
-M4 perspective(float fovYDeg, float aspect, float nearM, float farM) {
-  const float f = 1.0f / std::tan(fovYDeg * 3.14159265358979f / 360.0f);
-  M4 m{};
-  m[0] = f / aspect;
-  m[5] = f;
-  m[10] = (farM + nearM) / (nearM - farM);
-  m[11] = -1;
-  m[14] = 2 * farM * nearM / (nearM - farM);
-  return m;
-}
-
-// rotation by a unit quaternion (w,x,y,z) then translation, as a 4x4
-M4 poseMatrix(const std::array<float, 4>& q, V3 t) {
-  float w = q[0], x = q[1], y = q[2], z = q[3];
-  const float n = std::sqrt(w * w + x * x + y * y + z * z);
-  // clang-format off
-  if (n > 0) { w /= n; x /= n; y /= n; z /= n; } else { w = 1; }
-  return {1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y), 0,
-          2 * (x * y - w * z), 1 - 2 * (x * x + z * z), 2 * (y * z + w * x), 0,
-          2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y), 0,
-          t[0], t[1], t[2], 1};
-  // clang-format on
-}
 
 // ---- shaders ----
 
@@ -1079,7 +1018,6 @@ const std::vector<std::uint8_t>& Renderer::render(const SurfaceSnapshot& snap) {
   gl.DepthFunc(GL_LESS);
 
   // 3. surface
-  static const M4 identity{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
   const ToolSnapshot& tool = snap.tool;
   const M4 toolPose = poseMatrix(tool.orientationWxyz, tool.tipM);
   const V3 toolAxis{toolPose[8], toolPose[9], toolPose[10]};  // local +z in world
@@ -1114,7 +1052,7 @@ const std::vector<std::uint8_t>& Renderer::render(const SurfaceSnapshot& snap) {
     const auto tPrep = Clock::now();
     m.surface.update(snap, o.tMinC, o.look == "potential");
     prepareMs = msSince(tPrep);
-    useProgram(m.lookProgram[tool.present ? 1 : 0], identity);
+    useProgram(m.lookProgram[tool.present ? 1 : 0], kIdentityM4);
     gl.BindVertexArray(m.surfVao);
     gl.BindBuffer(GL_ARRAY_BUFFER, m.surfVbo);
     gl.BufferData(GL_ARRAY_BUFFER,
