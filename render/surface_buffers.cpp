@@ -1,0 +1,128 @@
+// surface_buffers.cpp - crease-limited smooth normals and the surface's GPU arrays
+// (see surface_buffers.h).
+#include "render/surface_buffers.h"
+
+#include <cmath>
+#include <cstring>
+
+#include "render/renderer.h"
+#include "render/vertex_layout.h"
+
+namespace esim::render_detail {
+
+std::array<float, 4> vertexState(const SurfaceSnapshot& snap, std::uint32_t v, float tDefaultC,
+                                 bool potential) {
+  return {potential ? snap.potentialV[v]
+                    : (snap.temperatureC.empty() ? tDefaultC : snap.temperatureC[v]),
+          snap.coagulation.empty() ? 0.0f : snap.coagulation[v],
+          snap.desiccation.empty() ? 0.0f : snap.desiccation[v],
+          snap.cutWall.empty() ? 0.0f : snap.cutWall[v]};
+}
+
+void SurfaceBuffers::update(const SurfaceSnapshot& snap, float tDefaultC, bool potential) {
+  geometryReused =
+      !vertices.empty() && snap.positionsM == lastPositionsM && snap.triangles == lastTriangles;
+  if (!geometryReused) {
+    build(snap, tDefaultC, potential);
+    lastPositionsM = snap.positionsM;
+    lastTriangles = snap.triangles;
+    return;
+  }
+  for (size_t c = 0; c < source.size(); ++c) {
+    const std::array<float, 4> s = vertexState(snap, source[c], tDefaultC, potential);
+    std::memcpy(&vertices[c * kFloatsPerVertex + kStateOffset], s.data(), sizeof s);
+  }
+}
+
+void SurfaceBuffers::build(const SurfaceSnapshot& snap, float tDefaultC, bool potential) {
+  std::vector<float>& out = vertices;
+  const int nv = snap.numVertices();
+  const int nt = snap.numTriangles();
+  const float* P = snap.positionsM.data();
+  auto pos = [&](std::uint32_t v) { return V3{P[3 * v], P[3 * v + 1], P[3 * v + 2]}; };
+  // 1. area-weighted face normals (|cross| = 2 area)
+  faceNormal.resize(nt);
+  faceLength.resize(nt);
+  for (int t = 0; t < nt; ++t) {
+    const std::uint32_t* tri = &snap.triangles[3 * t];
+    faceNormal[t] = cross(sub(pos(tri[1]), pos(tri[0])), sub(pos(tri[2]), pos(tri[0])));
+    faceLength[t] = norm(faceNormal[t]);
+  }
+  // 2. vertex -> incident triangles (CSR, ascending triangle ids)
+  offsets.assign(nv + 1, 0);
+  for (std::uint32_t v : snap.triangles) ++offsets[v + 1];
+  for (int v = 0; v < nv; ++v) offsets[v + 1] += offsets[v];
+  incident.resize(snap.triangles.size());
+  std::vector<int> fill(offsets.begin(), offsets.end() - 1);
+  for (int t = 0; t < nt; ++t)
+    for (int k = 0; k < 3; ++k) incident[fill[snap.triangles[3 * t + k]]++] = t;
+  // 3. per corner: sum of the incident face normals within the crease angle; corners
+  //    of a vertex with bit-identical normals share one GPU vertex (the sums run over
+  //    the same faces in the same order, so equal face sets give equal bits)
+  const float cosCrease = static_cast<float>(std::cos(kCreaseAngleDeg * 3.14159265358979 / 180.0));
+  out.clear();
+  source.clear();
+  out.reserve(static_cast<size_t>(nv) * kFloatsPerVertex * 5 / 4);
+  indices.resize(snap.triangles.size());
+  firstCopy.assign(nv, -1);  // first GPU vertex of each snapshot vertex
+  nextCopy.clear();          // chain of further copies (crease splits)
+  // normalized(faceNormal[t]) with the stored length (the same bits)
+  faceUnit.resize(nt);
+  for (int t = 0; t < nt; ++t)
+    faceUnit[t] = faceLength[t] > 0 ? mul(faceNormal[t], 1.0f / faceLength[t]) : V3{0, 0, 1};
+  // the corner's test: face g joins the sum of the corner of face t
+  auto joins = [&](int g, const V3& nf) {
+    return faceLength[g] > 0 && dot(faceNormal[g], nf) >= cosCrease * faceLength[g];
+  };
+  // 3a. smooth vertices (most): every incident face joins every corner's sum, so all
+  //     corners get the same sum over the same faces in the same order; it is formed
+  //     and normalised once (the same bits as per corner)
+  smoothNormal.resize(nv);
+  smooth.assign(nv, 0);
+  for (int v = 0; v < nv; ++v) {
+    bool all = true;
+    for (int i = offsets[v]; i < offsets[v + 1] && all; ++i)
+      for (int j = offsets[v]; j < offsets[v + 1] && all; ++j)
+        all = joins(incident[j], faceUnit[incident[i]]);
+    if (!all) continue;
+    V3 sum{0, 0, 0};
+    for (int i = offsets[v]; i < offsets[v + 1]; ++i) sum = add(sum, faceNormal[incident[i]]);
+    if (norm(sum) > 0) {
+      smoothNormal[v] = normalized(sum);
+      smooth[v] = 1;
+    }
+  }
+  // 3b. per corner
+  for (int t = 0; t < nt; ++t) {
+    const V3& nf = faceUnit[t];
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t v = snap.triangles[3 * t + k];
+      V3 n = smoothNormal[v];
+      if (!smooth[v]) {
+        V3 sum{0, 0, 0};
+        for (int i = offsets[v]; i < offsets[v + 1]; ++i)
+          if (joins(incident[i], nf)) sum = add(sum, faceNormal[incident[i]]);
+        n = norm(sum) > 0 ? normalized(sum) : nf;
+      }
+      int found = -1;
+      int* link = &firstCopy[v];
+      for (int c = *link; c >= 0; link = &nextCopy[c], c = *link) {
+        const float* q = &out[static_cast<size_t>(c) * kFloatsPerVertex + kNormalOffset];
+        if (q[0] == n[0] && q[1] == n[1] && q[2] == n[2]) {
+          found = c;
+          break;
+        }
+      }
+      if (found < 0) {
+        found = static_cast<int>(nextCopy.size());
+        *link = found;
+        nextCopy.push_back(-1);
+        pushVertex(out, pos(v), n, vertexState(snap, v, tDefaultC, potential));
+        source.push_back(v);
+      }
+      indices[3 * t + k] = static_cast<std::uint32_t>(found);
+    }
+  }
+}
+
+}  // namespace esim::render_detail

@@ -1,0 +1,52 @@
+// surface_buffers.h - the surface's GPU vertex and index arrays, built from a SurfaceSnapshot.
+//
+// An indexed triangle list with crease-limited smooth normals: area-weighted face
+// normals summed per corner over the incident faces within kCreaseAngleDeg
+// (renderer.h); a vertex is split only where its corners get different normals
+// (creases), so a smooth surface keeps one GPU vertex per snapshot vertex. Vertex
+// format: vertex_layout.h; the state is (T [C] or, for the potential look, phi [V],
+// coagulation, desiccation, cut wall), positions in metres.
+// Reuse: while a snapshot's positions and triangles are bit-identical to the
+// previous one's (no structural phase, or a frame without deformation) the normals
+// and the crease splits are the same, and update() rewrites the state columns only.
+// Ownership: SurfaceBuffers owns its arrays (and scratch space kept across frames);
+// the renderer uploads them. Internal to render/: not used outside the renderer.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "render/view_math.h"
+#include "sim/snapshot.h"
+
+namespace esim::render_detail {
+
+// the vertex state the shaders read: (T [C] or phi [V], coagulation, desiccation,
+// cut wall); tDefaultC when the snapshot has no temperatures
+std::array<float, 4> vertexState(const SurfaceSnapshot& snap, std::uint32_t v, float tDefaultC,
+                                 bool potential);
+
+// GPU vertex and index arrays of the surface, with what is needed to skip the
+// geometry on the next frame
+struct SurfaceBuffers {
+  std::vector<float> vertices;         // kFloatsPerVertex per GPU vertex
+  std::vector<std::uint32_t> indices;  // 3 per triangle
+  std::vector<std::uint32_t> source;   // GPU vertex -> snapshot vertex
+  std::vector<float> lastPositionsM;   // geometry the arrays were built from
+  std::vector<std::uint32_t> lastTriangles;
+  bool geometryReused = false;  // last update() rewrote the states only
+  // scratch
+  std::vector<V3> faceNormal, faceUnit, smoothNormal;
+  std::vector<float> faceLength;
+  std::vector<int> offsets, incident, firstCopy, nextCopy;
+  std::vector<std::uint8_t> smooth;
+
+  // brings the arrays to the snapshot: the states only when the geometry is
+  // unchanged, else build(); potential: the state's first entry is potentialV
+  void update(const SurfaceSnapshot& snap, float tDefaultC, bool potential);
+  // rebuilds normals, crease splits, vertices and indices from scratch
+  void build(const SurfaceSnapshot& snap, float tDefaultC, bool potential);
+};
+
+}  // namespace esim::render_detail
