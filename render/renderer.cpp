@@ -1,4 +1,9 @@
-// renderer.cpp - GL 3.3 core drawing of a SurfaceSnapshot (see renderer.h).
+// renderer.cpp - GL 3.3 core drawing of a SurfaceSnapshot (see renderer.h): option and
+// snapshot checks, GL set-up (programs, vertex arrays, textures, framebuffers, the
+// background column), and per frame: camera and lights, clear, surface, electrode, MSAA
+// resolve, read-back and background composite, then the CPU overlay. The parts live
+// beside it: shaders.h (GLSL), view_math.h, vertex_layout.h, surface_buffers.h,
+// tool_mesh.h, overlay.h.
 #include "render/renderer.h"
 
 #include <algorithm>
@@ -100,6 +105,92 @@ std::array<std::uint8_t, 3> backgroundColor(int row, int height) {
 
 // ---- Renderer ----
 
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// milliseconds from t to now
+double msSince(Clock::time_point t) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+}
+
+// what one frame's draws share: camera, lights and the electrode's pose (world, metres)
+struct FrameView {
+  M4 viewProj;                  // projection * view
+  V3 keyDir, fillDir, halfDir;  // towards the key and fill lights; Blinn-Phong half vector
+  M4 toolPose;                  // electrode frame -> world
+  V3 toolAxis;                  // electrode axis, tip to handle, in world
+  V3 toolSizes;                 // toolShadowSizes(): the shadow's capsules
+};
+
+// camera (clip planes from the camera distance: the tool may come close, the far
+// plane covers the surface), lights from the camera frame, electrode pose
+FrameView frameView(const RenderOptions& o, const SurfaceSnapshot& snap) {
+  FrameView f;
+  const float dist = norm(sub(o.targetM, o.eyeM));
+  float farM = 20 * dist;
+  for (int v = 0; v < snap.numVertices(); ++v) {
+    const V3 p{snap.positionsM[3 * v], snap.positionsM[3 * v + 1], snap.positionsM[3 * v + 2]};
+    farM = std::max(farM, 1.5f * norm(sub(p, o.eyeM)));
+  }
+  const M4 view = lookAt(o.eyeM, o.targetM, o.up);
+  const M4 proj = perspective(o.fovDeg, static_cast<float>(o.width) / o.height, 0.02f * dist, farM);
+  f.viewProj = matMul(proj, view);
+  const V3 fwd = normalized(sub(o.targetM, o.eyeM));
+  const V3 right = normalized(cross(fwd, o.up));
+  const V3 camUp = cross(right, fwd);
+  f.keyDir = normalized(add(add(mul(right, -0.45f), mul(camUp, 0.65f)), mul(fwd, -0.60f)));
+  f.fillDir = normalized(add(add(mul(right, 0.70f), mul(camUp, 0.10f)), mul(fwd, -0.50f)));
+  f.halfDir = normalized(sub(f.keyDir, fwd));  // towards the light + towards the viewer
+  const ToolSnapshot& tool = snap.tool;
+  f.toolPose = poseMatrix(tool.orientationWxyz, tool.tipM);
+  f.toolAxis = {f.toolPose[8], f.toolPose[9], f.toolPose[10]};  // local +z in world
+  f.toolSizes = toolShadowSizes(tool);
+  return f;
+}
+
+// tissue mottling: n x n lattice of hashed values (integer hash: identical everywhere)
+std::vector<std::uint8_t> mottlingNoise(int n) {
+  std::vector<std::uint8_t> noise(n * n);
+  for (int i = 0; i < n * n; ++i) {
+    std::uint32_t h = static_cast<std::uint32_t>(i) * 2654435761u + 0x9e3779b9u;
+    h ^= h >> 15;
+    h *= 0x2c1b3c6du;
+    h ^= h >> 12;
+    h *= 0x297a2d39u;
+    h ^= h >> 15;
+    noise[i] = static_cast<std::uint8_t>(h >> 24);
+  }
+  return noise;
+}
+
+// RGBA read-back (bottom row first) -> RGB24 frame (top row first), pixels still at
+// alpha 0 taking the background colour of their row from bgColumn (RGBA, bottom first)
+void compositeBackground(const std::vector<std::uint8_t>& readBuf,
+                         const std::vector<std::uint8_t>& bgColumn, int width, int height,
+                         std::vector<std::uint8_t>& frame) {
+  const size_t w = static_cast<size_t>(width);
+  for (int y = 0; y < height; ++y) {
+    const int glRow = height - 1 - y;
+    const std::uint8_t* src = &readBuf[w * 4 * glRow];
+    const std::uint8_t* bg = &bgColumn[4 * static_cast<size_t>(glRow)];
+    std::uint8_t* dst = &frame[w * 3 * y];
+    std::uint32_t bgWord;
+    std::memcpy(&bgWord, bg, 4);
+    // 4-byte stores 3 bytes apart (each overwrites the previous one's spare byte);
+    // the row's last pixel is stored as 3 bytes so nothing is written past the row
+    for (size_t x = 0; x + 1 < w; ++x, src += 4, dst += 3) {
+      std::uint32_t p;
+      std::memcpy(&p, src, 4);
+      if (src[3] == 0) p = bgWord;
+      std::memcpy(dst, &p, 4);
+    }
+    std::memcpy(dst, src[3] == 0 ? bg : src, 3);
+  }
+}
+
+}  // namespace
+
 struct Renderer::Impl {
   RenderOptions opt;
   std::unique_ptr<GlContext> ctx;
@@ -121,10 +212,37 @@ struct Renderer::Impl {
   std::vector<std::uint8_t> readBuf, frame;
   RenderTimings timings;
 
-  SurfaceProgram makeSurfaceProgram(int look, bool shadow);
+  // set-up: init() runs the create* steps and drawBackgroundColumn in this order
   void init();
-  void destroy();
+  // links the surface program of a look (kLook*), with or without the electrode's shadow
+  SurfaceProgram makeSurfaceProgram(int look, bool shadow);
+  void createPrograms();         // background and surface programs
+  void createVertexArrays();     // background (empty), surface (with its index buffer), tool
+  void createColormapTexture();  // the colour map as a 1D texture, unit 0
+  void createNoiseTexture();     // the tissue's mottling, unit 1
+  void createTargets();          // plain framebuffer, and the multisampled one with MSAA
+  void createMsaaTarget();       // multisampled framebuffer and the resolve program
+  void drawBackgroundColumn();   // the background pass, once: bgTex and bgColumn
+  void destroy();                // deletes the GL objects (the context must still be current-able)
+  // per frame, in render()'s order
+  void clearTarget();          // binds the draw framebuffer, clears colour (alpha 0) and depth
+  void bindSurfaceTextures();  // colour map on unit 0, noise on unit 1
+  // binds a surface program and sets its uniforms for this frame
+  void useSurfaceProgram(const SurfaceProgram& p, const M4& model, const FrameView& view,
+                         const ToolSnapshot& tool);
+  void drawSurface(const FrameView& view, const ToolSnapshot& tool);  // uploads and draws
+  void drawTool(const FrameView& view, const ToolSnapshot& tool);     // (re)builds and draws
+  void resolveAndReadBack();  // MSAA resolve, glReadPixels into readBuf, GL error check
 };
+
+void Renderer::Impl::init() {
+  createPrograms();
+  createVertexArrays();
+  createColormapTexture();
+  createNoiseTexture();
+  createTargets();
+  drawBackgroundColumn();
+}
 
 SurfaceProgram Renderer::Impl::makeSurfaceProgram(int look, bool shadow) {
   SurfaceVariant v;
@@ -136,7 +254,7 @@ SurfaceProgram Renderer::Impl::makeSurfaceProgram(int look, bool shadow) {
   return linkSurfaceProgram(ctx->gl(), v);
 }
 
-void Renderer::Impl::init() {
+void Renderer::Impl::createPrograms() {
   const GlFunctions& gl = ctx->gl();
   bgProgram = linkProgram(gl, kFullScreenVs, kBackgroundFs, "background");
   uSize = gl.GetUniformLocation(bgProgram, "uSize");
@@ -146,9 +264,12 @@ void Renderer::Impl::init() {
   lookProgram[0] = makeSurfaceProgram(look, false);
   lookProgram[1] = makeSurfaceProgram(look, opt.lighting);
   toolProgram = makeSurfaceProgram(kLookTool, false);
+}
 
+void Renderer::Impl::createVertexArrays() {
+  const GlFunctions& gl = ctx->gl();
   gl.GenVertexArrays(1, &bgVao);
-  // vertex arrays: position, normal, state (interleaved floats)
+  // vertex arrays: position, normal, state (interleaved floats, vertex_layout.h)
   auto makeVao = [&](GLuint& vao, GLuint& vbo) {
     gl.GenVertexArrays(1, &vao);
     gl.GenBuffers(1, &vbo);
@@ -169,8 +290,11 @@ void Renderer::Impl::init() {
   gl.BindBuffer(GL_ELEMENT_ARRAY_BUFFER, surfIbo);  // recorded in the vertex array
   gl.BindVertexArray(0);
   makeVao(toolVao, toolVbo);
+}
 
+void Renderer::Impl::createColormapTexture() {
   // colour map as a 1D texture: exactly the CPU table
+  const GlFunctions& gl = ctx->gl();
   const ColormapLut& lut = colormapLut(opt.colormap);
   gl.GenTextures(1, &lutTex);
   gl.BindTexture(GL_TEXTURE_1D, lutTex);
@@ -179,32 +303,27 @@ void Renderer::Impl::init() {
   gl.TexParameteri(GL_TEXTURE_1D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
   gl.TexParameteri(GL_TEXTURE_1D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
   gl.TexParameteri(GL_TEXTURE_1D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+}
 
-  // tissue mottling: 64^2 lattice of hashed values (integer hash: identical everywhere)
-  {
-    constexpr int n = 64;
-    std::vector<std::uint8_t> noise(n * n);
-    for (int i = 0; i < n * n; ++i) {
-      std::uint32_t h = static_cast<std::uint32_t>(i) * 2654435761u + 0x9e3779b9u;
-      h ^= h >> 15;
-      h *= 0x2c1b3c6du;
-      h ^= h >> 12;
-      h *= 0x297a2d39u;
-      h ^= h >> 15;
-      noise[i] = static_cast<std::uint8_t>(h >> 24);
-    }
-    gl.GenTextures(1, &noiseTex);
-    gl.ActiveTexture(GL_TEXTURE1);
-    gl.BindTexture(GL_TEXTURE_2D, noiseTex);
-    gl.TexImage2D(GL_TEXTURE_2D, 0, GL_R8, n, n, 0, GL_RED, GL_UNSIGNED_BYTE, noise.data());
-    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
-    gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_REPEAT);
-    gl.ActiveTexture(GL_TEXTURE0);
-  }
+void Renderer::Impl::createNoiseTexture() {
+  // tissue mottling: 64^2 lattice, bilinear and tiling (kSurfaceFs samples it twice)
+  const GlFunctions& gl = ctx->gl();
+  constexpr int n = 64;
+  const std::vector<std::uint8_t> noise = mottlingNoise(n);
+  gl.GenTextures(1, &noiseTex);
+  gl.ActiveTexture(GL_TEXTURE1);
+  gl.BindTexture(GL_TEXTURE_2D, noiseTex);
+  gl.TexImage2D(GL_TEXTURE_2D, 0, GL_R8, n, n, 0, GL_RED, GL_UNSIGNED_BYTE, noise.data());
+  gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+  gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
+  gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_REPEAT);
+  gl.ActiveTexture(GL_TEXTURE0);
+}
 
+void Renderer::Impl::createTargets() {
   // framebuffers: optional multisampled one, resolved into a plain one
+  const GlFunctions& gl = ctx->gl();
   auto makeFbo = [&](GLuint& f, GLuint& c, GLuint& d, int samples) {
     gl.GenFramebuffers(1, &f);
     gl.GenRenderbuffers(1, &c);
@@ -223,41 +342,47 @@ void Renderer::Impl::init() {
                     " samples) incomplete, status 0x" + std::to_string(status));
   };
   makeFbo(fbo, color, depth, 0);
-  if (opt.msaaSamples > 0) {
-    GLint maxSamples = 0;
-    gl.GetIntegerv(GL_MAX_SAMPLES, &maxSamples);
-    ESIM_VERIFY(opt.msaaSamples <= maxSamples,
-                "render.msaa_samples: " + std::to_string(opt.msaaSamples) +
-                    " exceeds the driver's GL_MAX_SAMPLES " + std::to_string(maxSamples));
-    // colour in a multisample texture (resolved by kResolveFs), depth in a renderbuffer
-    gl.GenFramebuffers(1, &msFbo);
-    gl.GenTextures(1, &msColor);
-    gl.GenRenderbuffers(1, &msDepth);
-    gl.BindTexture(GL_TEXTURE_2D_MULTISAMPLE, msColor);
-    gl.TexImage2DMultisample(GL_TEXTURE_2D_MULTISAMPLE, opt.msaaSamples, GL_RGBA8, opt.width,
-                             opt.height, GL_TRUE);
-    gl.BindTexture(GL_TEXTURE_2D_MULTISAMPLE, 0);
-    gl.BindRenderbuffer(GL_RENDERBUFFER, msDepth);
-    gl.RenderbufferStorageMultisample(GL_RENDERBUFFER, opt.msaaSamples, GL_DEPTH_COMPONENT24,
-                                      opt.width, opt.height);
-    gl.BindFramebuffer(GL_FRAMEBUFFER, msFbo);
-    gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D_MULTISAMPLE,
-                            msColor, 0);
-    gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, msDepth);
-    const GLenum status = gl.CheckFramebufferStatus(GL_FRAMEBUFFER);
-    ESIM_VERIFY(
-        status == GL_FRAMEBUFFER_COMPLETE,
-        "renderer: multisampled framebuffer incomplete, status 0x" + std::to_string(status));
-    const std::string fs = resolveFragmentSource(opt.msaaSamples);
-    resolveProgram = linkProgram(gl, kFullScreenVs, fs.c_str(), "msaa resolve");
-    gl.UseProgram(resolveProgram);
-    gl.Uniform1i(gl.GetUniformLocation(resolveProgram, "uSamples"), 2);
-    gl.Uniform1i(gl.GetUniformLocation(resolveProgram, "uBackground"), 3);
-    gl.UseProgram(0);
-  }
+  if (opt.msaaSamples > 0) createMsaaTarget();
+}
+
+void Renderer::Impl::createMsaaTarget() {
+  const GlFunctions& gl = ctx->gl();
+  GLint maxSamples = 0;
+  gl.GetIntegerv(GL_MAX_SAMPLES, &maxSamples);
+  ESIM_VERIFY(opt.msaaSamples <= maxSamples,
+              "render.msaa_samples: " + std::to_string(opt.msaaSamples) +
+                  " exceeds the driver's GL_MAX_SAMPLES " + std::to_string(maxSamples));
+  // colour in a multisample texture (resolved by kResolveFs), depth in a renderbuffer
+  gl.GenFramebuffers(1, &msFbo);
+  gl.GenTextures(1, &msColor);
+  gl.GenRenderbuffers(1, &msDepth);
+  gl.BindTexture(GL_TEXTURE_2D_MULTISAMPLE, msColor);
+  gl.TexImage2DMultisample(GL_TEXTURE_2D_MULTISAMPLE, opt.msaaSamples, GL_RGBA8, opt.width,
+                           opt.height, GL_TRUE);
+  gl.BindTexture(GL_TEXTURE_2D_MULTISAMPLE, 0);
+  gl.BindRenderbuffer(GL_RENDERBUFFER, msDepth);
+  gl.RenderbufferStorageMultisample(GL_RENDERBUFFER, opt.msaaSamples, GL_DEPTH_COMPONENT24,
+                                    opt.width, opt.height);
+  gl.BindFramebuffer(GL_FRAMEBUFFER, msFbo);
+  gl.FramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D_MULTISAMPLE, msColor,
+                          0);
+  gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, msDepth);
+  const GLenum status = gl.CheckFramebufferStatus(GL_FRAMEBUFFER);
+  ESIM_VERIFY(status == GL_FRAMEBUFFER_COMPLETE,
+              "renderer: multisampled framebuffer incomplete, status 0x" + std::to_string(status));
+  const std::string fs = resolveFragmentSource(opt.msaaSamples);
+  resolveProgram = linkProgram(gl, kFullScreenVs, fs.c_str(), "msaa resolve");
+  gl.UseProgram(resolveProgram);
+  gl.Uniform1i(gl.GetUniformLocation(resolveProgram, "uSamples"), 2);
+  gl.Uniform1i(gl.GetUniformLocation(resolveProgram, "uBackground"), 3);
+  gl.UseProgram(0);
+}
+
+void Renderer::Impl::drawBackgroundColumn() {
   // the background column (it depends on the row only), drawn once by the background
   // pass: a texture for the MSAA resolve, and read back for the composite on the CPU
-  // (render() step 5), so both paths store the bytes that pass would have stored
+  // (compositeBackground), so both paths store the bytes that pass would have stored
+  const GlFunctions& gl = ctx->gl();
   gl.GenTextures(1, &bgTex);
   gl.BindTexture(GL_TEXTURE_2D, bgTex);
   gl.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, 1, opt.height, 0, GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
@@ -312,6 +437,115 @@ void Renderer::Impl::destroy() {
   gl.DeleteRenderbuffers(3, rbs);
 }
 
+void Renderer::Impl::clearTarget() {
+  // target framebuffer, colour cleared to alpha 0 (everything drawn has alpha 1):
+  // the background is filled in where alpha stayed 0, by the MSAA resolve
+  // (kResolveFs) or, without MSAA, by compositeBackground after the read-back;
+  // a full-screen background pass would shade every pixel once more
+  const GlFunctions& gl = ctx->gl();
+  gl.BindFramebuffer(GL_FRAMEBUFFER, opt.msaaSamples > 0 ? msFbo : fbo);
+  gl.Viewport(0, 0, opt.width, opt.height);
+  gl.ClearColor(0, 0, 0, 0);
+  gl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  gl.Enable(GL_DEPTH_TEST);
+  gl.DepthMask(GL_TRUE);
+  gl.DepthFunc(GL_LESS);
+}
+
+void Renderer::Impl::bindSurfaceTextures() {
+  const GlFunctions& gl = ctx->gl();
+  gl.ActiveTexture(GL_TEXTURE1);
+  gl.BindTexture(GL_TEXTURE_2D, noiseTex);
+  gl.ActiveTexture(GL_TEXTURE0);
+  gl.BindTexture(GL_TEXTURE_1D, lutTex);
+}
+
+void Renderer::Impl::useSurfaceProgram(const SurfaceProgram& p, const M4& model,
+                                       const FrameView& view, const ToolSnapshot& tool) {
+  const GlFunctions& gl = ctx->gl();
+  gl.UseProgram(p.id);
+  gl.UniformMatrix4fv(p.uViewProj, 1, GL_FALSE, view.viewProj.data());
+  gl.UniformMatrix4fv(p.uModel, 1, GL_FALSE, model.data());
+  gl.Uniform1i(p.uColormap, 0);
+  gl.Uniform1i(p.uNoise, 1);
+  if (opt.look == "potential")
+    gl.Uniform2f(p.uTempRange, opt.vMinV, opt.vMaxV);
+  else
+    gl.Uniform2f(p.uTempRange, opt.tMinC, opt.tMaxC);
+  gl.Uniform3fv(p.uHalfDir, 1, view.halfDir.data());
+  gl.Uniform3fv(p.uKeyDir, 1, view.keyDir.data());
+  gl.Uniform3fv(p.uFillDir, 1, view.fillDir.data());
+  gl.Uniform3fv(p.uTipM, 1, tool.tipM.data());
+  gl.Uniform1f(p.uGlow, tool.present && tool.generatorOn ? 1.0f : 0.0f);
+  gl.Uniform3fv(p.uToolAxis, 1, view.toolAxis.data());
+  gl.Uniform3fv(p.uToolSizes, 1, view.toolSizes.data());
+}
+
+void Renderer::Impl::drawSurface(const FrameView& view, const ToolSnapshot& tool) {
+  // uploads `surface` (updated by render()) and draws it
+  const GlFunctions& gl = ctx->gl();
+  useSurfaceProgram(lookProgram[tool.present ? 1 : 0], kIdentityM4, view, tool);
+  gl.BindVertexArray(surfVao);
+  gl.BindBuffer(GL_ARRAY_BUFFER, surfVbo);
+  gl.BufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(surface.vertices.size() * sizeof(float)),
+                surface.vertices.data(), GL_STREAM_DRAW);
+  if (!surface.geometryReused)  // the element buffer belongs to surfVao
+    gl.BufferData(GL_ELEMENT_ARRAY_BUFFER,
+                  static_cast<GLsizeiptr>(surface.indices.size() * sizeof(std::uint32_t)),
+                  surface.indices.data(), GL_STATIC_DRAW);
+  // a closed surface, counter-clockwise from outside: its back faces are hidden
+  if (opt.cullBackFaces) gl.Enable(GL_CULL_FACE);
+  gl.DrawElements(GL_TRIANGLES, static_cast<GLsizei>(surface.indices.size()), GL_UNSIGNED_INT,
+                  nullptr);
+  gl.Disable(GL_CULL_FACE);
+}
+
+void Renderer::Impl::drawTool(const FrameView& view, const ToolSnapshot& tool) {
+  // the mesh is rebuilt only when the electrode's shape changes
+  const GlFunctions& gl = ctx->gl();
+  if (!toolBuilt || !sameToolShape(tool, toolCached)) {
+    const std::vector<float> verts = buildToolVertices(tool);
+    gl.BindBuffer(GL_ARRAY_BUFFER, toolVbo);
+    gl.BufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(verts.size() * sizeof(float)),
+                  verts.data(), GL_STATIC_DRAW);
+    toolVertexCount = static_cast<int>(verts.size() / kFloatsPerVertex);
+    toolCached = tool;
+    toolBuilt = true;
+  }
+  useSurfaceProgram(toolProgram, view.toolPose, view, tool);
+  gl.BindVertexArray(toolVao);
+  gl.DrawArrays(GL_TRIANGLES, 0, toolVertexCount);
+}
+
+void Renderer::Impl::resolveAndReadBack() {
+  // MSAA resolve into the plain framebuffer, then its RGBA into readBuf (GL rows are
+  // bottom-up); compositeBackground turns it into the frame
+  const GlFunctions& gl = ctx->gl();
+  gl.BindFramebuffer(GL_FRAMEBUFFER, fbo);
+  if (opt.msaaSamples > 0) {
+    gl.Disable(GL_DEPTH_TEST);
+    gl.UseProgram(resolveProgram);  // samplers: uSamples unit 2, uBackground unit 3
+    gl.ActiveTexture(GL_TEXTURE3);
+    gl.BindTexture(GL_TEXTURE_2D, bgTex);
+    gl.ActiveTexture(GL_TEXTURE2);
+    gl.BindTexture(GL_TEXTURE_2D_MULTISAMPLE, msColor);
+    gl.BindVertexArray(bgVao);
+    gl.DrawArrays(GL_TRIANGLES, 0, 3);
+    gl.BindVertexArray(0);
+    gl.ActiveTexture(GL_TEXTURE0);
+  }
+  // RGBA is the framebuffer's own layout (a copy in the driver); the composite packs
+  // it to RGB, flips the rows and puts the background where alpha is still 0
+  gl.ReadBuffer(GL_COLOR_ATTACHMENT0);
+  gl.PixelStorei(GL_PACK_ALIGNMENT, 1);
+  const size_t w = static_cast<size_t>(opt.width);
+  readBuf.resize(w * 4 * opt.height);
+  frame.resize(w * 3 * opt.height);
+  gl.ReadPixels(0, 0, opt.width, opt.height, GL_RGBA, GL_UNSIGNED_BYTE, readBuf.data());
+  const GLenum err = gl.GetError();
+  ESIM_VERIFY(err == GL_NO_ERROR, "renderer: GL error 0x" + std::to_string(err) + " while drawing");
+}
+
 Renderer::Renderer(const RenderOptions& options) : impl_(std::make_unique<Impl>()) {
   validateRenderOptions(options);
   impl_->opt = options;
@@ -328,10 +562,6 @@ const RenderOptions& Renderer::options() const { return impl_->opt; }
 const RenderTimings& Renderer::lastTimings() const { return impl_->timings; }
 
 const std::vector<std::uint8_t>& Renderer::render(const SurfaceSnapshot& snap) {
-  using Clock = std::chrono::steady_clock;
-  auto msSince = [](Clock::time_point t) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-  };
   const auto tStart = Clock::now();
   validateSnapshot(snap, impl_->opt);
   Impl& m = *impl_;
@@ -339,147 +569,30 @@ const std::vector<std::uint8_t>& Renderer::render(const SurfaceSnapshot& snap) {
   m.ctx->makeCurrent();
   const GlFunctions& gl = m.ctx->gl();
 
-  // 1. camera: clip planes from the camera distance (the tool may come close)
-  const float dist = norm(sub(o.targetM, o.eyeM));
-  float farM = 20 * dist;
-  for (int v = 0; v < snap.numVertices(); ++v) {
-    const V3 p{snap.positionsM[3 * v], snap.positionsM[3 * v + 1], snap.positionsM[3 * v + 2]};
-    farM = std::max(farM, 1.5f * norm(sub(p, o.eyeM)));
-  }
-  const M4 view = lookAt(o.eyeM, o.targetM, o.up);
-  const M4 proj = perspective(o.fovDeg, static_cast<float>(o.width) / o.height, 0.02f * dist, farM);
-  const M4 viewProj = matMul(proj, view);
-  const V3 fwd = normalized(sub(o.targetM, o.eyeM));
-  const V3 right = normalized(cross(fwd, o.up));
-  const V3 camUp = cross(right, fwd);
-  const V3 keyDir = normalized(add(add(mul(right, -0.45f), mul(camUp, 0.65f)), mul(fwd, -0.60f)));
-  const V3 fillDir = normalized(add(add(mul(right, 0.70f), mul(camUp, 0.10f)), mul(fwd, -0.50f)));
-  const V3 halfDir = normalized(sub(keyDir, fwd));  // towards the light + towards the viewer
-
-  // 2. target framebuffer, colour cleared to alpha 0 (everything drawn has alpha 1):
-  //    the background is filled in where alpha stayed 0, by the MSAA resolve
-  //    (kResolveFs) or, without MSAA, by the composite after the read-back (step 5);
-  //    a full-screen background pass would shade every pixel once more
-  gl.BindFramebuffer(GL_FRAMEBUFFER, o.msaaSamples > 0 ? m.msFbo : m.fbo);
-  gl.Viewport(0, 0, o.width, o.height);
-  gl.ClearColor(0, 0, 0, 0);
-  gl.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-  gl.Enable(GL_DEPTH_TEST);
-  gl.DepthMask(GL_TRUE);
-  gl.DepthFunc(GL_LESS);
-
-  // 3. surface
-  const ToolSnapshot& tool = snap.tool;
-  const M4 toolPose = poseMatrix(tool.orientationWxyz, tool.tipM);
-  const V3 toolAxis{toolPose[8], toolPose[9], toolPose[10]};  // local +z in world
-  const V3 toolSizes = toolShadowSizes(tool);
-  auto useProgram = [&](const SurfaceProgram& p, const M4& model) {
-    gl.UseProgram(p.id);
-    gl.UniformMatrix4fv(p.uViewProj, 1, GL_FALSE, viewProj.data());
-    gl.UniformMatrix4fv(p.uModel, 1, GL_FALSE, model.data());
-    gl.Uniform1i(p.uColormap, 0);
-    gl.Uniform1i(p.uNoise, 1);
-    if (o.look == "potential")
-      gl.Uniform2f(p.uTempRange, o.vMinV, o.vMaxV);
-    else
-      gl.Uniform2f(p.uTempRange, o.tMinC, o.tMaxC);
-    gl.Uniform3fv(p.uHalfDir, 1, halfDir.data());
-    gl.Uniform3fv(p.uKeyDir, 1, keyDir.data());
-    gl.Uniform3fv(p.uFillDir, 1, fillDir.data());
-    gl.Uniform3fv(p.uTipM, 1, tool.tipM.data());
-    gl.Uniform1f(p.uGlow, tool.present && tool.generatorOn ? 1.0f : 0.0f);
-    gl.Uniform3fv(p.uToolAxis, 1, toolAxis.data());
-    gl.Uniform3fv(p.uToolSizes, 1, toolSizes.data());
-  };
-  gl.ActiveTexture(GL_TEXTURE1);
-  gl.BindTexture(GL_TEXTURE_2D, m.noiseTex);
-  gl.ActiveTexture(GL_TEXTURE0);
-  gl.BindTexture(GL_TEXTURE_1D, m.lutTex);
+  // 1. camera, lights, electrode pose; 2. clear the target
+  const FrameView view = frameView(o, snap);
+  m.clearTarget();
+  // 3. surface: vertex arrays on the CPU (timed as prepare), upload and draw
+  m.bindSurfaceTextures();
   double prepareMs = 0;
   if (snap.numTriangles() > 0) {
     const auto tPrep = Clock::now();
     m.surface.update(snap, o.tMinC, o.look == "potential");
     prepareMs = msSince(tPrep);
-    useProgram(m.lookProgram[tool.present ? 1 : 0], kIdentityM4);
-    gl.BindVertexArray(m.surfVao);
-    gl.BindBuffer(GL_ARRAY_BUFFER, m.surfVbo);
-    gl.BufferData(GL_ARRAY_BUFFER,
-                  static_cast<GLsizeiptr>(m.surface.vertices.size() * sizeof(float)),
-                  m.surface.vertices.data(), GL_STREAM_DRAW);
-    if (!m.surface.geometryReused)  // the element buffer belongs to surfVao
-      gl.BufferData(GL_ELEMENT_ARRAY_BUFFER,
-                    static_cast<GLsizeiptr>(m.surface.indices.size() * sizeof(std::uint32_t)),
-                    m.surface.indices.data(), GL_STATIC_DRAW);
-    // a closed surface, counter-clockwise from outside: its back faces are hidden
-    if (o.cullBackFaces) gl.Enable(GL_CULL_FACE);
-    gl.DrawElements(GL_TRIANGLES, static_cast<GLsizei>(m.surface.indices.size()), GL_UNSIGNED_INT,
-                    nullptr);
-    gl.Disable(GL_CULL_FACE);
+    m.drawSurface(view, snap.tool);
   }
-
-  // 4. electrode (mesh rebuilt only when its shape changes)
-  if (tool.present) {
-    if (!m.toolBuilt || !sameToolShape(tool, m.toolCached)) {
-      const std::vector<float> verts = buildToolVertices(tool);
-      gl.BindBuffer(GL_ARRAY_BUFFER, m.toolVbo);
-      gl.BufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(verts.size() * sizeof(float)),
-                    verts.data(), GL_STATIC_DRAW);
-      m.toolVertexCount = static_cast<int>(verts.size() / kFloatsPerVertex);
-      m.toolCached = tool;
-      m.toolBuilt = true;
-    }
-    useProgram(m.toolProgram, toolPose);
-    gl.BindVertexArray(m.toolVao);
-    gl.DrawArrays(GL_TRIANGLES, 0, m.toolVertexCount);
-  }
+  // 4. electrode
+  if (snap.tool.present) m.drawTool(view, snap.tool);
   gl.BindVertexArray(0);
 
-  // 5. resolve and read back (GL rows are bottom-up)
+  // 5. resolve, read back and composite the background
   gl.Finish();
   m.timings.drawMs = msSince(tStart) - prepareMs;
   const auto tRead = Clock::now();
-  gl.BindFramebuffer(GL_FRAMEBUFFER, m.fbo);
-  if (o.msaaSamples > 0) {
-    gl.Disable(GL_DEPTH_TEST);
-    gl.UseProgram(m.resolveProgram);  // samplers: uSamples unit 2, uBackground unit 3
-    gl.ActiveTexture(GL_TEXTURE3);
-    gl.BindTexture(GL_TEXTURE_2D, m.bgTex);
-    gl.ActiveTexture(GL_TEXTURE2);
-    gl.BindTexture(GL_TEXTURE_2D_MULTISAMPLE, m.msColor);
-    gl.BindVertexArray(m.bgVao);
-    gl.DrawArrays(GL_TRIANGLES, 0, 3);
-    gl.BindVertexArray(0);
-    gl.ActiveTexture(GL_TEXTURE0);
-  }
-  // RGBA is the framebuffer's own layout (a copy in the driver); the composite packs
-  // it to RGB, flips the rows and puts the background where alpha is still 0
-  gl.ReadBuffer(GL_COLOR_ATTACHMENT0);
-  gl.PixelStorei(GL_PACK_ALIGNMENT, 1);
-  const size_t w = static_cast<size_t>(o.width);
-  m.readBuf.resize(w * 4 * o.height);
-  m.frame.resize(w * 3 * o.height);
-  gl.ReadPixels(0, 0, o.width, o.height, GL_RGBA, GL_UNSIGNED_BYTE, m.readBuf.data());
-  const GLenum err = gl.GetError();
-  ESIM_VERIFY(err == GL_NO_ERROR, "renderer: GL error 0x" + std::to_string(err) + " while drawing");
-  for (int y = 0; y < o.height; ++y) {
-    const int glRow = o.height - 1 - y;
-    const std::uint8_t* src = &m.readBuf[w * 4 * glRow];
-    const std::uint8_t* bg = &m.bgColumn[4 * static_cast<size_t>(glRow)];
-    std::uint8_t* dst = &m.frame[w * 3 * y];
-    std::uint32_t bgWord;
-    std::memcpy(&bgWord, bg, 4);
-    // 4-byte stores 3 bytes apart (each overwrites the previous one's spare byte);
-    // the row's last pixel is stored as 3 bytes so nothing is written past the row
-    for (size_t x = 0; x + 1 < w; ++x, src += 4, dst += 3) {
-      std::uint32_t p;
-      std::memcpy(&p, src, 4);
-      if (src[3] == 0) p = bgWord;
-      std::memcpy(dst, &p, 4);
-    }
-    std::memcpy(dst, src[3] == 0 ? bg : src, 3);
-  }
-
+  m.resolveAndReadBack();
+  compositeBackground(m.readBuf, m.bgColumn, o.width, o.height, m.frame);
   m.timings.readbackMs = msSince(tRead);
+
   // 6. overlay on the CPU
   const auto tOverlay = Clock::now();
   drawOverlay(m.frame, o, snap.timeS);
