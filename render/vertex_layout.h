@@ -4,7 +4,8 @@
 // a state (4) that the surface shaders read per look: (T [C] or phi [V],
 // coagulation, desiccation, cut wall) for the tissue, (albedo rgb, material id) for
 // the electrode. Attribute locations 0, 1, 2 of the vertex arrays (renderer.cpp).
-// Internal to render/: not used outside the renderer.
+// Ownership: pushVertex appends to the caller's vector. Internal to render/: not used
+// outside the renderer.
 #pragma once
 
 #include <array>

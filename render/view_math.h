@@ -2,9 +2,9 @@
 //
 // V3 is a 3-vector (positions in metres, or unit directions); M4 a 4x4 matrix
 // stored column-major, as OpenGL's glUniformMatrix4fv wants it (element (row r,
-// column c) at [c * 4 + r]). Everything is plain values, inline, float arithmetic
-// only (the build forbids FMA contraction, so the bits are the same in every
-// translation unit). Internal to render/: not used outside the renderer.
+// column c) at [c * 4 + r]). Inline, float arithmetic only (the build forbids FMA
+// contraction, so the bits are the same in every translation unit).
+// Ownership: plain values in and out. Internal to render/: not used outside the renderer.
 #pragma once
 
 #include <array>
