@@ -128,6 +128,8 @@ struct ThermalPhase::Impl {
 
   mutable double stableDt = -1;  // explicit limit, computed on first use
 
+  struct Stepper;  // one call of step(), in parts (see "the step")
+
   // workspace
   Eigen::VectorXd load, flux, rhs, g, tempNew, kTemp, tempOld, enthalpy0, work, cgR, cgZ, cgP, cgAp,
       cgKp, diagS, diagPrec;
@@ -414,13 +416,83 @@ double ThermalPhase::stableExplicitDtS() const {
 }
 
 // ---- the step ----
+//
+// step() in parts; they share one call's context through a Stepper (below):
+//   assembleSource       nodal load F from the per-tet source
+//   uniformEnthalpy      skip test: at rest nothing changes but time and damage
+//   explicitSubsteps     theta = 0: H += h M^-1 (F - K T), sub-stepped below the limit
+//   implicitStep         theta = 1/2, 1:
+//     chooseLinearSolver   cg or cholmod for this (dt, theta)
+//     thetaLoad            G = F - (1 - theta) K T0, fixed over the step
+//     boilingPredictor     explicit first guess of H (boiling, lumped mass)
+//     chernoffIteration    chernoffRhs, solveLinear (solveCg or solveDirect), fluxUpdate,
+//                          until T(H) settles
+//   accumulateDamage     arrhenius integral over each (sub)step
+//   updateVapor, storeEnergySplit, markDesiccated: the derived fields
+
+namespace {
+
+// theta of the theta scheme: 0 explicit, 1/2 crank-nicolson, 1 backward euler
+double thetaOf(ThermalIntegrator integrator) {
+  switch (integrator) {
+    case ThermalIntegrator::Explicit:
+      return 0.0;
+    case ThermalIntegrator::BackwardEuler:
+      return 1.0;
+    case ThermalIntegrator::CrankNicolson:
+      return 0.5;
+  }
+  return 0.0;
+}
+
+}  // namespace
+
+// one call of step(): the phase's operators and mesh data, the caller's state, the stats
+struct ThermalPhase::Impl::Stepper {
+  Impl& m;
+  const ThermalParams& p;
+  const Derived d;
+  const std::vector<Tet>& tets;
+  const std::vector<std::uint8_t>& alive;
+  const std::vector<double>& volumeM3;
+  const int n;
+  const double dtS;
+  const double theta;
+  ThermalState& s;
+  StepStats stats{};
+  double sourcePowerW = 0;  // set by assembleSource [W]
+  bool anySource = false;   // ... some alive tet has a nonzero source
+
+  void assembleSource(const std::vector<double>& sourceW_m3);
+  void updateTemperature();
+  bool uniformEnthalpy() const;
+  void accumulateDamage(double h, const Eigen::VectorXd& t0, const Eigen::VectorXd& t1);
+  void solveMass(const Eigen::VectorXd& x, Eigen::VectorXd& y);
+  double convectedPowerW(const Eigen::VectorXd& t) const;
+
+  void explicitSubsteps(double limitS);
+
+  void implicitStep();
+  void chooseLinearSolver();
+  void setChernoffDiagonal();
+  bool solveCg(const Eigen::VectorXd& b, Eigen::VectorXd& x, Eigen::VectorXd& kx, double errorK);
+  void solveDirect(const Eigen::VectorXd& b, Eigen::VectorXd& x, Eigen::VectorXd& kx);
+  void solveLinear(const Eigen::VectorXd& b, Eigen::VectorXd& x, Eigen::VectorXd& kx,
+                   double errorK);
+  void thetaLoad();
+  void boilingPredictor();
+  void chernoffIteration();
+  void chernoffRhs(bool pin, bool wasPinned);
+  double fluxUpdate();
+
+  void updateVapor();
+  void storeEnergySplit();
+  void markDesiccated();
+};
 
 ThermalPhase::StepStats ThermalPhase::step(double dtS, const std::vector<double>& sourceW_m3,
                                            ThermalState& s) {
-  Impl& m = *impl_;
   const int n = numNodes_;
-  const ThermalParams& p = params_;
-  const Derived d = derivedOf(p);
   ESIM_VERIFY(std::isfinite(dtS) && dtS > 0,
               "thermal step: dt = " + fmt(dtS) + " s: must be > 0 and finite");
   ESIM_VERIFY(sourceW_m3.size() == tets_.size(),
@@ -431,302 +503,410 @@ ThermalPhase::StepStats ThermalPhase::step(double dtS, const std::vector<double>
           s.damageOmega.size() == tets_.size() && s.coagulationTet.size() == tets_.size() &&
           s.vaporFractionTet.size() == tets_.size() && s.desiccatedTet.size() == tets_.size(),
       "thermal step: the state does not match the mesh (call initState)");
+  Impl::Stepper st{.m = *impl_,
+                   .p = params_,
+                   .d = derivedOf(params_),
+                   .tets = tets_,
+                   .alive = alive_,
+                   .volumeM3 = volumeM3_,
+                   .n = n,
+                   .dtS = dtS,
+                   .theta = thetaOf(params_.integrator),
+                   .s = s};
 
-  // ---- nodal source load F_i = sum_e Q_e V_e / 4 [W] ----
+  st.assembleSource(sourceW_m3);
+  st.updateTemperature();  // from the primary unknown
+
+  // skip: nothing can change but time and damage
+  if (!st.anySource && !impl_->convectionActive && st.uniformEnthalpy()) {
+    st.accumulateDamage(dtS, s.temperatureC, s.temperatureC);
+    s.timeS += dtS;
+    st.stats.skipped = true;
+    return st.stats;
+  }
+
+  if (params_.integrator == ThermalIntegrator::Explicit)
+    st.explicitSubsteps(stableExplicitDtS());
+  else
+    st.implicitStep();
+
+  // derived fields: vapour per node and tet, energy split, desiccation
+  s.timeS += dtS;
+  s.sourceJ += dtS * st.sourcePowerW;
+  st.updateVapor();
+  st.storeEnergySplit();
+  if (params_.boiling) st.markDesiccated();
+  return st.stats;
+}
+
+// ---- step: shared parts ----
+
+// nodal source load F_i = sum_e Q_e V_e / 4 [W]: P1 spreads a tet's heat evenly over its
+// four nodes. also the total power, for the energy balance
+void ThermalPhase::Impl::Stepper::assembleSource(const std::vector<double>& sourceW_m3) {
   m.load.setZero();
-  double sourcePowerW = 0;
-  bool anySource = false;
-  for (size_t e = 0; e < tets_.size(); ++e) {
-    if (!alive_[e]) continue;
+  sourcePowerW = 0;
+  anySource = false;
+  for (size_t e = 0; e < tets.size(); ++e) {
+    if (!alive[e]) continue;
     const double q = sourceW_m3[e];
     ESIM_VERIFY(std::isfinite(q), "thermal step: source of tet " + std::to_string(e) + " is " +
                                       fmt(q) + " W/m^3 (must be finite)");
     if (q == 0) continue;
     anySource = true;
-    const double powerW = q * volumeM3_[e];
+    const double powerW = q * volumeM3[e];
     sourcePowerW += powerW;
-    for (int v : tets_[e]) m.load[v] += 0.25 * powerW;
+    for (int v : tets[e]) m.load[v] += 0.25 * powerW;
   }
+}
 
-  // temperature from the primary unknown
+// T = T(H) on every node: enthalpy is the primary unknown
+void ThermalPhase::Impl::Stepper::updateTemperature() {
+  Eigen::VectorXd& temp = s.temperatureC;
+  const Eigen::VectorXd& enth = s.enthalpyJ_m3;
+  for (int i = 0; i < n; ++i) temp[i] = d.temperature(enth[i]);
+}
+
+// same enthalpy on every active node? with no source and no convection that field is at
+// rest (the rows of the conduction matrix sum to zero); orphan nodes exchange nothing
+bool ThermalPhase::Impl::Stepper::uniformEnthalpy() const {
+  const Eigen::VectorXd& enth = s.enthalpyJ_m3;
+  bool uniform = true;
+  double h0 = 0;
+  bool first = true;
+  for (int i = 0; i < n && uniform; ++i) {
+    if (!m.active[i]) continue;
+    if (first) {
+      h0 = enth[i];
+      first = false;
+    } else if (enth[i] != h0)
+      uniform = false;
+  }
+  return uniform;
+}
+
+// arrhenius damage over a (sub)step of length h: Omega += A exp(-Ea/(R T_K)) h, trapezoid
+// rule on the tet mean temperature in kelvin at both ends; coagulation 1 - exp(-Omega)
+void ThermalPhase::Impl::Stepper::accumulateDamage(double h, const Eigen::VectorXd& t0,
+                                                   const Eigen::VectorXd& t1) {
+  if (!p.damage) return;
+  const double ea = p.arrheniusEa_J_mol / kGasConstantJ_molK;
+  for (size_t e = 0; e < tets.size(); ++e) {
+    if (!alive[e]) continue;
+    const Tet& t = tets[e];
+    const double m0 = 0.25 * (t0[t[0]] + t0[t[1]] + t0[t[2]] + t0[t[3]]) + kKelvinOffset;
+    const double m1 = 0.25 * (t1[t[0]] + t1[t[1]] + t1[t[2]] + t1[t[3]]) + kKelvinOffset;
+    s.damageOmega[e] += 0.5 * h * p.arrheniusA_s * (std::exp(-ea / m0) + std::exp(-ea / m1));
+    s.coagulationTet[e] = -std::expm1(-s.damageOmega[e]);
+  }
+}
+
+// y = M^-1 x on the active nodes; orphan nodes hold no mass and get 0
+void ThermalPhase::Impl::Stepper::solveMass(const Eigen::VectorXd& x, Eigen::VectorXd& y) {
+  if (p.lumpedMass) {
+    for (int i = 0; i < n; ++i) y[i] = m.active[i] ? x[i] / m.massM3[i] : 0.0;
+  } else {
+    y = m.massFactor->solve(x);
+    for (int i = 0; i < n; ++i)
+      if (!m.active[i]) y[i] = 0.0;
+  }
+}
+
+// heat lost through the cooled faces at temperature t [W]: h (T - T_amb) A
+double ThermalPhase::Impl::Stepper::convectedPowerW(const Eigen::VectorXd& t) const {
+  return m.convectionActive ? m.convectionColSum.dot(t) - m.convectionLoadTotalW : 0.0;
+}
+
+// ---- step: explicit ----
+
+// theta = 0: H += h M^-1 (F - K T) per sub-step, h = dt / substeps at most the stability
+// limit; above the limit without sub-stepping it is an error (the scheme would blow up)
+void ThermalPhase::Impl::Stepper::explicitSubsteps(double limitS) {
   Eigen::VectorXd& temp = s.temperatureC;
   Eigen::VectorXd& enth = s.enthalpyJ_m3;
-  for (int i = 0; i < n; ++i) temp[i] = d.temperature(enth[i]);
-
-  // Arrhenius damage over a (sub)step, trapezoid rule on the tet mean temperature
-  auto accumulateDamage = [&](double h, const Eigen::VectorXd& t0, const Eigen::VectorXd& t1) {
-    if (!p.damage) return;
-    const double ea = p.arrheniusEa_J_mol / kGasConstantJ_molK;
-    for (size_t e = 0; e < tets_.size(); ++e) {
-      if (!alive_[e]) continue;
-      const Tet& t = tets_[e];
-      const double m0 = 0.25 * (t0[t[0]] + t0[t[1]] + t0[t[2]] + t0[t[3]]) + kKelvinOffset;
-      const double m1 = 0.25 * (t1[t[0]] + t1[t[1]] + t1[t[2]] + t1[t[3]]) + kKelvinOffset;
-      s.damageOmega[e] += 0.5 * h * p.arrheniusA_s * (std::exp(-ea / m0) + std::exp(-ea / m1));
-      s.coagulationTet[e] = -std::expm1(-s.damageOmega[e]);
-    }
-  };
-
-  StepStats stats;
-  // ---- skip: nothing can change but time and damage ----
-  if (!anySource && !m.convectionActive) {
-    bool uniform = true;
-    double h0 = 0;
-    bool first = true;
-    for (int i = 0; i < n && uniform; ++i) {
-      if (!m.active[i]) continue;
-      if (first) {
-        h0 = enth[i];
-        first = false;
-      } else if (enth[i] != h0)
-        uniform = false;
-    }
-    if (uniform) {
-      accumulateDamage(dtS, temp, temp);
-      s.timeS += dtS;
-      stats.skipped = true;
-      return stats;
-    }
+  int substeps = 1;
+  if (dtS > limitS) {
+    ESIM_VERIFY(p.allowSubstepping,
+                "thermal explicit step: dt = " + fmt(dtS) + " s exceeds the stability limit " +
+                    fmt(limitS) +
+                    " s of this mesh; enable sub-stepping (allow_substepping) or use "
+                    "backward-euler / crank-nicolson");
+    substeps = static_cast<int>(std::ceil(dtS / limitS));
   }
-
-  auto solveMass = [&](const Eigen::VectorXd& x, Eigen::VectorXd& y) {
-    if (p.lumpedMass) {
-      for (int i = 0; i < n; ++i) y[i] = m.active[i] ? x[i] / m.massM3[i] : 0.0;
-    } else {
-      y = m.massFactor->solve(x);
-      for (int i = 0; i < n; ++i)
-        if (!m.active[i]) y[i] = 0.0;
-    }
-  };
-  auto convectedPowerW = [&](const Eigen::VectorXd& t) {
-    return m.convectionActive ? m.convectionColSum.dot(t) - m.convectionLoadTotalW : 0.0;
-  };
-
-  if (p.integrator == ThermalIntegrator::Explicit) {
-    // ---- explicit: H += h M^-1 (F - K T), sub-stepped below the limit ----
-    const double limit = stableExplicitDtS();
-    int substeps = 1;
-    if (dtS > limit) {
-      ESIM_VERIFY(p.allowSubstepping,
-                  "thermal explicit step: dt = " + fmt(dtS) + " s exceeds the stability limit " +
-                      fmt(limit) +
-                      " s of this mesh; enable sub-stepping (allow_substepping) or use "
-                      "backward-euler / crank-nicolson");
-      substeps = static_cast<int>(std::ceil(dtS / limit));
-    }
-    const double h = dtS / substeps;
-    for (int k = 0; k < substeps; ++k) {
-      m.flux = m.load + m.convectionLoadW;
-      m.flux.noalias() -= m.stiffnessRows * temp;
-      s.convectedJ += h * convectedPowerW(temp);
-      solveMass(m.flux, m.work);
-      enth += h * m.work;
-      m.tempOld = temp;
-      for (int i = 0; i < n; ++i) temp[i] = d.temperature(enth[i]);
-      accumulateDamage(h, m.tempOld, temp);
-    }
-    stats.substeps = substeps;
-    stats.iterations = 0;
-  } else {
-    // ---- implicit theta scheme with the Chernoff iteration on T(H) ----
-    const double theta = p.integrator == ThermalIntegrator::BackwardEuler ? 1.0 : 0.5;
-    const double crho = d.crho;
-    // choose the linear solver for this (dt, theta)
-    if (m.cgDecidedDt != dtS || m.cgDecidedTheta != theta) {
-      m.cgDecidedDt = dtS;
-      m.cgDecidedTheta = theta;
-      bool cg = p.lumpedMass && p.linearSolver != ThermalLinearSolver::Direct;
-      if (cg && p.linearSolver == ThermalLinearSolver::Auto) {
-        double lo = std::numeric_limits<double>::infinity(), hi = 0;
-        for (int i = 0; i < n; ++i) {
-          if (!m.active[i]) continue;
-          const double si = crho * m.massM3[i] / dtS;
-          const double di = si + theta * m.stiffnessDiag[i];
-          lo = std::min(lo, si / di);
-          hi = std::max(hi, (si + theta * m.stiffnessAbsRow[i]) / di);
-        }
-        cg = hi <= kCgMaxCondition * lo;
-      }
-      m.useCg = cg;
-      for (int i = 0; i < n; ++i) {
-        m.diagS[i] = m.active[i] ? crho * m.massM3[i] / dtS : 1.0;
-        m.diagPrec[i] = 1.0 / (m.diagS[i] + theta * m.stiffnessDiag[i]);
-      }
-    }
-    // A x = b, lumped mass: A = diag(S) + theta K; kx = K x on entry and on exit (tracked
-    // along the iteration, so that no product is spent on it). Stops when the preconditioned
-    // residual (~ the error in kelvin, A being close to its diagonal) is below errorK.
-    auto solveCg = [&](const Eigen::VectorXd& b, Eigen::VectorXd& x, Eigen::VectorXd& kx,
-                       double errorK) -> bool {
-      m.cgR = b - m.diagS.cwiseProduct(x) - theta * kx;
-      m.cgZ = m.diagPrec.cwiseProduct(m.cgR);
-      if (m.cgZ.cwiseAbs().maxCoeff() <= errorK) return true;
-      m.cgP = m.cgZ;
-      double rz = m.cgR.dot(m.cgZ);
-      for (int it = 0; it < kCgMaxIterations; ++it) {
-        m.cgKp.noalias() = m.stiffnessRows * m.cgP;
-        m.cgAp = m.diagS.cwiseProduct(m.cgP) + theta * m.cgKp;
-        const double alpha = rz / m.cgP.dot(m.cgAp);
-        x += alpha * m.cgP;
-        kx += alpha * m.cgKp;
-        m.cgR -= alpha * m.cgAp;
-        ++stats.cgIterations;
-        m.cgZ = m.diagPrec.cwiseProduct(m.cgR);
-        if (m.cgZ.cwiseAbs().maxCoeff() <= errorK) return true;
-        const double rzNew = m.cgR.dot(m.cgZ);
-        m.cgP = m.cgZ + (rzNew / rz) * m.cgP;
-        rz = rzNew;
-      }
-      return false;
-    };
-    auto solveDirect = [&](const Eigen::VectorXd& b, Eigen::VectorXd& x, Eigen::VectorXd& kx) {
-      if (!m.factor || m.factorDt != dtS || m.factorTheta != theta) {
-        SparseMatrix a = theta * m.stiffness;
-        if (p.lumpedMass) {
-          for (int i = 0; i < n; ++i)
-            a.coeffRef(i, i) += m.active[i] ? crho * m.massM3[i] / dtS : 1.0;
-        } else {
-          a += (crho / dtS) * m.massConsistent;
-          for (int i = 0; i < n; ++i)
-            if (!m.active[i]) a.coeffRef(i, i) += 1.0;
-        }
-        a.makeCompressed();
-        if (!m.factor) m.factor = std::make_unique<Cholesky>();
-        if (!m.factorAnalyzed) {
-          m.factor->analyzePattern(a);
-          m.factorAnalyzed = true;
-        }
-        m.factor->factorize(a);
-        ESIM_VERIFY(m.factor->info() == Eigen::Success,
-                    "thermal step: the implicit heat matrix could not be factored");
-        m.factorDt = dtS;
-        m.factorTheta = theta;
-      }
-      x = m.factor->solve(b);
-      kx.noalias() = m.stiffnessRows * x;
-    };
-    auto solveLinear = [&](const Eigen::VectorXd& b, Eigen::VectorXd& x, Eigen::VectorXd& kx,
-                           double errorK) {
-      if (m.useCg) {
-        m.lastSolver = "cg";
-        if (solveCg(b, x, kx, errorK)) return;
-        m.useCg = false;  // did not converge: Cholesky for this dt from now on
-      }
-      m.lastSolver = "cholmod";
-      solveDirect(b, x, kx);
-    };
-
-    // G = F - (1 - theta) K T0 (+ convection load)
-    m.enthalpy0 = enth;
+  const double h = dtS / substeps;
+  for (int k = 0; k < substeps; ++k) {
+    m.flux = m.load + m.convectionLoadW;
+    m.flux.noalias() -= m.stiffnessRows * temp;
+    s.convectedJ += h * convectedPowerW(temp);
+    solveMass(m.flux, m.work);
+    enth += h * m.work;
     m.tempOld = temp;
-    m.tempNew = temp;  // initial guess, and K T0
-    m.kTemp.noalias() = m.stiffnessRows * temp;
-    m.g = m.load + m.convectionLoadW;
-    if (theta < 1) m.g -= (1 - theta) * m.kTemp;
-    const Eigen::VectorXd& g = m.g;
-    if (p.boiling && p.lumpedMass) {
-      // start the iteration from the predictor H0 + dt M^-1 (G - theta K T0): a node that
-      // starts boiling in this step then starts near its plateau (one iteration fewer)
-      for (int i = 0; i < n; ++i) {
-        if (!m.active[i]) continue;
-        enth[i] = m.enthalpy0[i] + dtS * (g[i] - theta * m.kTemp[i]) / m.massM3[i];
-        temp[i] = d.temperature(enth[i]);
-      }
-    }
-    stats.converged = false;
-    double lastMismatchK = 0;  // of the previous iteration [K]
-    const double cgFloorK = kCgRoundOff * (1.0 + m.tempOld.cwiseAbs().maxCoeff());
-    bool pinnedLast = false;
-    for (int it = 0; it < p.maxNonlinearIterations; ++it) {
-      // rhs = G + M (C T(H_k) - (H_k - H0)) / dt with the relaxation capacity C = c rho
-      // (Chernoff). With CG (no factorization to keep), the first iterations use a Newton-
-      // like C = kPinCapacity c rho on the nodes inside the plateau, which pins them at the
-      // boiling temperature: the phase set is then found in ~2 iterations instead of the
-      // Chernoff contraction's ~4; after kPinIterations the plain, always convergent
-      // Chernoff iteration takes over.
-      const bool pin = p.boiling && m.useCg && it < kPinIterations;
-      if (pin || pinnedLast) {
-        for (int i = 0; i < n; ++i) {
-          const bool inPlateau = pin && enth[i] > d.hb && enth[i] < d.hb + d.lv;
-          const double c = inPlateau ? kPinCapacity * crho : crho;
-          m.diagS[i] = m.active[i] ? c * m.massM3[i] / dtS : 1.0;
-          m.diagPrec[i] = 1.0 / (m.diagS[i] + theta * m.stiffnessDiag[i]);
-          m.work[i] = c * temp[i] - (enth[i] - m.enthalpy0[i]);
-        }
-        pinnedLast = pin;
-      } else {
-        for (int i = 0; i < n; ++i) m.work[i] = crho * temp[i] - (enth[i] - m.enthalpy0[i]);
-      }
-      if (p.lumpedMass)
-        m.rhs = g + (m.massM3.cwiseProduct(m.work)) / dtS;
-      else
-        m.rhs = g + (m.massConsistent * m.work) / dtS;
-      // later solves need only an error well below what this iteration will leave (the
-      // iteration contracts by ~theta dt lambda_max, < 1e-2 at frame steps)
-      // (the first solve: 1e-3 of the tolerance)
-      solveLinear(m.rhs, m.tempNew, m.kTemp,
-                  std::max(1e-3 * std::max(p.nonlinearToleranceK, lastMismatchK), cgFloorK));
-      ++stats.iterations;
-      // flux form: H = H0 + dt M^-1 (G - theta K T_k+1): exact energy at every iterate
-      m.flux = g - theta * m.kTemp;
-      solveMass(m.flux, m.work);
-      enth = m.enthalpy0 + dtS * m.work;
-      double mismatchK = 0;
-      for (int i = 0; i < n; ++i) {
-        temp[i] = d.temperature(enth[i]);
-        if (m.active[i]) mismatchK = std::max(mismatchK, std::abs(temp[i] - m.tempNew[i]));
-      }
-      if (mismatchK <= p.nonlinearToleranceK) {
-        stats.converged = true;
-        break;
-      }
-      lastMismatchK = mismatchK;
-    }
-    if (pinnedLast) {  // restore the Chernoff diagonal for the next step
-      for (int i = 0; i < n; ++i) {
-        m.diagS[i] = m.active[i] ? crho * m.massM3[i] / dtS : 1.0;
-        m.diagPrec[i] = 1.0 / (m.diagS[i] + theta * m.stiffnessDiag[i]);
-      }
-    }
-    if (m.convectionActive)
-      s.convectedJ +=
-          dtS * (theta * convectedPowerW(m.tempNew) + (1 - theta) * convectedPowerW(m.tempOld));
-    accumulateDamage(dtS, m.tempOld, temp);
-    stats.substeps = 1;
+    updateTemperature();
+    accumulateDamage(h, m.tempOld, temp);
   }
+  stats.substeps = substeps;
+  stats.iterations = 0;
+}
 
-  // ---- derived fields: vapour per node and tet, desiccation, energy split ----
-  s.timeS += dtS;
-  s.sourceJ += dtS * sourcePowerW;
-  // (per tet only around the nodes whose vapour fraction changed or that are dry)
-  double latent = 0, total = 0;
+// ---- step: implicit theta scheme ----
+
+// theta = 1 (backward euler) or 1/2 (crank-nicolson):
+//   M (H1 - H0)/dt + theta K T(H1) + (1 - theta) K T(H0) = F,
+// nonlinear in H1 once boiling is on: the chernoff iteration of the header
+void ThermalPhase::Impl::Stepper::implicitStep() {
+  chooseLinearSolver();
+  thetaLoad();
+  if (p.boiling && p.lumpedMass) boilingPredictor();
+  chernoffIteration();
+  // convected heat by the same theta rule as the conduction
+  if (m.convectionActive)
+    s.convectedJ +=
+        dtS * (theta * convectedPowerW(m.tempNew) + (1 - theta) * convectedPowerW(m.tempOld));
+  accumulateDamage(dtS, m.tempOld, s.temperatureC);
+  stats.substeps = 1;
+}
+
+// decided once per (dt, theta). auto: cg when the jacobi-preconditioned A = diag(S) +
+// theta K has a small condition number; K >= 0 bounds its spectrum below by min S_i/A_ii,
+// gershgorin above by max (S_i + theta sum_j |K_ij|)/A_ii
+void ThermalPhase::Impl::Stepper::chooseLinearSolver() {
+  if (m.cgDecidedDt == dtS && m.cgDecidedTheta == theta) return;
+  m.cgDecidedDt = dtS;
+  m.cgDecidedTheta = theta;
+  const double crho = d.crho;
+  bool cg = p.lumpedMass && p.linearSolver != ThermalLinearSolver::Direct;
+  if (cg && p.linearSolver == ThermalLinearSolver::Auto) {
+    double lo = std::numeric_limits<double>::infinity(), hi = 0;
+    for (int i = 0; i < n; ++i) {
+      if (!m.active[i]) continue;
+      const double si = crho * m.massM3[i] / dtS;
+      const double di = si + theta * m.stiffnessDiag[i];
+      lo = std::min(lo, si / di);
+      hi = std::max(hi, (si + theta * m.stiffnessAbsRow[i]) / di);
+    }
+    cg = hi <= kCgMaxCondition * lo;
+  }
+  m.useCg = cg;
+  setChernoffDiagonal();
+}
+
+// diag(S) = c rho M / dt (1 on orphan nodes, which keeps A invertible) and the jacobi
+// preconditioner 1 / A_ii of A = diag(S) + theta K
+void ThermalPhase::Impl::Stepper::setChernoffDiagonal() {
+  const double crho = d.crho;
+  for (int i = 0; i < n; ++i) {
+    m.diagS[i] = m.active[i] ? crho * m.massM3[i] / dtS : 1.0;
+    m.diagPrec[i] = 1.0 / (m.diagS[i] + theta * m.stiffnessDiag[i]);
+  }
+}
+
+// A x = b by jacobi-cg, lumped mass: A = diag(S) + theta K; kx = K x on entry and on exit
+// (tracked along the iteration, so that no product is spent on it). stops when the
+// preconditioned residual (~ the error in kelvin, A being close to its diagonal) is below
+// errorK; false after kCgMaxIterations
+bool ThermalPhase::Impl::Stepper::solveCg(const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                                          Eigen::VectorXd& kx, double errorK) {
+  m.cgR = b - m.diagS.cwiseProduct(x) - theta * kx;
+  m.cgZ = m.diagPrec.cwiseProduct(m.cgR);
+  if (m.cgZ.cwiseAbs().maxCoeff() <= errorK) return true;
+  m.cgP = m.cgZ;
+  double rz = m.cgR.dot(m.cgZ);
+  for (int it = 0; it < kCgMaxIterations; ++it) {
+    m.cgKp.noalias() = m.stiffnessRows * m.cgP;
+    m.cgAp = m.diagS.cwiseProduct(m.cgP) + theta * m.cgKp;
+    const double alpha = rz / m.cgP.dot(m.cgAp);
+    x += alpha * m.cgP;
+    kx += alpha * m.cgKp;
+    m.cgR -= alpha * m.cgAp;
+    ++stats.cgIterations;
+    m.cgZ = m.diagPrec.cwiseProduct(m.cgR);
+    if (m.cgZ.cwiseAbs().maxCoeff() <= errorK) return true;
+    const double rzNew = m.cgR.dot(m.cgZ);
+    m.cgP = m.cgZ + (rzNew / rz) * m.cgP;
+    rz = rzNew;
+  }
+  return false;
+}
+
+// A x = b by sparse cholesky, A = c rho M/dt + theta K (+1 on orphan nodes); kx = K x.
+// A is factored once per (dt, theta), its pattern analysed once per operator build
+void ThermalPhase::Impl::Stepper::solveDirect(const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                                              Eigen::VectorXd& kx) {
+  const double crho = d.crho;
+  if (!m.factor || m.factorDt != dtS || m.factorTheta != theta) {
+    SparseMatrix a = theta * m.stiffness;
+    if (p.lumpedMass) {
+      for (int i = 0; i < n; ++i) a.coeffRef(i, i) += m.active[i] ? crho * m.massM3[i] / dtS : 1.0;
+    } else {
+      a += (crho / dtS) * m.massConsistent;
+      for (int i = 0; i < n; ++i)
+        if (!m.active[i]) a.coeffRef(i, i) += 1.0;
+    }
+    a.makeCompressed();
+    if (!m.factor) m.factor = std::make_unique<Cholesky>();
+    if (!m.factorAnalyzed) {
+      m.factor->analyzePattern(a);
+      m.factorAnalyzed = true;
+    }
+    m.factor->factorize(a);
+    ESIM_VERIFY(m.factor->info() == Eigen::Success,
+                "thermal step: the implicit heat matrix could not be factored");
+    m.factorDt = dtS;
+    m.factorTheta = theta;
+  }
+  x = m.factor->solve(b);
+  kx.noalias() = m.stiffnessRows * x;
+}
+
+// cg when chosen; if it does not converge, cholesky for this dt from then on
+void ThermalPhase::Impl::Stepper::solveLinear(const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                                              Eigen::VectorXd& kx, double errorK) {
+  if (m.useCg) {
+    m.lastSolver = "cg";
+    if (solveCg(b, x, kx, errorK)) return;
+    m.useCg = false;
+  }
+  m.lastSolver = "cholmod";
+  solveDirect(b, x, kx);
+}
+
+// G = F + h T_amb load - (1 - theta) K T0: the part of the right-hand side fixed over the
+// step. keeps H0, T0 and K T0; T0 is also the first guess of the linear solves
+void ThermalPhase::Impl::Stepper::thetaLoad() {
+  m.enthalpy0 = s.enthalpyJ_m3;
+  m.tempOld = s.temperatureC;
+  m.tempNew = s.temperatureC;
+  m.kTemp.noalias() = m.stiffnessRows * s.temperatureC;
+  m.g = m.load + m.convectionLoadW;
+  if (theta < 1) m.g -= (1 - theta) * m.kTemp;
+}
+
+// start the iteration from the predictor H0 + dt M^-1 (G - theta K T0): a node that starts
+// boiling in this step then starts near its plateau (one iteration fewer)
+void ThermalPhase::Impl::Stepper::boilingPredictor() {
+  Eigen::VectorXd& temp = s.temperatureC;
+  Eigen::VectorXd& enth = s.enthalpyJ_m3;
+  for (int i = 0; i < n; ++i) {
+    if (!m.active[i]) continue;
+    enth[i] = m.enthalpy0[i] + dtS * (m.g[i] - theta * m.kTemp[i]) / m.massM3[i];
+    temp[i] = d.temperature(enth[i]);
+  }
+}
+
+// chernoff iteration on T(H) (see the header): each iterate solves the linear problem's
+// matrix for T_k+1 and updates H in flux form, until T(H_k+1) matches T_k+1 within
+// nonlinearToleranceK. without boiling one iteration suffices
+void ThermalPhase::Impl::Stepper::chernoffIteration() {
+  stats.converged = false;
+  double lastMismatchK = 0;  // of the previous iteration [K]
+  const double cgFloorK = kCgRoundOff * (1.0 + m.tempOld.cwiseAbs().maxCoeff());
+  bool pinnedLast = false;
+  for (int it = 0; it < p.maxNonlinearIterations; ++it) {
+    // with cg (no factorization to keep), the first iterations pin the plateau nodes at
+    // the boiling temperature (newton-like): the phase set is then found in ~2 iterations
+    // instead of the chernoff contraction's ~4; after kPinIterations the plain, always
+    // convergent chernoff iteration takes over
+    const bool pin = p.boiling && m.useCg && it < kPinIterations;
+    chernoffRhs(pin, pinnedLast);
+    pinnedLast = pin;
+    // later solves need only an error well below what this iteration will leave (the
+    // iteration contracts by ~theta dt lambda_max, < 1e-2 at frame steps)
+    // (the first solve: 1e-3 of the tolerance)
+    solveLinear(m.rhs, m.tempNew, m.kTemp,
+                std::max(1e-3 * std::max(p.nonlinearToleranceK, lastMismatchK), cgFloorK));
+    ++stats.iterations;
+    const double mismatchK = fluxUpdate();
+    if (mismatchK <= p.nonlinearToleranceK) {
+      stats.converged = true;
+      break;
+    }
+    lastMismatchK = mismatchK;
+  }
+  if (pinnedLast) setChernoffDiagonal();  // restore it for the next step
+}
+
+// rhs = G + M (C T(H_k) - (H_k - H0)) / dt with the relaxation capacity C = c rho
+// (chernoff), or kPinCapacity c rho on the plateau nodes when pinning; C enters diag(S),
+// which is rewritten while pinning and once after (wasPinned)
+void ThermalPhase::Impl::Stepper::chernoffRhs(bool pin, bool wasPinned) {
+  const Eigen::VectorXd& temp = s.temperatureC;
+  const Eigen::VectorXd& enth = s.enthalpyJ_m3;
+  const double crho = d.crho;
+  if (pin || wasPinned) {
+    for (int i = 0; i < n; ++i) {
+      const bool inPlateau = pin && enth[i] > d.hb && enth[i] < d.hb + d.lv;
+      const double c = inPlateau ? kPinCapacity * crho : crho;
+      m.diagS[i] = m.active[i] ? c * m.massM3[i] / dtS : 1.0;
+      m.diagPrec[i] = 1.0 / (m.diagS[i] + theta * m.stiffnessDiag[i]);
+      m.work[i] = c * temp[i] - (enth[i] - m.enthalpy0[i]);
+    }
+  } else {
+    for (int i = 0; i < n; ++i) m.work[i] = crho * temp[i] - (enth[i] - m.enthalpy0[i]);
+  }
+  if (p.lumpedMass)
+    m.rhs = m.g + (m.massM3.cwiseProduct(m.work)) / dtS;
+  else
+    m.rhs = m.g + (m.massConsistent * m.work) / dtS;
+}
+
+// flux form H = H0 + dt M^-1 (G - theta K T_k+1): exact energy balance at every iterate
+// (the columns of K sum to zero). returns max |T(H) - T_k+1| on the active nodes [K]
+double ThermalPhase::Impl::Stepper::fluxUpdate() {
+  Eigen::VectorXd& temp = s.temperatureC;
+  Eigen::VectorXd& enth = s.enthalpyJ_m3;
+  m.flux = m.g - theta * m.kTemp;
+  solveMass(m.flux, m.work);
+  enth = m.enthalpy0 + dtS * m.work;
+  double mismatchK = 0;
+  for (int i = 0; i < n; ++i) {
+    temp[i] = d.temperature(enth[i]);
+    if (m.active[i]) mismatchK = std::max(mismatchK, std::abs(temp[i] - m.tempNew[i]));
+  }
+  return mismatchK;
+}
+
+// ---- step: derived fields ----
+
+// vapour fraction per node; per tet (the mean of its nodes) only around the nodes whose
+// fraction changed
+void ThermalPhase::Impl::Stepper::updateVapor() {
+  const Eigen::VectorXd& enth = s.enthalpyJ_m3;
   Eigen::VectorXd& vf = s.vaporFraction;
   for (int i = 0; i < n; ++i) {
     const double v = d.vapor(enth[i]);
     if (v != vf[i]) {
       vf[i] = v;
       for (const int* e = m.nodeTets.begin(i); e != m.nodeTets.end(i); ++e) {
-        const Tet& t = tets_[*e];
+        const Tet& t = tets[*e];
         s.vaporFractionTet[*e] = 0.25 * (vf[t[0]] + vf[t[1]] + vf[t[2]] + vf[t[3]]);
       }
     }
-    total += m.massM3[i] * enth[i];
-    latent += m.massM3[i] * d.lv * v;
+  }
+}
+
+// energy bookkeeping: stored heat sum_i m_i H_i, of which latent sum_i m_i Lv vapour_i;
+// the rest is sensible (both relative to the initial state)
+void ThermalPhase::Impl::Stepper::storeEnergySplit() {
+  double latent = 0, total = 0;
+  for (int i = 0; i < n; ++i) {
+    total += m.massM3[i] * s.enthalpyJ_m3[i];
+    latent += m.massM3[i] * d.lv * s.vaporFraction[i];
   }
   s.latentJ = latent;
   s.sensibleJ = total - latent;
-  if (p.boiling) {
-    for (int i = 0; i < n; ++i) {
-      if (vf[i] < 1) continue;
-      for (const int* e = m.nodeTets.begin(i); e != m.nodeTets.end(i); ++e) {
-        const Tet& t = tets_[*e];
-        if (!s.desiccatedTet[*e] && vf[t[0]] >= 1 && vf[t[1]] >= 1 && vf[t[2]] >= 1 &&
-            vf[t[3]] >= 1)
-          s.desiccatedTet[*e] = 1;
-      }
+}
+
+// a tet is desiccated once all four nodes are dry (sticky: re-condensation keeps it)
+void ThermalPhase::Impl::Stepper::markDesiccated() {
+  const Eigen::VectorXd& vf = s.vaporFraction;
+  for (int i = 0; i < n; ++i) {
+    if (vf[i] < 1) continue;
+    for (const int* e = m.nodeTets.begin(i); e != m.nodeTets.end(i); ++e) {
+      const Tet& t = tets[*e];
+      if (!s.desiccatedTet[*e] && vf[t[0]] >= 1 && vf[t[1]] >= 1 && vf[t[2]] >= 1 && vf[t[3]] >= 1)
+        s.desiccatedTet[*e] = 1;
     }
   }
-  return stats;
 }
 
 }  // namespace esim
