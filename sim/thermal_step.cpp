@@ -128,6 +128,11 @@ struct ThermalPhase::Impl {
 
   mutable double stableDt = -1;  // explicit limit, computed on first use
 
+  // y = M^-1 x (lumped or consistent) on the active nodes, 0 on the orphan nodes
+  void solveMass(bool lumped, const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
+  // state's sensible and latent heat from its enthalpy and vapour fraction
+  void storeEnergySplit(double lvJ_m3, ThermalState& s) const;
+
   struct Stepper;  // one call of step(), in parts (see "the step")
 
   // workspace
@@ -251,6 +256,32 @@ void ThermalPhase::rebuild(const TetMesh& mesh, const std::vector<TetGeometry>& 
   buildOperators(mesh, geo);
 }
 
+void ThermalPhase::Impl::solveMass(bool lumped, const Eigen::VectorXd& x,
+                                   Eigen::VectorXd& y) const {
+  const int n = static_cast<int>(massM3.size());
+  if (lumped) {
+    y.resize(n);
+    for (int i = 0; i < n; ++i) y[i] = active[i] ? x[i] / massM3[i] : 0.0;
+  } else {
+    y = massFactor->solve(x);
+    for (int i = 0; i < n; ++i)
+      if (!active[i]) y[i] = 0.0;
+  }
+}
+
+// energy bookkeeping: stored heat sum_i m_i H_i, of which latent sum_i m_i Lv vapour_i
+// (Lv = lvJ_m3 [J/m^3]); the rest is sensible. both relative to the initial state
+void ThermalPhase::Impl::storeEnergySplit(double lvJ_m3, ThermalState& s) const {
+  const int n = static_cast<int>(massM3.size());
+  double latent = 0, total = 0;
+  for (int i = 0; i < n; ++i) {
+    total += massM3[i] * s.enthalpyJ_m3[i];
+    latent += massM3[i] * lvJ_m3 * s.vaporFraction[i];
+  }
+  s.latentJ = latent;
+  s.sensibleJ = total - latent;
+}
+
 // ---- T(H) ----
 
 namespace {
@@ -319,15 +350,7 @@ void ThermalPhase::setTemperature(ThermalState& s, const Eigen::VectorXd& temper
     s.temperatureC[i] = temperatureOfEnthalpy(h);
     s.vaporFraction[i] = d.vapor(h);
   }
-  // energy split of the imposed field
-  const Impl& m = *impl_;
-  double latent = 0, total = 0;
-  for (int i = 0; i < numNodes_; ++i) {
-    total += m.massM3[i] * s.enthalpyJ_m3[i];
-    latent += m.massM3[i] * d.lv * s.vaporFraction[i];
-  }
-  s.latentJ = latent;
-  s.sensibleJ = total - latent;
+  impl_->storeEnergySplit(d.lv, s);  // of the imposed field
   // per tet (the step updates these only around nodes whose vapour changes)
   const Eigen::VectorXd& vf = s.vaporFraction;
   for (size_t e = 0; e < tets_.size(); ++e) {
@@ -360,16 +383,6 @@ double ThermalPhase::stableExplicitDtS() const {
     else
       y = m.massConsistent * x;
   };
-  auto solveMass = [&](const Eigen::VectorXd& x, Eigen::VectorXd& y) {
-    if (lumped) {
-      y.resize(n);
-      for (int i = 0; i < n; ++i) y[i] = m.active[i] ? x[i] / m.massM3[i] : 0.0;
-    } else {
-      y = m.massFactor->solve(x);
-      for (int i = 0; i < n; ++i)
-        if (!m.active[i]) y[i] = 0.0;
-    }
-  };
   // deterministic start vector on the active nodes
   Eigen::VectorXd q = Eigen::VectorXd::Zero(n), mq, u, w, mw;
   std::uint64_t seed = 0x9E3779B97F4A7C15ull;
@@ -391,7 +404,7 @@ double ThermalPhase::stableExplicitDtS() const {
     u = m.stiffnessRows * q;
     const double a = q.dot(u);
     alpha.push_back(a);
-    solveMass(u, w);
+    m.solveMass(lumped, u, w);
     w -= a * q;
     if (j > 0) w -= beta.back() * basis[j - 1];
     applyMass(w, mw);  // full re-orthogonalisation (M inner product)
@@ -428,7 +441,7 @@ double ThermalPhase::stableExplicitDtS() const {
 //     chernoffIteration    chernoffRhs, solveLinear (solveCg or solveDirect), fluxUpdate,
 //                          until T(H) settles
 //   accumulateDamage     arrhenius integral over each (sub)step
-//   updateVapor, storeEnergySplit, markDesiccated: the derived fields
+//   updateVapor, Impl::storeEnergySplit, markDesiccated: the derived fields
 
 namespace {
 
@@ -467,7 +480,6 @@ struct ThermalPhase::Impl::Stepper {
   void updateTemperature();
   bool uniformEnthalpy() const;
   void accumulateDamage(double h, const Eigen::VectorXd& t0, const Eigen::VectorXd& t1);
-  void solveMass(const Eigen::VectorXd& x, Eigen::VectorXd& y);
   double convectedPowerW(const Eigen::VectorXd& t) const;
 
   void explicitSubsteps(double limitS);
@@ -486,7 +498,6 @@ struct ThermalPhase::Impl::Stepper {
   double fluxUpdate();
 
   void updateVapor();
-  void storeEnergySplit();
   void markDesiccated();
 };
 
@@ -534,7 +545,7 @@ ThermalPhase::StepStats ThermalPhase::step(double dtS, const std::vector<double>
   s.timeS += dtS;
   s.sourceJ += dtS * st.sourcePowerW;
   st.updateVapor();
-  st.storeEnergySplit();
+  impl_->storeEnergySplit(st.d.lv, s);
   if (params_.boiling) st.markDesiccated();
   return st.stats;
 }
@@ -601,17 +612,6 @@ void ThermalPhase::Impl::Stepper::accumulateDamage(double h, const Eigen::Vector
   }
 }
 
-// y = M^-1 x on the active nodes; orphan nodes hold no mass and get 0
-void ThermalPhase::Impl::Stepper::solveMass(const Eigen::VectorXd& x, Eigen::VectorXd& y) {
-  if (p.lumpedMass) {
-    for (int i = 0; i < n; ++i) y[i] = m.active[i] ? x[i] / m.massM3[i] : 0.0;
-  } else {
-    y = m.massFactor->solve(x);
-    for (int i = 0; i < n; ++i)
-      if (!m.active[i]) y[i] = 0.0;
-  }
-}
-
 // heat lost through the cooled faces at temperature t [W]: h (T - T_amb) A
 double ThermalPhase::Impl::Stepper::convectedPowerW(const Eigen::VectorXd& t) const {
   return m.convectionActive ? m.convectionColSum.dot(t) - m.convectionLoadTotalW : 0.0;
@@ -638,7 +638,7 @@ void ThermalPhase::Impl::Stepper::explicitSubsteps(double limitS) {
     m.flux = m.load + m.convectionLoadW;
     m.flux.noalias() -= m.stiffnessRows * temp;
     s.convectedJ += h * convectedPowerW(temp);
-    solveMass(m.flux, m.work);
+    m.solveMass(p.lumpedMass, m.flux, m.work);
     enth += h * m.work;
     m.tempOld = temp;
     updateTemperature();
@@ -855,7 +855,7 @@ double ThermalPhase::Impl::Stepper::fluxUpdate() {
   Eigen::VectorXd& temp = s.temperatureC;
   Eigen::VectorXd& enth = s.enthalpyJ_m3;
   m.flux = m.g - theta * m.kTemp;
-  solveMass(m.flux, m.work);
+  m.solveMass(p.lumpedMass, m.flux, m.work);
   enth = m.enthalpy0 + dtS * m.work;
   double mismatchK = 0;
   for (int i = 0; i < n; ++i) {
@@ -882,18 +882,6 @@ void ThermalPhase::Impl::Stepper::updateVapor() {
       }
     }
   }
-}
-
-// energy bookkeeping: stored heat sum_i m_i H_i, of which latent sum_i m_i Lv vapour_i;
-// the rest is sensible (both relative to the initial state)
-void ThermalPhase::Impl::Stepper::storeEnergySplit() {
-  double latent = 0, total = 0;
-  for (int i = 0; i < n; ++i) {
-    total += m.massM3[i] * s.enthalpyJ_m3[i];
-    latent += m.massM3[i] * d.lv * s.vaporFraction[i];
-  }
-  s.latentJ = latent;
-  s.sensibleJ = total - latent;
 }
 
 // a tet is desiccated once all four nodes are dry (sticky: re-condensation keeps it)
