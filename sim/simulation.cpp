@@ -63,7 +63,7 @@ void validateSimulationConfig(const SimulationConfig& config) {
   if (ph.thermal) {
     ThermalParams tp = config.thermal;
     tp.boiling = ph.boiling;
-    validateThermalParams(tp, "material");
+    validateThermalParams(tp);
   }
   if (ph.structural) {
     ESIM_VERIFY(config.clampBandM >= 0 && std::isfinite(config.clampBandM),

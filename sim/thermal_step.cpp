@@ -33,9 +33,9 @@ std::string fmt(double v) {
   return buf;
 }
 
-void requirePositive(double v, const std::string& where, const char* field, const char* what) {
+void requirePositive(double v, const char* key, const char* what) {
   ESIM_VERIFY(std::isfinite(v) && v > 0,
-              where + "." + field + " = " + fmt(v) + ": must be > 0 and finite (" + what + ")");
+              std::string(key) + " = " + fmt(v) + ": must be > 0 and finite (" + what + ")");
 }
 
 }  // namespace
@@ -62,41 +62,45 @@ std::string thermalIntegratorName(ThermalIntegrator integrator) {
   return "?";
 }
 
-void validateThermalParams(const ThermalParams& p, const std::string& where) {
-  requirePositive(p.heatCapacityJ_m3K, where, "heat_capacity_j_m3k",
+void validateThermalParams(const ThermalParams& p) {
+  // messages name the scenario keys (sim/io/scenario.h) the fields come from
+  requirePositive(p.heatCapacityJ_m3K, "material.heat_capacity_j_per_m3k",
                   "volumetric heat capacity c*rho [J/(K m^3)]");
-  requirePositive(p.conductivityW_mK, where, "conductivity_w_mk", "thermal conductivity [W/(m K)]");
+  requirePositive(p.conductivityW_mK, "material.thermal_conductivity_w_per_mk",
+                  "thermal conductivity [W/(m K)]");
   ESIM_VERIFY(std::isfinite(p.initialTemperatureC) && p.initialTemperatureC > -kKelvinOffset,
-              where + ".initial_temperature_c = " + fmt(p.initialTemperatureC) +
+              "material.initial_temperature_c = " + fmt(p.initialTemperatureC) +
                   ": must be finite and above absolute zero (-273.15 C)");
   ESIM_VERIFY(std::isfinite(p.waterFraction) && p.waterFraction >= 0 && p.waterFraction <= 1,
-              where + ".water_fraction = " + fmt(p.waterFraction) +
+              "material.water_fraction = " + fmt(p.waterFraction) +
                   ": must be in [0, 1] (water mass fraction of the tissue)");
   if (p.boiling) {
-    requirePositive(p.densityKg_m3, where, "density_kg_m3", "tissue density [kg/m^3]");
+    requirePositive(p.densityKg_m3, "material.density_kg_per_m3", "tissue density [kg/m^3]");
     ESIM_VERIFY(std::isfinite(p.latentHeatJ_kg) && p.latentHeatJ_kg >= 0,
-                where + ".latent_heat_j_kg = " + fmt(p.latentHeatJ_kg) +
+                "material.latent_heat_j_per_kg = " + fmt(p.latentHeatJ_kg) +
                     ": must be >= 0 and finite (latent heat of vaporisation [J/kg])");
     ESIM_VERIFY(
         std::isfinite(p.boilingTemperatureC) && p.boilingTemperatureC > p.initialTemperatureC,
-        where + ".boiling_temperature_c = " + fmt(p.boilingTemperatureC) +
-            ": must be finite and above the initial temperature " + fmt(p.initialTemperatureC) +
-            " C");
+        "material.boiling_temperature_c = " + fmt(p.boilingTemperatureC) +
+            ": must be finite and above material.initial_temperature_c = " +
+            fmt(p.initialTemperatureC) + " C");
   }
-  ESIM_VERIFY(std::isfinite(p.nonlinearToleranceK) && p.nonlinearToleranceK > 0,
-              where + ".nonlinear_tolerance_k = " + fmt(p.nonlinearToleranceK) + ": must be > 0");
-  ESIM_VERIFY(p.maxNonlinearIterations >= 1,
-              where + ".max_nonlinear_iterations = " + std::to_string(p.maxNonlinearIterations) +
-                  ": must be >= 1");
+  ESIM_VERIFY(
+      std::isfinite(p.nonlinearToleranceK) && p.nonlinearToleranceK > 0,
+      "ThermalParams::nonlinearToleranceK = " + fmt(p.nonlinearToleranceK) + ": must be > 0");
+  ESIM_VERIFY(p.maxNonlinearIterations >= 1, "ThermalParams::maxNonlinearIterations = " +
+                                                 std::to_string(p.maxNonlinearIterations) +
+                                                 ": must be >= 1");
   ESIM_VERIFY(std::isfinite(p.convectionW_m2K) && p.convectionW_m2K >= 0,
-              where + ".convection_w_m2k = " + fmt(p.convectionW_m2K) +
+              "effects.surface_cooling.h_w_per_m2k = " + fmt(p.convectionW_m2K) +
                   ": must be >= 0 and finite (heat transfer coefficient [W/(m^2 K)])");
   ESIM_VERIFY(std::isfinite(p.ambientTemperatureC) && p.ambientTemperatureC > -kKelvinOffset,
-              where + ".ambient_temperature_c = " + fmt(p.ambientTemperatureC) +
+              "effects.surface_cooling.ambient_c = " + fmt(p.ambientTemperatureC) +
                   ": must be finite and above absolute zero");
   if (p.damage) {
-    requirePositive(p.arrheniusA_s, where, "arrhenius_a_s", "frequency factor [1/s]");
-    requirePositive(p.arrheniusEa_J_mol, where, "arrhenius_ea_j_mol", "activation energy [J/mol]");
+    requirePositive(p.arrheniusA_s, "material.arrhenius_a_per_s", "frequency factor [1/s]");
+    requirePositive(p.arrheniusEa_J_mol, "material.arrhenius_ea_j_per_mol",
+                    "activation energy [J/mol]");
   }
 }
 
@@ -144,7 +148,7 @@ ThermalPhase::ThermalPhase(const TetMesh& mesh, const std::vector<TetGeometry>& 
                            const ThermalParams& params,
                            const std::vector<BoundaryFace>& cooledFaces)
     : params_(params), cooledFaces_(cooledFaces), impl_(std::make_unique<Impl>()) {
-  validateThermalParams(params_, "thermal");
+  validateThermalParams(params_);
   buildOperators(mesh, geo);
 }
 
@@ -231,8 +235,8 @@ void ThermalPhase::buildOperators(const TetMesh& mesh, const std::vector<TetGeom
       if (!m.active[i]) regular.coeffRef(i, i) = 1.0;
     m.massFactor = std::make_unique<Cholesky>();
     m.massFactor->compute(regular);
-    ESIM_VERIFY(m.massFactor->info() == Eigen::Success,
-                "thermal: the consistent mass matrix could not be factored");
+    ESIM_RUN_CHECK(m.massFactor->info() == Eigen::Success,
+                   "thermal: the consistent mass matrix could not be factored");
   }
 
   // drop every cache that depends on the operators
@@ -749,8 +753,8 @@ void ThermalPhase::Impl::Stepper::solveDirect(const Eigen::VectorXd& b, Eigen::V
       m.factorAnalyzed = true;
     }
     m.factor->factorize(a);
-    ESIM_VERIFY(m.factor->info() == Eigen::Success,
-                "thermal step: the implicit heat matrix could not be factored");
+    ESIM_RUN_CHECK(m.factor->info() == Eigen::Success,
+                   "thermal step: the implicit heat matrix could not be factored");
     m.factorDt = dtS;
     m.factorTheta = theta;
   }

@@ -103,9 +103,9 @@ struct ThermalParams {
   double arrheniusEa_J_mol = 2.577e5;  // activation energy Ea [J/mol]
 };
 
-// Checks the parameters; throws Error "<where>.<field> = <value>: must be ..." naming the
-// first bad field (heat_capacity_j_m3k, conductivity_w_mk, water_fraction, ...).
-void validateThermalParams(const ThermalParams& params, const std::string& where);
+// Checks the parameters; throws Error "<scenario key> = <value>: must be ..." naming the
+// first bad field by the scenario key it comes from (material.heat_capacity_j_per_m3k, ...).
+void validateThermalParams(const ThermalParams& params);
 
 // Per-node and per-tet thermal state (plain data, owned by the caller).
 struct ThermalState {

@@ -503,32 +503,34 @@ void expectError(const std::function<void()>& f, const std::vector<std::string>&
 TEST(ThermalStep, BadInputGivesClearMessages) {
   ThermalParams p;
   p.heatCapacityJ_m3K = 0;
-  expectError([&] { validateThermalParams(p, "scene.thermal"); },
-              {"scene.thermal.heat_capacity_j_m3k = 0", "must be > 0"});
+  expectError([&] { validateThermalParams(p); },
+              {"material.heat_capacity_j_per_m3k = 0", "must be > 0"});
   p = ThermalParams{};
   p.heatCapacityJ_m3K = -3.82e6;
-  expectError([&] { validateThermalParams(p, "scene.thermal"); },
-              {"heat_capacity_j_m3k = -3.82e+06", "must be > 0"});
+  expectError([&] { validateThermalParams(p); },
+              {"material.heat_capacity_j_per_m3k = -3.82e+06", "must be > 0"});
   p = ThermalParams{};
   p.conductivityW_mK = 0;
-  expectError([&] { validateThermalParams(p, "t"); }, {"t.conductivity_w_mk = 0", "must be > 0"});
+  expectError([&] { validateThermalParams(p); },
+              {"material.thermal_conductivity_w_per_mk = 0", "must be > 0"});
   p.conductivityW_mK = -0.5;
-  expectError([&] { validateThermalParams(p, "t"); }, {"conductivity_w_mk = -0.5"});
+  expectError([&] { validateThermalParams(p); }, {"material.thermal_conductivity_w_per_mk = -0.5"});
   for (double w : {-0.1, 1.2}) {
     p = ThermalParams{};
     p.waterFraction = w;
-    expectError([&] { validateThermalParams(p, "t"); }, {"t.water_fraction", "must be in [0, 1]"});
+    expectError([&] { validateThermalParams(p); },
+                {"material.water_fraction", "must be in [0, 1]"});
   }
   p = ThermalParams{};
   p.waterFraction = 1.0;  // the bounds are allowed
-  EXPECT_NO_THROW(validateThermalParams(p, "t"));
+  EXPECT_NO_THROW(validateThermalParams(p));
   p.waterFraction = 0.0;
-  EXPECT_NO_THROW(validateThermalParams(p, "t"));
+  EXPECT_NO_THROW(validateThermalParams(p));
   p = ThermalParams{};
   p.boiling = true;
   p.boilingTemperatureC = 30;
-  expectError([&] { validateThermalParams(p, "t"); },
-              {"t.boiling_temperature_c = 30", "above the initial temperature"});
+  expectError([&] { validateThermalParams(p); },
+              {"material.boiling_temperature_c = 30", "above the initial temperature"});
   expectError([] { parseThermalIntegrator("runge-kutta"); },
               {"'runge-kutta'", "explicit, backward-euler, crank-nicolson"});
   EXPECT_EQ(parseThermalIntegrator("crank-nicolson"), ThermalIntegrator::CrankNicolson);
@@ -538,7 +540,8 @@ TEST(ThermalStep, BadInputGivesClearMessages) {
   const auto geo = tetGeometry(mesh);
   ThermalParams bad;
   bad.conductivityW_mK = 0;
-  expectError([&] { ThermalPhase phase(mesh, geo, bad); }, {"thermal.conductivity_w_mk"});
+  expectError([&] { ThermalPhase phase(mesh, geo, bad); },
+              {"material.thermal_conductivity_w_per_mk"});
   ThermalPhase phase(mesh, geo, ThermalParams{});
   ThermalState s;
   phase.initState(s);

@@ -90,22 +90,15 @@ double median(std::vector<double> v) {
   return v.empty() ? 0.0 : v[v.size() / 2];
 }
 
-int benchRender(const BenchRenderOptions& opt) {
-  using Clock = std::chrono::steady_clock;
-  ESIM_VERIFY(opt.frames >= 1 && opt.warmup >= 0, "--frames must be >= 1, --warmup >= 0");
-  std::vector<std::array<int, 2>> sizes;
-  for (const std::string& s : splitList(opt.sizes)) {
-    int w = 0, h = 0;
-    ESIM_VERIFY(std::sscanf(s.c_str(), "%dx%d", &w, &h) == 2,
-                "--sizes: '" + s + "' is not WIDTHxHEIGHT (e.g. 1280x720)");
-    sizes.push_back({w, h});
-  }
-  // variants: every shading x every MSAA; the best (pixel, most samples) first, as the
-  // reference of the others' PSNR
-  struct Variant {
-    std::string shading;
-    int msaa;
-  };
+// a renderer variant: lighting and MSAA samples
+struct Variant {
+  std::string shading;
+  int msaa;
+};
+
+// every shading x every MSAA; the best (pixel, most samples) first, as the reference of
+// the others' PSNR
+std::vector<Variant> parseVariants(const BenchRenderOptions& opt) {
   std::vector<Variant> variants;
   std::vector<int> msaaList;
   for (const std::string& m : splitList(opt.msaa)) {
@@ -122,6 +115,94 @@ int benchRender(const BenchRenderOptions& opt) {
   for (const std::string& sh : shadings)
     for (int m : msaaList) variants.push_back({sh, m});
   ESIM_VERIFY(!variants.empty(), "--msaa and --shading need at least one value each");
+  return variants;
+}
+
+// the timed frames of one variant (the cut advances 0.5 mm per frame)
+struct RenderedFrames {
+  std::vector<std::vector<std::uint8_t>> frames;
+  std::vector<double> renderMs;
+  RenderTimings split;  // means over the timed frames
+  double cpuMs = 0;     // process CPU time in render() per timed frame
+};
+
+RenderedFrames renderFrames(Renderer& renderer, const SurfaceSnapshot& base, const AnalyticCut& cut,
+                            const BenchRenderOptions& opt) {
+  using Clock = std::chrono::steady_clock;
+  RenderedFrames out;
+  for (int f = -opt.warmup; f < opt.frames; ++f) {
+    SurfaceSnapshot snap = base;
+    AnalyticCut c = cut;
+    c.tipXM = -0.02 + 0.0005 * (f + opt.warmup);
+    applyAnalyticCut(c, (f + opt.warmup) / 30.0, snap);
+    const auto t0 = Clock::now();
+    const double cpu0 = processCpuMs();
+    const auto& rgb = renderer.render(snap);
+    const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    if (f < 0) continue;
+    out.cpuMs += (processCpuMs() - cpu0) / opt.frames;
+    const RenderTimings& t = renderer.lastTimings();
+    out.split.prepareMs += t.prepareMs / opt.frames;
+    out.split.drawMs += t.drawMs / opt.frames;
+    out.split.readbackMs += t.readbackMs / opt.frames;
+    out.split.overlayMs += t.overlayMs / opt.frames;
+    out.renderMs.push_back(ms);
+    out.frames.push_back(rgb);
+  }
+  return out;
+}
+
+// mean PSNR of the frames against the reference's (identical frames count as 99 dB; all
+// identical: inf) and the largest share of pixels off by more than the threshold
+void compareFrames(const std::vector<std::vector<std::uint8_t>>& reference,
+                   const std::vector<std::vector<std::uint8_t>>& frames, int w, int h,
+                   double* psnrDb, double* offShare) {
+  double sum = 0;
+  bool allIdentical = true;
+  for (size_t f = 0; f < frames.size(); ++f) {
+    const ImageComparison c = compareImages(reference[f], frames[f], w, h);
+    *offShare = std::max(*offShare, c.offShare);
+    if (std::isfinite(c.psnrDb)) {
+      sum += c.psnrDb;
+      allIdentical = false;
+    } else {
+      sum += 99.0;
+    }
+  }
+  if (!allIdentical) *psnrDb = sum / static_cast<double>(frames.size());
+}
+
+// RGB->YUV and x264 time per frame [ms] (frames are moved into the encoder)
+void encodeFrames(std::vector<std::vector<std::uint8_t>>& frames, int w, int h,
+                  const BenchRenderOptions& opt, double* convertMs, double* encodeMs) {
+  if (w % 2 != 0 || h % 2 != 0) return;
+  const std::string tmpVideo =
+      (std::filesystem::temp_directory_path() / "esim_bench_render.mp4").string();
+  VideoEncoder enc;
+  VideoEncoder::Options vo;
+  vo.path = tmpVideo;
+  vo.width = w;
+  vo.height = h;
+  vo.preset = opt.preset;
+  vo.crf = opt.crf;
+  enc.open(vo);
+  for (auto& f : frames) enc.push(std::move(f));
+  enc.close();
+  *convertMs = 1e3 * enc.convertSeconds() / opt.frames;
+  *encodeMs = 1e3 * enc.encodeSeconds() / opt.frames;
+  std::filesystem::remove(tmpVideo);
+}
+
+int benchRender(const BenchRenderOptions& opt) {
+  ESIM_VERIFY(opt.frames >= 1 && opt.warmup >= 0, "--frames must be >= 1, --warmup >= 0");
+  std::vector<std::array<int, 2>> sizes;
+  for (const std::string& s : splitList(opt.sizes)) {
+    int w = 0, h = 0;
+    ESIM_VERIFY(std::sscanf(s.c_str(), "%dx%d", &w, &h) == 2,
+                "--sizes: '" + s + "' is not WIDTHxHEIGHT (e.g. 1280x720)");
+    sizes.push_back({w, h});
+  }
+  const std::vector<Variant> variants = parseVariants(opt);
   std::unique_ptr<std::ofstream> csv;
   if (!opt.csv.empty()) {
     csv = std::make_unique<std::ofstream>(opt.csv);
@@ -130,8 +211,6 @@ int benchRender(const BenchRenderOptions& opt) {
   }
   const char* lpThreads = std::getenv("LP_NUM_THREADS");
   bool header = false;
-  const std::string tmpVideo =
-      (std::filesystem::temp_directory_path() / "esim_bench_render.mp4").string();
 
   for (const std::string& name : splitList(opt.surfaces)) {
     // 1. surface
@@ -173,67 +252,18 @@ int benchRender(const BenchRenderOptions& opt) {
               "draw", "read", "overlay", "cpu_ms");
           header = true;
         }
-        // 2. render (the cut advances 0.5 mm per frame)
-        std::vector<std::vector<std::uint8_t>> frames;
-        std::vector<double> renderMs;
-        RenderTimings split;  // sums over the timed frames
-        double cpuMs = 0;     // process CPU time in render() per timed frame
-        for (int f = -opt.warmup; f < opt.frames; ++f) {
-          SurfaceSnapshot snap = base;
-          AnalyticCut c = cut;
-          c.tipXM = -0.02 + 0.0005 * (f + opt.warmup);
-          applyAnalyticCut(c, (f + opt.warmup) / 30.0, snap);
-          const auto t0 = Clock::now();
-          const double cpu0 = processCpuMs();
-          const auto& rgb = renderer.render(snap);
-          const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-          if (f >= 0) cpuMs += (processCpuMs() - cpu0) / opt.frames;
-          if (f >= 0) {
-            const RenderTimings& t = renderer.lastTimings();
-            split.prepareMs += t.prepareMs / opt.frames;
-            split.drawMs += t.drawMs / opt.frames;
-            split.readbackMs += t.readbackMs / opt.frames;
-            split.overlayMs += t.overlayMs / opt.frames;
-            renderMs.push_back(ms);
-            frames.push_back(rgb);
-          }
-        }
-        // 3. image quality against the first variant's frames
+        // 2. render; 3. image quality against the first variant's frames; 4. encode
+        RenderedFrames r = renderFrames(renderer, base, cut, opt);
+        std::vector<double>& renderMs = r.renderMs;
+        const RenderTimings& split = r.split;
+        const double cpuMs = r.cpuMs;
         double psnrDb = std::numeric_limits<double>::infinity(), offShare = 0;
-        if (vi == 0) {
-          reference = frames;
-        } else {
-          double sum = 0;
-          bool allIdentical = true;
-          for (size_t f = 0; f < frames.size(); ++f) {
-            const ImageComparison c = compareImages(reference[f], frames[f], w, h);
-            offShare = std::max(offShare, c.offShare);
-            if (std::isfinite(c.psnrDb)) {
-              sum += c.psnrDb;
-              allIdentical = false;
-            } else {
-              sum += 99.0;  // identical frames count as 99 dB in the mean
-            }
-          }
-          if (!allIdentical) psnrDb = sum / static_cast<double>(frames.size());
-        }
-        // 4. encode
+        if (vi == 0)
+          reference = r.frames;
+        else
+          compareFrames(reference, r.frames, w, h, &psnrDb, &offShare);
         double convertMs = 0, encodeMs = 0;
-        if (w % 2 == 0 && h % 2 == 0) {
-          VideoEncoder enc;
-          VideoEncoder::Options vo;
-          vo.path = tmpVideo;
-          vo.width = w;
-          vo.height = h;
-          vo.preset = opt.preset;
-          vo.crf = opt.crf;
-          enc.open(vo);
-          for (auto& f : frames) enc.push(std::move(f));
-          enc.close();
-          convertMs = 1e3 * enc.convertSeconds() / opt.frames;
-          encodeMs = 1e3 * enc.encodeSeconds() / opt.frames;
-          std::filesystem::remove(tmpVideo);
-        }
+        encodeFrames(r.frames, w, h, opt, &convertMs, &encodeMs);
         // 5. report
         std::vector<double> sorted = renderMs;
         std::sort(sorted.begin(), sorted.end());
