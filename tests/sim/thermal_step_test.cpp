@@ -530,7 +530,7 @@ TEST(ThermalStep, BadInputGivesClearMessages) {
   p.boiling = true;
   p.boilingTemperatureC = 30;
   expectError([&] { validateThermalParams(p); },
-              {"material.boiling_temperature_c = 30", "above the initial temperature"});
+              {"material.boiling_temperature_c = 30", "above material.initial_temperature_c = 37"});
   expectError([] { parseThermalIntegrator("runge-kutta"); },
               {"'runge-kutta'", "explicit, backward-euler, crank-nicolson"});
   EXPECT_EQ(parseThermalIntegrator("crank-nicolson"), ThermalIntegrator::CrankNicolson);
