@@ -89,6 +89,33 @@ std::vector<Support> clampedSupports(const TetMesh& mesh, const std::vector<int>
   return supports;
 }
 
+// median edge length of the tets [m]
+double medianEdgeLengthM(const TetMesh& mesh) {
+  std::vector<double> edges;
+  edges.reserve(6 * mesh.tets.size());
+  for (const Tet& t : mesh.tets)
+    for (int a = 0; a < 4; ++a)
+      for (int b = a + 1; b < 4; ++b) edges.push_back((mesh.nodes[t[a]] - mesh.nodes[t[b]]).norm());
+  if (edges.empty()) return 0;
+  std::nth_element(edges.begin(), edges.begin() + edges.size() / 2, edges.end());
+  return edges[edges.size() / 2];
+}
+
+// the alive tet holding p (barycentric coordinates >= 0 within a round-off margin), or -1;
+// a plain loop: only for frames where the tool has no contact
+int aliveTetContaining(const TetMesh& mesh, const std::vector<TetGeometry>& geo, const Vec3& p) {
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    if (!mesh.isAlive(e)) continue;
+    const Tet& t = mesh.tets[e];
+    const Vec3 c =
+        0.25 * (mesh.nodes[t[0]] + mesh.nodes[t[1]] + mesh.nodes[t[2]] + mesh.nodes[t[3]]);
+    bool inside = true;
+    for (int a = 0; a < 4 && inside; ++a) inside = 0.25 + geo[e].grad.row(a).dot(p - c) >= -1e-9;
+    if (inside) return e;
+  }
+  return -1;
+}
+
 std::string returnElectrodeMessage(const ReturnElectrode& r) {
   return "return_electrode: no mesh node lies on the return electrode disc (centre " +
          std::to_string(r.centerM.x()) + " " + std::to_string(r.centerM.y()) + " " +
@@ -187,6 +214,7 @@ void Simulation::buildInitialModel(TetMesh mesh) {
     x.maxExpansion = config_.maxVaporExpansion;
     pending_.assign(mesh.numTets(), 0);
   }
+  m.medianEdgeM = medianEdgeLengthM(mesh);
   std::vector<std::uint8_t> alive = mesh.alive;
   m.mesh = std::move(mesh);
   model_ = std::move(fixed);
@@ -205,6 +233,20 @@ void Simulation::buildInitialModel(TetMesh mesh) {
                    " (clamped: " + std::to_string(model_->supports.size() / 3) +
                    " bottom nodes within effects.structural_clamp_band_m = " +
                    std::to_string(config_.clampBandM) + " m of the lowest node)");
+  }
+  // the work of an explicit frame is bounded: refused up front, never a frame of minutes
+  if (model_->thermal && config_.thermal.integrator == ThermalIntegrator::Explicit) {
+    const double limitS = model_->thermal->stableExplicitDtS();
+    const double need = std::ceil(config_.frameDtS / limitS);
+    ESIM_VERIFY(config_.frameDtS <= limitS ||
+                    (config_.thermal.allowSubstepping && need <= config_.thermal.maxSubsteps),
+                config_.thermal.allowSubstepping
+                    ? explicitSubstepMessage(config_.frameDtS, limitS, config_.thermal.maxSubsteps)
+                    : "solvers.thermal.allow_substepping is false and the frame step " +
+                          std::to_string(config_.frameDtS) +
+                          " s exceeds the explicit stability limit " + std::to_string(limitS) +
+                          " s of this mesh; use backward-euler or crank-nicolson, or a higher "
+                          "time.fps");
   }
 }
 
@@ -226,7 +268,10 @@ void Simulation::initState() {
     }
     s.maxTemperatureC = s.thermal.temperatureC.maxCoeff();
   }
-  if (model_->structural) s.eigenstrain.assign(nt, 0.0);
+  if (model_->structural) {
+    s.eigenstrain.assign(nt, 0.0);
+    s.vonMisesPa.assign(nt, 0.0);
+  }
 }
 
 void Simulation::computeEigenstrain() {
@@ -297,6 +342,7 @@ std::unique_ptr<SimModel> Simulation::buildModel(std::vector<std::uint8_t> alive
   m.prescribedSource = base.prescribedSource;
   m.supports = base.supports;
   m.expansion = base.expansion;
+  m.medianEdgeM = base.medianEdgeM;
   m.surface = boundaryFaces(m.mesh);
   m.surfaceNodes = boundaryNodes(m.mesh, m.surface);
   buildSnapshotTopology(m);
@@ -453,6 +499,8 @@ const FrameRecord& Simulation::step() {
   FrameRecord& rec = record_;
   rec = FrameRecord{};
   advance(rec);
+  if (rec.contactByTet) ++framesContactByTet_;
+  if (rec.toolSwept) ++framesToolSwept_;
   if (config_.phases.rupture) ruptureAndRebuild(rec);
   ++state_.frame;
   state_.timeS = state_.frame * config_.frameDtS;
@@ -479,7 +527,7 @@ void Simulation::advance(FrameRecord& rec) {
   if (m.electric) {
     StageTimer timer(rec, Stage::FindContacts);
     if (st.generatorOn) {
-      st.contacts = m.contactFinder.find(config_.electrode, st.pose, config_.contactDistanceM);
+      st.contacts = findContacts(rec);
     } else {
       st.contacts.clear();
       timer.skip();
@@ -503,6 +551,8 @@ void Simulation::advance(FrameRecord& rec) {
       const ElectricTotals totals =
           computeJoulePower(m.mesh, *m.geo, m.sigmaAssembled, m.stiffness, st.potentialV,
                             st.contacts, m.ground, config_.toolVoltageV, st.joulePowerW_m3);
+      checkFinite(Stage::SolvePotential, "potential", st.potentialV.data(),
+                  static_cast<int>(st.potentialV.size()), "V");
       power_w = totals.powerW;
       rec.toolCurrentA = totals.toolCurrentA;
       rec.returnCurrentA = totals.returnCurrentA;
@@ -514,9 +564,20 @@ void Simulation::advance(FrameRecord& rec) {
   // ---- 4. heat: Joule (or prescribed) source, conduction, boiling ----
   if (m.thermal) {
     StageTimer timer(rec, Stage::Heat);
+    const double sourceBeforeJ = st.thermal.sourceJ;
     const auto stats =
         m.thermal->step(dt, m.electric ? st.joulePowerW_m3 : m.prescribedSource, st.thermal);
     if (stats.skipped) timer.skip();
+    if (!stats.converged) {
+      rec.boilingUnconverged = true;
+      ++framesBoilingUnconverged_;
+    }
+    checkFinite(Stage::Heat, "temperature", st.thermal.temperatureC.data(),
+                static_cast<int>(st.thermal.temperatureC.size()), "C");
+    if (!m.electric) {  // a prescribed source: its heat is the energy delivered
+      rec.powerW = (st.thermal.sourceJ - sourceBeforeJ) / dt;
+      st.energyJ += st.thermal.sourceJ - sourceBeforeJ;
+    }
     rec.maxTemperatureC = st.thermal.temperatureC.maxCoeff();
     st.maxTemperatureC = std::max(st.maxTemperatureC, rec.maxTemperatureC);
   } else {
@@ -532,8 +593,11 @@ void Simulation::advance(FrameRecord& rec) {
       timer.skip();  // at rest: no load, and the last stresses are zero too
     } else {
       m.structural->solve(st.eigenstrain);
+      st.vonMisesPa = m.structural->vonMisesPa();
+      checkFinite(Stage::SolveStress, "von Mises stress", st.vonMisesPa.data(),
+                  static_cast<int>(st.vonMisesPa.size()), "Pa");
     }
-    const std::vector<double>& vm = m.structural->vonMisesPa();
+    const std::vector<double>& vm = st.vonMisesPa;
     rec.maxVonMisesPa = vm.empty() ? 0.0 : *std::max_element(vm.begin(), vm.end());
   }
 }
@@ -542,7 +606,7 @@ void Simulation::advance(FrameRecord& rec) {
 void Simulation::detectRupture(FrameRecord& rec) {
   StageTimer timer(rec, Stage::Rupture);
   const TetMesh& mesh = model_->mesh;
-  const std::vector<double>& vm = model_->structural->vonMisesPa();
+  const std::vector<double>& vm = state_.vonMisesPa;
   for (int e = 0; e < mesh.numTets(); ++e)
     if (mesh.isAlive(e) && !pending_[e] && vm[e] > config_.criticalStressPa) {
       queued_.push_back(e);
@@ -611,6 +675,87 @@ void Simulation::recomputeSinceCheckpoint(FrameRecord& rec) {
   rec.maxTemperatureC = redo.maxTemperatureC;
   rec.maxVonMisesPa = redo.maxVonMisesPa;
   recomputedFrames_ += now - first + 1;
+}
+
+// ---- contacts and guards ----
+
+// The tool's contacts this frame: the surface nodes within tool.contact_distance_m of it;
+// along its path since the last frame when it moved more than the median element edge (a
+// fast tool crosses nodes between frames; the union of the contacts at poses half an edge
+// apart); and, when no node is within reach but the tip is inside the tissue (a blade
+// pressed into a coarse mesh, a buried electrode), the nearest node of the tet holding the
+// tip, so that the current never vanishes without a word.
+std::vector<int> Simulation::findContacts(FrameRecord& rec) const {
+  const SimModel& m = *model_;
+  const SimState& st = state_;
+  std::vector<int> contacts =
+      m.contactFinder.find(config_.electrode, st.pose, config_.contactDistanceM);
+  const double dt = config_.frameDtS;
+  if (st.frame > 0 && m.medianEdgeM > 0) {
+    const Vec3 from = config_.toolPath.poseAt(st.timeS - dt).tipM;
+    const double moved = (st.pose.tipM - from).norm();
+    if (moved > m.medianEdgeM) {
+      rec.toolSwept = true;
+      const int samples = std::min(256, static_cast<int>(std::ceil(2.0 * moved / m.medianEdgeM)));
+      for (int k = 1; k < samples; ++k) {
+        const double t = st.timeS - dt + dt * k / samples;
+        if (!config_.toolPath.generatorOnAt(t)) continue;
+        const auto c = m.contactFinder.find(config_.electrode, config_.toolPath.poseAt(t),
+                                            config_.contactDistanceM);
+        contacts.insert(contacts.end(), c.begin(), c.end());
+      }
+      std::sort(contacts.begin(), contacts.end());
+      contacts.erase(std::unique(contacts.begin(), contacts.end()), contacts.end());
+    }
+  }
+  if (!contacts.empty()) return contacts;
+  const int tet = aliveTetContaining(m.mesh, *m.geo, st.pose.tipM);
+  if (tet < 0) return contacts;
+  int best = -1;
+  double bestD = 0;
+  for (int v : m.mesh.tets[tet]) {
+    if (std::binary_search(m.ground.begin(), m.ground.end(), v)) continue;
+    const double d = (m.mesh.nodes[v] - st.pose.tipM).norm();
+    if (best < 0 || d < bestD) best = v, bestD = d;
+  }
+  ESIM_RUN_CHECK(best >= 0, "find_contacts, frame " + std::to_string(st.frame) +
+                                ": the tool tip is in a tet whose nodes all lie on the return "
+                                "electrode (a short circuit)");
+  rec.contactByTet = true;
+  return {best};
+}
+
+// a stage's field must be finite: else the run stops, naming the stage, frame, entry, value
+void Simulation::checkFinite(Stage stage, const char* what, const double* values, int count,
+                             const char* unit) const {
+  for (int i = 0; i < count; ++i) {
+    if (std::isfinite(values[i])) continue;
+    const bool perTet = stage == Stage::SolveStress;
+    throw RunError(std::string(stageName(stage)) + ", frame " + std::to_string(state_.frame) +
+                   ": the " + what + " of " + (perTet ? "tet " : "node ") + std::to_string(i) +
+                   " is " + std::to_string(values[i]) + " " + unit +
+                   " (the solve diverged; see the hard cases in README)");
+  }
+}
+
+std::vector<std::string> Simulation::warnings() const {
+  std::vector<std::string> w;
+  const auto frames = [](int n) { return std::to_string(n) + (n == 1 ? " frame" : " frames"); };
+  if (framesContactByTet_ > 0)
+    w.push_back(frames(framesContactByTet_) +
+                ": the tool was inside the tissue with no node within tool.contact_distance_m; "
+                "the nearest node of the tet holding its tip carried the current (the mesh is "
+                "coarse at the tool: refine it there, or raise tool.contact_distance_m)");
+  if (framesToolSwept_ > 0)
+    w.push_back(frames(framesToolSwept_) + ": the tool moved more than an element (" +
+                std::to_string(model_->medianEdgeM * 1e3) +
+                " mm) in one frame; the contacts along its path were taken together (raise "
+                "time.fps, or slow the tool)");
+  if (framesBoilingUnconverged_ > 0)
+    w.push_back(frames(framesBoilingUnconverged_) +
+                ": the boiling iteration stopped at its iteration cap before its tolerance "
+                "(use a smaller frame step: a higher time.fps)");
+  return w;
 }
 
 // ---- the snapshot ----

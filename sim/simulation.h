@@ -72,10 +72,14 @@ struct FrameRecord {
   double returnCurrentA = 0;  // out at the return electrode [A]
   double powerW = 0;          // Joule power this frame [W]
   double maxTemperatureC = 0;
-  double maxVonMisesPa = 0;  // structural phase, over alive tets
-  int removedTets = 0;       // by the rebuild swapped in this frame
-  double rebuildWaitMs = 0;  // background rebuild: the frame loop waited for it
-  double physicsMs() const;  // sum of the simulation stages [ms]
+  double maxVonMisesPa = 0;         // structural phase, over alive tets
+  int removedTets = 0;              // by the rebuild swapped in this frame
+  double rebuildWaitMs = 0;         // background rebuild: the frame loop waited for it
+  bool contactByTet = false;        // tool inside the tissue, no node within reach: the nearest
+                                    // node of the tet holding the tip carried the current
+  bool toolSwept = false;           // the tool moved more than an element: contacts along its path
+  bool boilingUnconverged = false;  // the boiling iteration stopped at its iteration cap
+  double physicsMs() const;         // sum of the simulation stages [ms]
 };
 
 // times one stage into a record (monotonic clock)
@@ -196,7 +200,8 @@ struct SimModel {
   std::unique_ptr<StructuralPhase> structural;
   std::vector<Support> supports;
   ExpansionParams expansion;
-  double buildMs = 0;  // wall time of the build [ms]
+  double medianEdgeM = 0;  // median edge length of the initial mesh [m] (a fast tool's scale)
+  double buildMs = 0;      // wall time of the build [ms]
 };
 
 // The state: everything a frame changes. A checkpoint is a copy of it.
@@ -211,6 +216,7 @@ struct SimState {
   std::vector<double> conductivityS_m;  // per tet: sigma(T) [S/m]
   ThermalState thermal;                 // enthalpy, temperature, vapour, damage
   std::vector<double> eigenstrain;      // per tet: volumetric expansion (structural load)
+  std::vector<double> vonMisesPa;       // per tet: of the last structural solve [Pa]
   double energyJ = 0;                   // Joule energy delivered so far [J]
   double maxTemperatureC = 0;           // highest temperature seen so far [C]
 };
@@ -251,8 +257,11 @@ class Simulation {
   std::string electricSolverName() const;
   bool hasElectric() const { return model_->electric != nullptr; }
   const std::vector<double>* vonMisesPa() const {
-    return model_->structural ? &model_->structural->vonMisesPa() : nullptr;
+    return model_->structural ? &state_.vonMisesPa : nullptr;
   }
+  // what a demanding user should know about the run so far (a buried or fast tool, an
+  // unconverged boiling iteration), one sentence each with the frames and the remedy
+  std::vector<std::string> warnings() const;
   int removedTets() const { return removedTets_; }           // by rupture since the start
   int rebuilds() const { return rebuilds_; }                 // swapped in so far
   int rebuildsLate() const { return rebuildsLate_; }         // background: the frame loop waited
@@ -266,6 +275,9 @@ class Simulation {
   std::unique_ptr<SimModel> buildModel(std::vector<std::uint8_t> alive, std::vector<double> sigma,
                                        int prefetchFrom, int prefetchTo) const;
   void initState();
+  std::vector<int> findContacts(FrameRecord& record) const;
+  void checkFinite(Stage stage, const char* what, const double* values, int count,
+                   const char* unit) const;
   void refreshConductivity();
   void computeEigenstrain();
   std::vector<int> scriptedContacts(const ContactFinder& finder, const std::vector<int>& ground,
@@ -290,6 +302,7 @@ class Simulation {
   int swapFrame_ = -1;                         // frame at which the rebuild in flight swaps in
   std::unique_ptr<SimState> checkpoint_;       // state when the rebuild in flight started
   int recomputedFrames_ = 0;                   // frames computed again after swaps
+  int framesContactByTet_ = 0, framesToolSwept_ = 0, framesBoilingUnconverged_ = 0;
   int removedTets_ = 0;
   int rebuilds_ = 0, rebuildsLate_ = 0;  // swapped in; of which had to wait > 1 ms
   double rebuildBuildMs_ = 0;            // sum of the rebuilds' build times

@@ -42,6 +42,14 @@ void requirePositive(double v, const char* key, const char* what) {
 
 // ---- names and validation ----
 
+std::string explicitSubstepMessage(double dtS, double limitS, int maxSubsteps) {
+  return "solvers.thermal.integrator: explicit needs " + fmt(std::ceil(dtS / limitS)) +
+         " sub-steps per frame (frame step " + fmt(dtS) + " s, stability limit " + fmt(limitS) +
+         " s of this mesh), above the limit of " + std::to_string(maxSubsteps) +
+         " (solvers.thermal.max_substeps); use backward-euler or crank-nicolson, or a higher "
+         "time.fps";
+}
+
 ThermalIntegrator parseThermalIntegrator(const std::string& name) {
   if (name == "explicit") return ThermalIntegrator::Explicit;
   if (name == "backward-euler") return ThermalIntegrator::BackwardEuler;
@@ -88,6 +96,8 @@ void validateThermalParams(const ThermalParams& p) {
   ESIM_VERIFY(
       std::isfinite(p.nonlinearToleranceK) && p.nonlinearToleranceK > 0,
       "ThermalParams::nonlinearToleranceK = " + fmt(p.nonlinearToleranceK) + ": must be > 0");
+  ESIM_VERIFY(p.maxSubsteps >= 1,
+              "solvers.thermal.max_substeps = " + std::to_string(p.maxSubsteps) + ": must be >= 1");
   ESIM_VERIFY(p.maxNonlinearIterations >= 1, "ThermalParams::maxNonlinearIterations = " +
                                                  std::to_string(p.maxNonlinearIterations) +
                                                  ": must be >= 1");
@@ -635,7 +645,9 @@ void ThermalPhase::Impl::Stepper::explicitSubsteps(double limitS) {
                     fmt(limitS) +
                     " s of this mesh; enable sub-stepping (allow_substepping) or use "
                     "backward-euler / crank-nicolson");
-    substeps = static_cast<int>(std::ceil(dtS / limitS));
+    const double need = std::ceil(dtS / limitS);  // a double: never overflows
+    ESIM_RUN_CHECK(need <= p.maxSubsteps, explicitSubstepMessage(dtS, limitS, p.maxSubsteps));
+    substeps = static_cast<int>(need);
   }
   const double h = dtS / substeps;
   for (int k = 0; k < substeps; ++k) {

@@ -91,6 +91,9 @@ struct ThermalParams {
   ThermalIntegrator integrator = ThermalIntegrator::Explicit;  // lumped mass, sub-stepped
   bool lumpedMass = true;        // lumped (row-sum) or consistent P1 mass
   bool allowSubstepping = true;  // explicit: sub-step below the stability limit
+  // explicit: a frame needing more sub-steps than this is refused (the work of a frame is
+  // bounded; the remedy is an implicit integrator or a higher frame rate)
+  int maxSubsteps = 1000;
   ThermalLinearSolver linearSolver = ThermalLinearSolver::Auto;
   double nonlinearToleranceK = 1e-9;  // boiling iteration: max |T_k - T(H_k)| [K]
   int maxNonlinearIterations = 100;
@@ -106,6 +109,10 @@ struct ThermalParams {
 // Checks the parameters; throws Error "<scenario key> = <value>: must be ..." naming the
 // first bad field by the scenario key it comes from (material.heat_capacity_j_per_m3k, ...).
 void validateThermalParams(const ThermalParams& params);
+
+// the refusal of an explicit frame step that needs more than maxSubsteps sub-steps, with
+// the remedy (an implicit integrator, a higher time.fps)
+std::string explicitSubstepMessage(double dtS, double limitS, int maxSubsteps);
 
 // Per-node and per-tet thermal state (plain data, owned by the caller).
 struct ThermalState {

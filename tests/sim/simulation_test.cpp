@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <memory>
 
 #include "sim/core_error.h"
@@ -356,6 +357,101 @@ TEST(Simulation, RecomputedLagFramesMatchTheSynchronousRun) {
   EXPECT_EQ(bg->mesh().alive, ref->mesh().alive);
   EXPECT_EQ((bg->temperatureC() - ref->temperatureC()).cwiseAbs().maxCoeff(), 0.0);
 }
+
+// ---- guards: a tool the contact rule would lose, bounded work, prescribed energy ----
+
+namespace guards {
+
+// a sphere electrode held at p, generator on
+SimulationConfig sphereAt(const Vec3& p) {
+  SimulationConfig c = cutConfig(false);
+  c.electrode.kind = ElectrodeKind::Sphere;
+  ToolKeyframe k;
+  k.positionM = p;
+  c.toolPath.keys = {k};
+  return c;
+}
+
+TEST(SimulationGuards, ABuriedElectrodeDeliversCurrentAndSaysHow) {
+  // 2 mm below the top face of a 2.5 mm grid: no node within 0.8 mm of the ball
+  Simulation sim(smallSlab(), sphereAt(Vec3(0.0013, 0.0013, 0.006)));
+  const FrameRecord& r = sim.step();
+  EXPECT_TRUE(r.contactByTet);
+  EXPECT_EQ(r.contactNodes, 1);
+  EXPECT_GT(r.powerW, 0.0);
+  EXPECT_NEAR(r.returnCurrentA, r.toolCurrentA, 1e-9 * r.toolCurrentA);
+  ASSERT_EQ(sim.warnings().size(), 1u);
+  EXPECT_NE(sim.warnings()[0].find("tool.contact_distance_m"), std::string::npos);
+  // above the tissue: no contact, no fallback, no warning
+  Simulation air(smallSlab(), sphereAt(Vec3(0.0013, 0.0013, 0.02)));
+  EXPECT_EQ(air.step().contactNodes, 0);
+  EXPECT_TRUE(air.warnings().empty());
+}
+
+TEST(SimulationGuards, AToolCrossingTheTissueInOneFrameKeepsItsContacts) {
+  // the blade sweeps 30 mm in one frame (1/30 s): the frame's end pose alone is beyond the
+  // slab, its path crosses it
+  SimulationConfig c = cutConfig(false);
+  c.toolPath.keys[0].positionM = Vec3(-0.015, 0, 0.0098);
+  c.toolPath.keys[1].positionM = Vec3(0.045, 0, 0.0098);
+  c.toolPath.keys[1].timeS = 1.0 / 30.0;
+  Simulation sim(smallSlab(), c);
+  sim.step();
+  const FrameRecord& r = sim.step();  // from x = 15 mm to 45 mm: off the slab at its end
+  EXPECT_TRUE(r.toolSwept);
+  EXPECT_GT(r.contactNodes, 0);
+  EXPECT_GT(r.powerW, 0.0);
+  EXPECT_EQ(sim.warnings().size(), 1u);
+}
+
+TEST(SimulationGuards, ExplicitSubstepsAreBoundedUpFront) {
+  // a thin slab with a tiny heat capacity: the explicit limit is ~1e-8 s, a frame needs
+  // millions of sub-steps (an int overflow before): refused with the remedy
+  SimulationConfig c = sphereAt(Vec3(0, 0, 0.0098));
+  c.phases.thermal = true;
+  c.thermal.heatCapacityJ_m3K = 1.0;
+  try {
+    Simulation sim(smallSlab(), c);
+    ADD_FAILURE() << "accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Input);
+    const std::string m = e.what();
+    EXPECT_NE(m.find("solvers.thermal.max_substeps"), std::string::npos) << m;
+    EXPECT_NE(m.find("backward-euler"), std::string::npos) << m;
+  }
+  c.thermal.integrator = ThermalIntegrator::BackwardEuler;  // the remedy runs
+  Simulation sim(smallSlab(), c);
+  const FrameRecord& r = sim.step();
+  EXPECT_TRUE(std::isfinite(r.maxTemperatureC));
+}
+
+TEST(SimulationGuards, APrescribedSourceCountsAsDeliveredEnergy) {
+  SimulationConfig c = boilingSpot(false);
+  c.phases.boiling = c.phases.structural = false;
+  c.thermal.boiling = false;
+  c.heatSource.powerDensityW_m3 = 1e8;
+  Simulation sim(smallSlab(), c);
+  for (int f = 0; f < 5; ++f) EXPECT_GT(sim.step().powerW, 0.0);
+  const ThermalState& t = *sim.thermalState();
+  EXPECT_GT(sim.energyDeliveredJ(), 0.0);
+  EXPECT_NEAR(sim.energyDeliveredJ(), t.sourceJ, 1e-12 * t.sourceJ);
+}
+
+TEST(SimulationGuards, VonMisesSurvivesTheRebuildFrame) {
+  Simulation sim(smallSlab(), boilingSpot(true));
+  bool seen = false;
+  for (int f = 0; f < 40 && !seen; ++f) {
+    const FrameRecord& r = sim.step();
+    if (r.removedTets == 0) continue;
+    seen = true;
+    const std::vector<double>& vm = *sim.vonMisesPa();
+    EXPECT_EQ(*std::max_element(vm.begin(), vm.end()), r.maxVonMisesPa);
+    EXPECT_GT(r.maxVonMisesPa, 2.45e4);
+  }
+  EXPECT_TRUE(seen);
+}
+
+}  // namespace guards
 
 }  // namespace
 }  // namespace esim

@@ -250,12 +250,13 @@ struct LoopResult {
   double loopS = 0;
   double peakPowerW = 0;
   bool interrupted = false;
-  std::string failure;  // the run error that stopped the loop ("" = none)
+  std::string failure;  // the error that stopped the loop ("" = none)
+  ErrorKind failureKind = ErrorKind::Run;
   bool complete() const { return !interrupted && failure.empty(); }
 };
 
 std::vector<std::string> runWarnings(const Simulation& sim) {
-  std::vector<std::string> warnings;
+  std::vector<std::string> warnings = sim.warnings();
   if (sim.maxTemperatureSeenC() > kImplausibleTemperatureC) {
     char w[400];
     std::snprintf(w, sizeof w,
@@ -434,7 +435,9 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet) {
       loop.peakPowerW = std::max(loop.peakPowerW, rec.powerW);
       loop.records.push_back(rec);
     } catch (const Error& e) {
-      if (e.kind() == ErrorKind::Input) throw;  // a bug in the checks: reported as such
+      // the run cannot go on (a failed solve, all tissue gone, a tool reaching the return
+      // electrode): the frames so far are kept
+      loop.failureKind = e.kind();
       loop.failure = "frame " + std::to_string(f) + ": " + e.what();
       loop.frameStartUs.pop_back();
       break;
@@ -478,7 +481,8 @@ int runScenario(const RunOptions& opt) {
   if (loop.complete()) output.commit();
   std::cout << summary;
   if (!loop.failure.empty()) std::cerr << "esim: error: " << loop.failure << "\n";
-  return loop.complete() ? 0 : 1;
+  if (loop.complete()) return 0;
+  return !loop.failure.empty() && loop.failureKind == ErrorKind::Internal ? 4 : 1;
 }
 
 }  // namespace esim::app
