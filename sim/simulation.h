@@ -79,7 +79,9 @@ struct FrameRecord {
                                     // node of the tet holding the tip carried the current
   bool toolSwept = false;           // the tool moved more than an element: contacts along its path
   bool boilingUnconverged = false;  // the boiling iteration stopped at its iteration cap
-  double physicsMs() const;         // sum of the simulation stages [ms]
+  double maxPrincipleViolationK = 0;  // heat: how far T left its maximum-principle bounds  // the
+                                      // boiling iteration stopped at its iteration cap
+  double physicsMs() const;           // sum of the simulation stages [ms]
 };
 
 // times one stage into a record (monotonic clock)
@@ -278,6 +280,8 @@ class Simulation {
   std::vector<int> findContacts(FrameRecord& record) const;
   void checkFinite(Stage stage, const char* what, const double* values, int count,
                    const char* unit) const;
+  void checkMaximumPrinciple(double lowBeforeC, double highBeforeC, bool heated,
+                             FrameRecord& record);
   void refreshConductivity();
   void computeEigenstrain();
   std::vector<int> scriptedContacts(const ContactFinder& finder, const std::vector<int>& ground,
@@ -303,6 +307,8 @@ class Simulation {
   std::unique_ptr<SimState> checkpoint_;       // state when the rebuild in flight started
   int recomputedFrames_ = 0;                   // frames computed again after swaps
   int framesContactByTet_ = 0, framesToolSwept_ = 0, framesBoilingUnconverged_ = 0;
+  int framesMaxPrinciple_ = 0;     // frames whose temperature left its bounds
+  double worstMaxPrincipleK_ = 0;  // by how much at most [K]
   int removedTets_ = 0;
   int rebuilds_ = 0, rebuildsLate_ = 0;  // swapped in; of which had to wait > 1 ms
   double rebuildBuildMs_ = 0;            // sum of the rebuilds' build times

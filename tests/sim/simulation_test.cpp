@@ -451,6 +451,36 @@ TEST(SimulationGuards, VonMisesSurvivesTheRebuildFrame) {
   EXPECT_TRUE(seen);
 }
 
+TEST(SimulationGuards, AnUndershootOfTheIntegratorIsWarned) {
+  // a 90 C ball in a 37 C body, no source, no sink, 10 s steps: Crank-Nicolson with
+  // consistent mass undershoots (below 37 C); backward Euler with lumped mass does not
+  auto run = [](ThermalIntegrator integrator, bool lumped) {
+    SimulationConfig c;
+    c.phases.thermal = true;
+    c.frameDtS = 10.0;
+    c.thermal.integrator = integrator;
+    c.thermal.lumpedMass = lumped;
+    c.hotSpot.enabled = true;
+    c.hotSpot.centerM = Vec3(0, 0, 0.01);
+    c.hotSpot.radiusM = 0.004;
+    Simulation sim(smallSlab(), c);
+    double lowest = 1e9;
+    for (int f = 0; f < 4; ++f) {
+      sim.step();
+      lowest = std::min(lowest, sim.thermalState()->temperatureC.minCoeff());
+    }
+    return std::make_pair(lowest, sim.warnings());
+  };
+  const auto [cnLow, cnWarnings] = run(ThermalIntegrator::CrankNicolson, false);
+  EXPECT_LT(cnLow, 37.0 - 1e-3);
+  ASSERT_EQ(cnWarnings.size(), 1u);
+  EXPECT_NE(cnWarnings[0].find("maximum principle"), std::string::npos) << cnWarnings[0];
+  EXPECT_NE(cnWarnings[0].find("backward-euler"), std::string::npos) << cnWarnings[0];
+  const auto [beLow, beWarnings] = run(ThermalIntegrator::BackwardEuler, true);
+  EXPECT_GE(beLow, 37.0 - 1e-9);
+  EXPECT_TRUE(beWarnings.empty());
+}
+
 }  // namespace guards
 
 }  // namespace
