@@ -243,6 +243,40 @@ TEST(RunCli, AFailedRunExitsOneAndKeepsItsFramesMarkedPartial) {
   fs::remove_all(partial);
 }
 
+TEST(RunCli, AnInterruptedRunStaysPartialWithAPlayableVideo) {
+  const fs::path out = tempOut("interrupted");
+  const fs::path partial = out.string() + ".partial";
+  fs::remove_all(partial);
+  // a long run, SIGTERM after 3 s: it stops after the current frame
+  const std::string cmd = std::string("cd ") + ESIM_SOURCE_DIR + " && (" + ESIM_EXE +
+                          " run scenarios/paper_slab.yaml --frames 100000" + kSmall + " -o " +
+                          out.string() + " >/dev/null 2>&1 & pid=$!; sleep 3; kill -TERM $pid; " +
+                          "wait $pid; echo $?)";
+  FILE* pipe = popen(cmd.c_str(), "r");
+  char buf[64] = {0};
+  ASSERT_NE(fgets(buf, sizeof buf, pipe), nullptr);
+  pclose(pipe);
+  EXPECT_EQ(std::atoi(buf), 1) << "exit code of an interrupted run";
+  EXPECT_FALSE(fs::exists(out)) << "an interrupted run is never renamed as complete";
+  ASSERT_TRUE(fs::exists(partial / "timing.json"));
+  const auto timing = nlohmann::json::parse(readFile(partial / "timing.json"));
+  EXPECT_TRUE(timing["interrupted"].get<bool>());
+  EXPECT_FALSE(timing["complete"].get<bool>());
+  const int frames = timing["frames"].get<int>();
+  // the video holds the frames done and is playable
+  const std::string probe =
+      "ffprobe -v error -count_frames -select_streams v:0 -show_entries "
+      "stream=nb_read_frames -of csv=p=0 " +
+      (partial / "video.mp4").string();
+  FILE* p = popen(probe.c_str(), "r");
+  char count[64] = {0};
+  ASSERT_NE(fgets(count, sizeof count, p), nullptr);
+  EXPECT_EQ(pclose(p), 0);
+  EXPECT_EQ(std::atoi(count), frames);
+  EXPECT_GT(frames, 0);
+  fs::remove_all(partial);
+}
+
 TEST(RunCli, ExitCodesOfEachKind) {
   // input: 2 (a key that does not exist), nothing written
   const fs::path out = tempOut("kinds");

@@ -454,6 +454,11 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet) {
 void requestStop() { gStop = true; }
 
 int runScenario(const RunOptions& opt) {
+  // SIGINT / SIGTERM from here on stop the run after the current frame (or before the
+  // first), never in the middle of writing
+  gStop = false;
+  std::signal(SIGINT, onSignal);
+  std::signal(SIGTERM, onSignal);
   // ---- 1. scenario and output folder (checked before anything is built) ----
   Scenario scenario = loadScenario(opt.scenario, opt.sets);
   RunOutput output(opt.outDir.empty() ? fs::path("out") / scenario.name : fs::path(opt.outDir),
@@ -470,9 +475,6 @@ int runScenario(const RunOptions& opt) {
     throw;
   }
   // ---- 4. frames ----
-  gStop = false;
-  std::signal(SIGINT, onSignal);
-  std::signal(SIGTERM, onSignal);
   const LoopResult loop = frameLoop(s, *out, opt.quiet);
   // ---- 5. close the video, write the reports, rename when complete ----
   out->close();
