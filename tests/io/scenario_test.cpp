@@ -66,7 +66,7 @@ TEST(Scenario, DefaultsAreThePapersValues) {
   EXPECT_EQ(s.mesh.slab.nodes, 1013);
   EXPECT_EQ(s.material.boilingTemperatureC, 100.0);
   EXPECT_EQ(s.material.initialTemperatureC, 37.0);
-  // physical constants (REFERENCE.md)
+  // physical constants (../shared/REFERENCE.md)
   EXPECT_EQ(s.material.latentHeatJPerKg, 2.256e6);
   EXPECT_EQ(s.material.waterFraction, 0.78);
   // run defaults

@@ -217,7 +217,7 @@ TEST(Simulation, StructuralStressRisesWhereTheWaterBoils) {
     const bool boiling = *std::max_element(x.begin(), x.end()) > 0;
     (boiling ? vmAfter : vmBeforeBoiling) = r.maxVonMisesPa;
   }
-  // liquid expansion alone: below 1 kPa (REFERENCE.md: ~0.8 kPa); vapour: far above
+  // liquid expansion alone: below 1 kPa (../shared/REFERENCE.md: ~0.8 kPa); vapour: far above
   EXPECT_GT(vmBeforeBoiling, 0.0);
   EXPECT_LT(vmBeforeBoiling, 1.5e3);
   EXPECT_GT(vmAfter, 2.45e4);

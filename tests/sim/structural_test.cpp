@@ -169,7 +169,7 @@ TEST(Structural, ExpansionOfTheTissueWater) {
   const ExpansionParams p;  // w 0.78, rho 1060, T0 37, Tb 100, ratio 1602
   const double phi = 0.78 * 1060 / 993.1;
   EXPECT_NEAR(volumetricExpansion(p, 37, 0), 0, 1e-15);
-  // liquid water expands by 3.62 % from 37 to 100 C (REFERENCE.md: +3.6 %)
+  // liquid water expands by 3.62 % from 37 to 100 C (../shared/REFERENCE.md: +3.6 %)
   const double liquid = phi * (993.1 / 958.4 - 1);
   EXPECT_NEAR(volumetricExpansion(p, 100, 0), liquid, 1e-12);
   EXPECT_NEAR(liquid, 0.03014, 1e-5);
@@ -182,7 +182,7 @@ TEST(Structural, ExpansionOfTheTissueWater) {
   uncapped.maxExpansion = 1e9;
   EXPECT_NEAR(volumetricExpansion(uncapped, 100, 0.05), liquid + phi * 0.05 * 1601, 1e-9);
   // in a laterally constrained layer the von Mises stress E e_v / (3 (1 - nu)) reaches the
-  // critical stress 2.45e4 Pa at e_v = 0.93 (REFERENCE.md: ~0.9), i.e. once 6.7e-4 of the
+  // critical stress 2.45e4 Pa at e_v = 0.93 (../shared/REFERENCE.md: ~0.9), i.e. once 6.7e-4 of the
   // water has boiled
   const double ev = 3 * (1 - kNu) * 2.45e4 / kE;
   EXPECT_NEAR(ev, 0.928, 1e-3);

@@ -1,7 +1,7 @@
 // command.h - registry of `esim` sub-commands.
 //
 // Each command lives in its own file under tools/esim/ and registers itself with
-// a static ESIM_COMMAND object, so main.cpp never changes when a command is added:
+// a static Registrar object, so main.cpp never changes when a command is added:
 //
 //   static esim::cli::Registrar reg({"bench", "electric"}, "Electric solver benchmark",
 //     [](CLI::App& app) -> esim::cli::Runner {
