@@ -272,6 +272,7 @@ void Simulation::initState() {
   if (model_->structural) {
     s.eigenstrain.assign(nt, 0.0);
     s.vonMisesPa.assign(nt, 0.0);
+    s.displacementM = Eigen::VectorXd::Zero(3 * n);
   }
 }
 
@@ -598,6 +599,7 @@ void Simulation::advance(FrameRecord& rec) {
     } else {
       m.structural->solve(st.eigenstrain);
       st.vonMisesPa = m.structural->vonMisesPa();
+      st.displacementM = m.structural->displacementM();
       checkFinite(Stage::SolveStress, "von Mises stress", st.vonMisesPa.data(),
                   static_cast<int>(st.vonMisesPa.size()), "Pa");
     }
@@ -790,7 +792,7 @@ std::vector<std::string> Simulation::warnings() const {
 
 // ---- the snapshot ----
 
-SurfaceSnapshot Simulation::snapshot() {
+SurfaceSnapshot Simulation::snapshot(double displacementScale) {
   StageTimer timer(record_, Stage::Snapshot);
   const SimModel& m = *model_;
   const SimState& st = state_;
@@ -799,6 +801,12 @@ SurfaceSnapshot Simulation::snapshot() {
   snap.timeS = st.timeS;
   const std::vector<int>& vertex_of = m.surfaceVertexOf;
   snap.positionsM = m.surfacePositionsM;
+  if (m.structural && displacementScale != 0 && st.displacementM.size() > 0) {
+    for (int v : m.surfaceNodes)
+      for (int c = 0; c < 3; ++c)
+        snap.positionsM[3 * vertex_of[v] + c] +=
+            static_cast<float>(displacementScale * st.displacementM[3 * v + c]);
+  }
   snap.triangles = m.surfaceTriangles;
   const int nv = snap.numVertices();
   snap.temperatureC.assign(nv, static_cast<float>(config_.thermal.initialTemperatureC));

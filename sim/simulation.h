@@ -219,6 +219,7 @@ struct SimState {
   ThermalState thermal;                 // enthalpy, temperature, vapour, damage
   std::vector<double> eigenstrain;      // per tet: volumetric expansion (structural load)
   std::vector<double> vonMisesPa;       // per tet: of the last structural solve [Pa]
+  Eigen::VectorXd displacementM;        // 3 per node: of the last structural solve [m]
   double energyJ = 0;                   // Joule energy delivered so far [J]
   double maxTemperatureC = 0;           // highest temperature seen so far [C]
 };
@@ -235,8 +236,9 @@ class Simulation {
   const FrameRecord& step();
 
   // the surface of the alive tets with per-vertex state, for the renderer (timed into the
-  // last record's Snapshot stage)
-  SurfaceSnapshot snapshot();
+  // last record's Snapshot stage); with the structural phase its vertices are displaced by
+  // displacementScale times the last displacement (1: as computed; more to show it)
+  SurfaceSnapshot snapshot(double displacementScale = 1.0);
 
   // ---- read access ----
   const SimModel& model() const { return *model_; }

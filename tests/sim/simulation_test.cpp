@@ -483,5 +483,28 @@ TEST(SimulationGuards, AnUndershootOfTheIntegratorIsWarned) {
 
 }  // namespace guards
 
+TEST(Simulation, SnapshotShowsTheDisplacementScaled) {
+  Simulation sim(smallSlab(), boilingSpot(false));
+  for (int f = 0; f < 30; ++f) sim.step();
+  const SurfaceSnapshot rest = sim.snapshot(0.0);
+  const SurfaceSnapshot real = sim.snapshot(1.0);
+  const SurfaceSnapshot shown = sim.snapshot(20.0);
+  ASSERT_EQ(rest.positionsM.size(), real.positionsM.size());
+  const Eigen::VectorXd& u = sim.state().displacementM;
+  const std::vector<int>& vertexOf = sim.model().surfaceVertexOf;
+  double largest = 0;
+  for (int v = 0; v < sim.mesh().numNodes(); ++v) {
+    if (vertexOf[v] < 0) continue;
+    for (int c = 0; c < 3; ++c) {
+      const int i = 3 * vertexOf[v] + c;
+      EXPECT_EQ(rest.positionsM[i], static_cast<float>(sim.mesh().nodes[v][c]));
+      EXPECT_NEAR(real.positionsM[i] - rest.positionsM[i], u[3 * v + c], 1e-9);
+      EXPECT_NEAR(shown.positionsM[i] - rest.positionsM[i], 20.0 * u[3 * v + c], 1e-8);
+      largest = std::max(largest, std::abs(u[3 * v + c]));
+    }
+  }
+  EXPECT_GT(largest, 1e-6);  // the boiling spot swells the top by micrometres or more
+}
+
 }  // namespace
 }  // namespace esim
