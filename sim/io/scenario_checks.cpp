@@ -1,0 +1,164 @@
+// scenario_checks.cpp - the cross-field rules of a scenario (see scenario_checks.h).
+//
+// After the Reader has checked every field alone, checkScenario checks the rules between
+// fields, in this order: phase dependencies and the effects and heat sources they need;
+// the mesh (grid sizes, the planned cut, refinement, the mesh file, resolved through
+// resolveAsset); the frame count; the camera; the look (colour ranges, even video sizes,
+// MSAA). The first broken rule throws, located at the field it names.
+#include "sim/io/scenario_checks.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
+#include "sim/core_error.h"
+#include "sim/io/scenario_format.h"
+
+namespace esim::scenario_detail {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// mesh.file.path resolved: the scenario's folder, the nearest ancestor holding assets/
+// (the repository root), then the working directory
+std::string resolveAsset(const std::string& path, const std::string& sourceName,
+                         const Reader& reader) {
+  const fs::path p(path);
+  std::vector<fs::path> tried;
+  if (p.is_absolute()) {
+    tried.push_back(p);
+  } else {
+    const fs::path dir = fs::path(sourceName).parent_path();
+    tried.push_back(dir / p);
+    std::error_code ec;
+    fs::path up = fs::absolute(dir.empty() ? fs::path(".") : dir, ec).lexically_normal();
+    while (!ec && !up.empty()) {
+      std::error_code statError;  // a missing assets/ is no error
+      if (fs::is_directory(up / "assets", statError)) {
+        tried.push_back(up / p);
+        break;
+      }
+      if (up == up.parent_path()) break;
+      up = up.parent_path();
+    }
+    tried.push_back(fs::current_path(ec) / p);
+  }
+  std::vector<std::string> names;
+  for (const auto& t : tried) {
+    std::error_code ec;
+    const fs::path full = fs::absolute(t, ec).lexically_normal();
+    if (fs::is_regular_file(full, ec)) return full.string();
+    const std::string n = full.string();
+    if (std::find(names.begin(), names.end(), n) == names.end()) names.push_back(n);
+  }
+  reader.fail("mesh.file.path",
+              "mesh.file.path: file '" + path + "' not found; tried " + joinList(names));
+}
+
+}  // namespace
+
+std::string phaseList(const Scenario& s) {
+  std::string out;
+  for (Phase p : s.physics) out += (out.empty() ? "" : ", ") + std::string(phaseName(p));
+  return "[" + out + "]";
+}
+
+void checkScenario(Scenario& s, const Reader& r) {
+  // phase dependencies
+  const bool electric = s.has(Phase::Electric), thermal = s.has(Phase::Thermal);
+  if (s.has(Phase::Boiling) && !thermal)
+    r.fail("physics", "physics " + phaseList(s) + ": 'boiling' needs 'thermal'; add thermal");
+  if (s.has(Phase::Structural) && (!thermal || !s.has(Phase::Boiling)))
+    r.fail("physics", "physics " + phaseList(s) +
+                          ": 'structural' needs 'thermal' and 'boiling' (its load is the "
+                          "expansion of heated and vaporized water); add them");
+  if (s.has(Phase::Rupture) && !s.has(Phase::Structural))
+    r.fail("physics", "physics " + phaseList(s) +
+                          ": 'rupture' needs 'structural' (the stress that breaks elements); "
+                          "add structural");
+  if (thermal && !electric && s.heatSource.kind == "none" && !s.initialHotSpot.enabled)
+    r.fail("physics", "physics " + phaseList(s) +
+                          ": 'thermal' without 'electric' has no heat; add electric, or set "
+                          "heat_source.kind: gaussian or initial_hot_spot.enabled: true");
+  if (s.heatSource.kind != "none" && (!thermal || electric))
+    r.fail("heat_source.kind", "heat_source.kind = " + s.heatSource.kind +
+                                   " is used only when physics has thermal without electric "
+                                   "(physics " +
+                                   phaseList(s) + "); set heat_source.kind: none");
+  if (s.initialHotSpot.enabled && !thermal)
+    r.fail("initial_hot_spot.enabled",
+           "initial_hot_spot.enabled needs the thermal phase (physics " + phaseList(s) + ")");
+  // effects need their phases
+  if (s.effects.temperatureDependentConductivity && !(electric && thermal))
+    r.fail("effects.temperature_dependent_conductivity",
+           "effects.temperature_dependent_conductivity needs electric and thermal (physics " +
+               phaseList(s) + ")");
+  if (s.effects.thermalDamage && !thermal)
+    r.fail("effects.thermal_damage",
+           "effects.thermal_damage needs thermal (physics " + phaseList(s) + ")");
+  if (s.effects.surfaceCoolingHWPerM2K > 0 && !thermal)
+    r.fail("effects.surface_cooling.h_w_per_m2k",
+           "effects.surface_cooling.h_w_per_m2k > 0 needs thermal (physics " + phaseList(s) + ")");
+  // mesh
+  const auto& npa = s.mesh.slab.nodesPerAxis;
+  const bool allZero = npa[0] == 0 && npa[1] == 0 && npa[2] == 0;
+  if (!allZero && (npa[0] < 2 || npa[1] < 2 || npa[2] < 2))
+    r.fail("mesh.slab.nodes_per_axis",
+           "mesh.slab.nodes_per_axis: each entry must be >= 2, or all 0 to derive the grid "
+           "from mesh.slab.nodes");
+  if (s.mesh.slab.grading.enabled && s.mesh.slab.grading.fromM == s.mesh.slab.grading.toM)
+    r.fail("mesh.slab.grading.to_m",
+           "mesh.slab.grading.to_m equals from_m; the planned cut needs two distinct ends");
+  const ScenarioRefine& refine = s.mesh.file.refine;
+  if (refine.enabled && refine.fromM == refine.toM)
+    r.fail("mesh.file.refine.to_m",
+           "mesh.file.refine.to_m equals from_m; the planned cut needs two distinct ends");
+  if (refine.enabled && refine.cellSizeM > s.mesh.file.cellSizeM)
+    r.fail("mesh.file.refine.cell_size_m",
+           "mesh.file.refine.cell_size_m = " + formatNumber(refine.cellSizeM) +
+               " m is larger than mesh.file.cell_size_m = " + formatNumber(s.mesh.file.cellSizeM) +
+               " m; the refined cells must be at most the global size");
+  if (s.mesh.source == "file") {
+    if (s.mesh.file.path.empty())
+      r.fail("mesh.source", "mesh.source = file needs mesh.file.path (a surface file)");
+    s.mesh.file.resolvedPath = resolveAsset(s.mesh.file.path, s.sourceName, r);
+  }
+  // time
+  if (std::lround(s.time.durationS * s.time.fps) < 1)
+    r.fail("time.duration_s",
+           "time.duration_s * time.fps = " + formatNumber(s.time.durationS * s.time.fps) +
+               " gives no frame; at least one frame is needed");
+  // camera
+  const Vec3 view = s.camera.targetM - s.camera.eyeM;
+  if (view.norm() == 0.0)
+    r.fail("camera.target_m", "camera.target_m equals camera.eye_m; the camera needs a direction");
+  if (view.normalized().cross(s.camera.up.normalized()).norm() < 1e-6)
+    r.fail("camera.up", "camera.up is parallel to the view direction (target_m - eye_m)");
+  // look
+  if (!(s.look.tMaxC > s.look.tMinC))
+    r.fail("look.t_max_c", "look.t_max_c = " + formatNumber(s.look.tMaxC) +
+                               " must be above look.t_min_c = " + formatNumber(s.look.tMinC));
+  if (s.look.style == "potential" && !electric)
+    r.fail("look.style", "look.style = potential needs the electric phase (physics " +
+                             phaseList(s) + "); add electric, or use temperature or tissue");
+  const double vMaxV = s.look.vMaxV != 0.0 ? s.look.vMaxV : s.tool.voltageV;
+  if ((s.look.style == "potential" || s.look.vMaxV != 0.0) && !(vMaxV > s.look.vMinV))
+    r.fail(s.look.vMaxV != 0.0 ? "look.v_max_v" : "look.v_min_v",
+           "look.v_max_v = " + formatNumber(vMaxV) +
+               (s.look.vMaxV != 0.0 ? "" : " (0 = tool.voltage_v)") +
+               " must be above look.v_min_v = " + formatNumber(s.look.vMinV));
+  if (s.look.potentialScale == "log" && !(s.look.vMinV > 0.0))
+    r.fail("look.v_min_v", "look.v_min_v = " + formatNumber(s.look.vMinV) +
+                               " must be above 0 with look.potential_scale = log");
+  if (s.look.width % 2 != 0)
+    r.fail("look.width",
+           "look.width = " + std::to_string(s.look.width) + " must be even (yuv420p video)");
+  if (s.look.height % 2 != 0)
+    r.fail("look.height",
+           "look.height = " + std::to_string(s.look.height) + " must be even (yuv420p video)");
+  if (s.look.msaa == 1 || s.look.msaa == 3)
+    r.fail("look.msaa", "look.msaa = " + std::to_string(s.look.msaa) + " must be 0, 2 or 4");
+}
+
+}  // namespace esim::scenario_detail
