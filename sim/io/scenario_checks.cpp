@@ -16,6 +16,12 @@
 
 namespace esim::scenario_detail {
 
+std::string phaseList(const Scenario& s) {
+  std::string out;
+  for (Phase p : s.physics) out += (out.empty() ? "" : ", ") + std::string(phaseName(p));
+  return "[" + out + "]";
+}
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -56,16 +62,8 @@ std::string resolveAsset(const std::string& path, const std::string& sourceName,
               "mesh.file.path: file '" + path + "' not found; tried " + joinList(names));
 }
 
-}  // namespace
-
-std::string phaseList(const Scenario& s) {
-  std::string out;
-  for (Phase p : s.physics) out += (out.empty() ? "" : ", ") + std::string(phaseName(p));
-  return "[" + out + "]";
-}
-
-void checkScenario(Scenario& s, const Reader& r) {
-  // phase dependencies
+// physics: each phase has the phases it builds on, and a heat source
+void checkPhases(const Scenario& s, const Reader& r) {
   const bool electric = s.has(Phase::Electric), thermal = s.has(Phase::Thermal);
   if (s.has(Phase::Boiling) && !thermal)
     r.fail("physics", "physics " + phaseList(s) + ": 'boiling' needs 'thermal'; add thermal");
@@ -89,7 +87,11 @@ void checkScenario(Scenario& s, const Reader& r) {
   if (s.initialHotSpot.enabled && !thermal)
     r.fail("initial_hot_spot.enabled",
            "initial_hot_spot.enabled needs the thermal phase (physics " + phaseList(s) + ")");
-  // effects need their phases
+}
+
+// effects need their phases
+void checkEffects(const Scenario& s, const Reader& r) {
+  const bool electric = s.has(Phase::Electric), thermal = s.has(Phase::Thermal);
   if (s.effects.temperatureDependentConductivity && !(electric && thermal))
     r.fail("effects.temperature_dependent_conductivity",
            "effects.temperature_dependent_conductivity needs electric and thermal (physics " +
@@ -100,7 +102,11 @@ void checkScenario(Scenario& s, const Reader& r) {
   if (s.effects.surfaceCoolingHWPerM2K > 0 && !thermal)
     r.fail("effects.surface_cooling.h_w_per_m2k",
            "effects.surface_cooling.h_w_per_m2k > 0 needs thermal (physics " + phaseList(s) + ")");
-  // mesh
+}
+
+// grid sizes, the planned cut, refinement and the mesh file (resolved into
+// s.mesh.file.resolvedPath)
+void checkMesh(Scenario& s, const Reader& r) {
   const auto& npa = s.mesh.slab.nodesPerAxis;
   const bool allZero = npa[0] == 0 && npa[1] == 0 && npa[2] == 0;
   if (!allZero && (npa[0] < 2 || npa[1] < 2 || npa[2] < 2))
@@ -124,18 +130,24 @@ void checkScenario(Scenario& s, const Reader& r) {
       r.fail("mesh.source", "mesh.source = file needs mesh.file.path (a surface file)");
     s.mesh.file.resolvedPath = resolveAsset(s.mesh.file.path, s.sourceName, r);
   }
-  // time
+}
+
+// frame count, camera
+void checkTimeAndCamera(const Scenario& s, const Reader& r) {
   if (std::lround(s.time.durationS * s.time.fps) < 1)
     r.fail("time.duration_s",
            "time.duration_s * time.fps = " + formatNumber(s.time.durationS * s.time.fps) +
                " gives no frame; at least one frame is needed");
-  // camera
   const Vec3 view = s.camera.targetM - s.camera.eyeM;
   if (view.norm() == 0.0)
     r.fail("camera.target_m", "camera.target_m equals camera.eye_m; the camera needs a direction");
   if (view.normalized().cross(s.camera.up.normalized()).norm() < 1e-6)
     r.fail("camera.up", "camera.up is parallel to the view direction (target_m - eye_m)");
-  // look
+}
+
+// colour ranges, video size, MSAA
+void checkLook(const Scenario& s, const Reader& r) {
+  const bool electric = s.has(Phase::Electric);
   if (!(s.look.tMaxC > s.look.tMinC))
     r.fail("look.t_max_c", "look.t_max_c = " + formatNumber(s.look.tMaxC) +
                                " must be above look.t_min_c = " + formatNumber(s.look.tMinC));
@@ -159,6 +171,16 @@ void checkScenario(Scenario& s, const Reader& r) {
            "look.height = " + std::to_string(s.look.height) + " must be even (yuv420p video)");
   if (s.look.msaa == 1 || s.look.msaa == 3)
     r.fail("look.msaa", "look.msaa = " + std::to_string(s.look.msaa) + " must be 0, 2 or 4");
+}
+
+}  // namespace
+
+void checkScenario(Scenario& s, const Reader& r) {
+  checkPhases(s, r);
+  checkEffects(s, r);
+  checkMesh(s, r);
+  checkTimeAndCamera(s, r);
+  checkLook(s, r);
 }
 
 }  // namespace esim::scenario_detail
