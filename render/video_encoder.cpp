@@ -32,6 +32,41 @@ std::string version(const char* name, unsigned v) {
          std::to_string(AV_VERSION_MINOR(v)) + "." + std::to_string(AV_VERSION_MICRO(v));
 }
 
+// the options open() accepts (sizes, rates, quality, queue)
+void checkOptions(const VideoEncoder::Options& o) {
+  ESIM_VERIFY(!o.path.empty(), "video.path: empty output path");
+  ESIM_VERIFY(o.width >= 16 && o.height >= 16 && o.width % 2 == 0 && o.height % 2 == 0,
+              "video.width/height: " + std::to_string(o.width) + "x" + std::to_string(o.height) +
+                  ", expected even sizes >= 16 (yuv420p halves the chroma)");
+  ESIM_VERIFY(o.fps >= 1 && o.fps <= 240,
+              "video.fps: " + std::to_string(o.fps) + ", expected 1..240");
+  ESIM_VERIFY(o.crf >= 0 && o.crf <= 51,
+              "video.crf: " + std::to_string(o.crf) + ", expected 0..51");
+  ESIM_VERIFY(o.queueCapacity >= 1, "video.queue_capacity: must be at least 1");
+}
+
+// the wanted encoder, else (allowFallback) libopenh264, else mpeg4; a fallback's reason
+// goes to notes and stderr
+const AVCodec* findEncoder(const VideoEncoder::Options& o, std::string& notes) {
+  const AVCodec* codec = avcodec_find_encoder_by_name(o.codec.c_str());
+  if (!codec) {
+    const std::string missing = "video: encoder '" + o.codec +
+                                "' is not available in this FFmpeg "
+                                "build (libavcodec " +
+                                std::to_string(LIBAVCODEC_VERSION_MAJOR) + ")";
+    ESIM_VERIFY(o.allowFallback, missing + "; install an FFmpeg with " + o.codec +
+                                     " (Debian: libavcodec59 with libx264) or allow the fallback");
+    for (const char* name : {"libopenh264", "mpeg4"}) {
+      if ((codec = avcodec_find_encoder_by_name(name)) != nullptr) break;
+    }
+    ESIM_VERIFY(codec, missing + ", and neither libopenh264 nor mpeg4 is available");
+    notes = missing + "; falling back to '" + codec->name + "'" +
+            (std::string(codec->name) == "mpeg4" ? " (MPEG-4 Part 2, not H.264)" : "");
+    std::cerr << "esim: warning: " << notes << "\n";
+  }
+  return codec;
+}
+
 }  // namespace
 
 struct VideoEncoder::Av {
@@ -43,6 +78,18 @@ struct VideoEncoder::Av {
   AVPacket* packet = nullptr;
   std::int64_t nextPts = 0;
   bool headerWritten = false;
+
+  // the codec context: size, time base, BT.709 tags, threads, and the rate control of
+  // the encoder in use (codecName)
+  void configureCodec(const AVCodec* encoder, const Options& o, const std::string& codecName);
+  // the MP4 muxer on tmpPath, the opened encoder, its stream and the open output file
+  void openContainer(const AVCodec* encoder, const Options& o, const std::string& tmpPath,
+                     const std::string& codecName);
+  // the MP4 header (movflags +faststart); libav's return code
+  int writeHeader();
+  // colour conversion RGB24 (full range) -> YUV420P (limited), BT.709 matrix; the frame
+  // and the packet
+  void allocateFrames(const Options& o);
 
   ~Av() {
     sws_freeContext(sws);
@@ -73,17 +120,87 @@ std::string VideoEncoder::libraryVersions() {
          version("libswscale", swscale_version());
 }
 
+void VideoEncoder::Av::configureCodec(const AVCodec* encoder, const Options& o,
+                                      const std::string& codecName) {
+  codec = avcodec_alloc_context3(encoder);
+  ESIM_VERIFY(codec, "video: out of memory allocating the codec context");
+  AVCodecContext* c = codec;
+  c->width = o.width;
+  c->height = o.height;
+  c->pix_fmt = AV_PIX_FMT_YUV420P;
+  c->time_base = AVRational{1, o.fps};
+  c->framerate = AVRational{o.fps, 1};
+  c->sample_aspect_ratio = AVRational{1, 1};
+  c->color_primaries = AVCOL_PRI_BT709;
+  c->color_trc = AVCOL_TRC_BT709;
+  c->colorspace = AVCOL_SPC_BT709;
+  c->color_range = AVCOL_RANGE_MPEG;
+  c->gop_size = 2 * o.fps;
+  c->thread_count = o.reproducible ? 1 : 0;
+  if (o.reproducible) c->flags |= AV_CODEC_FLAG_BITEXACT;
+  if (codecName == "libx264") {
+    av_opt_set(c->priv_data, "preset", o.preset.c_str(), 0);
+    av_opt_set_double(c->priv_data, "crf", o.crf, 0);
+  } else if (codecName == "libopenh264") {
+    c->bit_rate = static_cast<std::int64_t>(o.width) * o.height * o.fps / 8;  // ~0.125 bit/px
+  } else {  // mpeg4 and others: constant quantiser from crf (crf 20 -> q 3)
+    c->flags |= AV_CODEC_FLAG_QSCALE;
+    c->global_quality = FF_QP2LAMBDA * std::clamp(o.crf / 6, 2, 31);
+  }
+}
+
+void VideoEncoder::Av::openContainer(const AVCodec* encoder, const Options& o,
+                                     const std::string& tmpPath, const std::string& codecName) {
+  AVCodecContext* c = codec;
+  int rc = avformat_alloc_output_context2(&fmt, nullptr, "mp4", tmpPath.c_str());
+  ESIM_VERIFY(rc >= 0 && fmt, "video: cannot create an MP4 muxer: " + avError(rc));
+  if (o.reproducible) fmt->flags |= AVFMT_FLAG_BITEXACT;
+  if (fmt->oformat->flags & AVFMT_GLOBALHEADER) c->flags |= AV_CODEC_FLAG_GLOBAL_HEADER;
+  rc = avcodec_open2(c, encoder, nullptr);
+  ESIM_VERIFY(rc >= 0, "video: cannot open encoder '" + codecName + "' (preset '" + o.preset +
+                           "', crf " + std::to_string(o.crf) + "): " + avError(rc));
+  stream = avformat_new_stream(fmt, nullptr);
+  ESIM_VERIFY(stream, "video: cannot add a stream to the MP4 muxer");
+  stream->time_base = c->time_base;
+  stream->avg_frame_rate = c->framerate;
+  rc = avcodec_parameters_from_context(stream->codecpar, c);
+  ESIM_VERIFY(rc >= 0, "video: codec parameters: " + avError(rc));
+  rc = avio_open(&fmt->pb, tmpPath.c_str(), AVIO_FLAG_WRITE);
+  ESIM_VERIFY(rc >= 0, "video.path: cannot open '" + tmpPath + "' for writing: " + avError(rc));
+}
+
+int VideoEncoder::Av::writeHeader() {
+  AVDictionary* muxOpts = nullptr;
+  av_dict_set(&muxOpts, "movflags", "+faststart", 0);
+  const int rc = avformat_write_header(fmt, &muxOpts);
+  av_dict_free(&muxOpts);
+  return rc;
+}
+
+void VideoEncoder::Av::allocateFrames(const Options& o) {
+  sws = sws_getContext(o.width, o.height, AV_PIX_FMT_RGB24, o.width, o.height, AV_PIX_FMT_YUV420P,
+                       SWS_BILINEAR | SWS_ACCURATE_RND | (o.reproducible ? SWS_BITEXACT : 0),
+                       nullptr, nullptr, nullptr);
+  ESIM_VERIFY(sws, "video: cannot create the RGB -> YUV420P converter");
+  const int* bt709 = sws_getCoefficients(SWS_CS_ITU709);
+  sws_setColorspaceDetails(sws, bt709, 1, bt709, 0, 0, 1 << 16, 1 << 16);
+  frame = av_frame_alloc();
+  packet = av_packet_alloc();
+  ESIM_VERIFY(frame && packet, "video: out of memory allocating frames");
+  frame->format = AV_PIX_FMT_YUV420P;
+  frame->width = o.width;
+  frame->height = o.height;
+  frame->color_primaries = AVCOL_PRI_BT709;
+  frame->color_trc = AVCOL_TRC_BT709;
+  frame->colorspace = AVCOL_SPC_BT709;
+  frame->color_range = AVCOL_RANGE_MPEG;
+  const int rc = av_frame_get_buffer(frame, 0);
+  ESIM_VERIFY(rc >= 0, "video: cannot allocate a frame: " + avError(rc));
+}
+
 void VideoEncoder::open(const Options& o) {
   ESIM_VERIFY(!isOpen(), "video: open() called on an encoder that is already open");
-  ESIM_VERIFY(!o.path.empty(), "video.path: empty output path");
-  ESIM_VERIFY(o.width >= 16 && o.height >= 16 && o.width % 2 == 0 && o.height % 2 == 0,
-              "video.width/height: " + std::to_string(o.width) + "x" + std::to_string(o.height) +
-                  ", expected even sizes >= 16 (yuv420p halves the chroma)");
-  ESIM_VERIFY(o.fps >= 1 && o.fps <= 240,
-              "video.fps: " + std::to_string(o.fps) + ", expected 1..240");
-  ESIM_VERIFY(o.crf >= 0 && o.crf <= 51,
-              "video.crf: " + std::to_string(o.crf) + ", expected 0..51");
-  ESIM_VERIFY(o.queueCapacity >= 1, "video.queue_capacity: must be at least 1");
+  checkOptions(o);
   opt_ = o;
   // libx264 and the muxer log every file at "info" level; keep stderr for warnings
   // unless the application chose a level itself
@@ -99,70 +216,14 @@ void VideoEncoder::open(const Options& o) {
   queue_.clear();
 
   // 1. encoder, with the documented fallback chain
-  const AVCodec* codec = avcodec_find_encoder_by_name(o.codec.c_str());
-  if (!codec) {
-    const std::string missing = "video: encoder '" + o.codec +
-                                "' is not available in this FFmpeg "
-                                "build (libavcodec " +
-                                std::to_string(LIBAVCODEC_VERSION_MAJOR) + ")";
-    ESIM_VERIFY(o.allowFallback, missing + "; install an FFmpeg with " + o.codec +
-                                     " (Debian: libavcodec59 with libx264) or allow the fallback");
-    for (const char* name : {"libopenh264", "mpeg4"}) {
-      if ((codec = avcodec_find_encoder_by_name(name)) != nullptr) break;
-    }
-    ESIM_VERIFY(codec, missing + ", and neither libopenh264 nor mpeg4 is available");
-    notes_ = missing + "; falling back to '" + codec->name + "'" +
-             (std::string(codec->name) == "mpeg4" ? " (MPEG-4 Part 2, not H.264)" : "");
-    std::cerr << "esim: warning: " << notes_ << "\n";
-  }
+  const AVCodec* codec = findEncoder(o, notes_);
   codecName_ = codec->name;
-  a.codec = avcodec_alloc_context3(codec);
-  ESIM_VERIFY(a.codec, "video: out of memory allocating the codec context");
-  AVCodecContext* c = a.codec;
-  c->width = o.width;
-  c->height = o.height;
-  c->pix_fmt = AV_PIX_FMT_YUV420P;
-  c->time_base = AVRational{1, o.fps};
-  c->framerate = AVRational{o.fps, 1};
-  c->sample_aspect_ratio = AVRational{1, 1};
-  c->color_primaries = AVCOL_PRI_BT709;
-  c->color_trc = AVCOL_TRC_BT709;
-  c->colorspace = AVCOL_SPC_BT709;
-  c->color_range = AVCOL_RANGE_MPEG;
-  c->gop_size = 2 * o.fps;
-  c->thread_count = o.reproducible ? 1 : 0;
-  if (o.reproducible) c->flags |= AV_CODEC_FLAG_BITEXACT;
-  if (codecName_ == "libx264") {
-    av_opt_set(c->priv_data, "preset", o.preset.c_str(), 0);
-    av_opt_set_double(c->priv_data, "crf", o.crf, 0);
-  } else if (codecName_ == "libopenh264") {
-    c->bit_rate = static_cast<std::int64_t>(o.width) * o.height * o.fps / 8;  // ~0.125 bit/px
-  } else {  // mpeg4 and others: constant quantiser from crf (crf 20 -> q 3)
-    c->flags |= AV_CODEC_FLAG_QSCALE;
-    c->global_quality = FF_QP2LAMBDA * std::clamp(o.crf / 6, 2, 31);
-  }
+  a.configureCodec(codec, o, codecName_);
 
   // 2. container on the temporary name
   tmpPath_ = o.path + ".partial";
-  int rc = avformat_alloc_output_context2(&a.fmt, nullptr, "mp4", tmpPath_.c_str());
-  ESIM_VERIFY(rc >= 0 && a.fmt, "video: cannot create an MP4 muxer: " + avError(rc));
-  if (o.reproducible) a.fmt->flags |= AVFMT_FLAG_BITEXACT;
-  if (a.fmt->oformat->flags & AVFMT_GLOBALHEADER) c->flags |= AV_CODEC_FLAG_GLOBAL_HEADER;
-  rc = avcodec_open2(c, codec, nullptr);
-  ESIM_VERIFY(rc >= 0, "video: cannot open encoder '" + codecName_ + "' (preset '" + o.preset +
-                           "', crf " + std::to_string(o.crf) + "): " + avError(rc));
-  a.stream = avformat_new_stream(a.fmt, nullptr);
-  ESIM_VERIFY(a.stream, "video: cannot add a stream to the MP4 muxer");
-  a.stream->time_base = c->time_base;
-  a.stream->avg_frame_rate = c->framerate;
-  rc = avcodec_parameters_from_context(a.stream->codecpar, c);
-  ESIM_VERIFY(rc >= 0, "video: codec parameters: " + avError(rc));
-  rc = avio_open(&a.fmt->pb, tmpPath_.c_str(), AVIO_FLAG_WRITE);
-  ESIM_VERIFY(rc >= 0, "video.path: cannot open '" + tmpPath_ + "' for writing: " + avError(rc));
-  AVDictionary* muxOpts = nullptr;
-  av_dict_set(&muxOpts, "movflags", "+faststart", 0);
-  rc = avformat_write_header(a.fmt, &muxOpts);
-  av_dict_free(&muxOpts);
+  a.openContainer(codec, o, tmpPath_, codecName_);
+  const int rc = a.writeHeader();
   if (rc < 0) {
     av_.reset();
     std::error_code ec;
@@ -171,25 +232,8 @@ void VideoEncoder::open(const Options& o) {
   }
   a.headerWritten = true;
 
-  // 3. colour conversion RGB24 (full range) -> YUV420P (limited), BT.709 matrix
-  a.sws = sws_getContext(o.width, o.height, AV_PIX_FMT_RGB24, o.width, o.height, AV_PIX_FMT_YUV420P,
-                         SWS_BILINEAR | SWS_ACCURATE_RND | (o.reproducible ? SWS_BITEXACT : 0),
-                         nullptr, nullptr, nullptr);
-  ESIM_VERIFY(a.sws, "video: cannot create the RGB -> YUV420P converter");
-  const int* bt709 = sws_getCoefficients(SWS_CS_ITU709);
-  sws_setColorspaceDetails(a.sws, bt709, 1, bt709, 0, 0, 1 << 16, 1 << 16);
-  a.frame = av_frame_alloc();
-  a.packet = av_packet_alloc();
-  ESIM_VERIFY(a.frame && a.packet, "video: out of memory allocating frames");
-  a.frame->format = AV_PIX_FMT_YUV420P;
-  a.frame->width = o.width;
-  a.frame->height = o.height;
-  a.frame->color_primaries = AVCOL_PRI_BT709;
-  a.frame->color_trc = AVCOL_TRC_BT709;
-  a.frame->colorspace = AVCOL_SPC_BT709;
-  a.frame->color_range = AVCOL_RANGE_MPEG;
-  rc = av_frame_get_buffer(a.frame, 0);
-  ESIM_VERIFY(rc >= 0, "video: cannot allocate a frame: " + avError(rc));
+  // 3. colour conversion and the frame buffers
+  a.allocateFrames(o);
 
   // 4. the encoder thread
   thread_ = std::thread([this] { run(); });
