@@ -408,7 +408,7 @@ void Simulation::startRebuild(const std::vector<int>& broken) {
         std::min(last, first + config_.rebuildLagFrames +
                            static_cast<int>(std::ceil(kRebuildPrefetchS / config_.frameDtS)));
   }
-  if (!config_.backgroundRebuild) {
+  if (config_.rebuildMode == RebuildMode::Synchronous) {
     ready_ = std::make_unique<Rebuilt>();
     ready_->model = buildModel(std::move(alive), std::move(sigma), first, prefetchTo);
     ready_->removed = broken;

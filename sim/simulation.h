@@ -119,6 +119,10 @@ struct HotSpotSpec {
   double temperatureC = 90;
 };
 
+// after rupture: build the new model in the frame that breaks tets, or on a thread while
+// frames go on with the old one
+enum class RebuildMode { Synchronous, Background };
+
 struct SimulationConfig {
   PhaseSet phases;
   double frameDtS = 1.0 / 30.0;  // simulated time per frame [s]
@@ -153,9 +157,9 @@ struct SimulationConfig {
   double maxVaporExpansion = ExpansionParams{}.maxExpansion;  // cap of dV/V (structural.h)
   double clampBandM = 1e-4;          // clamp the nodes this close to the lowest z [m]
   double criticalStressPa = 2.45e4;  // von Mises stress that breaks a tet (paper)
-  bool backgroundRebuild = false;    // build the new structures on a thread ...
-  int rebuildLagFrames = 3;          // ... swapped in this many frames after rupture
-  bool recomputeLagFrames = true;    // ... then the lag frames again on the new model
+  RebuildMode rebuildMode = RebuildMode::Synchronous;  // or on a thread ...
+  int rebuildLagFrames = 3;        // ... swapped in this many frames after rupture
+  bool recomputeLagFrames = true;  // ... then the lag frames again on the new model
 };
 
 // The core's defaults (like MuJoCo's mj_defaultOption): the one source of every default

@@ -12,7 +12,7 @@
 
 namespace esim {
 
-enum class ElectrodeKind : int { Sphere = 0, Blade = 1 };
+enum class ElectrodeKind : int { Blade = 0, Sphere = 1 };  // the order of tool.shape's names
 
 struct ToolSnapshot {
   bool present = false;      // draw the electrode at all

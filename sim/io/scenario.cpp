@@ -132,7 +132,7 @@ std::string scenarioSummary(const Scenario& s) {
   std::ostringstream out;
   out << frameCount(s) << " frames (" << formatNumber(s.time.durationS) << " s at "
       << formatNumber(s.time.fps) << " fps), physics " << phaseList(s) << ", mesh ";
-  if (s.mesh.source == "slab") {
+  if (s.mesh.source == MeshSource::Slab) {
     const auto& sz = s.mesh.slab.sizeM;
     out << "slab " << formatNumber(sz.x() * 1e3) << "x" << formatNumber(sz.y() * 1e3) << "x"
         << formatNumber(sz.z() * 1e3) << " mm, ";
@@ -149,9 +149,9 @@ std::string scenarioSummary(const Scenario& s) {
       out << ", " << formatNumber(s.mesh.file.refine.cellSizeM * 1e3) << " mm near the cut";
     out << ")";
   }
-  out << ", tool " << s.tool.shape << " " << formatNumber(s.tool.voltageV) << " V, "
-      << s.tool.path.size() << " keyframe" << (s.tool.path.size() == 1 ? "" : "s") << ", look "
-      << s.look.style;
+  out << ", tool " << (s.tool.shape == ElectrodeKind::Sphere ? "sphere" : "blade") << " "
+      << formatNumber(s.tool.voltageV) << " V, " << s.tool.path.size() << " keyframe"
+      << (s.tool.path.size() == 1 ? "" : "s") << ", look " << s.look.style;
   return out.str();
 }
 

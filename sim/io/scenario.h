@@ -32,6 +32,13 @@ namespace scenario_detail {
 inline const SimulationConfig& core() { return defaultSimulationConfig(); }
 }  // namespace scenario_detail
 
+// choices held as enums from the load on (their names are in the schema, scenario_schema.cpp;
+// the core's own enums where it has one: ElectrodeKind, ElectricStrategy, ThermalIntegrator,
+// RebuildMode)
+enum class MeshSource { Slab, File };
+enum class HeatSourceKind { None, Gaussian };
+enum class ThermalMass { Lumped, Consistent };
+
 // physics phases, in pipeline order
 enum class Phase : int { Electric = 0, Thermal, Boiling, Structural, Rupture };
 
@@ -78,7 +85,7 @@ struct ScenarioMeshFile {
 };
 
 struct ScenarioMesh {
-  std::string source = "slab";  // "slab" | "file"
+  MeshSource source = MeshSource::Slab;  // slab | file
   ScenarioSlab slab;
   ScenarioMeshFile file;
   bool operator==(const ScenarioMesh&) const = default;
@@ -139,7 +146,7 @@ struct ScenarioKeyframe {
 };
 
 struct ScenarioTool {
-  std::string shape = "blade";  // "blade" | "sphere"
+  ElectrodeKind shape = scenario_detail::core().electrode.kind;  // blade | sphere
   // sphere radius / blade edge half-thickness
   double radiusM = scenario_detail::core().electrode.radiusM;
   double lengthM = scenario_detail::core().electrode.lengthM;
@@ -156,7 +163,7 @@ struct ScenarioTool {
 
 // ---- heat source for thermal scenes without the electric phase ----
 struct ScenarioHeatSource {
-  std::string kind = "none";  // "none" | "gaussian"
+  HeatSourceKind kind = HeatSourceKind::None;  // none | gaussian
   Vec3 centerM = scenario_detail::core().heatSource.centerM;
   // Gaussian 1/e radius [m]
   double radiusM = scenario_detail::core().heatSource.radiusM;
@@ -186,8 +193,7 @@ struct ScenarioEffects {
 
 struct ScenarioSolvers {
   // refactor|dense-inverse|capacitance|pcg
-  std::string electricStrategy =
-      electricStrategyName(scenario_detail::core().electricSolver.strategy);
+  ElectricStrategy electricStrategy = scenario_detail::core().electricSolver.strategy;
   // pcg relative residual
   double electricTolerance = scenario_detail::core().electricSolver.pcgTolerance;
   int electricMaxIterations = scenario_detail::core().electricSolver.pcgMaxIterations;
@@ -197,13 +203,13 @@ struct ScenarioSolvers {
   int electricThreads = scenario_detail::core().electricSolver.threads;
   bool electricPrefetchPath = true;  // precompute what the scripted tool path touches
   // explicit | backward-euler | crank-nicolson
-  std::string thermalIntegrator = thermalIntegratorName(scenario_detail::core().thermal.integrator);
+  ThermalIntegrator thermalIntegrator = scenario_detail::core().thermal.integrator;
   // lumped | consistent
-  std::string thermalMass = scenario_detail::core().thermal.lumpedMass ? "lumped" : "consistent";
+  ThermalMass thermalMass =
+      scenario_detail::core().thermal.lumpedMass ? ThermalMass::Lumped : ThermalMass::Consistent;
   bool thermalAllowSubstepping = scenario_detail::core().thermal.allowSubstepping;
   // synchronous | background
-  std::string rebuildMode =
-      scenario_detail::core().backgroundRebuild ? "background" : "synchronous";
+  RebuildMode rebuildMode = scenario_detail::core().rebuildMode;
   // background: frames until the swap
   int rebuildLagFrames = scenario_detail::core().rebuildLagFrames;
   // background: the lag frames again, new model

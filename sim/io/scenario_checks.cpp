@@ -75,15 +75,17 @@ void checkPhases(const Scenario& s, const Reader& r) {
     r.fail("physics", "physics " + phaseList(s) +
                           ": 'rupture' needs 'structural' (the stress that breaks elements); "
                           "add structural");
-  if (thermal && !electric && s.heatSource.kind == "none" && !s.initialHotSpot.enabled)
+  if (thermal && !electric && s.heatSource.kind == HeatSourceKind::None &&
+      !s.initialHotSpot.enabled)
     r.fail("physics", "physics " + phaseList(s) +
                           ": 'thermal' without 'electric' has no heat; add electric, or set "
                           "heat_source.kind: gaussian or initial_hot_spot.enabled: true");
-  if (s.heatSource.kind != "none" && (!thermal || electric))
-    r.fail("heat_source.kind", "heat_source.kind = " + s.heatSource.kind +
-                                   " is used only when physics has thermal without electric "
-                                   "(physics " +
-                                   phaseList(s) + "); set heat_source.kind: none");
+  if (s.heatSource.kind != HeatSourceKind::None && (!thermal || electric))
+    r.fail("heat_source.kind",
+           "heat_source.kind = gaussian"
+           " is used only when physics has thermal without electric "
+           "(physics " +
+               phaseList(s) + "); set heat_source.kind: none");
   if (s.initialHotSpot.enabled && !thermal)
     r.fail("initial_hot_spot.enabled",
            "initial_hot_spot.enabled needs the thermal phase (physics " + phaseList(s) + ")");
@@ -125,7 +127,7 @@ void checkMesh(Scenario& s, const Reader& r) {
            "mesh.file.refine.cell_size_m = " + formatNumber(refine.cellSizeM) +
                " m is larger than mesh.file.cell_size_m = " + formatNumber(s.mesh.file.cellSizeM) +
                " m; the refined cells must be at most the global size");
-  if (s.mesh.source == "file") {
+  if (s.mesh.source == MeshSource::File) {
     if (s.mesh.file.path.empty())
       r.fail("mesh.source", "mesh.source = file needs mesh.file.path (a surface file)");
     s.mesh.file.resolvedPath = resolveAsset(s.mesh.file.path, s.sourceName, r);

@@ -96,7 +96,7 @@ std::string formatValue(const Field& f, const Scenario& constScenario) {
     case Kind::Bool:
       return std::get<BoolRef>(f.ref)(s) ? "true" : "false";
     case Kind::Choice:
-      return std::get<StringRef>(f.ref)(s);
+      return choiceText(f, s);
     case Kind::Text:
       return quoteString(std::get<StringRef>(f.ref)(s));
     case Kind::Vector:

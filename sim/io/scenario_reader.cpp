@@ -214,7 +214,7 @@ void Reader::readField(const Field& f, const YAML::Node& n, const std::string& p
                  (near.empty() ? "" : "; did you mean '" + near + "'?") + " expected one of " +
                  joinList(f.choices));
       }
-      std::get<StringRef>(f.ref)(s) = v;
+      setChoice(f, s, v);
       return;
     }
     case Kind::Text:

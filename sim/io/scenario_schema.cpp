@@ -19,6 +19,12 @@ Range openHi(double lo, double hi) { return {lo, hi, false, true}; }  // [lo, hi
 
 // a captureless lambda giving the member as a function pointer
 #define ESIM_REF(member) +[](Scenario& s) -> decltype(auto) { return (s.member); }
+// an enum member, read and written as the index of its name in the field's choices
+#define ESIM_ENUM_REF(member)                                                      \
+  EnumRef {                                                                        \
+    +[](const Scenario& s) { return static_cast<int>(s.member); },                 \
+        +[](Scenario& s, int v) { s.member = static_cast<decltype(s.member)>(v); } \
+  }
 
 Field number(std::string path, NumberRef r, std::string unit, Range range, std::string desc) {
   return {std::move(path), Kind::Number, std::move(unit), range, {}, std::move(desc), r};
@@ -28,6 +34,9 @@ Field integer(std::string path, IntRef r, std::string unit, Range range, std::st
 }
 Field boolean(std::string path, BoolRef r, std::string desc) {
   return {std::move(path), Kind::Bool, "", {}, {}, std::move(desc), r};
+}
+Field choice(std::string path, EnumRef r, std::vector<std::string> choices, std::string desc) {
+  return {std::move(path), Kind::Choice, "", {}, std::move(choices), std::move(desc), r};
 }
 Field choice(std::string path, StringRef r, std::vector<std::string> choices, std::string desc) {
   return {std::move(path), Kind::Choice, "", {}, std::move(choices), std::move(desc), r};
@@ -54,7 +63,7 @@ const std::vector<Field>& schema() {
     f.push_back(text("name", ESIM_REF(name), "short name of the run, used in titles and reports"));
     f.push_back(text("description", ESIM_REF(description), "free text: what the scene shows"));
     // mesh
-    f.push_back(choice("mesh.source", ESIM_REF(mesh.source), {"slab", "file"},
+    f.push_back(choice("mesh.source", ESIM_ENUM_REF(mesh.source), {"slab", "file"},
                        "slab: the box generator; file: a closed surface meshed with CGAL"));
     f.push_back(vector("mesh.slab.size_m", ESIM_REF(mesh.slab.sizeM), "m", positive(10.0),
                        "slab size Lx, Ly, Lz; x, y centred on 0, z from 0 (bottom) to Lz (top)"));
@@ -165,7 +174,7 @@ const std::vector<Field>& schema() {
     f.push_back(number("return_electrode.tolerance_m", ESIM_REF(returnElectrode.toleranceM), "m",
                        closed(0.0, 1.0), "boundary nodes this close to the disc are grounded"));
     // tool
-    f.push_back(choice("tool.shape", ESIM_REF(tool.shape), {"blade", "sphere"},
+    f.push_back(choice("tool.shape", ESIM_ENUM_REF(tool.shape), {"blade", "sphere"},
                        "electrode shape: flat blade or ball tip"));
     f.push_back(number("tool.radius_m", ESIM_REF(tool.radiusM), "m", positive(0.1),
                        "ball radius, or the blade edge's half-thickness"));
@@ -201,7 +210,7 @@ const std::vector<Field>& schema() {
                  "the phases to simulate; only these are built",
                  ESIM_REF(physics)});
     // heat source and hot spot (thermal scenes without the electric phase)
-    f.push_back(choice("heat_source.kind", ESIM_REF(heatSource.kind), {"none", "gaussian"},
+    f.push_back(choice("heat_source.kind", ESIM_ENUM_REF(heatSource.kind), {"none", "gaussian"},
                        "prescribed heat source, only for thermal without electric"));
     f.push_back(vector("heat_source.center_m", ESIM_REF(heatSource.centerM), "m", anyPos,
                        "centre of the Gaussian source"));
@@ -235,7 +244,7 @@ const std::vector<Field>& schema() {
                        "structural: the surface nodes within this height of the lowest node "
                        "are clamped (the tissue rests on the table)"));
     // solvers
-    f.push_back(choice("solvers.electric.strategy", ESIM_REF(solvers.electricStrategy),
+    f.push_back(choice("solvers.electric.strategy", ESIM_ENUM_REF(solvers.electricStrategy),
                        {"refactor", "dense-inverse", "capacitance", "pcg"},
                        "electric solver: refactor per contact change, the paper's dense inverse, "
                        "cached sparse columns, or warm-started CG"));
@@ -251,16 +260,16 @@ const std::vector<Field>& schema() {
     f.push_back(boolean("solvers.electric.prefetch_path", ESIM_REF(solvers.electricPrefetchPath),
                         "pre-processing: precompute the solver data (capacitance columns) of every "
                         "node the scripted tool path touches, so frames need none"));
-    f.push_back(choice("solvers.thermal.integrator", ESIM_REF(solvers.thermalIntegrator),
+    f.push_back(choice("solvers.thermal.integrator", ESIM_ENUM_REF(solvers.thermalIntegrator),
                        {"explicit", "backward-euler", "crank-nicolson"},
                        "time integrator of the heat equation (explicit: lumped mass, sub-stepped "
                        "below its stability limit; see esim bench thermal)"));
-    f.push_back(choice("solvers.thermal.mass", ESIM_REF(solvers.thermalMass),
+    f.push_back(choice("solvers.thermal.mass", ESIM_ENUM_REF(solvers.thermalMass),
                        {"lumped", "consistent"}, "heat capacity matrix"));
     f.push_back(boolean("solvers.thermal.allow_substepping",
                         ESIM_REF(solvers.thermalAllowSubstepping),
                         "split a frame into stable substeps when needed"));
-    f.push_back(choice("solvers.rebuild.mode", ESIM_REF(solvers.rebuildMode),
+    f.push_back(choice("solvers.rebuild.mode", ESIM_ENUM_REF(solvers.rebuildMode),
                        {"synchronous", "background"},
                        "after rupture: build the new model in the frame that breaks tets, or on "
                        "a thread while frames go on with the old one (swapped in lag_frames "
@@ -341,6 +350,7 @@ const std::vector<Field>& schema() {
 }
 
 #undef ESIM_REF
+#undef ESIM_ENUM_REF
 
 const std::vector<KeyField>& keyframeSchema() {
   static const std::vector<KeyField> k{
@@ -384,6 +394,20 @@ std::vector<std::string> childKeys(const std::string& group) {
 
 std::string joinPath(const std::string& group, const std::string& key) {
   return group.empty() ? key : group + "." + key;
+}
+
+std::string choiceText(const Field& f, const Scenario& s) {
+  if (const EnumRef* e = std::get_if<EnumRef>(&f.ref)) return f.choices.at(e->get(s));
+  return std::get<StringRef>(f.ref)(const_cast<Scenario&>(s));
+}
+
+void setChoice(const Field& f, Scenario& s, const std::string& name) {
+  if (const EnumRef* e = std::get_if<EnumRef>(&f.ref)) {
+    const auto it = std::find(f.choices.begin(), f.choices.end(), name);
+    e->set(s, static_cast<int>(it - f.choices.begin()));
+    return;
+  }
+  std::get<StringRef>(f.ref)(s) = name;
 }
 
 }  // namespace esim::scenario_detail

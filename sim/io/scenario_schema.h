@@ -54,8 +54,13 @@ using Int3Ref = std::array<int, 3>& (*)(Scenario&);
 using PhasesRef = std::vector<Phase>& (*)(Scenario&);
 using KeysRef = std::vector<ScenarioKeyframe>& (*)(Scenario&);
 using IntervalsRef = std::vector<std::array<double, 2>>& (*)(Scenario&);
+// a choice held as an enum: its value is the index of its name in Field::choices
+struct EnumRef {
+  int (*get)(const Scenario&);
+  void (*set)(Scenario&, int);
+};
 using Ref = std::variant<NumberRef, IntRef, BoolRef, StringRef, VecRef, Int3Ref, PhasesRef, KeysRef,
-                         IntervalsRef>;
+                         IntervalsRef, EnumRef>;
 
 struct Field {
   std::string path;  // YAML key path
@@ -67,6 +72,11 @@ struct Field {
   Ref ref;
   bool nonzero = false;  // vectors that must not be zero (directions)
 };
+
+// the text of a choice field (a string member, or an enum's name)
+std::string choiceText(const Field& field, const Scenario& scenario);
+// sets a choice field from one of its names (checked by the caller)
+void setChoice(const Field& field, Scenario& scenario, const std::string& name);
 
 // keyframe sub-fields (entries of tool.path), used by the reader and the reference
 struct KeyField {

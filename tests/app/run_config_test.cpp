@@ -82,7 +82,7 @@ TEST(RunConfig, EveryDefaultComesFromTheCore) {
   EXPECT_EQ(c.vaporLiquidVolumeRatio, ExpansionParams{}.vaporLiquidVolumeRatio);
   EXPECT_EQ(c.maxVaporExpansion, ExpansionParams{}.maxExpansion);
   EXPECT_EQ(c.clampBandM, d.clampBandM);
-  EXPECT_EQ(c.backgroundRebuild, d.backgroundRebuild);
+  EXPECT_EQ(c.rebuildMode, d.rebuildMode);
   EXPECT_EQ(c.rebuildLagFrames, d.rebuildLagFrames);
   EXPECT_EQ(c.recomputeLagFrames, d.recomputeLagFrames);
 }

@@ -61,7 +61,7 @@ TEST(Scenario, DefaultsAreThePapersValues) {
   EXPECT_EQ(s.tool.voltageV, 72.0);
   EXPECT_EQ(s.returnElectrode.radiusM, 0.04);
   EXPECT_EQ(s.returnElectrode.normal, Vec3(0, 0, -1));
-  EXPECT_EQ(s.mesh.source, "slab");
+  EXPECT_EQ(s.mesh.source, MeshSource::Slab);
   EXPECT_EQ(s.mesh.slab.sizeM, Vec3(0.1, 0.1, 0.01));
   EXPECT_EQ(s.mesh.slab.nodes, 1013);
   EXPECT_EQ(s.material.boilingTemperatureC, 100.0);
@@ -77,7 +77,7 @@ TEST(Scenario, DefaultsAreThePapersValues) {
   ASSERT_EQ(s.tool.generatorOnS.size(), 1u);
   EXPECT_EQ(s.tool.generatorOnS[0][0], 0.0);
   EXPECT_TRUE(std::isinf(s.tool.generatorOnS[0][1]));
-  EXPECT_EQ(s.solvers.electricStrategy, "capacitance");
+  EXPECT_EQ(s.solvers.electricStrategy, ElectricStrategy::Capacitance);
   EXPECT_EQ(s.look.width, 1280);
   EXPECT_EQ(s.look.height, 720);
 }
@@ -109,7 +109,7 @@ TEST(Scenario, ReadsEveryKindOfField) {
   EXPECT_EQ(s.mesh.slab.nodesPerAxis, (std::array<int, 3>{5, 4, 3}));
   EXPECT_EQ(s.material.waterFraction, 0.7);
   EXPECT_EQ(s.solvers.electricThreads, 2);
-  EXPECT_EQ(s.solvers.electricStrategy, "pcg");
+  EXPECT_EQ(s.solvers.electricStrategy, ElectricStrategy::Pcg);
   EXPECT_TRUE(s.effects.thermalDamage);
   // phases are stored in pipeline order whatever the order written
   EXPECT_EQ(s.physics, (std::vector<Phase>{Phase::Electric, Phase::Thermal, Phase::Boiling}));
@@ -151,8 +151,8 @@ TEST(Scenario, EveryShippedScenarioLoadsAndRoundTrips) {
     EXPECT_GE(frameCount(s), 1);
     EXPECT_NO_THROW(makeToolPath(s));
     // the tool's lowest point presses into the slab's top face
-    if (s.mesh.source == "slab") {
-      const double below = s.tool.shape == "sphere" ? s.tool.radiusM : 0.0;
+    if (s.mesh.source == MeshSource::Slab) {
+      const double below = s.tool.shape == ElectrodeKind::Sphere ? s.tool.radiusM : 0.0;
       for (const auto& k : s.tool.path) EXPECT_LT(k.positionM.z() - below, s.mesh.slab.sizeM.z());
     }
     // parse(toYaml(s)) == s, and the text is a fixed point
@@ -200,7 +200,7 @@ TEST(Scenario, ShippedToolsTouchTheTissueOnEveryFrame) {
     SCOPED_TRACE(file.string());
     const Scenario s = loadScenario(file.string());
     TetMesh mesh;
-    if (s.mesh.source == "slab") {
+    if (s.mesh.source == MeshSource::Slab) {
       mesh = makeSlab(makeSlabSpec(s));
     } else {
       mesh = loadTetMesh(s.mesh.file.resolvedPath, makeMeshingOptions(s), s.mesh.file.scaleToM);
@@ -213,7 +213,7 @@ TEST(Scenario, ShippedToolsTouchTheTissueOnEveryFrame) {
     pad.toleranceM = s.returnElectrode.toleranceM;
     EXPECT_GE(returnElectrodeNodes(mesh, surface, pad).size(), 20u);
     ElectrodeShape shape;
-    shape.kind = s.tool.shape == "sphere" ? ElectrodeKind::Sphere : ElectrodeKind::Blade;
+    shape.kind = s.tool.shape;
     shape.radiusM = s.tool.radiusM;
     shape.lengthM = s.tool.lengthM;
     shape.widthM = s.tool.widthM;
@@ -605,6 +605,43 @@ TEST(Scenario, CommittedReferenceIsUpToDate) {
   text << in.rdbuf();
   EXPECT_EQ(text.str(), scenarioReferenceMarkdown())
       << "regenerate: esim validate --reference > docs/scenario-reference.md";
+}
+
+// every choice is an enum (or a name) from the load on: each of its names reads, writes back
+// as itself and round-trips; the core sees the enum the name stands for
+TEST(Scenario, EveryChoiceRoundTripsThroughItsEnum) {
+  int checked = 0;
+  for (const ScenarioFieldInfo& f : scenarioFields()) {
+    if (f.type != "choice") continue;
+    std::vector<std::string> names;
+    std::stringstream ss(f.allowed);
+    std::string name;
+    while (ss >> name)
+      if (name != "|") names.push_back(name);
+    ASSERT_GE(names.size(), 2u) << f.path;
+    for (const std::string& n : names) {
+      // the other fields some values need (cross-field rules)
+      std::vector<std::string> sets{f.path + "=" + n};
+      if (f.path + "=" + n == "mesh.source=file") sets.push_back("mesh.file.path=assets/liver.obj");
+      if (f.path + "=" + n == "heat_source.kind=gaussian") sets.push_back("physics=[thermal]");
+      if (f.path + "=" + n == "look.potential_scale=log") sets.push_back("look.v_min_v=0.1");
+      const Scenario s = parseScenario("name: x\n", "c.yaml", sets);
+      const std::string yaml = scenarioToYaml(s);
+      const std::string leaf = f.path.substr(f.path.rfind('.') + 1);
+      EXPECT_NE(yaml.find(leaf + ": " + n + "\n"), std::string::npos) << f.path << " = " << n;
+      EXPECT_TRUE(parseScenario(yaml, "c.yaml") == s) << f.path << " = " << n;
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 20);
+  const Scenario sphere = parseScenario("tool: {shape: sphere}\n", "c.yaml");
+  EXPECT_EQ(sphere.tool.shape, ElectrodeKind::Sphere);
+  const Scenario pcg = parseScenario("solvers: {electric: {strategy: pcg}}\n", "c.yaml");
+  EXPECT_EQ(pcg.solvers.electricStrategy, ElectricStrategy::Pcg);
+  const Scenario bg = parseScenario("solvers: {rebuild: {mode: background}}\n", "c.yaml");
+  EXPECT_EQ(bg.solvers.rebuildMode, RebuildMode::Background);
+  const Scenario cn = parseScenario("solvers: {thermal: {integrator: crank-nicolson}}\n", "c.yaml");
+  EXPECT_EQ(cn.solvers.thermalIntegrator, ThermalIntegrator::CrankNicolson);
 }
 
 }  // namespace

@@ -290,7 +290,7 @@ TEST(Simulation, BackgroundRebuildSwapsInAtAFixedFrameAndIsDeterministic) {
   auto run = [](int lag, bool background, std::vector<int>* ruptureFrames,
                 std::vector<int>* swapFrames) {
     SimulationConfig c = boilingSpot(true);
-    c.backgroundRebuild = background;
+    c.rebuildMode = background ? RebuildMode::Background : RebuildMode::Synchronous;
     c.rebuildLagFrames = lag;
     SlabSpec spec;  // a quarter of smallSlab() at the same spacing: 845 nodes
     spec.sizeM = Vec3(0.03, 0.03, 0.01);
@@ -331,7 +331,7 @@ TEST(Simulation, RecomputedLagFramesMatchTheSynchronousRun) {
   spec.nodesPerAxis = {13, 13, 5};
   auto make = [&](bool background, int lag) {
     SimulationConfig c = boilingSpot(true);
-    c.backgroundRebuild = background;
+    c.rebuildMode = background ? RebuildMode::Background : RebuildMode::Synchronous;
     c.rebuildLagFrames = lag;
     c.recomputeLagFrames = true;
     return std::make_unique<Simulation>(makeSlab(spec), c);

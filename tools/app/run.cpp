@@ -299,7 +299,8 @@ nlohmann::json timingExtra(const Setup& s, const FrameOutputs& out, const LoopRe
     extra["structural"] = {
         {"removed_tets", sim.removedTets()},
         {"alive_tets", sim.mesh().numAlive()},
-        {"rebuild_mode", sc.solvers.rebuildMode},
+        {"rebuild_mode",
+         sc.solvers.rebuildMode == RebuildMode::Background ? "background" : "synchronous"},
         {"rebuild_lag_frames", sc.solvers.rebuildLagFrames},
         {"rebuilds", sim.rebuilds()},
         {"rebuilds_late", sim.rebuildsLate()},
@@ -360,11 +361,12 @@ void summaryStructural(std::ostringstream& sum, const Simulation& sim, const Loo
   if (!sim.config().phases.rupture || sim.rebuilds() == 0) return;
   const SimulationConfig& c = sim.config();
   sum << "  rebuild       " << sim.rebuilds() << " rebuilds, "
-      << (c.backgroundRebuild ? "background, swapped in " + std::to_string(c.rebuildLagFrames) +
-                                    " frames after the rupture"
-                              : std::string("synchronous"))
+      << (c.rebuildMode == RebuildMode::Background
+              ? "background, swapped in " + std::to_string(c.rebuildLagFrames) +
+                    " frames after the rupture"
+              : std::string("synchronous"))
       << "; build " << sim.rebuildBuildMs() / sim.rebuilds() << " ms mean";
-  if (c.backgroundRebuild)
+  if (c.rebuildMode == RebuildMode::Background)
     sum << "; lag missed " << sim.rebuildsLate() << " times (longest wait "
         << sim.maxRebuildWaitMs() << " ms); " << sim.recomputedFrames() << " frames recomputed";
   sum << "\n";

@@ -15,7 +15,7 @@ void mapElectric(const Scenario& s, SimulationConfig& c) {
   c.conductivityS_m = m.electricConductivitySPerM;
   c.toolVoltageV = s.tool.voltageV;
   c.contactDistanceM = s.tool.contactDistanceM;
-  c.electrode.kind = s.tool.shape == "sphere" ? ElectrodeKind::Sphere : ElectrodeKind::Blade;
+  c.electrode.kind = s.tool.shape;
   c.electrode.radiusM = s.tool.radiusM;
   c.electrode.lengthM = s.tool.lengthM;
   c.electrode.widthM = s.tool.widthM;
@@ -24,7 +24,7 @@ void mapElectric(const Scenario& s, SimulationConfig& c) {
   c.returnElectrode.radiusM = s.returnElectrode.radiusM;
   c.returnElectrode.toleranceM = s.returnElectrode.toleranceM;
   c.toolPath = makeToolPath(s);
-  c.electricSolver.strategy = parseElectricStrategy(s.solvers.electricStrategy);
+  c.electricSolver.strategy = s.solvers.electricStrategy;
   c.electricSolver.pcgTolerance = s.solvers.electricTolerance;
   c.electricSolver.pcgMaxIterations = s.solvers.electricMaxIterations;
   c.electricSolver.denseMemoryLimitBytes = s.solvers.electricDenseMemoryLimitMb * 1048576.0;
@@ -46,8 +46,8 @@ void mapThermal(const Scenario& s, SimulationConfig& c) {
   t.waterFraction = m.waterFraction;
   t.densityKg_m3 = m.densityKgPerM3;
   t.latentHeatJ_kg = m.latentHeatJPerKg;
-  t.integrator = parseThermalIntegrator(s.solvers.thermalIntegrator);
-  t.lumpedMass = s.solvers.thermalMass == "lumped";
+  t.integrator = s.solvers.thermalIntegrator;
+  t.lumpedMass = s.solvers.thermalMass == ThermalMass::Lumped;
   t.allowSubstepping = s.solvers.thermalAllowSubstepping;
   t.convectionW_m2K = s.effects.surfaceCoolingHWPerM2K;
   t.ambientTemperatureC = s.effects.surfaceCoolingAmbientC;
@@ -55,7 +55,7 @@ void mapThermal(const Scenario& s, SimulationConfig& c) {
   t.arrheniusA_s = m.arrheniusAPerS;
   t.arrheniusEa_J_mol = m.arrheniusEaJPerMol;
   c.coolTopSurface = s.effects.surfaceCoolingHWPerM2K > 0;
-  c.heatSource.enabled = s.heatSource.kind == "gaussian";
+  c.heatSource.enabled = s.heatSource.kind == HeatSourceKind::Gaussian;
   c.heatSource.centerM = s.heatSource.centerM;
   c.heatSource.radiusM = s.heatSource.radiusM;
   c.heatSource.powerDensityW_m3 = s.heatSource.powerDensityWPerM3;
@@ -73,7 +73,7 @@ void mapStructural(const Scenario& s, SimulationConfig& c) {
   c.vaporLiquidVolumeRatio = m.vaporLiquidVolumeRatio;
   c.maxVaporExpansion = m.maxVaporExpansion;
   c.clampBandM = s.effects.structuralClampBandM;
-  c.backgroundRebuild = s.solvers.rebuildMode == "background";
+  c.rebuildMode = s.solvers.rebuildMode;
   c.rebuildLagFrames = s.solvers.rebuildLagFrames;
   c.recomputeLagFrames = s.solvers.rebuildRecompute;
 }
@@ -119,7 +119,7 @@ RenderOptions makeRenderOptions(const Scenario& s) {
 }
 
 TetMesh buildMesh(const Scenario& s) {
-  if (s.mesh.source == "slab") return makeSlab(makeSlabSpec(s));
+  if (s.mesh.source == MeshSource::Slab) return makeSlab(makeSlabSpec(s));
   const ScenarioMeshFile& f = s.mesh.file;
   const MeshingOptions o = makeMeshingOptions(s);  // sizes and refinement near the cut
   return loadTetMesh(f.resolvedPath.empty() ? f.path : f.resolvedPath, o, f.scaleToM);
@@ -130,7 +130,7 @@ void checkRunnable(const Scenario& s) {
   validateSimulationConfig(config);
   if (s.output.video || s.output.pngEvery > 0 || s.output.hashes)
     validateRenderOptions(makeRenderOptions(s));
-  if (s.mesh.source == "slab") validateSimulationMesh(buildMesh(s), config);
+  if (s.mesh.source == MeshSource::Slab) validateSimulationMesh(buildMesh(s), config);
 }
 
 }  // namespace esim::app
