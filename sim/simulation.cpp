@@ -44,14 +44,21 @@ const SimulationConfig& defaultSimulationConfig() {
 
 // ---- checks (the constructor's, also run by `esim validate`) ----
 
+std::string phaseDependencyProblem(const PhaseSet& ph) {
+  if (ph.boiling && !ph.thermal) return "'boiling' needs 'thermal'; add thermal";
+  if (ph.structural && (!ph.thermal || !ph.boiling))
+    return "'structural' needs 'thermal' and 'boiling' (its load is the expansion of heated "
+           "and vaporized water); add them";
+  if (ph.rupture && !ph.structural)
+    return "'rupture' needs 'structural' (the stress that breaks elements); add structural";
+  if (!ph.electric && !ph.thermal) return "no phase to simulate: list electric or thermal";
+  return "";
+}
+
 void validateSimulationConfig(const SimulationConfig& config) {
   const PhaseSet& ph = config.phases;
-  ESIM_VERIFY(!ph.structural || (ph.thermal && ph.boiling),
-              "physics: 'structural' needs 'thermal' and 'boiling' (its load is the water's "
-              "expansion)");
-  ESIM_VERIFY(!ph.rupture || ph.structural,
-              "physics: 'rupture' needs 'structural' (the stress that breaks elements)");
-  ESIM_VERIFY(ph.electric || ph.thermal, "physics: the scene lists no phase to simulate");
+  const std::string phaseProblem = phaseDependencyProblem(ph);
+  ESIM_VERIFY(phaseProblem.empty(), "physics: " + phaseProblem);
   ESIM_VERIFY(config.frameDtS > 0 && std::isfinite(config.frameDtS),
               "time.fps: the frame step 1/fps must be positive and finite");
   if (ph.electric) {

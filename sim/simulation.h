@@ -162,6 +162,12 @@ struct SimulationConfig {
   bool recomputeLagFrames = true;  // ... then the lag frames again on the new model
 };
 
+// The phases' dependencies, the one rule the scenario loader and the constructor both use:
+// boiling needs thermal; structural needs thermal and boiling (its load is the water's
+// expansion); rupture needs structural; at least one of electric and thermal. Returns ""
+// when met, else what is missing and what to add.
+std::string phaseDependencyProblem(const PhaseSet& phases);
+
 // The core's defaults (like MuJoCo's mj_defaultOption): the one source of every default
 // of the scenario schema (sim/io/scenario.h reads its member defaults from here).
 const SimulationConfig& defaultSimulationConfig();

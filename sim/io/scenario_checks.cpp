@@ -65,16 +65,14 @@ std::string resolveAsset(const std::string& path, const std::string& sourceName,
 // physics: each phase has the phases it builds on, and a heat source
 void checkPhases(const Scenario& s, const Reader& r) {
   const bool electric = s.has(Phase::Electric), thermal = s.has(Phase::Thermal);
-  if (s.has(Phase::Boiling) && !thermal)
-    r.fail("physics", "physics " + phaseList(s) + ": 'boiling' needs 'thermal'; add thermal");
-  if (s.has(Phase::Structural) && (!thermal || !s.has(Phase::Boiling)))
-    r.fail("physics", "physics " + phaseList(s) +
-                          ": 'structural' needs 'thermal' and 'boiling' (its load is the "
-                          "expansion of heated and vaporized water); add them");
-  if (s.has(Phase::Rupture) && !s.has(Phase::Structural))
-    r.fail("physics", "physics " + phaseList(s) +
-                          ": 'rupture' needs 'structural' (the stress that breaks elements); "
-                          "add structural");
+  PhaseSet phases;
+  phases.electric = electric;
+  phases.thermal = thermal;
+  phases.boiling = s.has(Phase::Boiling);
+  phases.structural = s.has(Phase::Structural);
+  phases.rupture = s.has(Phase::Rupture);
+  const std::string problem = phaseDependencyProblem(phases);  // the core's rule
+  if (!problem.empty()) r.fail("physics", "physics " + phaseList(s) + ": " + problem);
   if (thermal && !electric && s.heatSource.kind == HeatSourceKind::None &&
       !s.initialHotSpot.enabled)
     r.fail("physics", "physics " + phaseList(s) +

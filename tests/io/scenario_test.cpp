@@ -436,7 +436,10 @@ TEST(Scenario, PhaseDependenciesAreChecked) {
   // accepted by the schema even where the runner does not implement them yet
   EXPECT_NO_THROW(
       parseScenario("physics: [electric, thermal, boiling, structural, rupture]\n", "ok.yaml"));
-  EXPECT_NO_THROW(parseScenario("physics: []\n", "ok.yaml"));
+  // nothing to simulate: refused at load, by the core's own rule (it used to pass here and
+  // fail at `esim run`)
+  expectMessage(errorOf("physics: []\n"),
+                {"bad.yaml:1:10: physics []: no phase to simulate: list electric or thermal"});
 }
 
 TEST(Scenario, OtherCrossFieldChecks) {
