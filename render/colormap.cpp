@@ -47,8 +47,7 @@ const ColormapLut& colormapLut(const std::string& name) {
   static const ColormapLut viridis = buildLut(kViridis);
   if (name == "inferno") return inferno;
   if (name == "viridis") return viridis;
-  throw Error("render.colormap: unknown colour map '" + name +
-              "', expected 'inferno' or 'viridis'");
+  throw Error("look.colormap: unknown colour map '" + name + "', expected 'inferno' or 'viridis'");
 }
 
 std::array<std::uint8_t, 3> colormapColor(const std::string& name, double t) {

@@ -29,33 +29,36 @@ using namespace render_detail;
 
 void validateRenderOptions(const RenderOptions& o) {
   ESIM_VERIFY(o.width >= 16 && o.width <= 8192 && o.height >= 16 && o.height <= 8192,
-              "render.width/height: " + std::to_string(o.width) + "x" + std::to_string(o.height) +
+              "look.width/height: " + std::to_string(o.width) + "x" + std::to_string(o.height) +
                   " is out of range, expected 16..8192 pixels each");
   ESIM_VERIFY(o.shading == "pixel" || o.shading == "vertex",
-              "render.shading: '" + o.shading + "' is unknown, expected 'pixel' or 'vertex'");
+              "look.shading: '" + o.shading + "' is unknown, expected 'pixel' or 'vertex'");
   ESIM_VERIFY(
       o.look == "temperature" || o.look == "tissue" || o.look == "potential",
-      "render.look: '" + o.look + "' is unknown, expected 'temperature', 'tissue' or 'potential'");
+      "look.style: '" + o.look + "' is unknown, expected 'temperature', 'tissue' or 'potential'");
   colormapLut(o.colormap);  // throws for an unknown map
   ESIM_VERIFY(std::isfinite(o.tMinC) && std::isfinite(o.tMaxC) && o.tMaxC > o.tMinC,
-              "render.t_min_c/t_max_c: need finite tMinC < tMaxC, got " + std::to_string(o.tMinC) +
-                  " and " + std::to_string(o.tMaxC));
-  ESIM_VERIFY(std::isfinite(o.vMinV) && std::isfinite(o.vMaxV) && o.vMaxV > o.vMinV,
-              "render.v_min_v/v_max_v: need finite vMinV < vMaxV, got " + std::to_string(o.vMinV) +
-                  " and " + std::to_string(o.vMaxV));
-  ESIM_VERIFY(!o.potentialLogScale || o.vMinV > 0,
-              "render.v_min_v: the logarithmic potential scale needs vMinV > 0, got " +
+              "look.t_min_c/t_max_c: need finite t_min_c < t_max_c, got " +
+                  std::to_string(o.tMinC) + " and " + std::to_string(o.tMaxC));
+  // the potential's colour range matters only to the potential look
+  ESIM_VERIFY(o.look != "potential" ||
+                  (std::isfinite(o.vMinV) && std::isfinite(o.vMaxV) && o.vMaxV > o.vMinV),
+              "look.v_min_v/v_max_v: the potential look needs v_min_v < v_max_v, got " +
+                  std::to_string(o.vMinV) + " and " + std::to_string(o.vMaxV) +
+                  " V (v_max_v 0 stands for tool.voltage_v)");
+  ESIM_VERIFY(o.look != "potential" || !o.potentialLogScale || o.vMinV > 0,
+              "look.v_min_v: the logarithmic potential scale needs v_min_v > 0, got " +
                   std::to_string(o.vMinV));
   ESIM_VERIFY(o.fovDeg > 1 && o.fovDeg < 170,
-              "render.fov_deg: " + std::to_string(o.fovDeg) + " is out of range (1, 170)");
+              "camera.fov_deg: " + std::to_string(o.fovDeg) + " is out of range (1, 170)");
   const V3 view = sub(o.targetM, o.eyeM);
-  ESIM_VERIFY(norm(view) > 0, "render.eye/target: the camera eye and target coincide");
+  ESIM_VERIFY(norm(view) > 0, "camera.eye_m/target_m: the camera eye and target coincide");
   ESIM_VERIFY(norm(cross(normalized(view), o.up)) > 1e-3,
-              "render.up: the up vector is zero or parallel to the viewing direction");
+              "camera.up: the up vector is zero or parallel to the viewing direction");
   ESIM_VERIFY(o.msaaSamples == 0 || o.msaaSamples == 2 || o.msaaSamples == 4,
-              "render.msaa_samples: " + std::to_string(o.msaaSamples) + ", expected 0, 2 or 4");
+              "look.msaa: " + std::to_string(o.msaaSamples) + ", expected 0, 2 or 4");
   ESIM_VERIFY(o.backend == "osmesa" || o.backend == "egl",
-              "render.backend: '" + o.backend + "' is unknown, expected 'osmesa' or 'egl'");
+              "RenderOptions::backend: '" + o.backend + "' is unknown, expected 'osmesa' or 'egl'");
 }
 
 void validateSnapshot(const SurfaceSnapshot& s) {
@@ -349,9 +352,9 @@ void Renderer::Impl::createMsaaTarget() {
   const GlFunctions& gl = ctx->gl();
   GLint maxSamples = 0;
   gl.GetIntegerv(GL_MAX_SAMPLES, &maxSamples);
-  ESIM_VERIFY(opt.msaaSamples <= maxSamples,
-              "render.msaa_samples: " + std::to_string(opt.msaaSamples) +
-                  " exceeds the driver's GL_MAX_SAMPLES " + std::to_string(maxSamples));
+  ESIM_VERIFY(opt.msaaSamples <= maxSamples, "look.msaa: " + std::to_string(opt.msaaSamples) +
+                                                 " exceeds the driver's GL_MAX_SAMPLES " +
+                                                 std::to_string(maxSamples));
   // colour in a multisample texture (resolved by kResolveFs), depth in a renderbuffer
   gl.GenFramebuffers(1, &msFbo);
   gl.GenTextures(1, &msColor);

@@ -21,6 +21,13 @@ extern "C" {
 namespace esim {
 namespace {
 
+// a number as %g ("29.97", "500", "0.01")
+std::string formatG(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", v);
+  return b;
+}
+
 std::int64_t nowNs() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(
              std::chrono::steady_clock::now().time_since_epoch())
@@ -38,8 +45,10 @@ void checkOptions(const VideoEncoder::Options& o) {
   ESIM_VERIFY(o.width >= 16 && o.height >= 16 && o.width % 2 == 0 && o.height % 2 == 0,
               "video.width/height: " + std::to_string(o.width) + "x" + std::to_string(o.height) +
                   ", expected even sizes >= 16 (yuv420p halves the chroma)");
-  ESIM_VERIFY(o.fps >= 1 && o.fps <= 240,
-              "video.fps: " + std::to_string(o.fps) + ", expected 1..240");
+  ESIM_VERIFY(o.fps >= kMinVideoFps && o.fps <= kMaxVideoFps,
+              "time.fps = " + formatG(o.fps) + ": a video needs " + formatG(kMinVideoFps) + " to " +
+                  formatG(kMaxVideoFps) +
+                  " frames per second (set output.video: false for other rates)");
   ESIM_VERIFY(o.crf >= 0 && o.crf <= 51,
               "video.crf: " + std::to_string(o.crf) + ", expected 0..51");
   ESIM_VERIFY(o.queueCapacity >= 1, "video.queue_capacity: must be at least 1");
@@ -128,21 +137,23 @@ void VideoEncoder::Av::configureCodec(const AVCodec* encoder, const Options& o,
   c->width = o.width;
   c->height = o.height;
   c->pix_fmt = AV_PIX_FMT_YUV420P;
-  c->time_base = AVRational{1, o.fps};
-  c->framerate = AVRational{o.fps, 1};
+  // the exact rate as a fraction (29.97 -> 2997/100, 0.5 -> 1/2), never rounded to an int
+  const AVRational rate = av_d2q(o.fps, 100000);
+  c->time_base = AVRational{rate.den, rate.num};
+  c->framerate = rate;
   c->sample_aspect_ratio = AVRational{1, 1};
   c->color_primaries = AVCOL_PRI_BT709;
   c->color_trc = AVCOL_TRC_BT709;
   c->colorspace = AVCOL_SPC_BT709;
   c->color_range = AVCOL_RANGE_MPEG;
-  c->gop_size = 2 * o.fps;
+  c->gop_size = std::max(1, static_cast<int>(std::lround(2 * o.fps)));
   c->thread_count = o.reproducible ? 1 : 0;
   if (o.reproducible) c->flags |= AV_CODEC_FLAG_BITEXACT;
   if (codecName == "libx264") {
     av_opt_set(c->priv_data, "preset", o.preset.c_str(), 0);
     av_opt_set_double(c->priv_data, "crf", o.crf, 0);
   } else if (codecName == "libopenh264") {
-    c->bit_rate = static_cast<std::int64_t>(o.width) * o.height * o.fps / 8;  // ~0.125 bit/px
+    c->bit_rate = static_cast<std::int64_t>(o.width * o.height * o.fps / 8);  // ~0.125 bit/px
   } else {  // mpeg4 and others: constant quantiser from crf (crf 20 -> q 3)
     c->flags |= AV_CODEC_FLAG_QSCALE;
     c->global_quality = FF_QP2LAMBDA * std::clamp(o.crf / 6, 2, 31);

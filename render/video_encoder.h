@@ -4,8 +4,8 @@
 //   RGB24 (full range) --swscale, BT.709 matrix--> YUV420P (limited range)
 //   --libx264, CRF + preset--> MP4 (movflags +faststart)
 // Stream tags: BT.709 primaries, transfer and matrix, limited ("tv") range.
-// Timing: codec time base 1/fps, pts = frame index, every packet's duration is
-// one frame, so N frames last exactly N/fps seconds (the last one included).
+// Timing: codec time base 1/fps (the rate as a fraction), pts = frame index, every packet's
+// duration is one frame, so N frames last exactly N/fps seconds (the last one included).
 // Reproducible mode: one encoder thread, AV_CODEC_FLAG_BITEXACT, swscale
 // SWS_BITEXACT and the muxer's AVFMT_FLAG_BITEXACT (no library version strings,
 // no creation time), so the same frames give the same MP4 bytes on the same
@@ -36,13 +36,18 @@
 
 namespace esim {
 
+// frame rates a video accepts [1/s]
+constexpr double kMinVideoFps = 0.01;
+constexpr double kMaxVideoFps = 240.0;
+
 class VideoEncoder {
  public:
   struct Options {
-    std::string path;               // output .mp4
-    int width = 0, height = 0;      // frame size [px], even (yuv420p)
-    int fps = 30;                   // frames per second
-    int crf = 20;                   // x264 constant rate factor, 0..51 (lower = better)
+    std::string path;           // output .mp4
+    int width = 0, height = 0;  // frame size [px], even (yuv420p)
+    double fps = 30;  // frames per second, exact (stored as a fraction)                   // frames
+                      // per second
+    int crf = 20;     // x264 constant rate factor, 0..51 (lower = better)
     std::string preset = "medium";  // x264 preset (ultrafast .. placebo)
     bool reproducible = true;       // bitexact, one thread
     int queueCapacity = 8;          // frames waiting before push() blocks

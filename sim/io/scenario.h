@@ -4,7 +4,7 @@
 // set-up (Table 1 materials, Table 2 boundary conditions: 72 V tool, 40 mm return disc,
 // 100 x 100 x 10 mm slab of 1013 nodes). SI units, the unit is in each name.
 // The schema (key path, type, default, unit, range or choices, description of every
-// field) is one table in scenario.cpp; the loader validates against it and
+// field) is one table in scenario_schema.cpp; the loader validates against it and
 // `scenarioReferenceMarkdown()` renders it as docs/scenario-reference.md.
 //
 // Loading: parse YAML -> apply `--set key.path=value` overrides (values parsed as YAML)
@@ -208,6 +208,7 @@ struct ScenarioSolvers {
   ThermalMass thermalMass =
       scenario_detail::core().thermal.lumpedMass ? ThermalMass::Lumped : ThermalMass::Consistent;
   bool thermalAllowSubstepping = scenario_detail::core().thermal.allowSubstepping;
+  int thermalMaxSubsteps = scenario_detail::core().thermal.maxSubsteps;  // explicit, per frame
   // synchronous | background
   RebuildMode rebuildMode = scenario_detail::core().rebuildMode;
   // background: frames until the swap
@@ -245,6 +246,7 @@ struct ScenarioLook {
   std::string shading = "vertex";  // lighting "vertex" (interpolated, faster) or "pixel"
   bool colorBar = true;
   bool showTime = true;
+  double displacementScale = 1.0;  // structural: drawn displacement / computed
   bool operator==(const ScenarioLook&) const = default;
 };
 

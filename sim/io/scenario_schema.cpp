@@ -269,6 +269,10 @@ const std::vector<Field>& schema() {
     f.push_back(boolean("solvers.thermal.allow_substepping",
                         ESIM_REF(solvers.thermalAllowSubstepping),
                         "split a frame into stable substeps when needed"));
+    f.push_back(integer("solvers.thermal.max_substeps", ESIM_REF(solvers.thermalMaxSubsteps), "",
+                        closed(1, 1e6),
+                        "explicit: a frame needing more sub-steps is refused before the run "
+                        "(the work of a frame is bounded; use an implicit integrator)"));
     f.push_back(choice("solvers.rebuild.mode", ESIM_ENUM_REF(solvers.rebuildMode),
                        {"synchronous", "background"},
                        "after rupture: build the new model in the frame that breaks tets, or on "
@@ -328,6 +332,10 @@ const std::vector<Field>& schema() {
                        "per pixel either way"));
     f.push_back(boolean("look.color_bar", ESIM_REF(look.colorBar), "draw the colour bar legend"));
     f.push_back(boolean("look.show_time", ESIM_REF(look.showTime), "draw the simulated time"));
+    f.push_back(number("look.displacement_scale", ESIM_REF(look.displacementScale), "",
+                       closed(0.0, 1e4),
+                       "structural: the surface is drawn displaced by this times the computed "
+                       "displacement (1 = as computed, 0 = undeformed, more to show it)"));
     // output
     f.push_back(boolean("output.video", ESIM_REF(output.video), "write video.mp4 (H.264)"));
     f.push_back(integer("output.crf", ESIM_REF(output.crf), "", closed(0, 51),

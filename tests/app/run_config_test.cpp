@@ -68,6 +68,7 @@ TEST(RunConfig, EveryDefaultComesFromTheCore) {
   EXPECT_EQ(t.latentHeatJ_kg, dt.latentHeatJ_kg);
   EXPECT_EQ(t.lumpedMass, dt.lumpedMass);
   EXPECT_EQ(t.allowSubstepping, dt.allowSubstepping);
+  EXPECT_EQ(t.maxSubsteps, dt.maxSubsteps);
   EXPECT_EQ(t.ambientTemperatureC, dt.ambientTemperatureC);
   EXPECT_EQ(t.arrheniusA_s, dt.arrheniusA_s);
   EXPECT_EQ(t.arrheniusEa_J_mol, dt.arrheniusEa_J_mol);

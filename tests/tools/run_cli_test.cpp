@@ -277,6 +277,70 @@ TEST(RunCli, AnInterruptedRunStaysPartialWithAPlayableVideo) {
   fs::remove_all(partial);
 }
 
+std::string probe(const std::string& args) {
+  FILE* p = popen(("ffprobe -v error " + args + " 2>&1").c_str(), "r");
+  std::string out;
+  char buf[256];
+  while (fgets(buf, sizeof buf, p)) out += buf;
+  pclose(p);
+  return out;
+}
+
+TEST(RunCli, AllowedValuesGetClearAnswers) {
+  const fs::path out = tempOut("answers");
+  // 29.97 fps is written as 29.97, not rounded to 30
+  Result r = esimRun("scenarios/paper_slab.yaml --frames 4 --set time.fps=29.97" +
+                     std::string(kSmall) + " -o " + out.string());
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_EQ(
+      probe("-show_entries stream=avg_frame_rate -of csv=p=0 " + (out / "video.mp4").string()),
+      "2997/100\n");
+  fs::remove_all(out);
+  // 0.1 fps (a frame every 10 s) makes a 30 s video of 3 frames
+  r = esimRun("scenarios/paper_slab.yaml --frames 3 --set time.fps=0.1 --set time.duration_s=30" +
+              std::string(kSmall) + " -o " + out.string());
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_EQ(probe("-show_entries format=duration -of csv=p=0 " + (out / "video.mp4").string()),
+            "30.000000\n");
+  fs::remove_all(out);
+  // a rate a video cannot have: named by its key, with the remedy; nothing written
+  r = esimRun("scenarios/paper_slab.yaml --frames 3 --set time.fps=500" + std::string(kSmall) +
+              " -o " + out.string());
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_NE(r.output.find("time.fps = 500: a video needs 0.01 to 240"), std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(out.string() + ".partial"));
+  // a tool at 0 V is allowed: it runs and delivers nothing (no message about colour ranges)
+  r = esimRun("scenarios/paper_slab.yaml --frames 3 --set tool.voltage_v=0" + std::string(kSmall) +
+              " -o " + out.string());
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_NE(r.output.find("0.000 J delivered"), std::string::npos) << r.output;
+  fs::remove_all(out);
+  // --frames 0: the range, not a 309-digit number
+  r = esimRun("scenarios/paper_slab.yaml --frames 0 -o " + out.string());
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_NE(r.output.find("--frames: Value 0 not in range 1 to 100000000"), std::string::npos)
+      << r.output;
+}
+
+TEST(RunCli, AnEmptyScenarioRunsTheDefaultsAndTheirBladeDelivers) {
+  const fs::path dir = tempOut("empty_scenario");
+  fs::create_directories(dir);
+  std::ofstream(dir / "empty.yaml") << "";
+  const Result r = esimRun((dir / "empty.yaml").string() + " --frames 3 --no-video" +
+                           std::string(kSmall) + " -o " + (dir / "run").string());
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  // the default blade's tip is 0.2 mm into a coarse slab with no node within reach: the
+  // current still flows (through the tet holding the tip), and the summary says so
+  EXPECT_EQ(r.output.find(" 0.000 J delivered"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("WARNING       3 frames: the tool was inside the tissue"),
+            std::string::npos)
+      << r.output;
+  const auto timing = nlohmann::json::parse(readFile(dir / "run" / "timing.json"));
+  EXPECT_EQ(timing["warnings"].size(), 1u);
+  fs::remove_all(dir);
+}
+
 TEST(RunCli, ExitCodesOfEachKind) {
   // input: 2 (a key that does not exist), nothing written
   const fs::path out = tempOut("kinds");

@@ -92,8 +92,8 @@ Setup setUp(const RunOptions& opt, Scenario scenario) {
   s.frames = opt.frames > 0 ? opt.frames : frameCount(sc);
   s.fieldsEvery = opt.fieldsEvery >= 0 ? opt.fieldsEvery : sc.output.fieldsEvery;
   s.video = sc.output.video && !opt.noVideo;
+  checkRunnable(sc, false, opt.noVideo);  // before the mesh, which can take seconds
   const SimulationConfig config = makeSimulationConfig(sc);
-  validateSimulationConfig(config);  // before the mesh, which can take seconds
   const auto t0 = Clock::now();
   TetMesh mesh = buildMesh(sc);
   s.meshS = secondsSince(t0);
@@ -119,7 +119,7 @@ class FrameOutputs {
       vo.path = (dir / "video.mp4").string();
       vo.width = sc.look.width;
       vo.height = sc.look.height;
-      vo.fps = static_cast<int>(std::lround(sc.time.fps));
+      vo.fps = sc.time.fps;
       vo.crf = sc.output.crf;
       vo.preset = sc.output.preset;
       vo.reproducible = sc.output.reproducible;
@@ -135,7 +135,7 @@ class FrameOutputs {
   void add(int f, Simulation& sim, FrameRecord& rec) {
     const Scenario& sc = s_.scenario;
     if (s_.renderer) {
-      const SurfaceSnapshot snap = sim.snapshot();
+      const SurfaceSnapshot snap = sim.snapshot(sc.look.displacementScale);
       rec = sim.lastRecord();
       const std::vector<std::uint8_t>* rgb = nullptr;
       {

@@ -2,13 +2,23 @@
 #include "tools/app/run_config.h"
 
 #include <cmath>
+#include <cstdio>
 
+#include "render/video_encoder.h"
+#include "sim/core_error.h"
 #include "sim/io/mesh_import.h"
 #include "sim/mesh_slab.h"
 
 namespace esim::app {
 
 namespace {
+
+// a number as %g ("29.97", "500", "0.01")
+std::string formatG(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", v);
+  return b;
+}
 
 void mapElectric(const Scenario& s, SimulationConfig& c) {
   const ScenarioMaterial& m = s.material;
@@ -49,6 +59,7 @@ void mapThermal(const Scenario& s, SimulationConfig& c) {
   t.integrator = s.solvers.thermalIntegrator;
   t.lumpedMass = s.solvers.thermalMass == ThermalMass::Lumped;
   t.allowSubstepping = s.solvers.thermalAllowSubstepping;
+  t.maxSubsteps = s.solvers.thermalMaxSubsteps;
   t.convectionW_m2K = s.effects.surfaceCoolingHWPerM2K;
   t.ambientTemperatureC = s.effects.surfaceCoolingAmbientC;
   t.damage = s.effects.thermalDamage;
@@ -125,12 +136,17 @@ TetMesh buildMesh(const Scenario& s) {
   return loadTetMesh(f.resolvedPath.empty() ? f.path : f.resolvedPath, o, f.scaleToM);
 }
 
-void checkRunnable(const Scenario& s) {
+void checkRunnable(const Scenario& s, bool withMesh, bool noVideo) {
   const SimulationConfig config = makeSimulationConfig(s);
   validateSimulationConfig(config);
   if (s.output.video || s.output.pngEvery > 0 || s.output.hashes)
     validateRenderOptions(makeRenderOptions(s));
-  if (s.mesh.source == MeshSource::Slab) validateSimulationMesh(buildMesh(s), config);
+  if (s.output.video && !noVideo)
+    ESIM_VERIFY(s.time.fps >= kMinVideoFps && s.time.fps <= kMaxVideoFps,
+                "time.fps = " + formatG(s.time.fps) + ": a video needs " + formatG(kMinVideoFps) +
+                    " to " + formatG(kMaxVideoFps) +
+                    " frames per second; set output.video: false for other rates");
+  if (withMesh && s.mesh.source == MeshSource::Slab) validateSimulationMesh(buildMesh(s), config);
 }
 
 }  // namespace esim::app

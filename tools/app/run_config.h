@@ -24,9 +24,11 @@ RenderOptions makeRenderOptions(const Scenario& scenario);
 // the scenario's mesh: the slab generator, or the surface file meshed by CGAL [m]
 TetMesh buildMesh(const Scenario& scenario);
 
-// every check the run's set-up makes before its first frame, on the configuration and, for
-// a generated slab (milliseconds to build), on its mesh (return electrode nodes, clamped
-// nodes); throws Error naming the scenario key
-void checkRunnable(const Scenario& scenario);
+// every check the run's set-up makes before its first frame: the configuration, the
+// renderer's and the video's options and, withMesh and for a generated slab (milliseconds
+// to build), the mesh (return electrode nodes, clamped nodes, the dense inverse's memory);
+// throws Error naming the scenario key. `esim run` calls it without the mesh (its set-up
+// checks the mesh it builds), `esim validate` with; noVideo: as `esim run --no-video`.
+void checkRunnable(const Scenario& scenario, bool withMesh = true, bool noVideo = false);
 
 }  // namespace esim::app
