@@ -133,6 +133,20 @@ std::string returnElectrodeMessage(const ReturnElectrode& r) {
 
 }  // namespace
 
+void checkExplicitBound(const ThermalPhase& thermal, const SimulationConfig& config) {
+  const ThermalParams& p = config.thermal;
+  if (p.integrator != ThermalIntegrator::Explicit) return;
+  const double limitS = thermal.stableExplicitDtS();
+  if (config.frameDtS <= limitS) return;
+  ESIM_VERIFY(p.allowSubstepping,
+              "solvers.thermal.allow_substepping is false and the frame step " +
+                  std::to_string(config.frameDtS) + " s exceeds the explicit stability limit " +
+                  std::to_string(limitS) +
+                  " s of this mesh; use backward-euler or crank-nicolson, or a higher time.fps");
+  ESIM_VERIFY(std::ceil(config.frameDtS / limitS) <= p.maxSubsteps,
+              explicitSubstepMessage(config.frameDtS, limitS, p.maxSubsteps));
+}
+
 void validateSimulationMesh(const TetMesh& meshIn, const SimulationConfig& config) {
   TetMesh mesh = meshIn;
   if (mesh.alive.empty()) mesh.alive.assign(mesh.tets.size(), 1);
@@ -152,6 +166,11 @@ void validateSimulationMesh(const TetMesh& meshIn, const SimulationConfig& confi
                     " GB for this mesh, above solvers.electric.dense_memory_limit_mb = " +
                     std::to_string(config.electricSolver.denseMemoryLimitBytes / 1048576.0) +
                     " MiB; use 'capacitance' (the same answer with sparse memory)");
+  }
+  if (config.phases.thermal && config.thermal.integrator == ThermalIntegrator::Explicit) {
+    ThermalParams tp = config.thermal;
+    tp.boiling = config.phases.boiling;
+    checkExplicitBound(ThermalPhase(mesh, tetGeometry(mesh), tp), config);
   }
   if (config.phases.structural)
     ESIM_VERIFY(!clampedSupports(mesh, surfaceNodes, config.clampBandM).empty(),
@@ -243,19 +262,7 @@ void Simulation::buildInitialModel(TetMesh mesh) {
                    std::to_string(config_.clampBandM) + " m of the lowest node)");
   }
   // the work of an explicit frame is bounded: refused up front, never a frame of minutes
-  if (model_->thermal && config_.thermal.integrator == ThermalIntegrator::Explicit) {
-    const double limitS = model_->thermal->stableExplicitDtS();
-    const double need = std::ceil(config_.frameDtS / limitS);
-    ESIM_VERIFY(config_.frameDtS <= limitS ||
-                    (config_.thermal.allowSubstepping && need <= config_.thermal.maxSubsteps),
-                config_.thermal.allowSubstepping
-                    ? explicitSubstepMessage(config_.frameDtS, limitS, config_.thermal.maxSubsteps)
-                    : "solvers.thermal.allow_substepping is false and the frame step " +
-                          std::to_string(config_.frameDtS) +
-                          " s exceeds the explicit stability limit " + std::to_string(limitS) +
-                          " s of this mesh; use backward-euler or crank-nicolson, or a higher "
-                          "time.fps");
-  }
+  if (model_->thermal) checkExplicitBound(*model_->thermal, config_);
 }
 
 void Simulation::initState() {
@@ -385,6 +392,26 @@ std::unique_ptr<SimModel> Simulation::buildModel(std::vector<std::uint8_t> alive
 
 // ---- rebuild after rupture ----
 
+// buildModel for the alive set left by a rupture (at frame first - 1): whatever stops it (no
+// tissue left on the return electrode or held by the clamps, a factorization) is a run that
+// cannot go on, never bad input
+std::unique_ptr<SimModel> Simulation::rebuildModel(std::vector<std::uint8_t> alive,
+                                                   std::vector<double> sigma, int first,
+                                                   int prefetchTo) const {
+  try {
+    return buildModel(std::move(alive), std::move(sigma), first, prefetchTo);
+  } catch (const Error& e) {
+    if (e.kind() == ErrorKind::Internal) throw;
+    const std::string what = e.what();
+    std::string context = "rupture, frame " + std::to_string(first - 1) + ": ";
+    if (what.find("supports") != std::string::npos)
+      context +=
+          "the cut removed all the tissue held by the clamps "
+          "(effects.structural_clamp_band_m): ";
+    throw RunError(context + what);
+  }
+}
+
 // a model built for a new alive set, and the tets it removes
 struct Simulation::Rebuilt {
   std::unique_ptr<SimModel> model;
@@ -417,7 +444,7 @@ void Simulation::startRebuild(const std::vector<int>& broken) {
   }
   if (config_.rebuildMode == RebuildMode::Synchronous) {
     ready_ = std::make_unique<Rebuilt>();
-    ready_->model = buildModel(std::move(alive), std::move(sigma), first, prefetchTo);
+    ready_->model = rebuildModel(std::move(alive), std::move(sigma), first, prefetchTo);
     ready_->removed = broken;
     swapFrame_ = state_.frame;
     return;
@@ -431,7 +458,7 @@ void Simulation::startRebuild(const std::vector<int>& broken) {
   job_ = std::async(std::launch::async, [this, alive = std::move(alive), broken,
                                          sigma = std::move(sigma), first, prefetchTo]() mutable {
     auto r = std::make_unique<Rebuilt>();
-    r->model = buildModel(std::move(alive), std::move(sigma), first, prefetchTo);
+    r->model = rebuildModel(std::move(alive), std::move(sigma), first, prefetchTo);
     r->removed = std::move(broken);
     return r;
   });
@@ -721,6 +748,11 @@ std::vector<int> Simulation::findContacts(FrameRecord& rec) const {
       contacts.erase(std::unique(contacts.begin(), contacts.end()), contacts.end());
     }
   }
+  for (int v : contacts)
+    ESIM_RUN_CHECK(!std::binary_search(m.ground.begin(), m.ground.end(), v),
+                   "find_contacts, frame " + std::to_string(st.frame) +
+                       ": short circuit: the tool touches node " + std::to_string(v) +
+                       " on the return electrode (it went through the tissue)");
   if (!contacts.empty()) return contacts;
   const int tet = aliveTetContaining(m.mesh, *m.geo, st.pose.tipM);
   if (tet < 0) return contacts;

@@ -177,8 +177,14 @@ const SimulationConfig& defaultSimulationConfig();
 // it; `esim validate` runs it too, so that a valid scenario never fails at set-up.
 void validateSimulationConfig(const SimulationConfig& config);
 
+// The explicit integrator's bound: a frame step above the mesh's stability limit needs
+// sub-stepping, and at most thermal.maxSubsteps sub-steps; else an Input error with the
+// remedy. The constructor runs it, and validateSimulationMesh.
+void checkExplicitBound(const ThermalPhase& thermal, const SimulationConfig& config);
+
 // Checks what the configuration needs of the mesh: a valid mesh, nodes on the return
-// electrode (electric), nodes in the clamp band (structural). The constructor runs it.
+// electrode (electric), nodes in the clamp band (structural), the explicit bound (thermal),
+// the dense inverse's memory. `esim validate` runs it; the constructor makes the same checks.
 void validateSimulationMesh(const TetMesh& mesh, const SimulationConfig& config);
 
 // ---- model and state ----
@@ -289,6 +295,8 @@ class Simulation {
   std::unique_ptr<SimModel> buildModel(std::vector<std::uint8_t> alive, std::vector<double> sigma,
                                        int prefetchFrom, int prefetchTo) const;
   void initState();
+  std::unique_ptr<SimModel> rebuildModel(std::vector<std::uint8_t> alive, std::vector<double> sigma,
+                                         int first, int prefetchTo) const;
   std::vector<int> findContacts(FrameRecord& record) const;
   void checkFinite(Stage stage, const char* what, const double* values, int count,
                    const char* unit) const;
