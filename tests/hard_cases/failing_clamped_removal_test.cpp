@@ -1,0 +1,60 @@
+// FAILING hard case (issue #12), not built: tests/hard_cases/README.md, "Bugs found".
+//
+// Rupture that removes every tet touching the clamped bottom (the structural supports) stops
+// the run with an esim::Error of kind Input, thrown by the StructuralPhase constructor in the
+// rebuild (structural.cpp, ESIM_VERIFY(m.islands < pieces, ...)):
+//   "structural: no piece of the body is held by the supports"
+// The message names neither rupture nor the frame, and the kind says "bad input" (exit 2,
+// "writes nothing") for a run that went on for frames. The initial build wraps the same
+// structural errors into a Run error naming effects.structural_clamp_band_m
+// (Simulation::buildInitialModel); the rebuild does not. Expected: a Run error like the
+// rebuild's other two ("rupture: every element of the tissue has been removed", "rupture: the
+// cut removed all the tissue on the return electrode"), e.g. "rupture, frame N: the cut
+// removed all the tissue held by the clamps (effects.structural_clamp_band_m)".
+// Build: add `esim_add_test(hard_failing_clamped_removal_test
+// hard_cases/failing_clamped_removal_test.cpp esim_sim)` to tests/CMakeLists.txt.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+
+#include "hard_case.h"
+
+namespace esim {
+namespace {
+
+using hard::FrameChecker;
+using hard::Invariants;
+using hard::MaxPrinciple;
+
+// thermal only: a broad Gaussian source (3e8 W/m^3, 20 mm), critical stress 10 Pa: the slab
+// breaks through to its clamped bottom in frame 3
+TEST(HardRemovalFailing, RemovalOfTheClampedTissueIsARunError) {
+  SimulationConfig c;
+  c.phases.thermal = c.phases.boiling = c.phases.structural = c.phases.rupture = true;
+  c.thermal.integrator = ThermalIntegrator::BackwardEuler;
+  c.heatSource.enabled = true;
+  c.heatSource.centerM = Vec3(0, 0, 0.01);
+  c.heatSource.radiusM = 0.02;
+  c.heatSource.powerDensityW_m3 = 3e8;
+  c.criticalStressPa = 10.0;
+  Simulation sim(makeSlab(hard::quarterSlabSpec()), c);
+  Invariants inv;
+  inv.maxPrinciple = MaxPrinciple::Lower;
+  FrameChecker check(sim, inv);
+  int stoppedAt = -1;
+  for (int f = 0; f < 30 && stoppedAt < 0; ++f) {
+    try {
+      check.step();
+      ASSERT_TRUE(check.ok());
+    } catch (const Error& e) {
+      stoppedAt = f;
+      std::printf("stopped at frame %d (%s error): %s\n", f, errorKindName(e.kind()), e.what());
+      EXPECT_EQ(e.kind(), ErrorKind::Run) << e.what();               // fails: Input
+      EXPECT_TRUE(hard::contains(e.what(), "rupture")) << e.what();  // fails
+    }
+  }
+  EXPECT_GT(stoppedAt, 0);
+}
+
+}  // namespace
+}  // namespace esim
