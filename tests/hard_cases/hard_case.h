@@ -59,10 +59,10 @@ class FrameChecker {
 
   // one frame of the simulation, checked (its exceptions propagate)
   const FrameRecord& step() {
-    // a rupture frame swaps in the new model after its physics: keep the matrix it solved
+    // a rupture frame swaps in the new model after its physics: keep what its solve used
     if (sim_.hasElectric() && sim_.config().phases.rupture) {
-      solvedStiffness_ = sim_.model().stiffness;
-      solvedGround_ = sim_.model().ground;
+      aliveBefore_ = sim_.mesh().alive;
+      groundBefore_ = sim_.model().ground;
     }
     const FrameRecord& r = sim_.step();
     check(r);
@@ -109,9 +109,17 @@ class FrameChecker {
   }
 
   void checkElectric(const FrameRecord& r, const std::string& at) {
-    const bool swapped = sim_.config().phases.rupture;
-    const SparseMatrix& stiffness = swapped ? solvedStiffness_ : sim_.model().stiffness;
-    const std::vector<int>& ground = swapped ? solvedGround_ : sim_.model().ground;
+    // the frame's solve used the model before the swap: the alive set before the frame and the
+    // conductivity the new model took over (sigma(T) refreshes it before the solve)
+    const bool swapped = r.removedTets > 0;
+    SparseMatrix solved;
+    if (swapped) {
+      TetMesh before = sim_.mesh();
+      before.alive = aliveBefore_;
+      solved = assembleStiffness(before, *sim_.model().geo, sim_.model().sigmaAssembled);
+    }
+    const SparseMatrix& stiffness = swapped ? solved : sim_.model().stiffness;
+    const std::vector<int>& ground = swapped ? groundBefore_ : sim_.model().ground;
     const std::vector<int>& contact = sim_.contactNodes();
     const Eigen::VectorXd& u = sim_.potentialV();
     const double v = sim_.config().toolVoltageV;
@@ -197,8 +205,8 @@ class FrameChecker {
 
   Simulation& sim_;
   Invariants inv_;
-  SparseMatrix solvedStiffness_;  // rupture: the electric matrix of the frame's solve
-  std::vector<int> solvedGround_;
+  std::vector<std::uint8_t> aliveBefore_;  // rupture: the alive set of the frame's solve
+  std::vector<int> groundBefore_;
   double minC_ = 0, maxC_ = 0, stored0J_ = 0, removedJ_ = 0;
   double minSeenC_ = INFINITY, maxSeenC_ = -INFINITY;
   double worstResidual_ = 0, worstEnergy_ = 0;
