@@ -218,6 +218,7 @@ TEST(HardConductivity, RunawayHeatingWithSigmaOfT) {
     peak = std::max(peak, r.toolCurrentA);
     for (double s : sim.conductivityS_m()) sigmaMax = std::max(sigmaMax, s);
   }
+  std::printf("current %.4g A -> peak %.4g A, sigma up to %.4g S/m\n", first, peak, sigmaMax);
   EXPECT_GT(peak, 5 * first) << "no runaway";
   EXPECT_LE(sigmaMax, 0.144 * (1 + 1.0 * (100 - 37)) * (1 + 1e-12));  // capped at boiling
   EXPECT_GT(sim.thermalState()->latentJ, 0.0);                        // it did boil
@@ -246,9 +247,10 @@ TEST(HardConductivity, NegativeCoefficientDrivesSigmaToItsFloor) {
     contrast = std::max(contrast, *hi / *lo);
     EXPECT_GE(*lo, 1e-6 * 0.144 * (1 - 1e-12));
   }
+  std::printf("current %.4g A -> %.4g A, sigma contrast %.6g\n", first, last, contrast);
   EXPECT_GE(contrast, 1e6 * (1 - 1e-6));
   EXPECT_GT(last, 0.0);
-  EXPECT_LT(last, 0.5 * first);  // the insulating shell chokes the current
+  EXPECT_LT(last, 1e-3 * first);  // the insulating shell chokes the current (measured 7e5-fold)
 }
 
 }  // namespace

@@ -12,6 +12,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <ostream>
 #include <set>
 #include <string>
 #include <vector>
@@ -35,6 +36,9 @@ struct Extreme {
   Outcome outcome = Outcome::Runs;
   std::string message;  // a part of the error's message (refused, run error)
 };
+
+// the case in test names and failure messages
+void PrintTo(const Extreme& e, std::ostream* os) { *os << e.field << " = " << e.value; }
 
 std::string yamlNumber(double v) {
   char buf[64];

@@ -5,12 +5,19 @@
 
 #include <cmath>
 #include <cstdio>
+#include <ostream>
 #include <string>
 #include <tuple>
 
 #include "hard_case.h"
 
 namespace esim {
+
+// the integrator in test names and failure messages
+void PrintTo(ThermalIntegrator integrator, std::ostream* os) {
+  *os << thermalIntegratorName(integrator);
+}
+
 namespace {
 
 using hard::FrameChecker;
@@ -49,16 +56,16 @@ class HardTimeStep : public ::testing::TestWithParam<Combo> {
   // frames: a few, and at least 1e-5 s of simulated time
   int frames() const { return std::get<0>(GetParam()) < 1e-5 ? 10 : 4; }
 
-  // explicit runs sub-stepped or are refused up front, naming the bound and the remedy
+  // on this mesh the explicit limit is 3.1 s (7.2 s without the cooled faces): even 10 s frames
+  // are sub-stepped (2-4 sub-steps),
+  // never refused (the refusal: HardTimeStepLimits.ExplicitAtTenSecondsIsRefusedUpFront)
   std::unique_ptr<Simulation> make(const SimulationConfig& c) {
-    try {
-      return std::make_unique<Simulation>(makeSlab(hard::quarterSlabSpec()), c);
-    } catch (const Error& e) {
-      EXPECT_EQ(c.thermal.integrator, ThermalIntegrator::Explicit) << e.what();
-      EXPECT_EQ(e.kind(), ErrorKind::Input) << e.what();
-      EXPECT_TRUE(hard::contains(e.what(), "solvers.thermal.max_substeps")) << e.what();
-      return nullptr;
-    }
+    auto sim = std::make_unique<Simulation>(makeSlab(hard::quarterSlabSpec()), c);
+    if (c.thermal.integrator == ThermalIntegrator::Explicit)
+      std::printf("explicit: limit %.4g s, %.0f sub-step(s) per frame\n",
+                  sim->model().thermal->stableExplicitDtS(),
+                  std::ceil(c.frameDtS / sim->model().thermal->stableExplicitDtS()));
+    return sim;
   }
 };
 
@@ -71,7 +78,6 @@ TEST_P(HardTimeStep, HotSpotStaysWithinItsBoundsAndKeepsItsHeat) {
   c.hotSpot.radiusM = 0.004;
   c.hotSpot.temperatureC = 90;
   auto sim = make(c);
-  if (!sim) return;
   Invariants inv;
   inv.maxPrinciple = MaxPrinciple::Both;
   FrameChecker check(*sim, inv);
@@ -95,7 +101,6 @@ TEST_P(HardTimeStep, HeatedAndCooledNeverBelowTheInitialMinimum) {
   c.thermal.convectionW_m2K = 1e3;
   c.thermal.ambientTemperatureC = 37;
   auto sim = make(c);
-  if (!sim) return;
   Invariants inv;
   inv.maxPrinciple = MaxPrinciple::Lower;
   FrameChecker check(*sim, inv);
