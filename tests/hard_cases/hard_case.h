@@ -72,6 +72,13 @@ class FrameChecker {
   // false once some check (or anything else) of the test has failed
   static bool ok() { return !::testing::Test::HasFailure(); }
 
+  int frames() const { return frames_; }         // frames checked
+  double removedJ() const { return removedJ_; }  // heat removed with tets [J]
+  double minSeenC() const { return minSeenC_; }  // over the alive tets' nodes
+  double maxSeenC() const { return maxSeenC_; }
+  double worstResidualRel() const { return worstResidual_; }  // electric, relative
+  double worstEnergyRel() const { return worstEnergy_; }      // thermal balance, relative
+
  private:
   void check(const FrameRecord& r) {
     const std::string at = "frame " + std::to_string(r.frame);
@@ -88,17 +95,6 @@ class FrameChecker {
     ++frames_;
   }
 
- public:
-  int frames() const { return frames_; }
-  double removedJ() const { return removedJ_; }
-  double minSeenC() const { return minSeenC_; }
-  double maxSeenC() const { return maxSeenC_; }
-  double initialMinC() const { return minC_; }
-  double initialMaxC() const { return maxC_; }
-  double worstResidualRel() const { return worstResidual_; }
-  double worstEnergyRel() const { return worstEnergy_; }
-
- private:
   template <class V>
   static void expectFinite(const V& v, const char* what, const std::string& at) {
     for (size_t i = 0; i < static_cast<size_t>(v.size()); ++i)
