@@ -282,6 +282,7 @@ void Simulation::initState() {
       model_->thermal->setTemperature(s.thermal, t);
     }
     s.maxTemperatureC = s.thermal.temperatureC.maxCoeff();
+    lowestC_ = s.thermal.temperatureC.minCoeff();
   }
   if (model_->structural) {
     s.eigenstrain.assign(nt, 0.0);
@@ -601,7 +602,7 @@ void Simulation::advance(FrameRecord& rec) {
   if (m.thermal) {
     StageTimer timer(rec, Stage::Heat);
     const double sourceBeforeJ = st.thermal.sourceJ;
-    const double lowBeforeC = st.thermal.temperatureC.minCoeff();
+
     const double highBeforeC = st.thermal.temperatureC.maxCoeff();
     const auto stats =
         m.thermal->step(dt, m.electric ? st.joulePowerW_m3 : m.prescribedSource, st.thermal);
@@ -616,7 +617,7 @@ void Simulation::advance(FrameRecord& rec) {
       rec.powerW = (st.thermal.sourceJ - sourceBeforeJ) / dt;
       st.energyJ += st.thermal.sourceJ - sourceBeforeJ;
     }
-    checkMaximumPrinciple(lowBeforeC, highBeforeC, st.thermal.sourceJ > sourceBeforeJ, rec);
+    checkMaximumPrinciple(highBeforeC, st.thermal.sourceJ > sourceBeforeJ, rec);
     rec.maxTemperatureC = st.thermal.temperatureC.maxCoeff();
     st.maxTemperatureC = std::max(st.maxTemperatureC, rec.maxTemperatureC);
   } else {
@@ -784,16 +785,17 @@ void Simulation::checkFinite(Stage stage, const char* what, const double* values
 }
 
 // The discrete maximum principle: sources are >= 0 and the only sink is convection to the
-// ambient temperature, so no node may fall below min(T before, ambient), nor, in a frame
+// ambient temperature, so no node may ever fall below min(initial T, ambient), nor, in a frame
 // without a source, rise above max(T before, ambient). Crank-Nicolson and consistent mass
 // can break it at large steps (undershoot); recorded with its size and warned, with the
 // remedy (backward Euler with lumped mass keeps it on non-obtuse meshes).
-void Simulation::checkMaximumPrinciple(double lowBeforeC, double highBeforeC, bool heated,
-                                       FrameRecord& rec) {
+void Simulation::checkMaximumPrinciple(double highBeforeC, bool heated, FrameRecord& rec) {
   const Eigen::VectorXd& t = state_.thermal.temperatureC;
   const bool cooled = config_.thermal.convectionW_m2K > 0 && !model_->cooledInitial.empty();
   const double ambient = config_.thermal.ambientTemperatureC;
-  const double lo = cooled ? std::min(lowBeforeC, ambient) : lowBeforeC;
+  // the lower bound holds over the whole run: the initial minimum (or the ambient), never
+  // lowered by an earlier frame's undershoot (a slow drift adds up)
+  const double lo = cooled ? std::min(lowestC_, ambient) : lowestC_;
   const double hi = cooled ? std::max(highBeforeC, ambient) : highBeforeC;
   double violation = std::max(0.0, lo - t.minCoeff());
   if (!heated) violation = std::max(violation, t.maxCoeff() - hi);

@@ -300,8 +300,7 @@ class Simulation {
   std::vector<int> findContacts(FrameRecord& record) const;
   void checkFinite(Stage stage, const char* what, const double* values, int count,
                    const char* unit) const;
-  void checkMaximumPrinciple(double lowBeforeC, double highBeforeC, bool heated,
-                             FrameRecord& record);
+  void checkMaximumPrinciple(double highBeforeC, bool heated, FrameRecord& record);
   void refreshConductivity();
   void computeEigenstrain();
   std::vector<int> scriptedContacts(const ContactFinder& finder, const std::vector<int>& ground,
@@ -329,6 +328,7 @@ class Simulation {
   int framesContactByTet_ = 0, framesToolSwept_ = 0, framesBoilingUnconverged_ = 0;
   int framesMaxPrinciple_ = 0;     // frames whose temperature left its bounds
   double worstMaxPrincipleK_ = 0;  // by how much at most [K]
+  double lowestC_ = 0;             // the initial minimum temperature: the lower bound [C]
   int removedTets_ = 0;
   int rebuilds_ = 0, rebuildsLate_ = 0;  // swapped in; of which had to wait > 1 ms
   double rebuildBuildMs_ = 0;            // sum of the rebuilds' build times

@@ -149,7 +149,7 @@ SimulationConfig acrossADrySpot(double factor, ElectricStrategy strategy) {
   c.hotSpot.temperatureC = 150;
   c.electricSolver.strategy = strategy;
   // pcg: 1e-9, above the ~2e-10 its recursive residual can reach here (below that it stops
-  // with a true residual above its tolerance: failing_pcg_residual_test.cpp)
+  // with a true residual above its tolerance: pcg_residual_test.cpp)
   c.electricSolver.pcgTolerance = 1e-9;
   c.electricSolver.pcgMaxIterations = 100000;
   return c;

@@ -1,7 +1,7 @@
 // Hard cases (issue #12): the tool's contact with the tissue. Near-degenerate tets under the
 // tool, contact on one node and on a whole face, and a tool that goes through, under, inside
 // and across the tissue within one frame (onto the return electrode:
-// failing_short_circuit_test.cpp). Every frame is checked by hard::FrameChecker (hard_case.h).
+// short_circuit_test.cpp). Every frame is checked by hard::FrameChecker (hard_case.h).
 #include <gtest/gtest.h>
 
 #include <cmath>

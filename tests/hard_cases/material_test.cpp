@@ -48,7 +48,7 @@ std::string yamlNumber(double v) {
 
 // a 30 x 30 x 10 mm slab (2.5 mm grid) on a 20 mm pad; a 400 V blade pressed 0.2 mm into the
 // top face cuts 6 mm in 10 frames; every effect on; backward Euler (the explicit default's
-// sub-step bound is failing_validate_test.cpp's case)
+// sub-step bound is validate_test.cpp's case)
 constexpr const char* kScene = R"(name: hard_material
 mesh:
   source: slab

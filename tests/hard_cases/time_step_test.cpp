@@ -113,7 +113,7 @@ TEST_P(HardTimeStep, HeatedAndCooledNeverBelowTheInitialMinimum) {
 }
 
 // lumped mass only: with the consistent mass every integrator at every one of these steps
-// leaves [37, 90] (failing_max_principle_test.cpp)
+// leaves [37, 90] (max_principle_test.cpp: warned)
 INSTANTIATE_TEST_SUITE_P(Sweep, HardTimeStep,
                          ::testing::Combine(::testing::Values(1e-6, 1e-3, 1.0 / 30.0, 1.0, 10.0),
                                             ::testing::Values(ThermalIntegrator::Explicit,

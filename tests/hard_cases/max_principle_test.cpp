@@ -1,4 +1,5 @@
-// FAILING hard cases (issue #12), not built: tests/hard_cases/README.md, "Bugs found".
+// Hard cases (issue #12): the maximum principle of the allowed thermal configurations that do
+// not keep it; found by this suite (tests/hard_cases/README.md, "Bugs found"), now warned.
 //
 // The thermal maximum principle fails in two families of allowed configurations (the lumped
 // mass with explicit, backward Euler and Crank-Nicolson at 1e-6 .. 10 s holds it:
@@ -20,8 +21,6 @@
 // (1 - theta) dt K_ii <= c rho m_i, i.e. sub-stepped or switched to backward Euler above it,
 // the way the explicit bound is enforced), or the configuration is refused up front / warned
 // about in Simulation::warnings(), never a silent 48 K undershoot.
-// Build: add `esim_add_test(hard_failing_max_principle_test
-// hard_cases/failing_max_principle_test.cpp esim_sim)` to tests/CMakeLists.txt.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -52,21 +51,47 @@ SimulationConfig hotSpot(double dt, ThermalIntegrator integrator, bool lumped, d
   return c;
 }
 
-using Combo = std::tuple<double, ThermalIntegrator>;
-
-class HardTimeStepFailing : public ::testing::TestWithParam<Combo> {};
-
-TEST_P(HardTimeStepFailing, ConsistentMassHotSpotStaysWithinItsBounds) {
-  const auto [dt, integrator] = GetParam();
-  Simulation sim(makeSlab(hard::quarterSlabSpec()), hotSpot(dt, integrator, false, 0.502));
-  Invariants inv;
-  inv.maxPrinciple = MaxPrinciple::Both;
-  FrameChecker check(sim, inv);
-  hard::runChecked(check, 4);
-  std::printf("[%.12g, %.12g] C\n", check.minSeenC(), check.maxSeenC());
+bool warnsMaxPrinciple(const Simulation& sim) {
+  for (const std::string& w : sim.warnings())
+    if (w.find("maximum principle") != std::string::npos &&
+        w.find("backward-euler") != std::string::npos)
+      return true;
+  return false;
 }
 
-TEST_P(HardTimeStepFailing, ConsistentMassHeatedAndCooledNeverBelowTheInitialMinimum) {
+// The consistent mass is not an M-matrix and Crank-Nicolson is not L-stable: both can leave
+// the bounds of the maximum principle (the consistent mass at every step, by 0.01 K at 1 ms to
+// ~5 K at 1 s; Crank-Nicolson with lumped mass at steps far above an element's diffusion
+// time, by up to ~50 K). Allowed configurations, so the run goes on (every other invariant
+// holds) and the departure is never silent: whenever the field leaves its bounds by more
+// than the core's 1e-3 K margin, Simulation::warnings() names it with its remedy, and when it
+// stays inside there is no such warning.
+void expectBoundsOrWarning(Simulation& sim, MaxPrinciple bounds, double lowC, double highC) {
+  Invariants inv;
+  inv.maxPrinciple = MaxPrinciple::None;  // checked here, against the warning
+  FrameChecker check(sim, inv);
+  hard::runChecked(check, 4);
+  double out = std::max(0.0, lowC - check.minSeenC());
+  if (bounds == MaxPrinciple::Both) out = std::max(out, check.maxSeenC() - highC);
+  std::printf("[%.12g, %.12g] C, out of bounds by %.3g K\n", check.minSeenC(), check.maxSeenC(),
+              out);
+  if (out > 1e-3 + 1e-9)
+    EXPECT_TRUE(warnsMaxPrinciple(sim)) << "left its bounds by " << out << " K without a warning";
+  else
+    EXPECT_FALSE(warnsMaxPrinciple(sim)) << "a warning, but within bounds (" << out << " K)";
+}
+
+using Combo = std::tuple<double, ThermalIntegrator>;
+
+class HardMaxPrinciple : public ::testing::TestWithParam<Combo> {};
+
+TEST_P(HardMaxPrinciple, ConsistentMassHotSpotLeavesItsBoundsOnlyWithAWarning) {
+  const auto [dt, integrator] = GetParam();
+  Simulation sim(makeSlab(hard::quarterSlabSpec()), hotSpot(dt, integrator, false, 0.502));
+  expectBoundsOrWarning(sim, MaxPrinciple::Both, 37.0, 90.0);
+}
+
+TEST_P(HardMaxPrinciple, ConsistentMassHeatedAndCooledUndershootIsWarned) {
   const auto [dt, integrator] = GetParam();
   SimulationConfig c = hotSpot(dt, integrator, false, 0.502);
   c.hotSpot.enabled = false;
@@ -79,30 +104,34 @@ TEST_P(HardTimeStepFailing, ConsistentMassHeatedAndCooledNeverBelowTheInitialMin
   c.thermal.convectionW_m2K = 1e3;
   c.thermal.ambientTemperatureC = 37;
   Simulation sim(makeSlab(hard::quarterSlabSpec()), c);
-  Invariants inv;
-  inv.maxPrinciple = MaxPrinciple::Lower;
-  FrameChecker check(sim, inv);
-  hard::runChecked(check, 4);
-  std::printf("[%.12g, %.12g] C\n", check.minSeenC(), check.maxSeenC());
+  expectBoundsOrWarning(sim, MaxPrinciple::Lower, 37.0, 0.0);
 }
 
-INSTANTIATE_TEST_SUITE_P(Consistent, HardTimeStepFailing,
+INSTANTIATE_TEST_SUITE_P(Consistent, HardMaxPrinciple,
                          ::testing::Combine(::testing::Values(1e-6, 1e-3, 1.0 / 30.0, 1.0, 10.0),
                                             ::testing::Values(ThermalIntegrator::Explicit,
                                                               ThermalIntegrator::BackwardEuler,
                                                               ThermalIntegrator::CrankNicolson)));
 
-TEST(HardTimeStepFailingCn, CrankNicolsonLumpedOnConductiveTissueAtLongSteps) {
+TEST(HardMaxPrincipleCn, CrankNicolsonLumpedOnConductiveTissueAtLongStepsIsWarned) {
   for (const auto& [lambda, dt] : {std::pair{10.0, 10.0}, {100.0, 1.0}, {100.0, 10.0}}) {
     SCOPED_TRACE("lambda " + std::to_string(lambda) + " W/(m K), dt " + std::to_string(dt) + " s");
     Simulation sim(makeSlab(hard::quarterSlabSpec()),
                    hotSpot(dt, ThermalIntegrator::CrankNicolson, true, lambda));
+    expectBoundsOrWarning(sim, MaxPrinciple::Both, 37.0, 90.0);
+  }
+}
+
+TEST(HardMaxPrincipleCn, BackwardEulerLumpedKeepsTheBoundsWithoutAWarning) {
+  for (const auto& [lambda, dt] : {std::pair{10.0, 10.0}, {100.0, 1.0}, {100.0, 10.0}}) {
+    SCOPED_TRACE("lambda " + std::to_string(lambda) + " W/(m K), dt " + std::to_string(dt) + " s");
+    Simulation sim(makeSlab(hard::quarterSlabSpec()),
+                   hotSpot(dt, ThermalIntegrator::BackwardEuler, true, lambda));
     Invariants inv;
     inv.maxPrinciple = MaxPrinciple::Both;
     FrameChecker check(sim, inv);
-    for (int f = 0; f < 4; ++f) check.step();  // fails in frame 0
-    std::printf("lambda %g, dt %g: [%.12g, %.12g] C\n", lambda, dt, check.minSeenC(),
-                check.maxSeenC());
+    hard::runChecked(check, 4);
+    EXPECT_FALSE(warnsMaxPrinciple(sim));
   }
 }
 

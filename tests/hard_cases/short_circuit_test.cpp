@@ -1,4 +1,5 @@
-// FAILING hard case (issue #12), not built: tests/hard_cases/README.md, "Bugs found".
+// Hard case (issue #12), a bug this suite found, fixed since: tests/hard_cases/README.md,
+// "Bugs found". What it was:
 //
 // A tool pushed through the tissue onto the return electrode within one frame touches
 // grounded nodes: a short circuit. The run cannot go on, which the core reports with an
@@ -9,8 +10,6 @@
 // Expected: a Run error (core_error.h: "a run that cannot go on"; tools/app/run.cpp's frame
 // loop lists "a tool reaching the return electrode" among them) naming the stage and frame,
 // like find_contacts' own check for a tip in a tet whose nodes are all grounded.
-// Build: add `esim_add_test(hard_failing_short_circuit_test
-// hard_cases/failing_short_circuit_test.cpp esim_sim)` to tests/CMakeLists.txt.
 #include <gtest/gtest.h>
 
 #include "hard_case.h"

@@ -1,4 +1,5 @@
-// FAILING hard case (issue #12), not built: tests/hard_cases/README.md, "Bugs found".
+// Hard case (issue #12), a bug this suite found, fixed since: tests/hard_cases/README.md,
+// "Bugs found". What it was:
 //
 // Rupture that removes every tet touching the clamped bottom (the structural supports) stops
 // the run with an esim::Error of kind Input, thrown by the StructuralPhase constructor in the
@@ -11,8 +12,6 @@
 // rebuild's other two ("rupture: every element of the tissue has been removed", "rupture: the
 // cut removed all the tissue on the return electrode"), e.g. "rupture, frame N: the cut
 // removed all the tissue held by the clamps (effects.structural_clamp_band_m)".
-// Build: add `esim_add_test(hard_failing_clamped_removal_test
-// hard_cases/failing_clamped_removal_test.cpp esim_sim)` to tests/CMakeLists.txt.
 #include <gtest/gtest.h>
 
 #include <cstdio>

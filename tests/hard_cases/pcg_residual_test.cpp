@@ -1,4 +1,5 @@
-// FAILING hard case (issue #12), not built: tests/hard_cases/README.md, "Bugs found".
+// Hard case (issue #12), a bug this suite found, fixed since: tests/hard_cases/README.md,
+// "Bugs found". What it was:
 //
 // pcg stops on Eigen's recursively updated residual and checks only that number against
 // solvers.electric.tolerance (electric_pcg.cpp). At a 1e6 conductivity contrast (a dry spot,
@@ -10,8 +11,6 @@
 // Expected: the true residual is recomputed at the end (one product) and either meets the
 // tolerance (restart CG from there) or the solve is a Run error saying the tolerance is below
 // the attainable accuracy, never a silent result.
-// Build: add `esim_add_test(hard_failing_pcg_residual_test hard_cases/failing_pcg_residual_test.cpp
-// esim_sim)` to tests/CMakeLists.txt.
 #include <gtest/gtest.h>
 
 #include "hard_case.h"

@@ -1,4 +1,5 @@
-// FAILING hard case (issue #12), not built: tests/hard_cases/README.md, "Bugs found".
+// Hard case (issue #12), a bug this suite found, fixed since: tests/hard_cases/README.md,
+// "Bugs found". What it was:
 //
 // tools/app/run_config.h promises that "a file that `esim validate` accepts never fails at
 // set-up" (checkRunnable runs every check of the set-up). The explicit integrator's sub-step
@@ -16,8 +17,6 @@
 // Expected: checkRunnable refuses what the set-up refuses (compute the limit for a slab, as it
 // already builds the slab mesh), and the message names a key that exists (add
 // solvers.thermal.max_substeps to the schema, or drop the key from the message).
-// Build: add `esim_add_test(hard_failing_validate_test hard_cases/failing_validate_test.cpp
-// esim_app)` to tests/CMakeLists.txt.
 #include <gtest/gtest.h>
 
 #include <string>
