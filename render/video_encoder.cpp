@@ -21,13 +21,6 @@ extern "C" {
 namespace esim {
 namespace {
 
-// a number as %g ("29.97", "500", "0.01")
-std::string formatG(double v) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%g", v);
-  return b;
-}
-
 std::int64_t nowNs() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(
              std::chrono::steady_clock::now().time_since_epoch())
@@ -46,8 +39,8 @@ void checkOptions(const VideoEncoder::Options& o) {
               "video.width/height: " + std::to_string(o.width) + "x" + std::to_string(o.height) +
                   ", expected even sizes >= 16 (yuv420p halves the chroma)");
   ESIM_VERIFY(o.fps >= kMinVideoFps && o.fps <= kMaxVideoFps,
-              "time.fps = " + formatG(o.fps) + ": a video needs " + formatG(kMinVideoFps) + " to " +
-                  formatG(kMaxVideoFps) +
+              "time.fps = " + messageNumber(o.fps) + ": a video needs " +
+                  messageNumber(kMinVideoFps) + " to " + messageNumber(kMaxVideoFps) +
                   " frames per second (set output.video: false for other rates)");
   ESIM_VERIFY(o.crf >= 0 && o.crf <= 51,
               "video.crf: " + std::to_string(o.crf) + ", expected 0..51");

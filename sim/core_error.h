@@ -16,6 +16,7 @@
 // The core never exits or aborts: the front end (tools/app) maps the kind to the exit code.
 #pragma once
 
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 
@@ -48,6 +49,13 @@ class InternalError : public Error {
                   std::to_string(line) + ")",
               ErrorKind::Internal) {}
 };
+
+// a number as messages write it: %g ("29.97", "500", "1e-12"; std::to_string gives 0.000000)
+inline std::string messageNumber(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", v);
+  return b;
+}
 
 // "input", "run", "internal"
 inline const char* errorKindName(ErrorKind kind) {

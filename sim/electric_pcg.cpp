@@ -23,13 +23,6 @@
 namespace esim::electric_detail {
 namespace {
 
-// a number as %g (1e-12, not 0.000000)
-std::string fmtG(double v) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%g", v);
-  return b;
-}
-
 class PcgSolver final : public ElectricSolver {
  public:
   explicit PcgSolver(const ElectricSolverOptions& options) : options_(options) {
@@ -101,8 +94,8 @@ class PcgSolver final : public ElectricSolver {
       }
       ESIM_RUN_CHECK(trueResidual <= options_.pcgTolerance,
                      "solve_potential: pcg cannot reach solvers.electric.tolerance = " +
-                         fmtG(options_.pcgTolerance) + ": the true relative residual " +
-                         "stays at " + fmtG(trueResidual) +
+                         messageNumber(options_.pcgTolerance) + ": the true relative residual " +
+                         "stays at " + messageNumber(trueResidual) +
                          " (the attainable accuracy of this matrix); loosen the tolerance or "
                          "use a direct strategy (capacitance)");
       stats.residual = trueResidual;
@@ -111,10 +104,10 @@ class PcgSolver final : public ElectricSolver {
     // by tens of per cent)
     ESIM_RUN_CHECK(
         stats.residual <= options_.pcgTolerance,
-        "solve_potential: pcg did not converge: relative residual " + fmtG(stats.residual) +
-            " after " + std::to_string(stats.iterations) +
-            " iterations, above solvers.electric.tolerance = " + fmtG(options_.pcgTolerance) +
-            "; raise solvers.electric.max_iterations (now " +
+        "solve_potential: pcg did not converge: relative residual " +
+            messageNumber(stats.residual) + " after " + std::to_string(stats.iterations) +
+            " iterations, above solvers.electric.tolerance = " +
+            messageNumber(options_.pcgTolerance) + "; raise solvers.electric.max_iterations (now " +
             std::to_string(options_.pcgMaxIterations) +
             "), loosen the tolerance, or use a direct strategy (capacitance)");
     scatterPotential(classes_, x, cf, voltageV, potential);

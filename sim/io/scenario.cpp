@@ -32,6 +32,16 @@ bool Scenario::has(Phase p) const {
   return std::find(physics.begin(), physics.end(), p) != physics.end();
 }
 
+PhaseSet phaseSet(const Scenario& s) {
+  PhaseSet p;
+  p.electric = s.has(Phase::Electric);
+  p.thermal = s.has(Phase::Thermal);
+  p.boiling = s.has(Phase::Boiling);
+  p.structural = s.has(Phase::Structural);
+  p.rupture = s.has(Phase::Rupture);
+  return p;
+}
+
 const char* phaseName(Phase phase) {
   switch (phase) {
     case Phase::Electric:

@@ -319,6 +319,9 @@ std::vector<ScenarioFieldInfo> scenarioFields();
 // number of frames: round(duration * fps), at least 1
 int frameCount(const Scenario& scenario);
 
+// the listed phases as the core's PhaseSet
+PhaseSet phaseSet(const Scenario& scenario);
+
 // phase names: "electric", "thermal", ...
 const char* phaseName(Phase phase);
 

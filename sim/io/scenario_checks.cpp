@@ -65,13 +65,7 @@ std::string resolveAsset(const std::string& path, const std::string& sourceName,
 // physics: each phase has the phases it builds on, and a heat source
 void checkPhases(const Scenario& s, const Reader& r) {
   const bool electric = s.has(Phase::Electric), thermal = s.has(Phase::Thermal);
-  PhaseSet phases;
-  phases.electric = electric;
-  phases.thermal = thermal;
-  phases.boiling = s.has(Phase::Boiling);
-  phases.structural = s.has(Phase::Structural);
-  phases.rupture = s.has(Phase::Rupture);
-  const std::string problem = phaseDependencyProblem(phases);  // the core's rule
+  const std::string problem = phaseDependencyProblem(phaseSet(s));  // the core's rule
   if (!problem.empty()) r.fail("physics", "physics " + phaseList(s) + ": " + problem);
   if (thermal && !electric && s.heatSource.kind == HeatSourceKind::None &&
       !s.initialHotSpot.enabled)

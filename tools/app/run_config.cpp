@@ -13,13 +13,6 @@ namespace esim::app {
 
 namespace {
 
-// a number as %g ("29.97", "500", "0.01")
-std::string formatG(double v) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%g", v);
-  return b;
-}
-
 void mapElectric(const Scenario& s, SimulationConfig& c) {
   const ScenarioMaterial& m = s.material;
   c.conductivityS_m = m.electricConductivitySPerM;
@@ -93,11 +86,7 @@ void mapStructural(const Scenario& s, SimulationConfig& c) {
 
 SimulationConfig makeSimulationConfig(const Scenario& s) {
   SimulationConfig c;
-  c.phases.electric = s.has(Phase::Electric);
-  c.phases.thermal = s.has(Phase::Thermal);
-  c.phases.boiling = s.has(Phase::Boiling);
-  c.phases.structural = s.has(Phase::Structural);
-  c.phases.rupture = s.has(Phase::Rupture);
+  c.phases = phaseSet(s);
   c.frameDtS = 1.0 / s.time.fps;
   mapElectric(s, c);
   mapThermal(s, c);
@@ -143,8 +132,8 @@ void checkRunnable(const Scenario& s, bool withMesh, bool noVideo) {
     validateRenderOptions(makeRenderOptions(s));
   if (s.output.video && !noVideo)
     ESIM_VERIFY(s.time.fps >= kMinVideoFps && s.time.fps <= kMaxVideoFps,
-                "time.fps = " + formatG(s.time.fps) + ": a video needs " + formatG(kMinVideoFps) +
-                    " to " + formatG(kMaxVideoFps) +
+                "time.fps = " + messageNumber(s.time.fps) + ": a video needs " +
+                    messageNumber(kMinVideoFps) + " to " + messageNumber(kMaxVideoFps) +
                     " frames per second; set output.video: false for other rates");
   if (withMesh && s.mesh.source == MeshSource::Slab) validateSimulationMesh(buildMesh(s), config);
 }
