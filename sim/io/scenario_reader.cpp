@@ -387,6 +387,8 @@ void applyOverride(YAML::Node& root, const std::string& text, const std::string&
   std::string key = text.substr(0, eq);
   key.erase(0, key.find_first_not_of(" \t"));
   key.erase(key.find_last_not_of(" \t") + 1);
+  if (key.empty())
+    throw Error(where + "the key is blank; expected key.path=value, e.g. tool.voltage_v=60");
   const std::string valueText = text.substr(eq + 1);
   // each step of the path must be a group, the last a field or a group
   std::vector<std::string> keys;

@@ -610,6 +610,18 @@ TEST(Scenario, CommittedReferenceIsUpToDate) {
       << "regenerate: esim validate --reference > docs/scenario-reference.md";
 }
 
+// a blank key (found by fuzz_set_override: it indexed an empty key list) is refused
+TEST(Scenario, ABlankOverrideKeyIsRefused) {
+  for (const std::string& text : {" =1", "\t=x", "  = "}) {
+    try {
+      parseScenario("name: x\n", "c.yaml", {text});
+      ADD_FAILURE() << "accepted '" << text << "'";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("the key is blank"), std::string::npos) << e.what();
+    }
+  }
+}
+
 // every choice is an enum (or a name) from the load on: each of its names reads, writes back
 // as itself and round-trips; the core sees the enum the name stands for
 TEST(Scenario, EveryChoiceRoundTripsThroughItsEnum) {
