@@ -42,7 +42,15 @@ namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
 std::atomic<bool> gStop{false};
-extern "C" void onSignal(int) { gStop = true; }
+// the first SIGINT/SIGTERM stops the run after the current frame (bounded: an explicit frame
+// has at most solvers.thermal.max_substeps sub-steps); a second one, during a long frame (a
+// rebuild of seconds), ends the process at once with the signal's default action
+extern "C" void onSignal(int sig) {
+  if (gStop.exchange(true)) {
+    std::signal(sig, SIG_DFL);
+    std::raise(sig);
+  }
+}
 
 // above this the run's temperatures are outside what the model describes (no charring,
 // no ablation): the summary and timing.json say so [C]
