@@ -1,0 +1,19 @@
+// fuzz_scenario.cpp - libFuzzer target: the scenario loader on any text,
+// parseScenario(text, "fuzz.yaml", {}), then the checks of scenario_oracle.h.
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include "sim/io/scenario.h"
+#include "tests/fuzz/fuzz_common.h"
+#include "tests/fuzz/scenario_oracle.h"
+
+using namespace esim;
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  const std::string text(reinterpret_cast<const char*>(data), size);
+  Scenario s;
+  if (fuzz::accepts([&] { s = parseScenario(text, "fuzz.yaml", {}); }))
+    fuzz::checkAcceptedScenario(s);
+  return 0;
+}
