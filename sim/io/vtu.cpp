@@ -1,6 +1,8 @@
 // vtu.cpp - VTK XML unstructured grid writer and reader (see vtu.h).
 #include "sim/io/vtu.h"
 
+#include <charconv>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
@@ -81,26 +83,52 @@ std::string attribute(const std::string& tag, const std::string& key) {
   return tag.substr(p + pat.size(), q - p - pat.size());
 }
 
-// decodes one DataArray body into doubles
+// a double as text for messages (any value, NaN and huge ones included)
+std::string formatValue(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+// a non-negative whole number of at most `limit` in an attribute (e.g. NumberOfComponents)
+std::size_t parseCount(const std::string& text, std::size_t limit, const std::string& what,
+                       const std::string& path) {
+  std::size_t n = 0;
+  const char* end = text.data() + text.size();
+  const auto [ptr, ec] = std::from_chars(text.data(), end, n);
+  ESIM_VERIFY(ec == std::errc() && ptr == end && n <= limit, path + ": " + what + " '" + text +
+                                                                 "' is not a whole number in [0, " +
+                                                                 std::to_string(limit) + "]");
+  return n;
+}
+
+// decodes one DataArray body into doubles; every value of the body or none
 std::vector<double> decodeArray(const std::string& type, const std::string& format,
-                                const std::string& body, const std::string& path) {
+                                const std::string& body, const std::string& name,
+                                const std::string& path) {
+  const std::string where = path + ": DataArray '" + name + "'";
   std::vector<double> out;
   if (format == "ascii") {
     std::istringstream is(body);
     double v;
     while (is >> v) out.push_back(v);
+    ESIM_VERIFY(is.eof(), where + ": value " + std::to_string(out.size()) +
+                              " is not a number; expected ascii numbers separated by spaces");
     return out;
   }
-  ESIM_VERIFY(format == "binary", path + ": DataArray format '" + format +
-                                      "' is not supported; expected 'binary' or 'ascii'");
+  ESIM_VERIFY(format == "binary",
+              where + ": format '" + format + "' is not supported; expected 'binary' or 'ascii'");
   const auto raw = base64Decode(body);
-  ESIM_VERIFY(raw.size() >= 8, path + ": DataArray is truncated");
+  ESIM_VERIFY(raw.size() >= 8, where + " is truncated (no UInt64 byte count)");
   std::uint64_t bytes;
   std::memcpy(&bytes, raw.data(), 8);
-  ESIM_VERIFY(raw.size() >= 8 + bytes, path + ": DataArray is shorter than its header says");
+  ESIM_VERIFY(bytes == raw.size() - 8, where + " holds " + std::to_string(raw.size() - 8) +
+                                           " bytes but its header says " + std::to_string(bytes));
   const std::uint8_t* p = raw.data() + 8;
   auto read = [&](auto tag) {
     using T = decltype(tag);
+    ESIM_VERIFY(bytes % sizeof(T) == 0, where + ": " + std::to_string(bytes) +
+                                            " bytes are not a whole number of " + type + " values");
     const size_t n = bytes / sizeof(T);
     out.resize(n);
     for (size_t i = 0; i < n; ++i) {
@@ -122,8 +150,13 @@ std::vector<double> decodeArray(const std::string& type, const std::string& form
   else if (type == "UInt64")
     read(std::uint64_t{});
   else
-    throw Error(path + ": DataArray type '" + type + "' is not supported");
+    throw Error(where + ": type '" + type + "' is not supported");
   return out;
+}
+
+// an index read as a double (ascii or any integer type): a whole number in [0, size)
+bool isIndex(double v, std::size_t size) {
+  return v >= 0 && v < static_cast<double>(size) && v == std::floor(v);
 }
 
 }  // namespace
@@ -225,7 +258,10 @@ VtuData readVtu(const std::string& path) {
               path + ": header_type '" + header_type + "' is not supported; expected UInt64");
 
   VtuData data;
-  std::vector<double> conn, offsets;
+  std::vector<double> conn, offsets, types;
+  bool hasPoints = false, hasConn = false, hasOffsets = false, hasTypes = false;
+  int pieces = 0;
+  std::string piecePoints, pieceCells;  // the Piece's NumberOfPoints / NumberOfCells
   // walk the sections in order, tracking which block each DataArray is in
   enum class Block { None, Points, Cells, PointData, CellData } block = Block::None;
   size_t pos = 0;
@@ -236,40 +272,57 @@ VtuData readVtu(const std::string& path) {
     ESIM_VERIFY(gt != std::string::npos, path + ": truncated XML");
     const std::string tag = text.substr(lt, gt - lt + 1);
     pos = gt + 1;
-    if (tag.rfind("<Points", 0) == 0)
+    if (tag.rfind("<Piece", 0) == 0) {
+      ESIM_VERIFY(++pieces == 1, path + ": more than one Piece; expected a single Piece");
+      piecePoints = attribute(tag, "NumberOfPoints");
+      pieceCells = attribute(tag, "NumberOfCells");
+    } else if (tag.rfind("<Points", 0) == 0) {
       block = Block::Points;
-    else if (tag.rfind("<Cells", 0) == 0)
+    } else if (tag.rfind("<Cells", 0) == 0) {
       block = Block::Cells;
-    else if (tag.rfind("<PointData", 0) == 0)
+    } else if (tag.rfind("<PointData", 0) == 0) {
       block = Block::PointData;
-    else if (tag.rfind("<CellData", 0) == 0)
+    } else if (tag.rfind("<CellData", 0) == 0) {
       block = Block::CellData;
-    else if (tag.rfind("</", 0) == 0 && tag.find("DataArray") == std::string::npos)
+    } else if (tag.rfind("</", 0) == 0 && tag.find("DataArray") == std::string::npos) {
       block = Block::None;
+    }
     if (tag.rfind("<DataArray", 0) != 0) continue;
     const size_t end = text.find("</DataArray>", pos);
     ESIM_VERIFY(end != std::string::npos, path + ": DataArray without closing tag");
     const std::string name = attribute(tag, "Name");
     const std::string comps = attribute(tag, "NumberOfComponents");
-    const int components = comps.empty() ? 1 : std::stoi(comps);
+    const int components =
+        comps.empty() ? 1
+                      : static_cast<int>(parseCount(comps, 1 << 20, "NumberOfComponents", path));
+    ESIM_VERIFY(components >= 1, path + ": DataArray '" + name + "' has 0 components");
     auto values = decodeArray(attribute(tag, "type"), attribute(tag, "format"),
-                              text.substr(pos, end - pos), path);
+                              text.substr(pos, end - pos), name, path);
     pos = end + 12;
+    auto once = [&](bool& seen, const char* what) {
+      ESIM_VERIFY(!seen, path + ": more than one " + what + " array");
+      seen = true;
+    };
     switch (block) {
       case Block::Points:
-        ESIM_VERIFY(values.size() % 3 == 0, path + ": Points must have 3 components");
+        once(hasPoints, "Points");
+        ESIM_VERIFY(components == 3 && values.size() % 3 == 0,
+                    path + ": Points must have 3 components (NumberOfComponents=\"" + comps +
+                        "\", " + std::to_string(values.size()) + " values)");
         for (size_t i = 0; i < values.size(); i += 3)
           data.points.emplace_back(values[i], values[i + 1], values[i + 2]);
         break;
       case Block::Cells:
-        if (name == "connectivity")
+        if (name == "connectivity") {
+          once(hasConn, "connectivity");
           conn = std::move(values);
-        else if (name == "offsets")
+        } else if (name == "offsets") {
+          once(hasOffsets, "offsets");
           offsets = std::move(values);
-        else if (name == "types")
-          for (double t : values)
-            ESIM_VERIFY(t == 10, path + ": cell type " + std::to_string(static_cast<int>(t)) +
-                                     " found; only tetrahedra (VTK type 10) are supported");
+        } else if (name == "types") {
+          once(hasTypes, "types");
+          types = std::move(values);
+        }
         break;
       case Block::PointData:
         data.pointData.push_back({name, components, std::move(values)});
@@ -281,22 +334,53 @@ VtuData readVtu(const std::string& path) {
         break;
     }
   }
+  // cells: offsets 4, 8, ... up to the end of the connectivity, one type 10 per cell
+  ESIM_VERIFY(types.size() == offsets.size(), path + ": " + std::to_string(types.size()) +
+                                                  " cell types for " +
+                                                  std::to_string(offsets.size()) + " cell offsets");
+  for (double t : types)
+    ESIM_VERIFY(t == 10, path + ": cell type " + formatValue(t) +
+                             " found; only tetrahedra (VTK type 10) are supported");
   size_t prev = 0;
   for (double o : offsets) {
-    const size_t off = static_cast<size_t>(o);
-    ESIM_VERIFY(off == prev + 4 && off <= conn.size(),
-                path + ": cell offsets are not those of tetrahedra (4 nodes per cell)");
+    ESIM_VERIFY(o == static_cast<double>(prev + 4) && prev + 4 <= conn.size(),
+                path +
+                    ": cell offsets are not those of tetrahedra (4 nodes per cell) in a "
+                    "connectivity of " +
+                    std::to_string(conn.size()) + " entries: " + formatValue(o) + " follows " +
+                    std::to_string(prev));
     Tet t;
     for (int k = 0; k < 4; ++k) {
       const double v = conn[prev + k];
-      ESIM_VERIFY(v >= 0 && v < static_cast<double>(data.points.size()),
-                  path + ": cell refers to node " + std::to_string(static_cast<long>(v)) +
-                      " outside the " + std::to_string(data.points.size()) + " points");
+      ESIM_VERIFY(isIndex(v, data.points.size()),
+                  path + ": cell refers to node " + formatValue(v) + " outside the " +
+                      std::to_string(data.points.size()) + " points");
       t[k] = static_cast<int>(v);
     }
     data.tets.push_back(t);
-    prev = off;
+    prev += 4;
   }
+  ESIM_VERIFY(prev == conn.size(), path + ": the connectivity has " + std::to_string(conn.size()) +
+                                       " entries but the cells use " + std::to_string(prev));
+  // the Piece's counts, and one value (of each component) per point or cell in every field
+  if (!piecePoints.empty())
+    ESIM_VERIFY(parseCount(piecePoints, SIZE_MAX, "NumberOfPoints", path) == data.points.size(),
+                path + ": NumberOfPoints=\"" + piecePoints + "\" but " +
+                    std::to_string(data.points.size()) + " points");
+  if (!pieceCells.empty())
+    ESIM_VERIFY(parseCount(pieceCells, SIZE_MAX, "NumberOfCells", path) == data.tets.size(),
+                path + ": NumberOfCells=\"" + pieceCells + "\" but " +
+                    std::to_string(data.tets.size()) + " cells");
+  auto checkCounts = [&](const std::vector<VtuField>& fields, size_t count, const char* kind) {
+    for (const VtuField& f : fields)
+      ESIM_VERIFY(f.values.size() == static_cast<size_t>(f.components) * count,
+                  path + ": " + kind + " data '" + f.name + "' has " +
+                      std::to_string(f.values.size()) + " values; expected " +
+                      std::to_string(f.components) + " per " + kind + " for " +
+                      std::to_string(count) + " " + kind + "s");
+  };
+  checkCounts(data.pointData, data.points.size(), "point");
+  checkCounts(data.cellData, data.tets.size(), "cell");
   return data;
 }
 
