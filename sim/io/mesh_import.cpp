@@ -1,6 +1,7 @@
 // mesh_import.cpp - assimp surface reading, surface checks, Mesh_3 front end.
 //
-// 1. readSurface: assimp -> concatenated triangles, vertices welded by exact position.
+// 1. readSurface: assimp -> concatenated triangles, vertices welded by exact position
+//    (a PLY header is checked first: assimp hangs on one without end_header).
 // 2. checkSurface: topology checks in plain C++ (sorted edge lists), then the CGAL
 //    self-intersection test (mesh_cgal.cpp).
 // 3. tetrahedralize: option checks and a size guard, Mesh_3, validateMesh.
@@ -11,8 +12,10 @@
 
 #include <algorithm>
 #include <assimp/Importer.hpp>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <numbers>
 #include <sstream>
@@ -45,6 +48,29 @@ struct EdgeUse {
   }
 };
 
+// assimp 5.2 (Debian 12) never returns from a PLY whose header has no end_header line (it
+// spins at the end of the file: tests/fuzz/fuzz_surface/timeout-assimp-ply-no-end-header):
+// a PLY file (by extension or by its "ply" magic) must have one before assimp sees it
+void checkPlyHeader(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string line;
+  if (!std::getline(in, line)) return;  // empty: assimp says what is wrong
+  auto trimmed = [](const std::string& text) {
+    const size_t a = text.find_first_not_of(" \t\r");
+    return a == std::string::npos ? std::string()
+                                  : text.substr(a, text.find_last_not_of(" \t\r") - a + 1);
+  };
+  std::string extension = std::filesystem::path(path).extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (extension != ".ply" && line.rfind("ply", 0) != 0) return;
+  while (std::getline(in, line))
+    if (trimmed(line) == "end_header") return;
+  throw Error(path +
+              ": cannot read surface mesh: the PLY header has no end_header line (truncated or "
+              "damaged file?)");
+}
+
 }  // namespace
 
 // ---- reading ----
@@ -57,6 +83,7 @@ SurfaceMesh readSurface(const std::string& path, double scaleToMetres) {
   ESIM_VERIFY(std::isfinite(scaleToMetres) && scaleToMetres > 0,
               path + ": scale to metres must be a positive number");
 
+  checkPlyHeader(path);
   Assimp::Importer importer;
   const unsigned flags = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
                          aiProcess_PreTransformVertices | aiProcess_SortByPType;
