@@ -84,16 +84,46 @@ SurfaceMesh readSurface(const std::string& path, double scaleToMetres) {
               path + ": scale to metres must be a positive number");
 
   checkPlyHeader(path);
+  // import only, then our checks, then the post-processing: assimp's loaders can hand on
+  // faces of 0 indices, indices past the vertices and primitive-type flags that disagree
+  // with the faces, and its Triangulate step aborts the process on the latter
+  // (tests/fuzz/fuzz_surface/crash-assimp-ply-triangulate-abort)
   Assimp::Importer importer;
-  const unsigned flags = aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
-                         aiProcess_PreTransformVertices | aiProcess_SortByPType;
-  const aiScene* scene = importer.ReadFile(path, flags);
+  const aiScene* scene = importer.ReadFile(path, aiProcess_ValidateDataStructure);
   ESIM_VERIFY(scene != nullptr,
               path + ": cannot read surface mesh: " + std::string(importer.GetErrorString()));
   ESIM_VERIFY(!(scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) && scene->mNumMeshes > 0,
               path +
                   ": cannot read surface mesh: the file holds no mesh (unsupported or "
                   "damaged file?); expected OBJ, STL, PLY or glTF/GLB with triangles");
+  for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+    aiMesh* mesh = scene->mMeshes[m];
+    ESIM_VERIFY(
+        mesh != nullptr && mesh->mVertices != nullptr,
+        path + ": cannot read surface mesh: mesh " + std::to_string(m) + " has no vertices");
+    unsigned types = 0;
+    for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+      const aiFace& face = mesh->mFaces[f];
+      ESIM_VERIFY(face.mNumIndices > 0, path + ": cannot read surface mesh: face " +
+                                            std::to_string(f) + " of mesh " + std::to_string(m) +
+                                            " has no vertices");
+      for (unsigned k = 0; k < face.mNumIndices; ++k)
+        ESIM_VERIFY(face.mIndices[k] < mesh->mNumVertices,
+                    path + ": cannot read surface mesh: face " + std::to_string(f) + " of mesh " +
+                        std::to_string(m) + " refers to vertex " +
+                        std::to_string(face.mIndices[k]) + " of " +
+                        std::to_string(mesh->mNumVertices));
+      types |= face.mNumIndices == 1   ? aiPrimitiveType_POINT
+               : face.mNumIndices == 2 ? aiPrimitiveType_LINE
+               : face.mNumIndices == 3 ? aiPrimitiveType_TRIANGLE
+                                       : aiPrimitiveType_POLYGON;
+    }
+    mesh->mPrimitiveTypes = types;  // what the faces are, whatever the loader said
+  }
+  scene = importer.ApplyPostProcessing(aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
+                                       aiProcess_PreTransformVertices | aiProcess_SortByPType);
+  ESIM_VERIFY(scene != nullptr,
+              path + ": cannot read surface mesh: " + std::string(importer.GetErrorString()));
 
   // concatenate all meshes; weld equal positions (STL and split OBJ groups repeat them)
   SurfaceMesh surface;
@@ -115,6 +145,10 @@ SurfaceMesh readSurface(const std::string& path, double scaleToMetres) {
     for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
       const aiFace& face = mesh->mFaces[f];
       if (face.mNumIndices != 3) continue;  // points and lines are not surface
+      for (unsigned k = 0; k < 3; ++k)
+        ESIM_VERIFY(face.mIndices[k] < mesh->mNumVertices,
+                    path + ": cannot read surface mesh: triangle " + std::to_string(f) +
+                        " of mesh " + std::to_string(m) + " refers to a missing vertex");
       surface.triangles.push_back(
           {ids[face.mIndices[0]], ids[face.mIndices[1]], ids[face.mIndices[2]]});
     }
