@@ -110,8 +110,11 @@ double medianEdgeLengthM(const TetMesh& mesh) {
 }
 
 // the alive tet holding p (barycentric coordinates >= 0 within a round-off margin), or -1;
-// a plain loop: only for frames where the tool has no contact
-int aliveTetContaining(const TetMesh& mesh, const std::vector<TetGeometry>& geo, const Vec3& p) {
+// a plain loop, only for frames where the tool has no contact, and none at all when p is
+// outside the mesh's box (a tool in the air: the common case)
+int aliveTetContaining(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
+                       const Eigen::AlignedBox3d& boundsM, const Vec3& p) {
+  if (!boundsM.contains(p)) return -1;
   for (int e = 0; e < mesh.numTets(); ++e) {
     if (!mesh.isAlive(e)) continue;
     const Tet& t = mesh.tets[e];
@@ -242,6 +245,7 @@ void Simulation::buildInitialModel(TetMesh mesh) {
     pending_.assign(mesh.numTets(), 0);
   }
   m.medianEdgeM = medianEdgeLengthM(mesh);
+  for (const Vec3& x : mesh.nodes) m.boundsM.extend(x);
   std::vector<std::uint8_t> alive = mesh.alive;
   m.mesh = std::move(mesh);
   model_ = std::move(fixed);
@@ -360,6 +364,7 @@ std::unique_ptr<SimModel> Simulation::buildModel(std::vector<std::uint8_t> alive
   m.supports = base.supports;
   m.expansion = base.expansion;
   m.medianEdgeM = base.medianEdgeM;
+  m.boundsM = base.boundsM;
   m.surface = boundaryFaces(m.mesh);
   m.surfaceNodes = boundaryNodes(m.mesh, m.surface);
   buildSnapshotTopology(m);
@@ -755,7 +760,7 @@ std::vector<int> Simulation::findContacts(FrameRecord& rec) const {
                        ": short circuit: the tool touches node " + std::to_string(v) +
                        " on the return electrode (it went through the tissue)");
   if (!contacts.empty()) return contacts;
-  const int tet = aliveTetContaining(m.mesh, *m.geo, st.pose.tipM);
+  const int tet = aliveTetContaining(m.mesh, *m.geo, m.boundsM, st.pose.tipM);
   if (tet < 0) return contacts;
   int best = -1;
   double bestD = 0;

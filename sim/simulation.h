@@ -218,8 +218,9 @@ struct SimModel {
   std::unique_ptr<StructuralPhase> structural;
   std::vector<Support> supports;
   ExpansionParams expansion;
-  double medianEdgeM = 0;  // median edge length of the initial mesh [m] (a fast tool's scale)
-  double buildMs = 0;      // wall time of the build [ms]
+  double medianEdgeM = 0;       // median edge length of the initial mesh [m] (a fast tool's scale)
+  Eigen::AlignedBox3d boundsM;  // box of the initial mesh's nodes [m]
+  double buildMs = 0;           // wall time of the build [ms]
 };
 
 // The state: everything a frame changes. A checkpoint is a copy of it.
