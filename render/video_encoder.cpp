@@ -32,16 +32,24 @@ std::string version(const char* name, unsigned v) {
          std::to_string(AV_VERSION_MINOR(v)) + "." + std::to_string(AV_VERSION_MICRO(v));
 }
 
+}  // namespace
+
+void validateVideoRate(double fps) {
+  ESIM_VERIFY(fps >= kMinVideoFps && fps <= kMaxVideoFps,
+              "time.fps = " + messageNumber(fps) + ": a video needs " +
+                  messageNumber(kMinVideoFps) + " to " + messageNumber(kMaxVideoFps) +
+                  " frames per second; set output.video: false for other rates");
+}
+
+namespace {
+
 // the options open() accepts (sizes, rates, quality, queue)
 void checkOptions(const VideoEncoder::Options& o) {
   ESIM_VERIFY(!o.path.empty(), "video.path: empty output path");
   ESIM_VERIFY(o.width >= 16 && o.height >= 16 && o.width % 2 == 0 && o.height % 2 == 0,
               "video.width/height: " + std::to_string(o.width) + "x" + std::to_string(o.height) +
                   ", expected even sizes >= 16 (yuv420p halves the chroma)");
-  ESIM_VERIFY(o.fps >= kMinVideoFps && o.fps <= kMaxVideoFps,
-              "time.fps = " + messageNumber(o.fps) + ": a video needs " +
-                  messageNumber(kMinVideoFps) + " to " + messageNumber(kMaxVideoFps) +
-                  " frames per second (set output.video: false for other rates)");
+  validateVideoRate(o.fps);
   ESIM_VERIFY(o.crf >= 0 && o.crf <= 51,
               "video.crf: " + std::to_string(o.crf) + ", expected 0..51");
   ESIM_VERIFY(o.queueCapacity >= 1, "video.queue_capacity: must be at least 1");

@@ -40,6 +40,9 @@ namespace esim {
 constexpr double kMinVideoFps = 0.01;
 constexpr double kMaxVideoFps = 240.0;
 
+// throws Error naming time.fps when a video cannot have this rate [1/s]
+void validateVideoRate(double fps);
+
 class VideoEncoder {
  public:
   struct Options {

@@ -30,6 +30,7 @@
 #include "sim/io/scenario.h"
 #include "sim/io/vtu.h"
 #include "sim/simulation.h"
+#include "tools/app/exit_codes.h"
 #include "tools/app/run_config.h"
 #include "tools/app/run_output.h"
 #include "tools/app/run_report.h"
@@ -493,8 +494,10 @@ int runScenario(const RunOptions& opt) {
   if (loop.complete()) output.commit();
   std::cout << summary;
   if (!loop.failure.empty()) std::cerr << "esim: error: " << loop.failure << "\n";
-  if (loop.complete()) return 0;
-  return !loop.failure.empty() && loop.failureKind == ErrorKind::Internal ? 4 : 1;
+  if (loop.complete()) return kExitOk;
+  // a run error or an interruption: 1 (the frames are kept); an internal check: 4
+  return !loop.failure.empty() && loop.failureKind == ErrorKind::Internal ? kExitInternal
+                                                                          : kExitFailure;
 }
 
 }  // namespace esim::app

@@ -130,11 +130,7 @@ void checkRunnable(const Scenario& s, bool withMesh, bool noVideo) {
   validateSimulationConfig(config);
   if (s.output.video || s.output.pngEvery > 0 || s.output.hashes)
     validateRenderOptions(makeRenderOptions(s));
-  if (s.output.video && !noVideo)
-    ESIM_VERIFY(s.time.fps >= kMinVideoFps && s.time.fps <= kMaxVideoFps,
-                "time.fps = " + messageNumber(s.time.fps) + ": a video needs " +
-                    messageNumber(kMinVideoFps) + " to " + messageNumber(kMaxVideoFps) +
-                    " frames per second; set output.video: false for other rates");
+  if (s.output.video && !noVideo) validateVideoRate(s.time.fps);
   if (withMesh && s.mesh.source == MeshSource::Slab) validateSimulationMesh(buildMesh(s), config);
 }
 

@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-#include "sim/core_error.h"
+#include "tools/app/exit_codes.h"
 
 namespace esim::cli {
 
@@ -41,24 +41,12 @@ struct Registrar {
   }
 };
 
-// exit codes (documented in README)
-constexpr int kExitOk = 0;
-constexpr int kExitFailure = 1;   // the run failed or was interrupted (outputs kept, partial)
-constexpr int kExitBadInput = 2;  // bad scenario, mesh file or option
-constexpr int kExitMismatch = 3;  // compare/hash-check found differences
-constexpr int kExitInternal = 4;  // an internal check failed (a bug)
-
-// the exit code of an error of this kind
-inline int exitCodeOf(ErrorKind kind) {
-  switch (kind) {
-    case ErrorKind::Input:
-      return kExitBadInput;
-    case ErrorKind::Run:
-      return kExitFailure;
-    case ErrorKind::Internal:
-      return kExitInternal;
-  }
-  return kExitInternal;
-}
+// exit codes (tools/app/exit_codes.h, documented in README)
+using ::esim::exitCodeOf;
+using ::esim::kExitBadInput;
+using ::esim::kExitFailure;
+using ::esim::kExitInternal;
+using ::esim::kExitMismatch;
+using ::esim::kExitOk;
 
 }  // namespace esim::cli
