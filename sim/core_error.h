@@ -16,6 +16,7 @@
 // The core never exits or aborts: the front end (tools/app) maps the kind to the exit code.
 #pragma once
 
+#include <atomic>
 #include <cstdio>
 #include <stdexcept>
 #include <string>
@@ -49,6 +50,30 @@ class InternalError : public Error {
                   std::to_string(line) + ")",
               ErrorKind::Internal) {}
 };
+
+// A stop asked from outside (SIGINT/SIGTERM in the front end): thrown by checkInterrupt()
+// inside long work (explicit sub-steps, a rebuild, the recomputed lag frames, stages of a
+// frame), so that a stop is honoured within one sub-step or one factorization instead of
+// after a frame of minutes. The computation it leaves is incomplete: the caller stops.
+class Interrupted : public Error {
+ public:
+  Interrupted() : Error("interrupted", ErrorKind::Run) {}
+};
+
+// The process-wide stop flag that checkInterrupt() reads (like MuJoCo's mjcb_* hooks, one
+// per process: a signal is process-wide too); null (the default) never interrupts. The
+// flag must outlive every computation that checks it.
+inline std::atomic<const std::atomic<bool>*>& interruptFlag() {
+  static std::atomic<const std::atomic<bool>*> flag{nullptr};
+  return flag;
+}
+inline void setInterruptFlag(const std::atomic<bool>* flag) { interruptFlag() = flag; }
+
+// throws Interrupted when the stop flag is set (one relaxed load: cheap in any loop)
+inline void checkInterrupt() {
+  const std::atomic<bool>* flag = interruptFlag().load(std::memory_order_relaxed);
+  if (flag && flag->load(std::memory_order_relaxed)) throw Interrupted();
+}
 
 // a number as messages write it: %g ("29.97", "500", "1e-12"; std::to_string gives 0.000000)
 inline std::string messageNumber(double v) {

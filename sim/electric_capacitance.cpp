@@ -207,6 +207,7 @@ class CapacitanceSolver final : public ElectricSolver {
     int solved = 0;
     for (int j : missing) {
       if (slotOf_[j] >= 0) continue;  // came with an earlier patch
+      checkInterrupt();               // a prefetch of many patches stops between two
       std::vector<int> block{j};
       if (patchOf_[j] >= 0) block = patches_[patchOf_[j]];
       const int cols = static_cast<int>(block.size());

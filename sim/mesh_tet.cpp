@@ -96,6 +96,77 @@ std::vector<BoundaryFace> boundaryFaces(const TetMesh& mesh) {
   return faces;
 }
 
+std::vector<std::array<int, 4>> tetFaceNeighbours(const TetMesh& mesh) {
+  struct Entry {
+    Tri key;
+    int where;  // tet * 4 + local face
+  };
+  std::vector<Entry> entries;
+  entries.reserve(static_cast<size_t>(mesh.numTets()) * 4);
+  for (int e = 0; e < mesh.numTets(); ++e)
+    for (int f = 0; f < 4; ++f) {
+      Tri key = {mesh.tets[e][kFaceLocal[f][0]], mesh.tets[e][kFaceLocal[f][1]],
+                 mesh.tets[e][kFaceLocal[f][2]]};
+      std::sort(key.begin(), key.end());
+      entries.push_back({key, e * 4 + f});
+    }
+  std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) {
+    return a.key != b.key ? a.key < b.key : a.where < b.where;
+  });
+  std::vector<std::array<int, 4>> out(mesh.numTets(), {-1, -1, -1, -1});
+  for (size_t i = 0; i + 1 < entries.size(); ++i)
+    if (entries[i].key == entries[i + 1].key) {
+      const int a = entries[i].where, b = entries[i + 1].where;
+      out[a / 4][a % 4] = b / 4;
+      out[b / 4][b % 4] = a / 4;
+    }
+  return out;
+}
+
+void removeFromBoundary(const TetMesh& mesh, const std::vector<std::array<int, 4>>& neighbours,
+                        const std::vector<int>& removed, std::vector<BoundaryFace>& faces) {
+  // faces are ordered by tet * 4 + local face; a face's local index is that of the tet's
+  // vertex it does not hold
+  auto where = [&](const BoundaryFace& bf) {
+    const Tet& t = mesh.tets[bf.tet];
+    for (int f = 0; f < 4; ++f)
+      if (std::find(bf.nodes.begin(), bf.nodes.end(), t[f]) == bf.nodes.end())
+        return bf.tet * 4 + f;
+    return bf.tet * 4;
+  };
+  // the faces joining: of alive neighbours, across a face from a removed tet
+  std::vector<int> joining;
+  for (int e : removed)
+    for (int f = 0; f < 4; ++f) {
+      const int n = neighbours[e][f];
+      if (n < 0 || !mesh.isAlive(n)) continue;
+      for (int g = 0; g < 4; ++g)
+        if (neighbours[n][g] == e) joining.push_back(n * 4 + g);
+    }
+  std::sort(joining.begin(), joining.end());
+  joining.erase(std::unique(joining.begin(), joining.end()), joining.end());
+  // the faces staying (of alive tets), merged with the joining ones in order
+  std::vector<BoundaryFace> out;
+  out.reserve(faces.size() + joining.size());
+  size_t j = 0;
+  for (const BoundaryFace& bf : faces) {
+    if (!mesh.isAlive(bf.tet)) continue;
+    const int w = where(bf);
+    for (; j < joining.size() && joining[j] < w; ++j) {
+      const int e = joining[j] / 4, f = joining[j] % 4;
+      const Tet& t = mesh.tets[e];
+      out.push_back({{t[kFaceLocal[f][0]], t[kFaceLocal[f][1]], t[kFaceLocal[f][2]]}, e});
+    }
+    out.push_back(bf);
+  }
+  for (; j < joining.size(); ++j) {
+    const int e = joining[j] / 4, f = joining[j] % 4;
+    const Tet& t = mesh.tets[e];
+    out.push_back({{t[kFaceLocal[f][0]], t[kFaceLocal[f][1]], t[kFaceLocal[f][2]]}, e});
+  }
+  faces.swap(out);
+}
+
 double surfaceArea(const TetMesh& mesh, const std::vector<BoundaryFace>& faces) {
   double area = 0;
   for (const auto& f : faces) {

@@ -69,6 +69,19 @@ double meshVolume(const TetMesh& mesh);
 // boundary faces of the alive tets, sorted by (tet, local face) for determinism
 std::vector<BoundaryFace> boundaryFaces(const TetMesh& mesh);
 
+// per tet, the tet across each local face f (the face opposite local vertex f, the faces
+// boundaryFaces gives), -1 where no tet is; every tet, alive or not (the mesh's topology)
+std::vector<std::array<int, 4>> tetFaceNeighbours(const TetMesh& mesh);
+
+// Edits boundaryFaces(mesh) of the alive set before the tets `removed` died (mesh.alive
+// already without them) into boundaryFaces(mesh) of the alive set now: the faces of the
+// removed tets leave, the faces their alive neighbours (`neighbours`, from
+// tetFaceNeighbours) shared with them join. The same faces in the same order as
+// boundaryFaces(mesh), at a cost in the removed tets and the surface's size, with no pass
+// over the tets.
+void removeFromBoundary(const TetMesh& mesh, const std::vector<std::array<int, 4>>& neighbours,
+                        const std::vector<int>& removed, std::vector<BoundaryFace>& faces);
+
 // total area of the given faces [m^2]
 double surfaceArea(const TetMesh& mesh, const std::vector<BoundaryFace>& faces);
 

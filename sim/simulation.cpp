@@ -22,6 +22,18 @@ constexpr const char* kStageNames[kStageCount] = {
 
 }  // namespace
 
+const char* rebuildModeName(RebuildMode mode) {
+  switch (mode) {
+    case RebuildMode::Synchronous:
+      return "synchronous";
+    case RebuildMode::Background:
+      return "background";
+    case RebuildMode::Update:
+      return "update";
+  }
+  return "?";
+}
+
 const char* stageName(Stage stage) { return kStageNames[static_cast<int>(stage)]; }
 
 double FrameRecord::physicsMs() const {
@@ -244,6 +256,9 @@ void Simulation::buildInitialModel(TetMesh mesh) {
     x.maxExpansion = config_.maxVaporExpansion;
     pending_.assign(mesh.numTets(), 0);
   }
+  if (ph.rupture && config_.rebuildMode == RebuildMode::Update)
+    m.faceNeighbours =
+        std::make_shared<const std::vector<std::array<int, 4>>>(tetFaceNeighbours(mesh));
   m.medianEdgeM = medianEdgeLengthM(mesh);
   for (const Vec3& x : mesh.nodes) m.boundsM.extend(x);
   std::vector<std::uint8_t> alive = mesh.alive;
@@ -365,9 +380,11 @@ std::unique_ptr<SimModel> Simulation::buildModel(std::vector<std::uint8_t> alive
   m.expansion = base.expansion;
   m.medianEdgeM = base.medianEdgeM;
   m.boundsM = base.boundsM;
+  m.faceNeighbours = base.faceNeighbours;
   m.surface = boundaryFaces(m.mesh);
   m.surfaceNodes = boundaryNodes(m.mesh, m.surface);
   buildSnapshotTopology(m);
+  checkInterrupt();  // between the phases' builds: a stop waits for one factorization at most
   if (config_.phases.thermal) {
     std::vector<BoundaryFace> cooled;
     for (const BoundaryFace& f : m.cooledInitial)
@@ -376,6 +393,7 @@ std::unique_ptr<SimModel> Simulation::buildModel(std::vector<std::uint8_t> alive
     if (config_.thermal.integrator == ThermalIntegrator::Explicit)
       m.thermal->stableExplicitDtS();  // computed here, not in the next frame
   }
+  checkInterrupt();
   if (config_.phases.electric) {
     m.ground = returnElectrodeNodes(m.mesh, m.surfaceNodes, config_.returnElectrode);
     ESIM_RUN_CHECK(!m.ground.empty(),
@@ -389,6 +407,7 @@ std::unique_ptr<SimModel> Simulation::buildModel(std::vector<std::uint8_t> alive
     if (prefetchTo >= prefetchFrom)
       m.electric->prefetch(scriptedContacts(m.contactFinder, m.ground, prefetchFrom, prefetchTo));
   }
+  checkInterrupt();
   if (config_.phases.structural)
     m.structural = std::make_unique<StructuralPhase>(m.mesh, config_.structural, m.supports);
   m.buildMs =
@@ -407,15 +426,60 @@ std::unique_ptr<SimModel> Simulation::rebuildModel(std::vector<std::uint8_t> ali
   try {
     return buildModel(std::move(alive), std::move(sigma), first, prefetchTo);
   } catch (const Error& e) {
-    if (e.kind() == ErrorKind::Internal) throw;
-    const std::string what = e.what();
-    std::string context = "rupture, frame " + std::to_string(first - 1) + ": ";
-    if (what.find("supports") != std::string::npos)
-      context +=
-          "the cut removed all the tissue held by the clamps "
-          "(effects.structural_clamp_band_m): ";
-    throw RunError(context + what);
+    throwRebuildError(e, first - 1);
   }
+}
+
+// an error of a rebuild or an update after the rupture of frame ruptureFrame: a run that
+// cannot go on (internal checks and interruptions pass as they are)
+void Simulation::throwRebuildError(const Error& e, int ruptureFrame) const {
+  if (e.kind() == ErrorKind::Internal || dynamic_cast<const Interrupted*>(&e)) throw;
+  const std::string what = e.what();
+  std::string context = "rupture, frame " + std::to_string(ruptureFrame) + ": ";
+  if (what.find("supports") != std::string::npos)
+    context +=
+        "the cut removed all the tissue held by the clamps "
+        "(effects.structural_clamp_band_m): ";
+  throw RunError(context + what);
+}
+
+// solvers.rebuild.mode: update. The model edited in place in the frame the tets break:
+// the alive set, the surface (removeFromBoundary: local), the snapshot topology, the
+// return electrode and the contact finder (over the surface), and each phase's removal
+// update. Its errors are a rebuild's.
+void Simulation::updateModel(const std::vector<int>& broken, FrameRecord& rec) {
+  const auto t0 = std::chrono::steady_clock::now();
+  SimModel& m = *model_;
+  try {
+    for (int e : broken) m.mesh.alive[e] = 0;
+    ESIM_RUN_CHECK(m.mesh.numAlive() > 0, "rupture: every element of the tissue has been removed");
+    removeFromBoundary(m.mesh, *m.faceNeighbours, broken, m.surface);
+    m.surfaceNodes = boundaryNodes(m.mesh, m.surface);
+    buildSnapshotTopology(m);
+    if (m.thermal) m.thermal->rebuild(m.mesh, *m.geo);
+    if (m.electric) {
+      std::vector<int> ground =
+          returnElectrodeNodes(m.mesh, m.surfaceNodes, config_.returnElectrode);
+      ESIM_RUN_CHECK(!ground.empty(),
+                     "rupture: the cut removed all the tissue on the return electrode");
+      m.ground = std::move(ground);
+      m.contactFinder = ContactFinder(m.mesh, m.surfaceNodes);
+      m.stiffness = assembleStiffness(m.mesh, *m.geo, m.sigmaAssembled);
+      m.electric->setContactCandidates(m.surfaceNodes);
+      m.electric->setMatrix(m.stiffness, m.ground);
+    }
+    if (m.structural)
+      m.structural = std::make_unique<StructuralPhase>(m.mesh, config_.structural, m.supports);
+  } catch (const Error& e) {
+    throwRebuildError(e, state_.frame);
+  }
+  for (int e : broken) pending_[e] = 0;
+  removedTets_ += static_cast<int>(broken.size());
+  rec.removedTets = static_cast<int>(broken.size());
+  m.buildMs =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  rebuildBuildMs_ += m.buildMs;
+  ++rebuilds_;
 }
 
 // a model built for a new alive set, and the tets it removes
@@ -566,6 +630,7 @@ void Simulation::advance(FrameRecord& rec) {
   rec.generatorOn = st.generatorOn;
 
   // ---- 2. contacts ----
+  checkInterrupt();  // between the stages (a stop inside one: see core_error.h)
   if (m.electric) {
     StageTimer timer(rec, Stage::FindContacts);
     if (st.generatorOn) {
@@ -604,6 +669,7 @@ void Simulation::advance(FrameRecord& rec) {
   st.energyJ += power_w * dt;
 
   // ---- 4. heat: Joule (or prescribed) source, conduction, boiling ----
+  checkInterrupt();
   if (m.thermal) {
     StageTimer timer(rec, Stage::Heat);
     const double sourceBeforeJ = st.thermal.sourceJ;
@@ -630,6 +696,7 @@ void Simulation::advance(FrameRecord& rec) {
   }
 
   // ---- 5. stress from the water's expansion ----
+  checkInterrupt();
   if (m.structural) {
     StageTimer timer(rec, Stage::SolveStress);
     computeEigenstrain();
@@ -670,6 +737,16 @@ void Simulation::detectRupture(FrameRecord& rec) {
 void Simulation::ruptureAndRebuild(FrameRecord& rec) {
   detectRupture(rec);
   StageTimer timer(rec, Stage::Rebuild);
+  if (config_.rebuildMode == RebuildMode::Update) {
+    if (queued_.empty()) {
+      timer.skip();
+    } else {
+      std::vector<int> broken;
+      broken.swap(queued_);
+      updateModel(broken, rec);
+    }
+    return;
+  }
   bool worked = false;
   if (swapFrame_ < 0 && !queued_.empty()) {  // nothing in flight: start with the queue
     std::vector<int> broken;
@@ -680,6 +757,9 @@ void Simulation::ruptureAndRebuild(FrameRecord& rec) {
   if (swapFrame_ >= 0 && state_.frame >= swapFrame_) {  // due: wait if needed, swap in
     if (!ready_) {
       const auto w0 = std::chrono::steady_clock::now();
+      // a stop asked meanwhile is honoured while waiting (the job stops at its next check)
+      while (job_.wait_for(std::chrono::milliseconds(20)) != std::future_status::ready)
+        checkInterrupt();
       ready_ = job_.get();
       rec.rebuildWaitMs =
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - w0).count();
@@ -705,6 +785,7 @@ void Simulation::recomputeSinceCheckpoint(FrameRecord& rec) {
   const int first = state_.frame;
   FrameRecord redo;
   for (int k = first; k <= now; ++k) {
+    checkInterrupt();
     state_.frame = k;
     state_.timeS = k * config_.frameDtS;
     redo = FrameRecord{};

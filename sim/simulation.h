@@ -28,6 +28,7 @@
 #include <string>
 #include <vector>
 
+#include "sim/core_error.h"
 #include "sim/electric_solver.h"
 #include "sim/electrode.h"
 #include "sim/fem_p1.h"
@@ -120,8 +121,12 @@ struct HotSpotSpec {
 };
 
 // after rupture: build the new model in the frame that breaks tets, or on a thread while
-// frames go on with the old one
-enum class RebuildMode { Synchronous, Background };
+// frames go on with the old one, or edit the model in place in the frame that breaks tets
+// (each phase's removal update: its cost follows the removed tets, not the mesh)
+enum class RebuildMode { Synchronous, Background, Update };
+
+// "synchronous", "background", "update" (the scenario's solvers.rebuild.mode)
+const char* rebuildModeName(RebuildMode mode);
 
 struct SimulationConfig {
   PhaseSet phases;
@@ -198,9 +203,11 @@ struct SimModel {
   std::shared_ptr<const std::vector<TetGeometry>> geo;  // per tet (all tets; shared by builds)
   std::shared_ptr<const std::vector<std::array<int, 3>>> initialFaces;  // sorted node ids
   std::vector<BoundaryFace> surface;  // boundary faces of the alive tets
-  std::vector<int> surfaceNodes;      // sorted
-  std::vector<int> ground;            // return-electrode nodes (electric)
-  ContactFinder contactFinder;        // over surfaceNodes (electric)
+  // per tet, the tet across each face (tetFaceNeighbours; rebuild mode update only)
+  std::shared_ptr<const std::vector<std::array<int, 4>>> faceNeighbours;
+  std::vector<int> surfaceNodes;  // sorted
+  std::vector<int> ground;        // return-electrode nodes (electric)
+  ContactFinder contactFinder;    // over surfaceNodes (electric)
   // the snapshot's surface: fixed until the topology changes
   std::vector<int> surfaceVertexOf;             // node -> snapshot vertex (-1 inside)
   std::vector<float> surfacePositionsM;         // snapshot vertex positions [m]
@@ -249,7 +256,9 @@ class Simulation {
   Simulation(TetMesh mesh, SimulationConfig config);
   ~Simulation();
 
-  // advances one frame and returns its record (stage times, currents, max temperature)
+  // advances one frame and returns its record (stage times, currents, max temperature).
+  // Throws RunError when the run cannot go on, Interrupted (core_error.h) when the stop
+  // flag is set: the frame is then left halfway (its record and counters are not kept)
   const FrameRecord& step();
 
   // the surface of the alive tets with per-vertex state, for the renderer (timed into the
@@ -312,6 +321,8 @@ class Simulation {
   void ruptureAndRebuild(FrameRecord& record);
   void recomputeSinceCheckpoint(FrameRecord& record);
   void swapIn(std::unique_ptr<Rebuilt> rebuilt, FrameRecord& record);
+  void updateModel(const std::vector<int>& broken, FrameRecord& record);
+  [[noreturn]] void throwRebuildError(const Error& e, int ruptureFrame) const;
 
   SimulationConfig config_;
   std::unique_ptr<SimModel> model_;

@@ -651,6 +651,7 @@ void ThermalPhase::Impl::Stepper::explicitSubsteps(double limitS) {
   }
   const double h = dtS / substeps;
   for (int k = 0; k < substeps; ++k) {
+    checkInterrupt();  // a frame of many sub-steps stops within one
     m.flux = m.load + m.convectionLoadW;
     m.flux.noalias() -= m.stiffnessRows * temp;
     s.convectedJ += h * convectedPowerW(temp);
@@ -818,6 +819,7 @@ void ThermalPhase::Impl::Stepper::chernoffIteration() {
   const double cgFloorK = kCgRoundOff * (1.0 + m.tempOld.cwiseAbs().maxCoeff());
   bool pinnedLast = false;
   for (int it = 0; it < p.maxNonlinearIterations; ++it) {
+    checkInterrupt();
     // with cg (no factorization to keep), the first iterations pin the plateau nodes at
     // the boiling temperature (newton-like): the phase set is then found in ~2 iterations
     // instead of the chernoff contraction's ~4; after kPinIterations the plain, always

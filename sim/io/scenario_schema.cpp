@@ -274,10 +274,12 @@ const std::vector<Field>& schema() {
                         "explicit: a frame needing more sub-steps is refused before the run "
                         "(the work of a frame is bounded; use an implicit integrator)"));
     f.push_back(choice("solvers.rebuild.mode", ESIM_ENUM_REF(solvers.rebuildMode),
-                       {"synchronous", "background"},
+                       {"synchronous", "background", "update"},
                        "after rupture: build the new model in the frame that breaks tets, or on "
                        "a thread while frames go on with the old one (swapped in lag_frames "
-                       "later, deterministically)"));
+                       "later, deterministically), or edit the model in place in the frame "
+                       "that breaks tets (low-rank updates of the factorizations, local edits "
+                       "of the operators and the surface)"));
     f.push_back(integer("solvers.rebuild.lag_frames", ESIM_REF(solvers.rebuildLagFrames), "frames",
                         closed(0, 1000),
                         "background rebuild: frames between the rupture and the swap (the frame "

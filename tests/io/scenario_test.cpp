@@ -612,7 +612,7 @@ TEST(Scenario, CommittedReferenceIsUpToDate) {
 
 // a blank key (found by fuzz_set_override: it indexed an empty key list) is refused
 TEST(Scenario, ABlankOverrideKeyIsRefused) {
-  for (const std::string& text : {" =1", "\t=x", "  = "}) {
+  for (const char* text : {" =1", "\t=x", "  = "}) {
     try {
       parseScenario("name: x\n", "c.yaml", {text});
       ADD_FAILURE() << "accepted '" << text << "'";

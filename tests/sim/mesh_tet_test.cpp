@@ -3,7 +3,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "sim/core_error.h"
+#include "sim/mesh_slab.h"
 
 namespace esim {
 namespace {
@@ -117,6 +120,38 @@ TEST(MeshTet, ValidateNamesTheProblem) {
   bad_id.tets[0][3] = 9;
   EXPECT_EQ(validationMessage(bad_id, "id.vtu"),
             "id.vtu: tetrahedron 0 refers to node 9 but the mesh has 5 nodes");
+}
+
+// the surface edited by removeFromBoundary is boundaryFaces of the new alive set: the same
+// faces in the same order, batch after batch (a slab, tets removed in a pseudo-random order)
+TEST(MeshTet, RemoveFromBoundaryIsTheBoundaryOfTheAliveSet) {
+  SlabSpec spec;
+  spec.sizeM = Vec3(0.02, 0.02, 0.01);
+  spec.nodesPerAxis = {6, 6, 4};
+  TetMesh mesh = makeSlab(spec);
+  mesh.alive.assign(mesh.tets.size(), 1);
+  const auto neighbours = tetFaceNeighbours(mesh);
+  std::vector<BoundaryFace> faces = boundaryFaces(mesh);
+  unsigned seed = 12345;
+  int alive = mesh.numTets();
+  while (alive > 10) {
+    std::vector<int> removed;
+    for (int k = 0; k < 7; ++k) {
+      seed = seed * 1103515245u + 12345u;
+      const int e = static_cast<int>((seed >> 8) % mesh.tets.size());
+      if (mesh.alive[e] && std::find(removed.begin(), removed.end(), e) == removed.end())
+        removed.push_back(e);
+    }
+    for (int e : removed) mesh.alive[e] = 0;
+    alive -= static_cast<int>(removed.size());
+    removeFromBoundary(mesh, neighbours, removed, faces);
+    const std::vector<BoundaryFace> fresh = boundaryFaces(mesh);
+    ASSERT_EQ(faces.size(), fresh.size());
+    for (size_t i = 0; i < fresh.size(); ++i) {
+      ASSERT_EQ(faces[i].tet, fresh[i].tet) << i;
+      ASSERT_EQ(faces[i].nodes, fresh[i].nodes) << i;
+    }
+  }
 }
 
 }  // namespace

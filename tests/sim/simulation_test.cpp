@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <memory>
 
@@ -284,6 +285,42 @@ TEST(Simulation, CutWithTheElectricPhaseConservesCurrentAfterRemoval) {
   }
 }
 
+// solvers.rebuild.mode: update edits the model in place in the frame the tets break; over a
+// whole cut (electric, thermal, boiling, structural, rupture) it removes the same tets in
+// the same frames as the synchronous rebuild, with the same fields to 1e-9
+TEST(Simulation, UpdateModeCutsLikeTheSynchronousRebuild) {
+  auto run = [](RebuildMode mode) {
+    SimulationConfig c = cutConfig(true);
+    c.phases.structural = c.phases.rupture = true;
+    c.toolVoltageV = 400;
+    c.toolPath.keys[1].timeS = 2.0;
+    c.rebuildMode = mode;
+    auto sim = std::make_unique<Simulation>(smallSlab(), c);
+    std::vector<int> removedPerFrame;
+    for (int f = 0; f < 45; ++f) removedPerFrame.push_back(sim->step().removedTets);
+    return std::make_pair(std::move(sim), removedPerFrame);
+  };
+  const auto [sync, syncRemoved] = run(RebuildMode::Synchronous);
+  const auto [upd, updRemoved] = run(RebuildMode::Update);
+  ASSERT_GT(sync->removedTets(), 0) << "the scene does not cut";
+  EXPECT_GT(sync->rebuilds(), 1);
+  EXPECT_EQ(syncRemoved, updRemoved);
+  EXPECT_EQ(sync->mesh().alive, upd->mesh().alive);
+  auto rel = [](const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+    return (a - b).norm() / std::max(b.norm(), 1e-300);
+  };
+  EXPECT_LT(rel(upd->temperatureC(), sync->temperatureC()), 1e-9);
+  EXPECT_LT(rel(upd->potentialV(), sync->potentialV()), 1e-9);
+  const std::vector<double>& a = *upd->vonMisesPa();
+  const std::vector<double>& b = *sync->vonMisesPa();
+  EXPECT_LT(rel(Eigen::Map<const Eigen::VectorXd>(a.data(), a.size()),
+                Eigen::Map<const Eigen::VectorXd>(b.data(), b.size())),
+            1e-9);
+  // the surfaces are the same faces in the same order (removeFromBoundary)
+  const SurfaceSnapshot sa = upd->snapshot(), sb = sync->snapshot();
+  EXPECT_EQ(sa.triangles, sb.triangles);
+}
+
 // background rebuild: the new structures are built on a thread and swapped in exactly
 // rebuildLagFrames frames after the rupture, whatever the thread's speed
 TEST(Simulation, BackgroundRebuildSwapsInAtAFixedFrameAndIsDeterministic) {
@@ -449,6 +486,27 @@ TEST(SimulationGuards, VonMisesSurvivesTheRebuildFrame) {
     EXPECT_GT(r.maxVonMisesPa, 2.45e4);
   }
   EXPECT_TRUE(seen);
+}
+
+// a stop asked from outside (the front end's signal flag) ends the frame at its next check
+// with Interrupted, a Run error; with no flag installed nothing ever interrupts
+TEST(SimulationGuards, AStopFlagInterruptsTheFrame) {
+  Simulation sim(smallSlab(), cutConfig(true));
+  sim.step();
+  std::atomic<bool> stop{true};
+  setInterruptFlag(&stop);
+  try {
+    sim.step();
+    ADD_FAILURE() << "no interruption";
+  } catch (const Interrupted& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Run);
+  }
+  EXPECT_EQ(sim.frame(), 1) << "an interrupted frame does not count";
+  stop = false;
+  EXPECT_NO_THROW(sim.step());
+  setInterruptFlag(nullptr);
+  stop = true;
+  EXPECT_NO_THROW(sim.step());
 }
 
 TEST(SimulationGuards, AnUndershootOfTheIntegratorIsWarned) {

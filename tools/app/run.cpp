@@ -14,11 +14,13 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <iostream>
 #include <memory>
+#include <new>
 #include <optional>
 #include <sstream>
 
@@ -43,9 +45,10 @@ namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
 std::atomic<bool> gStop{false};
-// the first SIGINT/SIGTERM stops the run after the current frame (bounded: an explicit frame
-// has at most solvers.thermal.max_substeps sub-steps); a second one, during a long frame (a
-// rebuild of seconds), ends the process at once with the signal's default action
+// the first SIGINT/SIGTERM stops the run: between frames, or inside a frame at its next
+// checkInterrupt() (a stage, an explicit sub-step, a patch of prefetched columns, a phase of
+// a rebuild: the longest wait is one factorization); a second one ends the process at once
+// with the signal's default action
 extern "C" void onSignal(int sig) {
   if (gStop.exchange(true)) {
     std::signal(sig, SIG_DFL);
@@ -259,21 +262,24 @@ struct LoopResult {
   double loopS = 0;
   double peakPowerW = 0;
   bool interrupted = false;
+  // as of the last complete frame (a frame that failed or was interrupted halfway leaves
+  // the simulation's own totals halfway too)
+  double energyJ = 0, maxTemperatureSeenC = 0, temperatureNowC = 0;
   std::string failure;  // the error that stopped the loop ("" = none)
   ErrorKind failureKind = ErrorKind::Run;
   bool complete() const { return !interrupted && failure.empty(); }
 };
 
-std::vector<std::string> runWarnings(const Simulation& sim) {
+std::vector<std::string> runWarnings(const Simulation& sim, double maxTemperatureSeenC) {
   std::vector<std::string> warnings = sim.warnings();
-  if (sim.maxTemperatureSeenC() > kImplausibleTemperatureC) {
+  if (maxTemperatureSeenC > kImplausibleTemperatureC) {
     char w[400];
     std::snprintf(w, sizeof w,
                   "the tissue reached %.0f C: above ~%.0f C it chars and ablates, which the model "
                   "does not include; lower tool.voltage_v, or enable "
                   "effects.temperature_dependent_conductivity (drying cuts the current) or the "
                   "structural and rupture phases (boiling tissue is removed)",
-                  sim.maxTemperatureSeenC(), kImplausibleTemperatureC);
+                  maxTemperatureSeenC, kImplausibleTemperatureC);
     warnings.push_back(w);
   }
   return warnings;
@@ -303,13 +309,12 @@ nlohmann::json timingExtra(const Setup& s, const FrameOutputs& out, const LoopRe
   extra["electric_solver"] = sim.electricSolverName();
   extra["build"] = {{"compiler", __VERSION__}, {"esim", "0.1.0"}};
   extra["electric_memory_mb"] = sim.electricMemoryBytes() / 1048576.0;
-  extra["warnings"] = runWarnings(sim);
+  extra["warnings"] = runWarnings(sim, loop.maxTemperatureSeenC);
   if (sim.config().phases.structural)
     extra["structural"] = {
         {"removed_tets", sim.removedTets()},
         {"alive_tets", sim.mesh().numAlive()},
-        {"rebuild_mode",
-         sc.solvers.rebuildMode == RebuildMode::Background ? "background" : "synchronous"},
+        {"rebuild_mode", rebuildModeName(sc.solvers.rebuildMode)},
         {"rebuild_lag_frames", sc.solvers.rebuildLagFrames},
         {"rebuilds", sim.rebuilds()},
         {"rebuilds_late", sim.rebuildsLate()},
@@ -373,7 +378,7 @@ void summaryStructural(std::ostringstream& sum, const Simulation& sim, const Loo
       << (c.rebuildMode == RebuildMode::Background
               ? "background, swapped in " + std::to_string(c.rebuildLagFrames) +
                     " frames after the rupture"
-              : std::string("synchronous"))
+              : std::string(rebuildModeName(c.rebuildMode)))
       << "; build " << sim.rebuildBuildMs() / sim.rebuilds() << " ms mean";
   if (c.rebuildMode == RebuildMode::Background)
     sum << "; lag missed " << sim.rebuildsLate() << " times (longest wait "
@@ -400,12 +405,13 @@ std::string summaryText(const Setup& s, const FrameOutputs& out, const LoopResul
   sum << "  memory        peak " << peakRssMb() << " MB resident (" << s.rssAfterSetupMb
       << " MB after setup)\n";
   sum.precision(1);
-  sum << "  temperature   max " << sim.maxTemperatureSeenC() << " C (now "
-      << sim.temperatureC().maxCoeff() << " C)\n";
-  for (const std::string& w : runWarnings(sim)) sum << "  WARNING       " << w << "\n";
+  sum << "  temperature   max " << loop.maxTemperatureSeenC << " C (now " << loop.temperatureNowC
+      << " C)\n";
+  for (const std::string& w : runWarnings(sim, loop.maxTemperatureSeenC))
+    sum << "  WARNING       " << w << "\n";
   sum.precision(3);
-  sum << "  energy        " << sim.energyDeliveredJ() << " J delivered, peak power "
-      << loop.peakPowerW << " W\n";
+  sum << "  energy        " << loop.energyJ << " J delivered, peak power " << loop.peakPowerW
+      << " W\n";
   if (sim.config().phases.structural) summaryStructural(sum, sim, loop);
   sum << "  outputs       " << dir.string() << "/ {" << (s.video ? "video.mp4, " : "")
       << "timing.csv, timing.json, trace.json, scenario.yaml"
@@ -433,18 +439,50 @@ std::string writeReports(const Setup& s, const FrameOutputs& out, const LoopResu
 
 // ---- the frame loop ----
 
+// Fault injection for the tests of the loop's failure paths, which a real fault reaches
+// only by chance (memory running out in the middle of a run): ESIM_FAULT=bad_alloc@N makes
+// frame N throw std::bad_alloc after its physics, as if an allocation had failed. -1: none.
+int injectedFaultFrame(const char* kind) {
+  const char* spec = std::getenv("ESIM_FAULT");
+  const std::string prefix = std::string(kind) + "@";
+  if (!spec || std::string(spec).rfind(prefix, 0) != 0) return -1;
+  return std::atoi(spec + prefix.size());
+}
+
 LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet) {
   LoopResult loop;
+  loop.maxTemperatureSeenC = loop.temperatureNowC = s.sim->temperatureC().maxCoeff();
   Progress progress(s.frames, quiet);
+  const int badAllocFrame = injectedFaultFrame("bad_alloc");
   const auto t0 = Clock::now();
   for (int f = 0; f < s.frames && !gStop; ++f) {
     loop.frameStartUs.push_back(
         std::chrono::duration<double, std::micro>(Clock::now() - t0).count());
     try {
       FrameRecord rec = s.sim->step();
+      if (f == badAllocFrame) throw std::bad_alloc();
       out.add(f, *s.sim, rec);
       loop.peakPowerW = std::max(loop.peakPowerW, rec.powerW);
+      loop.energyJ = s.sim->energyDeliveredJ();
+      loop.maxTemperatureSeenC = s.sim->maxTemperatureSeenC();
+      loop.temperatureNowC = rec.maxTemperatureC;
       loop.records.push_back(rec);
+    } catch (const Interrupted&) {
+      // a stop asked inside the frame: the frame is dropped, the frames before it are kept
+      loop.frameStartUs.pop_back();
+      break;
+    } catch (const std::bad_alloc&) {
+      loop.failureKind = ErrorKind::Run;
+      loop.failure = "frame " + std::to_string(f) +
+                     ": out of memory (a smaller mesh, or another electric strategy: see "
+                     "timing.json's electric_memory_mb)";
+      loop.frameStartUs.pop_back();
+      break;
+    } catch (const fs::filesystem_error& e) {
+      loop.failureKind = ErrorKind::Run;
+      loop.failure = "frame " + std::to_string(f) + ": " + e.what();
+      loop.frameStartUs.pop_back();
+      break;
     } catch (const Error& e) {
       // the run cannot go on (a failed solve, all tissue gone, a tool reaching the return
       // electrode): the frames so far are kept
@@ -468,6 +506,7 @@ int runScenario(const RunOptions& opt) {
   // SIGINT / SIGTERM from here on stop the run after the current frame (or before the
   // first), never in the middle of writing
   gStop = false;
+  setInterruptFlag(&gStop);  // long work inside a frame checks it (core_error.h)
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
   // ---- 1. scenario and output folder (checked before anything is built) ----
