@@ -6,21 +6,36 @@
 // e_v the tet's volumetric expansion (dV / V, the paper's Delta v_liq + Delta v_gas).
 // P1 displacements (3 components per node, constant strain per tet); equilibrium
 //   K u = f,   K = sum_e V_e B_e^T D B_e,   f = sum_e V_e B_e^T D eps*_e,
-// with listed displacement components (Support) held at 0. K depends on the mesh,
-// E, nu and the supports only: it is factorized once (CHOLMOD) at construction and
-// every solve() is a right-hand side and two triangular solves.
+// with listed displacement components (Support) held at 0. The phase factorizes (CHOLMOD)
+//   A = K on the free components, the identity on the held ones   (3n x 3n, all components)
+// once at construction (supernodal LL'); every solve() is a right-hand side (0 on the held
+// components) and two triangular solves.
 // Removed tets (alive == 0) contribute nothing; a node left without an alive tet is
-// held at 0, and so is every node of a floating island (alive tets connected through
-// shared nodes, none of them supported: a piece cut loose), so that K stays positive
-// definite; such islands carry no stress.
+// held at 0, and so is every node of a floating island (a rigid piece: alive tets
+// connected through shared faces, whose own supports leave a rigid motion free: cut
+// loose, or hanging by an edge or a node), so that K stays positive definite; such
+// islands carry no stress.
+// Removal (removeTets) updates the factor instead of rebuilding it: the rows of the
+// components it newly holds are deleted (cholmod_rowdel: they become identity rows), then
+// the removed tets' stiffness on the components still free is subtracted as a low-rank
+// downdate (cholmod_updown, <= 6 columns per tet; L is converted to simplicial LDL' at the
+// first removal after a factorization, O(nnz(L)) once). Its cost grows with the removed
+// tets, the pieces they cut off and the columns of L below them, not with the mesh; when
+// the estimate of that cost exceeds StructuralOptions::updateCostLimit times a
+// refactorization's, or a downdate loses positive definiteness (a pivot D(j) <= 0), it
+// refactorizes A instead. Either way the result equals a phase built afresh on the mesh
+// with the same tets removed and the same supports (to round-off; see the tests).
 // Per tet after solve(): Cauchy stress in Voigt order (xx, yy, zz, yz, xz, xy) [Pa]
 // and its von Mises stress [Pa]. Displacement: 3 per node (x0, y0, z0, x1, ...) [m].
 // The supports must remove the rigid motions (at least 6 independent components,
 // e.g. a clamped face); otherwise the constructor throws esim::Error.
-// Ownership: the phase copies the tets and alive flags it needs; the mesh may go away.
-// Threads: CHOLMOD runs with one OpenBLAS thread (set before each factorization and
-// solve): on 2 shared cores more threads only spin (measured: simulation_test's background
-// rebuild test went from 6.1 s to 0.7 s), and results do not depend on the thread count.
+// Ownership: the phase copies the nodes, tets and alive flags it needs; the mesh may go
+// away, and removeTets does not touch it (the caller keeps its alive flags in step).
+// Threads: a phase is not thread-safe: solve() and removeTets() on one phase must not
+// overlap; distinct phases are independent (each owns its CHOLMOD workspace). CHOLMOD runs
+// with one OpenBLAS thread (set before each factorization and solve): on 2 shared cores
+// more threads only spin (measured: simulation_test's background rebuild test went from
+// 6.1 s to 0.7 s), and results do not depend on the thread count.
 #pragma once
 
 #include <Eigen/Core>
@@ -69,6 +84,25 @@ double volumetricExpansion(const ExpansionParams& params, double temperatureC,
 struct StructuralOptions {
   double youngsModulusPa = 4.75e4;  // E (paper Table 1)
   double poissonRatio = 0.4;        // nu in [0, 0.5) (paper Table 1)
+  // removeTets updates the factor while its estimated cost is at most this times a
+  // refactorization's, else refactorizes (1: the cheaper; 0: always refactorize; a large
+  // value: update unless a downdate fails)
+  double updateCostLimit = 1.0;
+};
+
+// what one removeTets call did
+struct StructuralUpdateStats {
+  int tetsRemoved = 0;          // newly removed (ids of removed tets and repeats are skipped)
+  int dofsHeld = 0;             // components newly held: rows deleted from L
+  int dofsFreed = 0;            // components of nodes no island holds any more: rows added
+  int rank = 0;                 // columns of the downdate C (<= 6 per removed tet)
+  int piecesCutOff = 0;         // pieces split off the ones the removed tets belonged to
+  double updateWork = 0;        // entries of L the update walks, times the columns passing
+  double updateCost = 0;        // estimated cost of the update / a refactorization's
+  bool refactorized = false;    // fell back to a full refactorization
+  bool downdateFailed = false;  // ... because the update lost positive definiteness
+  double convertSeconds = 0;    // supernodal LL' to simplicial LDL' (first update only)
+  double seconds = 0;           // wall time of the call
 };
 
 // one displacement component held at 0
@@ -93,15 +127,26 @@ class StructuralPhase {
   StructuralPhase& operator=(const StructuralPhase&) = delete;
 
   // displacement and stresses for one volumetric eigenstrain per tet (numTets()
-  // entries, removed tets ignored); throws esim::Error on a size mismatch or NaN
+  // entries, removed tets ignored); throws esim::Error on a size mismatch or NaN, or
+  // after a removal that left no piece held
   void solve(const std::vector<double>& volumetricEigenstrain);
+
+  // Removes tets (mesh tet ids; ids already removed and repeats are skipped) and updates
+  // the factor (see the header comment): afterwards the phase is the one a constructor
+  // would build on the mesh with these tets removed too. Throws esim::Error (Input kind)
+  // on an id out of range (nothing changed); when no piece is held by the supports any
+  // more, it throws the constructor's esim::Error, "structural: no piece of the body is
+  // held by the supports" (Input kind, as the constructor: the caller names the cause),
+  // and the phase is dead: every later solve or removeTets throws it again; esim::RunError
+  // if CHOLMOD runs out of memory or a refactorization fails.
+  StructuralUpdateStats removeTets(const std::vector<int>& tets);
 
   const Eigen::VectorXd& displacementM() const;      // 3 per node [m]
   const std::vector<VoigtStress>& stressPa() const;  // per tet (0 for removed tets)
   const std::vector<double>& vonMisesPa() const;     // per tet (0 for removed tets)
   int numFreeDofs() const;                           // unknowns of K u = f
   int numFloatingIslands() const;                    // unsupported pieces held in place
-  double factorizationSeconds() const;               // wall time of the constructor's factorization
+  double factorizationSeconds() const;  // wall time of the constructor's factorization [s]
 
  private:
   struct Impl;

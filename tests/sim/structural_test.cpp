@@ -1,11 +1,13 @@
 // Tests for sim/structural.cpp against the uniform-eigenstrain solutions of
 // ../shared/REFERENCE.md (case 7), exact for P1 on any mesh: clamped body
 // (hydrostatic), laterally constrained layer, free expansion (no stress); plus removed
-// tets, linearity and bad input.
+// tets, linearity and bad input; removeTets against a phase built afresh on the same alive
+// set (updates, orphaned nodes, pieces cut loose or hanging by an edge, the fallback).
 #include "sim/structural.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <string>
@@ -264,6 +266,275 @@ TEST(Structural, RejectsBadInput) {
   std::vector<double> nan(mesh.numTets(), 0.0);
   nan[3] = std::nan("");
   EXPECT_NE(message([&] { p.solve(nan); }).find("not finite"), std::string::npos);
+}
+
+// ---- removeTets: the updated phase equals a fresh build ----
+
+// a load that differs from tet to tet, so that displacements are not trivial
+std::vector<double> unevenLoad(const TetMesh& mesh) {
+  std::vector<double> ev(mesh.numTets());
+  for (int t = 0; t < mesh.numTets(); ++t) ev[t] = kEv * (1 + (t % 7) / 3.0);
+  return ev;
+}
+
+// |a - b| / |b|, 0 when both vanish
+double relativeDifference(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  const double scale = b.norm();
+  return scale == 0 ? a.norm() : (a - b).norm() / scale;
+}
+
+Eigen::VectorXd asVector(const std::vector<double>& v) {
+  return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
+}
+
+// the phase after its removals against one built on the mesh with the same tets removed
+void expectSameAsFresh(StructuralPhase& phase, const TetMesh& mesh,
+                       const std::vector<Support>& supports, const std::string& where) {
+  SCOPED_TRACE(where);
+  StructuralPhase fresh(mesh, paper(), supports);
+  const std::vector<double> ev = unevenLoad(mesh);
+  phase.solve(ev);
+  fresh.solve(ev);
+  EXPECT_EQ(phase.numFreeDofs(), fresh.numFreeDofs());
+  EXPECT_EQ(phase.numFloatingIslands(), fresh.numFloatingIslands());
+  EXPECT_GT(fresh.displacementM().norm(), 0.0);
+  EXPECT_LT(relativeDifference(phase.displacementM(), fresh.displacementM()), 1e-9);
+  EXPECT_LT(relativeDifference(asVector(phase.vonMisesPa()), asVector(fresh.vonMisesPa())), 1e-9);
+}
+
+// removes tets from the phase and from the mesh's alive flags
+StructuralUpdateStats removeBoth(StructuralPhase& phase, TetMesh& mesh,
+                                 const std::vector<int>& tets) {
+  for (int t : tets) mesh.alive[t] = 0;
+  return phase.removeTets(tets);
+}
+
+StructuralOptions alwaysUpdate() {  // tiny meshes: an update would otherwise lose to a refactor
+  StructuralOptions o = paper();
+  o.updateCostLimit = 1e300;
+  return o;
+}
+
+bool onBottom(const Vec3& p) { return p.z() < 1e-12; }
+
+double centroidZ(const TetMesh& mesh, int t) {
+  double z = 0;
+  for (int v : mesh.tets[t]) z += mesh.nodes[v].z() / 4;
+  return z;
+}
+
+// a slab with a few more cells than distortedSlab, interior nodes moved the same way
+TetMesh biggerSlab() {
+  SlabSpec s;
+  s.sizeM = {kLx, kLy, kLz};
+  s.nodesPerAxis = {8, 7, 5};
+  TetMesh mesh = makeSlab(s);
+  std::uint32_t state = 777;
+  for (Vec3& p : mesh.nodes) {
+    state = state * 1664525u + 1013904223u;
+    const double r = static_cast<double>(state >> 8) / (1u << 23) - 1.0;
+    if (!onBoundary(p)) p += 0.1 * r * Vec3(kLx / 7, kLy / 6, kLz / 4);
+  }
+  return mesh;
+}
+
+TEST(StructuralRemoval, OneFiveThenManyTetsEqualAFreshBuild) {
+  TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralPhase phase(mesh, alwaysUpdate(), clamp);
+  // the tets by distance of their centroid from the top centre
+  std::vector<int> order(mesh.numTets());
+  std::vector<double> dist(mesh.numTets());
+  for (int t = 0; t < mesh.numTets(); ++t) {
+    Vec3 c = Vec3::Zero();
+    for (int v : mesh.tets[t]) c += mesh.nodes[v] / 4;
+    dist[t] = (c - Vec3(0, 0, kLz)).norm();
+    order[t] = t;
+  }
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return dist[a] < dist[b]; });
+  StructuralUpdateStats st = removeBoth(phase, mesh, {order[0]});
+  EXPECT_EQ(st.tetsRemoved, 1);
+  EXPECT_GT(st.rank, 0);
+  EXPECT_LE(st.rank, 6);
+  EXPECT_FALSE(st.refactorized);
+  expectSameAsFresh(phase, mesh, clamp, "1 tet");
+  st = removeBoth(phase, mesh, {order[1], order[2], order[3], order[4], order[5], order[1]});
+  EXPECT_EQ(st.tetsRemoved, 5);  // the repeat and nothing else skipped
+  EXPECT_FALSE(st.refactorized);
+  expectSameAsFresh(phase, mesh, clamp, "5 tets");
+  // then many, in batches of 13 taken all over the upper half (a crater and scattered holes)
+  std::vector<int> upper;
+  for (int t = 6; t < mesh.numTets(); ++t)
+    if (centroidZ(mesh, order[t]) > 0.45 * kLz) upper.push_back(order[t]);
+  int removed = 6, batches = 0;
+  for (size_t k = 0; k + 13 <= upper.size() && batches < 25; k += 13, ++batches) {
+    std::vector<int> batch;
+    for (size_t j = 0; j < 13; ++j) batch.push_back(upper[(k + j * 37) % upper.size()]);
+    st = removeBoth(phase, mesh, batch);
+    removed += st.tetsRemoved;
+    EXPECT_FALSE(st.refactorized);
+    if (batches % 8 == 0) expectSameAsFresh(phase, mesh, clamp, "batch " + std::to_string(batches));
+  }
+  EXPECT_GT(removed, 200);
+  expectSameAsFresh(phase, mesh, clamp, "many tets");
+}
+
+TEST(StructuralRemoval, OrphanedNodeIsHeld) {
+  TetMesh mesh = distortedSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralPhase phase(mesh, alwaysUpdate(), clamp);
+  // every tet at the top corner node (x max, y max, z max)
+  int corner = 0;
+  for (int v = 0; v < mesh.numNodes(); ++v)
+    if (mesh.nodes[v].sum() > mesh.nodes[corner].sum()) corner = v;
+  std::vector<int> atCorner;
+  for (int t = 0; t < mesh.numTets(); ++t)
+    if (std::count(mesh.tets[t].begin(), mesh.tets[t].end(), corner)) atCorner.push_back(t);
+  ASSERT_FALSE(atCorner.empty());
+  const int freeBefore = phase.numFreeDofs();
+  const StructuralUpdateStats st = removeBoth(phase, mesh, atCorner);
+  EXPECT_EQ(st.dofsHeld, 3);
+  EXPECT_EQ(phase.numFreeDofs(), freeBefore - 3);
+  EXPECT_FALSE(st.refactorized);
+  expectSameAsFresh(phase, mesh, clamp, "orphaned corner");
+  phase.solve(unevenLoad(mesh));
+  EXPECT_EQ(phase.displacementM().segment<3>(3 * corner).norm(), 0.0);
+}
+
+TEST(StructuralRemoval, PieceCutLooseBecomesAnIsland) {
+  TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralPhase phase(mesh, alwaysUpdate(), clamp);
+  // the middle layer of cells, in two halves: the second cuts the top layer loose
+  std::vector<int> left, right;
+  for (int t = 0; t < mesh.numTets(); ++t) {
+    const double z = centroidZ(mesh, t);
+    if (z < kLz / 4 || z > kLz / 2) continue;
+    double x = 0;
+    for (int v : mesh.tets[t]) x += mesh.nodes[v].x() / 4;
+    (x < 0 ? left : right).push_back(t);
+  }
+  StructuralUpdateStats st = removeBoth(phase, mesh, left);
+  EXPECT_EQ(phase.numFloatingIslands(), 0);
+  expectSameAsFresh(phase, mesh, clamp, "half the layer");
+  st = removeBoth(phase, mesh, right);
+  EXPECT_GE(st.piecesCutOff, 1);
+  EXPECT_GT(st.dofsHeld, 0);
+  EXPECT_EQ(phase.numFloatingIslands(), 1);
+  EXPECT_FALSE(st.refactorized);
+  expectSameAsFresh(phase, mesh, clamp, "top cut loose");
+  // a removal inside the island, and one splitting it in two islands
+  std::vector<int> top;
+  for (int t = 0; t < mesh.numTets(); ++t)
+    if (mesh.alive[t] && centroidZ(mesh, t) > kLz / 2) {
+      double x = 0;
+      for (int v : mesh.tets[t]) x += mesh.nodes[v].x() / 4;
+      if (std::abs(x) < kLx / 14) top.push_back(t);
+    }
+  st = removeBoth(phase, mesh, top);
+  EXPECT_EQ(st.dofsHeld, 0);
+  EXPECT_EQ(st.rank, 0);  // all of it held already
+  expectSameAsFresh(phase, mesh, clamp, "island split");
+  EXPECT_EQ(phase.numFloatingIslands(), 2);
+}
+
+// A held at three nodes, E on its face (0, 1, 3), C on its face (1, 2, 3) and B on C's face
+// (2, 3, 4): removing C leaves B hanging from A by the edge (2, 3). B could turn about it
+// (its own supports, node 2's, leave that free), so it must be held, node 3 with it
+TEST(StructuralRemoval, PieceHangingByAnEdgeIsHeld) {
+  TetMesh mesh;
+  const double h = 0.01;
+  mesh.nodes = {Vec3(0, 0, 0), Vec3(h, 0, 0),      Vec3(0, h, 0),         Vec3(0, 0, h),
+                Vec3(h, h, h), Vec3(-h / 2, h, h), Vec3(h / 2, -h, h / 2)};
+  mesh.tets = {{0, 1, 2, 3}, {1, 2, 3, 4}, {2, 3, 4, 5}, {0, 1, 3, 6}};
+  for (Tet& t : mesh.tets)
+    if (tetSignedVolume(mesh.nodes[t[0]], mesh.nodes[t[1]], mesh.nodes[t[2]], mesh.nodes[t[3]]) < 0)
+      std::swap(t[0], t[1]);
+  mesh.alive.assign(mesh.tets.size(), 1);
+  std::vector<Support> s;
+  for (int v : {0, 1, 2})
+    for (int a = 0; a < 3; ++a) s.push_back({v, a});
+  StructuralPhase phase(mesh, alwaysUpdate(), s);
+  EXPECT_EQ(phase.numFloatingIslands(), 0);
+  expectSameAsFresh(phase, mesh, s, "whole");
+  const StructuralUpdateStats st = removeBoth(phase, mesh, {1});
+  EXPECT_EQ(st.piecesCutOff, 1);
+  EXPECT_EQ(st.dofsHeld, 9);  // nodes 3, 4, 5
+  EXPECT_EQ(phase.numFloatingIslands(), 1);
+  EXPECT_EQ(phase.numFreeDofs(), 3);  // node 6
+  expectSameAsFresh(phase, mesh, s, "hanging by an edge");
+  // removing B frees node 3 again (A and E hold it now), as a fresh build would
+  const StructuralUpdateStats gone = removeBoth(phase, mesh, {2});
+  EXPECT_EQ(gone.dofsFreed, 3);
+  EXPECT_EQ(phase.numFloatingIslands(), 0);
+  EXPECT_EQ(phase.numFreeDofs(), 6);  // nodes 3 and 6
+  expectSameAsFresh(phase, mesh, s, "island removed");
+}
+
+TEST(StructuralRemoval, RemovingTheClampedTissueIsTheFreshBuildsError) {
+  TetMesh mesh = distortedSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralPhase phase(mesh, alwaysUpdate(), clamp);
+  std::vector<int> first, second;  // the tets touching the clamped bottom, in two steps
+  for (int t = 0; t < mesh.numTets(); ++t) {
+    double zMin = 1;
+    for (int v : mesh.tets[t]) zMin = std::min(zMin, mesh.nodes[v].z());
+    if (zMin < 1e-12) (t % 2 ? first : second).push_back(t);
+  }
+  removeBoth(phase, mesh, first);
+  expectSameAsFresh(phase, mesh, clamp, "half the clamped tets");
+  for (int t : second) mesh.alive[t] = 0;
+  auto caught = [](auto&& f) -> std::pair<std::string, ErrorKind> {
+    try {
+      f();
+    } catch (const Error& e) {
+      return {e.what(), e.kind()};
+    }
+    return {"no error", ErrorKind::Internal};
+  };
+  const auto fresh = caught([&] { StructuralPhase p(mesh, paper(), clamp); });
+  const auto updated = caught([&] { phase.removeTets(second); });
+  EXPECT_NE(fresh.first.find("no piece of the body is held"), std::string::npos) << fresh.first;
+  EXPECT_EQ(updated.first, fresh.first);
+  EXPECT_EQ(updated.second, fresh.second);
+  // the phase is dead from then on
+  EXPECT_EQ(caught([&] { phase.solve(unevenLoad(mesh)); }).first, fresh.first);
+}
+
+TEST(StructuralRemoval, FallbackRefactorizationEqualsAFreshBuild) {
+  TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralOptions o = paper();
+  o.updateCostLimit = 0;  // always refactorize
+  StructuralPhase phase(mesh, o, clamp);
+  std::vector<int> top;
+  for (int t = 0; t < mesh.numTets(); ++t)
+    if (centroidZ(mesh, t) > 0.75 * kLz && t % 3 == 0) top.push_back(t);
+  const StructuralUpdateStats st = removeBoth(phase, mesh, top);
+  EXPECT_TRUE(st.refactorized);
+  EXPECT_FALSE(st.downdateFailed);
+  expectSameAsFresh(phase, mesh, clamp, "refactorized");
+  // and an update after a refactorization (the factor is supernodal again)
+  StructuralOptions both = paper();
+  StructuralPhase defaults(mesh, both, clamp);
+  const StructuralUpdateStats small = removeBoth(defaults, mesh, {top.back() + 1});
+  EXPECT_EQ(small.tetsRemoved, 1);
+  expectSameAsFresh(defaults, mesh, clamp, "default limit");
+}
+
+TEST(StructuralRemoval, RejectsBadIds) {
+  TetMesh mesh = distortedSlab();
+  StructuralPhase phase(mesh, paper(), hold(mesh, onBottom, {0, 1, 2}));
+  try {
+    phase.removeTets({0, mesh.numTets()});
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Input);
+    EXPECT_NE(std::string(e.what()).find("out of range"), std::string::npos) << e.what();
+  }
+  // nothing was removed: tet 0 still is
+  EXPECT_EQ(phase.removeTets({0}).tetsRemoved, 1);
+  EXPECT_EQ(phase.removeTets({0}).tetsRemoved, 0);
 }
 
 }  // namespace

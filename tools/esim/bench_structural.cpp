@@ -10,7 +10,11 @@
 //    radius 3 mm), --solves solves timed (median), the load scaled a little each time.
 // 3. Remove the 5 alive tets nearest the top centre and build the phase again (the
 //    rebuild a rupture triggers), timed.
-// 4. Print a table; --csv writes nodes,dofs,factor_ms,solve_ms,rebuild5_ms,max_von_mises_pa.
+// 4. Remove the same 5 tets from the phase of step 1 with removeTets (the factor updated,
+//    the first update converting it to simplicial LDL'), timed; then a solve with the
+//    updated factor (median of --solves) and its difference from the rebuilt phase's.
+// 5. Print a table; --csv writes nodes,dofs,factor_ms,solve_ms,rebuild5_ms,update5_ms,
+//    convert_ms,update_refactorized,solve_updated_ms,update_vs_rebuild,max_von_mises_pa.
 // A benchmark, never a pass/fail test. BLAS runs on one thread (as in the phase).
 #include <algorithm>
 #include <chrono>
@@ -47,15 +51,17 @@ int benchStructural(const BenchStructuralOptions& opt) {
   if (!opt.csv.empty()) {
     csv = std::make_unique<std::ofstream>(opt.csv);
     ESIM_VERIFY(csv->good(), "--csv: cannot write '" + opt.csv + "'");
-    *csv << "nodes,dofs,factor_ms,solve_ms,rebuild5_ms,max_von_mises_pa\n";
+    *csv << "nodes,dofs,factor_ms,solve_ms,rebuild5_ms,update5_ms,convert_ms,update_refactorized,"
+            "solve_updated_ms,update_vs_rebuild,max_von_mises_pa\n";
   }
   std::printf(
       "esim bench structural: paper slab 100x100x10 mm, bottom clamped, Gaussian "
       "expansion (peak %.2f, radius 3 mm) under the top centre; %d solves; E 4.75e4 "
       "Pa, nu 0.4; one BLAS thread\n",
       opt.peakExpansion, opt.solves);
-  std::printf("%8s %8s %10s %10s %12s %14s\n", "nodes", "dofs", "factor_ms", "solve_ms",
-              "rebuild5_ms", "max_vm_Pa");
+  std::printf("%8s %8s %10s %10s %12s %11s %11s %10s %13s %10s %12s\n", "nodes", "dofs",
+              "factor_ms", "solve_ms", "rebuild5_ms", "update5_ms", "convert_ms", "refactored",
+              "solve_upd_ms", "upd_vs_reb", "max_vm_Pa");
   for (const int nodes : sizes) {
     SlabSpec spec;
     spec.targetNodes = nodes;
@@ -95,14 +101,35 @@ int benchStructural(const BenchStructuralOptions& opt) {
                       [&](int a, int b) { return dist[a] < dist[b]; });
     for (int k = 0; k < 5; ++k) mesh.alive[order[k]] = 0;
     t0 = std::chrono::steady_clock::now();
-    phase = std::make_unique<StructuralPhase>(mesh, StructuralOptions{}, clamp);
+    const auto rebuilt = std::make_unique<StructuralPhase>(mesh, StructuralOptions{}, clamp);
     const double rebuildMs = msSince(t0);
-    std::printf("%8d %8d %10.1f %10.2f %12.1f %14.1f\n", mesh.numNodes(), phase->numFreeDofs(),
-                factorMs, solveMs[solveMs.size() / 2], rebuildMs, maxVm);
+    // 4. the same 5 tets removed from the first phase by an update
+    t0 = std::chrono::steady_clock::now();
+    const StructuralUpdateStats update =
+        phase->removeTets({order[0], order[1], order[2], order[3], order[4]});
+    const double updateMs = msSince(t0);
+    std::vector<double> updatedSolveMs;
+    for (int k = 0; k < opt.solves; ++k) {
+      t0 = std::chrono::steady_clock::now();
+      phase->solve(load);
+      updatedSolveMs.push_back(msSince(t0));
+    }
+    std::sort(updatedSolveMs.begin(), updatedSolveMs.end());
+    rebuilt->solve(load);
+    const double difference = (phase->displacementM() - rebuilt->displacementM()).norm() /
+                              rebuilt->displacementM().norm();
+    const double solveUpdatedMs = updatedSolveMs[updatedSolveMs.size() / 2];
+    const double convertMs = 1e3 * update.convertSeconds;
+    std::printf("%8d %8d %10.1f %10.2f %12.1f %11.2f %11.2f %10s %13.2f %10.1e %12.1f\n",
+                mesh.numNodes(), rebuilt->numFreeDofs(), factorMs, solveMs[solveMs.size() / 2],
+                rebuildMs, updateMs, convertMs, update.refactorized ? "yes" : "no", solveUpdatedMs,
+                difference, maxVm);
     std::fflush(stdout);
     if (csv)
-      *csv << mesh.numNodes() << ',' << phase->numFreeDofs() << ',' << factorMs << ','
-           << solveMs[solveMs.size() / 2] << ',' << rebuildMs << ',' << maxVm << '\n';
+      *csv << mesh.numNodes() << ',' << rebuilt->numFreeDofs() << ',' << factorMs << ','
+           << solveMs[solveMs.size() / 2] << ',' << rebuildMs << ',' << updateMs << ',' << convertMs
+           << ',' << (update.refactorized ? 1 : 0) << ',' << solveUpdatedMs << ',' << difference
+           << ',' << maxVm << '\n';
   }
   if (csv) std::printf("wrote %s\n", opt.csv.c_str());
   return cli::kExitOk;
@@ -110,7 +137,8 @@ int benchStructural(const BenchStructuralOptions& opt) {
 
 cli::Registrar registerBenchStructural(
     {"bench", "structural"},
-    "Structural phase benchmark: factorization, solve and rebuild after removing 5 tets",
+    "Structural phase benchmark: factorization, solve, and rebuild or update after removing 5 "
+    "tets",
     [](CLI::App& app) -> cli::Runner {
       auto opt = std::make_shared<BenchStructuralOptions>();
       app.add_option("--sizes", opt->sizes, "slab node counts, comma separated")
@@ -120,7 +148,9 @@ cli::Registrar registerBenchStructural(
                      "peak volumetric expansion dV/V of the load")
           ->capture_default_str();
       app.add_option("--csv", opt->csv,
-                     "write nodes,dofs,factor_ms,solve_ms,rebuild5_ms,max_von_mises_pa to FILE");
+                     "write nodes,dofs,factor_ms,solve_ms,rebuild5_ms,update5_ms,convert_ms,"
+                     "update_refactorized,solve_updated_ms,update_vs_rebuild,max_von_mises_pa "
+                     "to FILE");
       return [opt] { return benchStructural(*opt); };
     });
 
