@@ -520,13 +520,13 @@ std::vector<int> StructuralPhase::Impl::rowPattern(int dof) {
 
 // ---- removal ----
 
-// What removeTets weighs (see the header): the downdate's cost, sum over the columns j of L
-// it walks of nnz(L(:, j)) times the columns of C that pass j, against the flops of a
-// supernodal refactorization (CHOLMOD's count, Common->fl). An updown entry costs about
-// kUpdownFlopsPerEntry flops at a rate kUpdownSlowdown times lower than the supernodal
-// factorization's BLAS 3 (both measured with `esim bench structural`, see structural.h).
-constexpr double kUpdownFlopsPerEntry = 4;
-constexpr double kUpdownSlowdown = 4;
+// What removeTets weighs (see the header): the update's work, the sum over the columns j
+// of L it walks of nnz(L(:, j)) times the columns of C (and rows) that pass j, against the
+// flops of a supernodal refactorization (CHOLMOD's count, Common->fl). One unit of that
+// work takes as long as kUpdownCostPerEntry flops of the refactorization: measured on the
+// paper slab (esim bench structural, batches of 5 to 800 tets), update 1.0 to 1.7 ns per
+// unit, refactorization 0.45 ns per flop at 5k nodes, 0.28 at 20k (BLAS 3 gains with size).
+constexpr double kUpdownCostPerEntry = 5;
 
 StructuralUpdateStats StructuralPhase::Impl::removeTets(const std::vector<int>& ids) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -724,7 +724,7 @@ StructuralUpdateStats StructuralPhase::Impl::removeTets(const std::vector<int>& 
 
   // 7. delete the rows now held, downdate by C C', add the rows free again; or refactorize
   // when that costs more
-  stats.updateCost = kUpdownFlopsPerEntry * kUpdownSlowdown * stats.updateWork / refactorFlops;
+  stats.updateCost = kUpdownCostPerEntry * stats.updateWork / refactorFlops;
   bool updated = false;
   if (stats.updateCost <= updateCostLimit) {
     bool ok = true;
