@@ -188,6 +188,7 @@ struct StructuralPhase::Impl {
   std::vector<int> rowOfDof;           // dof -> row of L (inverse of L->Perm)
   double refactorFlops = 0;            // CHOLMOD's flop count of one factorization
   double updateCostLimit = 1;          // StructuralOptions::updateCostLimit
+  bool prepareForUpdates = false;      // StructuralOptions::prepareForUpdates
   cholmod_dense *x = nullptr, *y = nullptr, *e = nullptr;  // solve workspaces
   Eigen::VectorXd rhs, u;
   std::vector<int> mark;  // per row of L (etree walks), per tet (piece searches)
@@ -300,6 +301,7 @@ struct StructuralPhase::Impl {
   std::vector<std::vector<int>> splitPiece(const std::vector<int>& seeds);
   SparseMatrix assemble() const;
   void factorize();
+  void toSimplicial();
   std::vector<int> rowPattern(int dof);
   StructuralUpdateStats removeTets(const std::vector<int>& ids);
 };
@@ -489,6 +491,14 @@ void StructuralPhase::Impl::factorize() {
   ESIM_RUN_CHECK(ok && common.status == CHOLMOD_OK && factor->minor == factor->n,
                  "structural: the stiffness matrix is not positive definite (degenerate tets, or "
                  "supports that leave part of the body free)");
+  if (prepareForUpdates) toSimplicial();
+}
+
+// L as simplicial LDL' (what cholmod_updown, rowdel and rowadd take); O(nnz(L))
+void StructuralPhase::Impl::toSimplicial() {
+  if (!factor->is_super && !factor->is_ll) return;
+  const int ok = cholmod_change_factor(CHOLMOD_REAL, false, false, false, false, factor, &common);
+  ESIM_RUN_CHECK(ok, "structural: CHOLMOD could not convert the factor (out of memory?)");
 }
 
 // Rows j < k of L's row k = rowOfDof[dof] that may hold a nonzero (what cholmod_rowdel
@@ -685,8 +695,7 @@ StructuralUpdateStats StructuralPhase::Impl::removeTets(const std::vector<int>& 
   // 5. L becomes simplicial LDL' (once after each factorization: only those can be updated)
   if (factor->is_super || factor->is_ll) {
     const auto tc = std::chrono::steady_clock::now();
-    const int ok = cholmod_change_factor(CHOLMOD_REAL, false, false, false, false, factor, &common);
-    ESIM_RUN_CHECK(ok, "structural: CHOLMOD could not convert the factor (out of memory?)");
+    toSimplicial();
     stats.convertSeconds = secondsSince(tc);
   }
 
@@ -858,6 +867,7 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   ESIM_VERIFY(!(options.updateCostLimit < 0), "structural: updateCostLimit must be >= 0, got " +
                                                   messageNumber(options.updateCostLimit));
   m.updateCostLimit = options.updateCostLimit;
+  m.prepareForUpdates = options.prepareForUpdates;
 
   // 1. held components: of nodes without an alive tet, and the supports
   m.aliveTetsOfNode.assign(n, 0);

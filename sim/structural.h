@@ -19,7 +19,8 @@
 // components it newly holds are deleted (cholmod_rowdel: they become identity rows), then
 // the removed tets' stiffness on the components still free is subtracted as a low-rank
 // downdate (cholmod_updown, <= 6 columns per tet; L is converted to simplicial LDL' at the
-// first removal after a factorization, O(nnz(L)) once). Its cost grows with the removed
+// first removal after a factorization, O(nnz(L)) once, or right after each factorization
+// with StructuralOptions::prepareForUpdates). Its cost grows with the removed
 // tets, the pieces they cut off and the columns of L below them, not with the mesh; when
 // the estimate of that cost exceeds StructuralOptions::updateCostLimit times a
 // refactorization's, or a downdate loses positive definiteness (a pivot D(j) <= 0), it
@@ -96,6 +97,11 @@ struct StructuralOptions {
   // refactorization's, else refactorizes (1: the cheaper; 0: always refactorize; a large
   // value: update unless a downdate fails)
   double updateCostLimit = 1.0;
+  // convert the factor to simplicial LDL' right after each factorization (the constructor's
+  // and a fallback refactorization's) instead of at the first removal after it: a simulation
+  // that removes tets in its frame loop pays the conversion at set-up (solves are then ~1.3x
+  // slower from the start; results equal to round-off)
+  bool prepareForUpdates = false;
 };
 
 // what one removeTets call did
@@ -109,7 +115,8 @@ struct StructuralUpdateStats {
   double updateCost = 0;        // estimated cost of the update / a refactorization's
   bool refactorized = false;    // fell back to a full refactorization
   bool downdateFailed = false;  // ... because the update lost positive definiteness
-  double convertSeconds = 0;    // supernodal LL' to simplicial LDL' (first update only)
+  double convertSeconds = 0;    // supernodal LL' to simplicial LDL' (first update after a
+                                // factorization; 0 with StructuralOptions::prepareForUpdates)
   double seconds = 0;           // wall time of the call
 };
 
@@ -155,6 +162,7 @@ class StructuralPhase {
   int numFreeDofs() const;                           // unknowns of K u = f
   int numFloatingIslands() const;                    // unsupported pieces held in place
   double factorizationSeconds() const;  // wall time of the constructor's factorization [s]
+                                        // (with the conversion if prepareForUpdates)
 
  private:
   struct Impl;

@@ -522,6 +522,40 @@ TEST(StructuralRemoval, FallbackRefactorizationEqualsAFreshBuild) {
   expectSameAsFresh(defaults, mesh, clamp, "default limit");
 }
 
+TEST(StructuralRemoval, PrepareForUpdatesGivesTheSameResults) {
+  TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralOptions prepared = alwaysUpdate();
+  prepared.prepareForUpdates = true;
+  StructuralPhase eager(mesh, prepared, clamp);
+  StructuralPhase lazy(mesh, alwaysUpdate(), clamp);
+  const std::vector<double> ev = unevenLoad(mesh);
+  eager.solve(ev);
+  lazy.solve(ev);
+  EXPECT_LT(relativeDifference(eager.displacementM(), lazy.displacementM()), 1e-12);
+  EXPECT_LT(relativeDifference(asVector(eager.vonMisesPa()), asVector(lazy.vonMisesPa())), 1e-12);
+  // the first update converts only the lazy one's factor; then both equal a fresh build
+  std::vector<int> top;
+  for (int t = 0; t < mesh.numTets(); ++t)
+    if (centroidZ(mesh, t) > 0.75 * kLz && t % 5 == 0) top.push_back(t);
+  top.resize(5);
+  const StructuralUpdateStats a = eager.removeTets(top), b = lazy.removeTets(top);
+  EXPECT_EQ(a.convertSeconds, 0.0);
+  EXPECT_GT(b.convertSeconds, 0.0);
+  EXPECT_FALSE(a.refactorized);
+  for (int t : top) mesh.alive[t] = 0;
+  expectSameAsFresh(eager, mesh, clamp, "prepared");
+  expectSameAsFresh(lazy, mesh, clamp, "lazy");
+  // a fallback refactorization (converted again) too
+  StructuralOptions refactor = prepared;
+  refactor.updateCostLimit = 0;
+  StructuralPhase fallback(mesh, refactor, clamp);
+  EXPECT_TRUE(removeBoth(fallback, mesh, {top.back() + 1}).refactorized);
+  expectSameAsFresh(fallback, mesh, clamp, "after the fallback");
+  EXPECT_TRUE(removeBoth(fallback, mesh, {top.back() + 2}).refactorized);
+  expectSameAsFresh(fallback, mesh, clamp, "after a second fallback");
+}
+
 TEST(StructuralRemoval, RejectsBadIds) {
   TetMesh mesh = distortedSlab();
   StructuralPhase phase(mesh, paper(), hold(mesh, onBottom, {0, 1, 2}));
