@@ -4,6 +4,7 @@
 #include <cholmod.h>
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 #include <Eigen/SparseCore>
 #include <algorithm>
 #include <chrono>
@@ -112,6 +113,7 @@ double vonMises(const VoigtStress& s) {
 namespace {
 
 using Mat12 = Eigen::Matrix<double, 12, 12>;
+using Voigt = Eigen::Matrix<double, 6, 1>;
 
 // a rigid piece: alive tets connected through shared faces
 struct Piece {
@@ -159,6 +161,21 @@ double secondsSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
+void verifyLocalOptions(const LocalSolveOptions& o) {
+  ESIM_VERIFY(std::isfinite(o.marginM) && o.marginM >= 0,
+              "structural: local.marginM must be >= 0, got " + messageNumber(o.marginM));
+  ESIM_VERIFY(std::isfinite(o.slackM) && o.slackM >= 0,
+              "structural: local.slackM must be >= 0, got " + messageNumber(o.slackM));
+  ESIM_VERIFY(
+      o.loadTolerance >= 0 && o.loadTolerance < 1,
+      "structural: local.loadTolerance must be in [0, 1), got " + messageNumber(o.loadTolerance));
+  ESIM_VERIFY(o.refreshEvery >= 0,
+              "structural: local.refreshEvery must be >= 0, got " + std::to_string(o.refreshEvery));
+  ESIM_VERIFY(o.maxRegionFraction > 0 && o.maxRegionFraction <= 1,
+              "structural: local.maxRegionFraction must be in (0, 1], got " +
+                  messageNumber(o.maxRegionFraction));
+}
+
 }  // namespace
 
 struct StructuralPhase::Impl {
@@ -194,6 +211,25 @@ struct StructuralPhase::Impl {
   std::vector<int> mark;  // per row of L (etree walks), per tet (piece searches)
   std::vector<int> tetMark;
   int stamp = 0;
+  // ---- the local solve (see LocalSolveOptions) ----
+  StructuralSolveMethod method = StructuralSolveMethod::full;
+  LocalSolveOptions local;
+  bool hasReference = false;               // a full solve since local solves were chosen
+  std::vector<double> refEv;               // per tet: e_ref, the load of the last full solve
+  Eigen::VectorXd refU;                    // u_ref [m]
+  std::vector<Voigt> refElastic;           // per tet: D B_e u_ref [Pa]
+  std::vector<int> changedNodes;           // of removed tets, or held since the reference
+  int localSinceFull = 0;                  // local solves since the last full one
+  bool regionValid = false;                // the region below fits the current A
+  Eigen::AlignedBox3d regionBox;           // the box grown by slackM it was built around
+  std::vector<int> regionDofs;             // U: its free dofs, ascending
+  std::vector<int> localOfDof;             // per dof: index in regionDofs, -1 outside
+  std::vector<int> regionTets;             // alive tets with a node in U
+  std::vector<std::uint8_t> inRegion;      // per tet: in regionTets
+  cholmod_factor* regionFactor = nullptr;  // K_UU
+  cholmod_dense *rx = nullptr, *ry = nullptr, *re = nullptr;  // its solve workspaces
+  std::vector<int> appliedDofs;                               // dofs where u holds u_ref + d
+  StructuralSolveStats lastSolve;
   // ---- outputs ----
   std::vector<VoigtStress> stress;
   std::vector<double> vonMisesPa;
@@ -212,6 +248,10 @@ struct StructuralPhase::Impl {
     if (x) cholmod_free_dense(&x, &common);
     if (y) cholmod_free_dense(&y, &common);
     if (e) cholmod_free_dense(&e, &common);
+    if (regionFactor) cholmod_free_factor(&regionFactor, &common);
+    if (rx) cholmod_free_dense(&rx, &common);
+    if (ry) cholmod_free_dense(&ry, &common);
+    if (re) cholmod_free_dense(&re, &common);
     cholmod_finish(&common);
   }
 
@@ -302,6 +342,13 @@ struct StructuralPhase::Impl {
   SparseMatrix assemble() const;
   void factorize();
   void toSimplicial();
+  Voigt elasticStress(int t, const Eigen::VectorXd& disp) const;
+  void fullSolve(const std::vector<double>& ev);
+  bool localSolve(const std::vector<double>& ev);
+  bool buildRegion(const Eigen::AlignedBox3d& box);
+  void dropRegion();
+  enum class From { solution, region, reference };  // where outputs() takes D B u from
+  void outputs(const std::vector<double>& ev, From from);
   std::vector<int> rowPattern(int dof);
   StructuralUpdateStats removeTets(const std::vector<int>& ids);
 };
@@ -528,6 +575,227 @@ std::vector<int> StructuralPhase::Impl::rowPattern(int dof) {
   return out;
 }
 
+// ---- solves ----
+
+// D B_e u_e: the elastic part of the tet's stress for the displacement disp [Pa]
+Voigt StructuralPhase::Impl::elasticStress(int t, const Eigen::VectorXd& disp) const {
+  Eigen::Matrix<double, 12, 1> ue;
+  for (int i = 0; i < 4; ++i) ue.segment<3>(3 * i) = disp.segment<3>(3 * tets[t][i]);
+  // B_e rebuilt from the stored gradients: keeping D B_e per tet would cost 576 bytes
+  // a tet (92 MB for the liver's 161k tets, twice during a background rebuild)
+  return d * (strainMatrix(geo[t]) * ue);
+}
+
+// K u = f over the whole body; with the local method, the new reference
+void StructuralPhase::Impl::fullSolve(const std::vector<double>& ev) {
+  const int nt = static_cast<int>(tets.size());
+  // f = sum_e V_e B_e^T D eps*_e; D eps* = K_b e_v (1,1,1,0,0,0), so node i of the tet
+  // gets V_e K_b e_v grad N_i; 0 on the held dofs (their rows of A are the identity)
+  rhs.setZero(numDofs());
+  for (int t = 0; t < nt; ++t) {
+    if (!alive[t] || ev[t] == 0) continue;
+    const double s = geo[t].volume * bulkModulusPa * ev[t];
+    for (int i = 0; i < 4; ++i)
+      for (int a = 0; a < 3; ++a) {
+        const int dof = 3 * tets[t][i] + a;
+        if (!held[dof]) rhs(dof) += s * geo[t].grad(i, a);
+      }
+  }
+  u.setZero();
+  if (numFree > 0) {
+    cholmod_dense b{};
+    b.nrow = numDofs();
+    b.ncol = 1;
+    b.nzmax = b.nrow;
+    b.d = b.nrow;
+    b.x = rhs.data();
+    b.xtype = CHOLMOD_REAL;
+    b.dtype = CHOLMOD_DOUBLE;
+    openblas_set_num_threads(1);
+    const int ok = cholmod_solve2(CHOLMOD_A, factor, &b, nullptr, &x, nullptr, &y, &e, &common);
+    ESIM_RUN_CHECK(ok, "structural: CHOLMOD solve failed (out of memory?)");
+    const double* xs = static_cast<const double*>(x->x);
+    for (int dof = 0; dof < numDofs(); ++dof)
+      if (!held[dof]) u(dof) = xs[dof];
+  }
+  appliedDofs.clear();
+  if (method == StructuralSolveMethod::local) {
+    hasReference = true;
+    refEv = ev;
+    refU = u;
+    refElastic.resize(nt);
+    changedNodes.clear();
+    localSinceFull = 0;
+  }
+  outputs(ev, From::solution);
+}
+
+// the local solve (see LocalSolveOptions); false when a full solve is due instead
+bool StructuralPhase::Impl::localSolve(const std::vector<double>& ev) {
+  if (!hasReference || numFree == 0) return false;
+  if (local.refreshEvery > 0 && localSinceFull + 1 >= local.refreshEvery) return false;
+  const int nt = static_cast<int>(tets.size());
+  // 1. the box around the load change (and what removals changed)
+  double largest = 0;
+  for (int t = 0; t < nt; ++t)
+    if (alive[t]) largest = std::max(largest, std::abs(ev[t] - refEv[t]));
+  Eigen::AlignedBox3d box;  // empty
+  if (largest > 0) {
+    const double threshold = local.loadTolerance * largest;
+    for (int t = 0; t < nt; ++t)
+      if (alive[t] && std::abs(ev[t] - refEv[t]) > threshold)
+        for (int v : tets[t]) box.extend(nodes[v]);
+  }
+  for (int v : changedNodes) box.extend(nodes[v]);
+  // 2. the region: kept while the box stays inside the one it was built around
+  ++localSinceFull;
+  lastSolve.local = true;
+  if (box.isEmpty()) {  // nothing changed: the reference
+    for (int dof : appliedDofs) u(dof) = refU(dof);
+    appliedDofs.clear();
+    outputs(ev, From::reference);
+    return true;
+  }
+  if (!(regionValid && regionBox.contains(box))) {
+    const auto t0 = std::chrono::steady_clock::now();
+    Eigen::AlignedBox3d grown = box;
+    grown.min().array() -= local.slackM;
+    grown.max().array() += local.slackM;
+    if (!buildRegion(grown)) {
+      --localSinceFull;
+      lastSolve.local = false;
+      return false;
+    }
+    lastSolve.regionBuilt = true;
+    lastSolve.regionFactorSeconds = secondsSince(t0);
+  }
+  lastSolve.regionDofs = static_cast<int>(regionDofs.size());
+  lastSolve.regionTets = static_cast<int>(regionTets.size());
+  // 3. r_U = -sum_e V_e B_e^T sigma_e(u_ref, e_v) over the tets touching U
+  Eigen::VectorXd r = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(regionDofs.size()));
+  for (int t : regionTets) {
+    const Voigt& s = refElastic[t];
+    const double p = bulkModulusPa * ev[t];
+    const double sxx = s(0) - p, syy = s(1) - p, szz = s(2) - p, syz = s(3), sxz = s(4), sxy = s(5);
+    const double vol = geo[t].volume;
+    for (int i = 0; i < 4; ++i) {
+      const double gx = geo[t].grad(i, 0), gy = geo[t].grad(i, 1), gz = geo[t].grad(i, 2);
+      const double force[3] = {gx * sxx + gy * sxy + gz * sxz, gx * sxy + gy * syy + gz * syz,
+                               gx * sxz + gy * syz + gz * szz};
+      for (int a = 0; a < 3; ++a) {
+        const int k = localOfDof[3 * tets[t][i] + a];
+        if (k >= 0) r(k) -= vol * force[a];
+      }
+    }
+  }
+  // 4. K_UU d_U = r_U; u = u_ref + d on U, u_ref elsewhere
+  cholmod_dense b{};
+  b.nrow = regionDofs.size();
+  b.ncol = 1;
+  b.nzmax = b.nrow;
+  b.d = b.nrow;
+  b.x = r.data();
+  b.xtype = CHOLMOD_REAL;
+  b.dtype = CHOLMOD_DOUBLE;
+  openblas_set_num_threads(1);
+  const int ok =
+      cholmod_solve2(CHOLMOD_A, regionFactor, &b, nullptr, &rx, nullptr, &ry, &re, &common);
+  ESIM_RUN_CHECK(ok, "structural: CHOLMOD solve failed (out of memory?)");
+  for (int dof : appliedDofs) u(dof) = refU(dof);
+  const double* correction = static_cast<const double*>(rx->x);
+  for (size_t k = 0; k < regionDofs.size(); ++k)
+    u(regionDofs[k]) = refU(regionDofs[k]) + correction[k];
+  appliedDofs = regionDofs;
+  outputs(ev, From::region);
+  return true;
+}
+
+void StructuralPhase::Impl::dropRegion() {
+  regionValid = false;
+  for (int t : regionTets) inRegion[t] = 0;
+  for (int dof : regionDofs) localOfDof[dof] = -1;
+  regionTets.clear();
+  regionDofs.clear();
+  if (regionFactor) cholmod_free_factor(&regionFactor, &common);
+}
+
+// U = the free dofs of the nodes within marginM of the box, the alive tets touching them,
+// and the factor of K_UU; false (nothing built) when U is too large a part of the body
+bool StructuralPhase::Impl::buildRegion(const Eigen::AlignedBox3d& box) {
+  dropRegion();
+  const int n = static_cast<int>(nodes.size());
+  localOfDof.resize(numDofs(), -1);
+  inRegion.resize(tets.size(), 0);
+  std::vector<int> dofs;
+  for (int v = 0; v < n; ++v) {
+    if (aliveTetsOfNode[v] == 0 || box.exteriorDistance(nodes[v]) > local.marginM) continue;
+    for (int a = 0; a < 3; ++a)
+      if (!held[3 * v + a]) dofs.push_back(3 * v + a);
+  }
+  if (dofs.empty() || dofs.size() > local.maxRegionFraction * numFree) return false;
+  regionDofs = std::move(dofs);
+  for (size_t k = 0; k < regionDofs.size(); ++k) localOfDof[regionDofs[k]] = static_cast<int>(k);
+  for (int dof : regionDofs) {
+    if (dof % 3 != 0 && localOfDof[dof - dof % 3] >= 0) continue;  // node seen
+    const int v = dof / 3;
+    for (const int* t = tetsOfNode.begin(v); t != tetsOfNode.end(v); ++t)
+      if (alive[*t] && !inRegion[*t]) {
+        inRegion[*t] = 1;
+        regionTets.push_back(*t);
+      }
+  }
+  std::sort(regionTets.begin(), regionTets.end());
+  // K_UU, lower triangle, in the order of regionDofs
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(regionTets.size() * 78);
+  for (int t : regionTets) {
+    const Mat12 ke = elementStiffness(t);
+    for (int i = 0; i < 12; ++i) {
+      const int li = localOfDof[3 * tets[t][i / 3] + i % 3];
+      if (li < 0) continue;
+      for (int j = 0; j < 12; ++j) {
+        const int lj = localOfDof[3 * tets[t][j / 3] + j % 3];
+        if (lj >= 0 && lj <= li) triplets.emplace_back(li, lj, ke(i, j));
+      }
+    }
+  }
+  const int m = static_cast<int>(regionDofs.size());
+  SparseMatrix kuu(m, m);
+  kuu.setFromTriplets(triplets.begin(), triplets.end());
+  kuu.makeCompressed();
+  cholmod_sparse view = viewLower(kuu);
+  openblas_set_num_threads(1);
+  regionFactor = cholmod_analyze(&view, &common);
+  ESIM_RUN_CHECK(regionFactor != nullptr, "structural: CHOLMOD analysis failed (out of memory?)");
+  const int ok = cholmod_factorize(&view, regionFactor, &common);
+  ESIM_RUN_CHECK(ok && common.status == CHOLMOD_OK && regionFactor->minor == regionFactor->n,
+                 "structural: the region's stiffness matrix is not positive definite");
+  regionBox = box;
+  regionValid = true;
+  return true;
+}
+
+// stress and von Mises per tet: D B u from u (solution: every tet, stored as the reference
+// under the local method; region: the region's tets) or from the reference
+void StructuralPhase::Impl::outputs(const std::vector<double>& ev, From from) {
+  const int nt = static_cast<int>(tets.size());
+  const bool store = from == From::solution && method == StructuralSolveMethod::local;
+  for (int t = 0; t < nt; ++t) {
+    if (!alive[t]) {
+      stress[t] = VoigtStress{};
+      vonMisesPa[t] = 0;
+      continue;
+    }
+    const bool fresh = from == From::solution || (from == From::region && inRegion[t]);
+    const Voigt s = fresh ? elasticStress(t, u) : refElastic[t];
+    if (store) refElastic[t] = s;
+    // sigma = D B u - K_b e_v (1, 1, 1, 0, 0, 0)
+    const double p = bulkModulusPa * ev[t];
+    stress[t] = {s(0) - p, s(1) - p, s(2) - p, s(3), s(4), s(5)};
+    vonMisesPa[t] = vonMises(stress[t]);
+  }
+}
+
 // ---- removal ----
 
 // What removeTets weighs (see the header): the update's work, the sum over the columns j
@@ -654,6 +922,27 @@ StructuralUpdateStats StructuralPhase::Impl::removeTets(const std::vector<int>& 
     }
   }
   stats.dofsFreed = static_cast<int>(newlyFreed.size());
+
+  // the local solve's reference: u_ref is 0 on the dofs now held (the tets at their nodes
+  // change stress); these nodes and the removed tets' widen the next region's box; the
+  // region no longer fits A
+  if (hasReference) {
+    std::vector<int> heldNodes;
+    for (int dof : newlyHeld)
+      if (refU(dof) != 0) {
+        refU(dof) = 0;
+        heldNodes.push_back(dof / 3);
+      }
+    std::sort(heldNodes.begin(), heldNodes.end());
+    heldNodes.erase(std::unique(heldNodes.begin(), heldNodes.end()), heldNodes.end());
+    for (int v : heldNodes)
+      for (const int* t = tetsOfNode.begin(v); t != tetsOfNode.end(v); ++t)
+        if (alive[*t]) refElastic[*t] = elasticStress(*t, refU);
+    const std::vector<int> removedNodes = nodesOf(removed);
+    changedNodes.insert(changedNodes.end(), removedNodes.begin(), removedNodes.end());
+    changedNodes.insert(changedNodes.end(), heldNodes.begin(), heldNodes.end());
+  }
+  dropRegion();
   if (numDofs() == 0) {
     stats.seconds = secondsSince(t0);
     return stats;
@@ -868,6 +1157,9 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
                                                   messageNumber(options.updateCostLimit));
   m.updateCostLimit = options.updateCostLimit;
   m.prepareForUpdates = options.prepareForUpdates;
+  verifyLocalOptions(options.local);
+  m.method = options.solveMethod;
+  m.local = options.local;
 
   // 1. held components: of nodes without an alive tet, and the supports
   m.aliveTetsOfNode.assign(n, 0);
@@ -923,61 +1215,35 @@ StructuralUpdateStats StructuralPhase::removeTets(const std::vector<int>& tets) 
 }
 
 void StructuralPhase::solve(const std::vector<double>& ev) {
+  const auto t0 = std::chrono::steady_clock::now();
   Impl& m = *impl_;
   const int nt = static_cast<int>(m.tets.size());
   ESIM_VERIFY(static_cast<int>(ev.size()) == nt, "structural: " + std::to_string(ev.size()) +
                                                      " eigenstrains for " + std::to_string(nt) +
                                                      " tets");
   if (!m.failure.empty()) throw Error(m.failure);
-  // f = sum_e V_e B_e^T D eps*_e; D eps* = K_b e_v (1,1,1,0,0,0), so node i of the tet
-  // gets V_e K_b e_v grad N_i; 0 on the held dofs (their rows of A are the identity)
-  m.rhs.setZero(m.numDofs());
-  for (int t = 0; t < nt; ++t) {
-    if (!m.alive[t] || ev[t] == 0) continue;
-    ESIM_VERIFY(std::isfinite(ev[t]),
+  for (int t = 0; t < nt; ++t)
+    ESIM_VERIFY(!m.alive[t] || std::isfinite(ev[t]),
                 "structural: eigenstrain of tet " + std::to_string(t) + " is not finite");
-    const double s = m.geo[t].volume * m.bulkModulusPa * ev[t];
-    for (int i = 0; i < 4; ++i)
-      for (int a = 0; a < 3; ++a) {
-        const int dof = 3 * m.tets[t][i] + a;
-        if (!m.held[dof]) m.rhs(dof) += s * m.geo[t].grad(i, a);
-      }
-  }
-  m.u.setZero();
-  if (m.numFree > 0) {
-    cholmod_dense b{};
-    b.nrow = m.numDofs();
-    b.ncol = 1;
-    b.nzmax = b.nrow;
-    b.d = b.nrow;
-    b.x = m.rhs.data();
-    b.xtype = CHOLMOD_REAL;
-    b.dtype = CHOLMOD_DOUBLE;
-    openblas_set_num_threads(1);
-    const int ok =
-        cholmod_solve2(CHOLMOD_A, m.factor, &b, nullptr, &m.x, nullptr, &m.y, &m.e, &m.common);
-    ESIM_RUN_CHECK(ok, "structural: CHOLMOD solve failed (out of memory?)");
-    const double* x = static_cast<const double*>(m.x->x);
-    for (int dof = 0; dof < m.numDofs(); ++dof)
-      if (!m.held[dof]) m.u(dof) = x[dof];
-  }
-  // sigma = D B u_e - K_b e_v (1, 1, 1, 0, 0, 0)
-  for (int t = 0; t < nt; ++t) {
-    if (!m.alive[t]) {
-      m.stress[t] = VoigtStress{};
-      m.vonMisesPa[t] = 0;
-      continue;
-    }
-    Eigen::Matrix<double, 12, 1> ue;
-    for (int i = 0; i < 4; ++i) ue.segment<3>(3 * i) = m.u.segment<3>(3 * m.tets[t][i]);
-    // B_e rebuilt from the stored gradients: keeping D B_e per tet would cost 576 bytes
-    // a tet (92 MB for the liver's 161k tets, twice during a background rebuild)
-    const Eigen::Matrix<double, 6, 1> s = m.d * (strainMatrix(m.geo[t]) * ue);
-    const double p = m.bulkModulusPa * ev[t];
-    m.stress[t] = {s(0) - p, s(1) - p, s(2) - p, s(3), s(4), s(5)};
-    m.vonMisesPa[t] = vonMises(m.stress[t]);
+  m.lastSolve = StructuralSolveStats{};
+  if (!(m.method == StructuralSolveMethod::local && m.localSolve(ev))) m.fullSolve(ev);
+  m.lastSolve.seconds = secondsSince(t0);
+}
+
+void StructuralPhase::setSolveMethod(StructuralSolveMethod method, const LocalSolveOptions& local) {
+  Impl& m = *impl_;
+  verifyLocalOptions(local);
+  m.method = method;
+  m.local = local;
+  m.dropRegion();
+  if (method == StructuralSolveMethod::full) {  // the reference is not kept up to date
+    m.hasReference = false;
+    m.refElastic = {};
+    m.refEv = {};
   }
 }
+
+const StructuralSolveStats& StructuralPhase::lastSolveStats() const { return impl_->lastSolve; }
 
 const Eigen::VectorXd& StructuralPhase::displacementM() const { return impl_->u; }
 const std::vector<VoigtStress>& StructuralPhase::stressPa() const { return impl_->stress; }

@@ -8,8 +8,9 @@
 //   K u = f,   K = sum_e V_e B_e^T D B_e,   f = sum_e V_e B_e^T D eps*_e,
 // with listed displacement components (Support) held at 0. The phase factorizes (CHOLMOD)
 //   A = K on the free components, the identity on the held ones   (3n x 3n, all components)
-// once at construction (supernodal LL'); every solve() is a right-hand side (0 on the held
-// components) and two triangular solves.
+// once at construction (supernodal LL'); every full solve() is a right-hand side (0 on the
+// held components) and two triangular solves (a local one, see LocalSolveOptions, a
+// correction on a region around the changed load).
 // Removed tets (alive == 0) contribute nothing; a node left without an alive tet is
 // held at 0, and so is every node of a floating island (a rigid piece: alive tets
 // connected through shared faces, whose own supports leave a rigid motion free: cut
@@ -89,6 +90,49 @@ double waterDensityKg_m3(double temperatureC);
 double volumetricExpansion(const ExpansionParams& params, double temperatureC,
                            double vaporFraction);
 
+// ---- how solve() finds the displacement ----
+enum class StructuralSolveMethod {
+  full,   // K u = f over the whole body with the factor of A (the default)
+  local,  // a correction of the last full solve on a region around the changed load
+};
+
+// The local solve. The phase keeps a reference, (e_ref, u_ref): the load and displacement
+// of its last full solve. For a load e_v it solves only on U, the free components of the
+// nodes within marginM of the box around the tets whose load changed since,
+//   K_UU d_U = r_U,   r = f(e_v) - K u_ref = -sum_e V_e B_e^T sigma_e(u_ref, e_v),
+//   u = u_ref + d   (d = 0 outside U),
+// the Galerkin solution with u held at u_ref outside U: exact when U holds every free
+// component; its energy-norm error never grows when U grows (nested spaces); it is the
+// far-field response to the load change that it drops, which decays with distance (a
+// clamped slab: within a few thicknesses). The box: the alive tets whose |e_v - e_ref|
+// exceeds loadTolerance times the largest change, the removed tets and the nodes whose
+// reference changed (held at 0) since the full solve. The region (U, the tets that touch it,
+// and CHOLMOD's factor of K_UU) is built around that box grown by slackM, and reused while
+// the box stays inside (a moving load pays a region factorization every slackM of travel);
+// removeTets drops it (K changed). A full solve (the new reference) is done instead at the
+// first solve, every refreshEvery solves, and when U would hold more than
+// maxRegionFraction of the free components. Stress of the tets outside the region:
+// D B u_ref - K_b e_v (their elastic part kept per tet, 48 bytes a tet).
+struct LocalSolveOptions {
+  double marginM = 0.01;           // the region: nodes within this of the box [m]
+  double slackM = 0.005;           // the box grown by this when a region is built [m]
+  double loadTolerance = 1e-3;     // tets whose change exceeds this times the largest span
+                                   // the box (in [0, 1))
+  int refreshEvery = 30;           // a full solve at least every this many solves (0: never
+                                   // but the first, and regions too large)
+  double maxRegionFraction = 0.5;  // more of the free components than this: a full solve
+};
+
+// what the last solve() did
+struct StructuralSolveStats {
+  bool local = false;              // a local solve (else a full one, the new reference)
+  bool regionBuilt = false;        // ... that built and factorized a region
+  int regionDofs = 0;              // unknowns of the local solve (0: no load change)
+  int regionTets = 0;              // tets whose stress the correction changes
+  double regionFactorSeconds = 0;  // assembly and factorization of K_UU
+  double seconds = 0;              // wall time of the call
+};
+
 // ---- the phase ----
 struct StructuralOptions {
   double youngsModulusPa = 4.75e4;  // E (paper Table 1)
@@ -102,6 +146,8 @@ struct StructuralOptions {
   // that removes tets in its frame loop pays the conversion at set-up (solves are then ~1.3x
   // slower from the start; results equal to round-off)
   bool prepareForUpdates = false;
+  StructuralSolveMethod solveMethod = StructuralSolveMethod::full;  // see LocalSolveOptions
+  LocalSolveOptions local;
 };
 
 // what one removeTets call did
@@ -142,9 +188,15 @@ class StructuralPhase {
   StructuralPhase& operator=(const StructuralPhase&) = delete;
 
   // displacement and stresses for one volumetric eigenstrain per tet (numTets()
-  // entries, removed tets ignored); throws esim::Error on a size mismatch or NaN, or
-  // after a removal that left no piece held
+  // entries, removed tets ignored), by the solve method (full, or local: see
+  // LocalSolveOptions); throws esim::Error on a size mismatch or NaN, or after a removal
+  // that left no piece held
   void solve(const std::vector<double>& volumetricEigenstrain);
+
+  // changes the solve method and its options (validated as the constructor does); the
+  // reference of a local solve is kept, its region dropped
+  void setSolveMethod(StructuralSolveMethod method, const LocalSolveOptions& local);
+  const StructuralSolveStats& lastSolveStats() const;  // of the last solve()
 
   // Removes tets (mesh tet ids; ids already removed and repeats are skipped) and updates
   // the factor (see the header comment): afterwards the phase is the one a constructor

@@ -2,7 +2,9 @@
 // ../shared/REFERENCE.md (case 7), exact for P1 on any mesh: clamped body
 // (hydrostatic), laterally constrained layer, free expansion (no stress); plus removed
 // tets, linearity and bad input; removeTets against a phase built afresh on the same alive
-// set (updates, orphaned nodes, pieces cut loose or hanging by an edge, the fallback).
+// set (updates, orphaned nodes, pieces cut loose or hanging by an edge, the fallback);
+// the local solve against the full one (exact on the whole mesh, an energy error that
+// does not grow with the region, after removals, the refresh schedule).
 #include "sim/structural.h"
 
 #include <gtest/gtest.h>
@@ -13,6 +15,7 @@
 #include <string>
 
 #include "sim/core_error.h"
+#include "sim/fem_p1.h"
 #include "sim/mesh_slab.h"
 
 namespace esim {
@@ -569,6 +572,190 @@ TEST(StructuralRemoval, RejectsBadIds) {
   // nothing was removed: tet 0 still is
   EXPECT_EQ(phase.removeTets({0}).tetsRemoved, 1);
   EXPECT_EQ(phase.removeTets({0}).tetsRemoved, 0);
+}
+
+// ---- the local solve ----
+
+// a load of compact support: kEv (1 - d^2 / R^2) within R of centre, 0 elsewhere
+std::vector<double> bumpLoad(const TetMesh& mesh, const Vec3& centre, double radius) {
+  std::vector<double> ev(mesh.numTets(), 0.0);
+  for (int t = 0; t < mesh.numTets(); ++t) {
+    Vec3 c = Vec3::Zero();
+    for (int v : mesh.tets[t]) c += mesh.nodes[v] / 4;
+    const double q = (c - centre).squaredNorm() / (radius * radius);
+    if (q < 1) ev[t] = kEv * (1 - q);
+  }
+  return ev;
+}
+
+LocalSolveOptions wholeMesh() {
+  LocalSolveOptions o;
+  o.marginM = 1;  // 1 m: every node of the 20 mm slab
+  o.maxRegionFraction = 1;
+  o.refreshEvery = 0;
+  return o;
+}
+
+StructuralOptions localPaper(const LocalSolveOptions& local) {
+  StructuralOptions o = alwaysUpdate();
+  o.solveMethod = StructuralSolveMethod::local;
+  o.local = local;
+  return o;
+}
+
+// energy norm of the error, sum_e V_e (s - s*)' D^-1 (s - s*), from the stresses (the load
+// is the same, so s - s* = D B (u - u*))
+double energyError(const TetMesh& mesh, const StructuralPhase& phase,
+                   const StructuralPhase& exact) {
+  const double lambda = kE * kNu / ((1 + kNu) * (1 - 2 * kNu)), mu = kE / (2 * (1 + kNu));
+  Eigen::Matrix<double, 6, 6> d = Eigen::Matrix<double, 6, 6>::Zero();
+  d.topLeftCorner<3, 3>().setConstant(lambda);
+  for (int i = 0; i < 3; ++i) {
+    d(i, i) = lambda + 2 * mu;
+    d(3 + i, 3 + i) = mu;
+  }
+  const Eigen::Matrix<double, 6, 6> compliance = d.inverse();
+  const std::vector<TetGeometry> geo = tetGeometry(mesh);
+  double sum = 0;
+  for (int t = 0; t < mesh.numTets(); ++t) {
+    Eigen::Matrix<double, 6, 1> e;
+    for (int k = 0; k < 6; ++k) e(k) = phase.stressPa()[t][k] - exact.stressPa()[t][k];
+    sum += geo[t].volume * e.dot(compliance * e);
+  }
+  return std::sqrt(sum);
+}
+
+TEST(StructuralLocal, WholeMeshRegionEqualsTheFullSolve) {
+  const TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralPhase local(mesh, localPaper(wholeMesh()), clamp);
+  StructuralPhase full(mesh, paper(), clamp);
+  local.solve(bumpLoad(mesh, Vec3(-0.004, 0, kLz), 0.004));  // the reference
+  EXPECT_FALSE(local.lastSolveStats().local);
+  for (const std::vector<double>& ev :
+       {bumpLoad(mesh, Vec3(0.004, 0.002, kLz), 0.004), unevenLoad(mesh)}) {
+    local.solve(ev);
+    full.solve(ev);
+    const StructuralSolveStats& st = local.lastSolveStats();
+    EXPECT_TRUE(st.local);
+    EXPECT_EQ(st.regionDofs, full.numFreeDofs());
+    EXPECT_LT(relativeDifference(local.displacementM(), full.displacementM()), 1e-9);
+    EXPECT_LT(relativeDifference(asVector(local.vonMisesPa()), asVector(full.vonMisesPa())), 1e-9);
+  }
+  EXPECT_FALSE(local.lastSolveStats().regionBuilt);  // the second reused the region
+}
+
+TEST(StructuralLocal, ErrorDoesNotGrowWithTheRegion) {
+  const TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  LocalSolveOptions o;
+  o.slackM = 0;
+  o.loadTolerance = 0;
+  o.refreshEvery = 0;
+  o.maxRegionFraction = 1;
+  StructuralPhase local(mesh, localPaper(o), clamp);
+  StructuralPhase full(mesh, paper(), clamp);
+  local.solve(bumpLoad(mesh, Vec3(-0.005, 0, kLz), 0.003));  // the reference
+  const std::vector<double> moved = bumpLoad(mesh, Vec3(-0.002, 0.001, kLz), 0.003);
+  full.solve(moved);
+  std::vector<double> errors;
+  std::vector<int> dofs;
+  for (double margin : {0.0, 0.002, 0.004, 0.006, 0.009, 0.013, 0.02, 1.0}) {
+    o.marginM = margin;
+    local.setSolveMethod(StructuralSolveMethod::local, o);
+    local.solve(moved);
+    ASSERT_TRUE(local.lastSolveStats().local);
+    errors.push_back(energyError(mesh, local, full));
+    dofs.push_back(local.lastSolveStats().regionDofs);
+  }
+  const double scale = energyError(mesh, full, StructuralPhase(mesh, paper(), clamp));
+  for (size_t k = 1; k < errors.size(); ++k) {
+    SCOPED_TRACE("margin " + std::to_string(k));
+    EXPECT_GE(dofs[k], dofs[k - 1]);
+    EXPECT_LE(errors[k], errors[k - 1] * (1 + 1e-9) + 1e-12 * scale);
+  }
+  EXPECT_GT(errors.front(), 10 * errors[errors.size() - 3]);  // it does shrink
+  EXPECT_LT(errors.back(), 1e-9 * scale);                     // the whole mesh: exact
+}
+
+TEST(StructuralLocal, WorksAfterRemoveTets) {
+  TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralPhase local(mesh, localPaper(wholeMesh()), clamp);
+  local.solve(unevenLoad(mesh));  // the reference, before the removals
+  std::vector<int> top;
+  for (int t = 0; t < mesh.numTets(); ++t)
+    if (centroidZ(mesh, t) > 0.75 * kLz && t % 4 == 0) top.push_back(t);
+  removeBoth(local, mesh, {top[0], top[1], top[2], top[3], top[4]});
+  expectSameAsFresh(local, mesh, clamp, "5 tets, whole mesh");
+  EXPECT_TRUE(local.lastSolveStats().local);
+  EXPECT_TRUE(local.lastSolveStats().regionBuilt);  // the removal dropped the region
+  // an orphaned node (held since the reference: u_ref set to 0 there)
+  int orphan = -1;
+  for (int v = 0; v < mesh.numNodes() && orphan < 0; ++v) {
+    std::vector<int> ts;
+    for (int t = 0; t < mesh.numTets(); ++t)
+      if (mesh.alive[t] && std::count(mesh.tets[t].begin(), mesh.tets[t].end(), v) > 0)
+        ts.push_back(t);
+    if (!ts.empty() && ts.size() <= 3 && mesh.nodes[v].z() > kLz / 2) {
+      orphan = v;
+      removeBoth(local, mesh, ts);
+    }
+  }
+  ASSERT_GE(orphan, 0);
+  expectSameAsFresh(local, mesh, clamp, "orphaned node, whole mesh");
+  EXPECT_EQ(local.displacementM().segment<3>(3 * orphan).norm(), 0.0);
+  // a region around new removals: much closer to a fresh build than the reference was
+  LocalSolveOptions near;
+  near.marginM = 0.004;
+  near.slackM = 0;
+  near.refreshEvery = 0;
+  near.maxRegionFraction = 1;
+  StructuralPhase small(mesh, localPaper(near), clamp);
+  StructuralPhase before(mesh, paper(), clamp);
+  const std::vector<double> ev = bumpLoad(mesh, Vec3(0, 0, kLz), 0.004);
+  small.solve(ev);  // the reference
+  before.solve(ev);
+  EXPECT_FALSE(small.lastSolveStats().local);
+  std::vector<int> more;
+  for (int t = 0; t < mesh.numTets(); ++t)
+    if (mesh.alive[t] && centroidZ(mesh, t) > 0.75 * kLz && t % 4 == 1 && more.size() < 4)
+      more.push_back(t);
+  removeBoth(small, mesh, more);
+  small.solve(ev);
+  EXPECT_TRUE(small.lastSolveStats().local);
+  EXPECT_LT(small.lastSolveStats().regionDofs, small.numFreeDofs());
+  StructuralPhase after(mesh, paper(), clamp);
+  after.solve(ev);
+  const double error = energyError(mesh, small, after), stale = energyError(mesh, before, after);
+  EXPECT_LT(error, 0.2 * stale) << "local " << error << ", reference " << stale;
+}
+
+TEST(StructuralLocal, RefreshScheduleAndUnchangedLoad) {
+  const TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  LocalSolveOptions o;
+  o.refreshEvery = 3;
+  o.maxRegionFraction = 1;
+  StructuralPhase local(mesh, localPaper(o), clamp);
+  std::vector<bool> wasLocal;
+  for (int k = 0; k < 7; ++k) {
+    local.solve(bumpLoad(mesh, Vec3(-0.006 + 0.002 * k, 0, kLz), 0.003));
+    wasLocal.push_back(local.lastSolveStats().local);
+  }
+  EXPECT_EQ(wasLocal, (std::vector<bool>{false, true, true, false, true, true, false}));
+  // the same load again: nothing to solve, the outputs stay
+  const std::vector<double> vm = local.vonMisesPa();
+  local.solve(bumpLoad(mesh, Vec3(0.006, 0, kLz), 0.003));
+  EXPECT_TRUE(local.lastSolveStats().local);
+  EXPECT_EQ(local.lastSolveStats().regionDofs, 0);
+  EXPECT_LT(relativeDifference(asVector(local.vonMisesPa()), asVector(vm)), 1e-12);
+  // bad options
+  o.marginM = -1;
+  EXPECT_THROW(local.setSolveMethod(StructuralSolveMethod::local, o), Error);
+  o.marginM = 0.01;
+  o.maxRegionFraction = 0;
+  EXPECT_THROW({ StructuralPhase bad(mesh, localPaper(o), clamp); }, Error);
 }
 
 }  // namespace

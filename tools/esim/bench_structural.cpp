@@ -16,6 +16,18 @@
 //    updated factor (median of --solves) and its difference from the rebuilt phase's.
 // 5. Print a table; --csv writes nodes,dofs,factor_ms,solve_ms,rebuild5_ms,update5_ms,
 //    convert_ms,update_refactorized,solve_updated_ms,update_vs_rebuild,max_von_mises_pa.
+// With --local, instead: the local solve (StructuralSolveMethod::local) against the full
+// one, frame by frame, on two loads scaled so that the peak von Mises is --overload times
+// the critical stress (SimulationConfig's default):
+//   growing: the Gaussian under the top centre, its peak ramping from 0.6 to 1 of that;
+//   moving:  the Gaussian's centre moving along x by --step-mm a frame (a cut), from
+//            -frames * step / 2.
+// Per size, a full phase solves every frame (its von Mises is the truth) and one local
+// phase per --margins-mm (its first solve full, the reference; refreshed every
+// --refresh solves); table per scene and margin: solve ms (median, mean, max; region
+// factorizations and full refreshes included), the region's unknowns, max |vm - vm_full|,
+// relative L2 of vm - vm_full over all tets, and the tets on different sides of the
+// critical stress (max over frames; above: the full solve's count at the last frame).
 // A benchmark, never a pass/fail test. BLAS runs on one thread (as in the phase).
 #include <algorithm>
 #include <chrono>
@@ -27,6 +39,7 @@
 
 #include "sim/core_error.h"
 #include "sim/mesh_slab.h"
+#include "sim/simulation.h"
 #include "sim/structural.h"
 #include "tools/app/bench_common.h"
 #include "tools/esim/command.h"
@@ -40,13 +53,157 @@ struct BenchStructuralOptions {
   double peakExpansion = 0.5;
   bool prepareForUpdates = false;
   std::string csv;
+  // --local
+  bool local = false;
+  int frames = 40;
+  double stepMm = 0.5;
+  double overload = 1.5;
+  std::string marginsMm = "5,10,15";
+  double slackMm = LocalSolveOptions{}.slackM * 1e3;
+  int refresh = LocalSolveOptions{}.refreshEvery;
 };
 
 double msSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
+// the slab of `nodes` nodes, clamped at the bottom
+struct BenchSlab {
+  SlabSpec spec;
+  TetMesh mesh;
+  std::vector<Support> clamp;
+  std::vector<Vec3> centroids;
+};
+
+BenchSlab benchSlab(int nodes) {
+  BenchSlab b;
+  b.spec.targetNodes = nodes;
+  b.mesh = makeSlab(b.spec);
+  b.mesh.alive.assign(b.mesh.tets.size(), 1);
+  for (int v = 0; v < b.mesh.numNodes(); ++v)
+    if (b.mesh.nodes[v].z() < 1e-9)
+      for (int a = 0; a < 3; ++a) b.clamp.push_back({v, a});
+  for (const Tet& t : b.mesh.tets) {
+    Vec3 c = Vec3::Zero();
+    for (int v : t) c += 0.25 * b.mesh.nodes[v];
+    b.centroids.push_back(c);
+  }
+  return b;
+}
+
+// peak * exp(-|c - centre|^2 / r^2) per tet, r = 3 mm
+std::vector<double> gaussianLoad(const BenchSlab& b, const Vec3& centre, double peak) {
+  std::vector<double> ev(b.centroids.size());
+  for (size_t t = 0; t < ev.size(); ++t)
+    ev[t] = peak * std::exp(-(b.centroids[t] - centre).squaredNorm() / (0.003 * 0.003));
+  return ev;
+}
+
+struct Timing {
+  double median = 0, mean = 0, max = 0;
+};
+
+Timing timing(std::vector<double> ms) {
+  std::sort(ms.begin(), ms.end());
+  Timing t;
+  t.median = ms[ms.size() / 2];
+  t.max = ms.back();
+  for (double v : ms) t.mean += v / static_cast<double>(ms.size());
+  return t;
+}
+
+int benchLocal(const BenchStructuralOptions& opt) {
+  ESIM_VERIFY(opt.frames >= 2, "--frames must be >= 2");
+  ESIM_VERIFY(opt.overload > 0, "--overload must be > 0");
+  const std::vector<int> sizes = app::parseNodeCounts(opt.sizes, "bench structural");
+  std::vector<double> margins;
+  for (const std::string& m : app::splitList(opt.marginsMm)) margins.push_back(std::stod(m));
+  const double critical = defaultSimulationConfig().criticalStressPa;
+  std::printf(
+      "esim bench structural --local: paper slab, bottom clamped, Gaussian expansion (radius "
+      "3 mm) scaled to a peak von Mises of %.2f x %.0f Pa; %d frames; moving: %.2f mm a frame "
+      "along x; slack %.1f mm, full refresh every %d solves; one BLAS thread\n",
+      opt.overload, critical, opt.frames, opt.stepMm, opt.slackMm, opt.refresh);
+  std::printf("%8s %8s %7s %9s %9s %9s %9s %6s %7s %10s %12s %10s %8s %6s\n", "nodes", "scene",
+              "method", "margin_mm", "med_ms", "mean_ms", "max_ms", "fulls", "builds",
+              "region_dofs", "vm_maxerr_Pa", "vm_rel_l2", "set_diff", "above");
+  for (const int nodes : sizes) {
+    const BenchSlab b = benchSlab(nodes);
+    const double top = b.spec.sizeM.z();
+    StructuralPhase full(b.mesh, StructuralOptions{}, b.clamp);
+    StructuralPhase local(b.mesh, StructuralOptions{}, b.clamp);
+    // the load that brings the peak von Mises to overload x critical (the response is linear)
+    full.solve(gaussianLoad(b, Vec3(0, 0, top), 1.0));
+    const double unitPeak = *std::max_element(full.vonMisesPa().begin(), full.vonMisesPa().end());
+    const double peak = opt.overload * critical / unitPeak;
+    for (const char* scene : {"growing", "moving"}) {
+      const bool moving = std::string(scene) == "moving";
+      auto loadAt = [&](int k) {
+        if (moving)
+          return gaussianLoad(b, Vec3(1e-3 * opt.stepMm * (k - opt.frames / 2.0), 0, top), peak);
+        return gaussianLoad(b, Vec3(0, 0, top), peak * (0.6 + 0.4 * k / (opt.frames - 1.0)));
+      };
+      // the truth: a full solve every frame
+      std::vector<std::vector<double>> truth;
+      std::vector<double> fullMs;
+      for (int k = 0; k < opt.frames; ++k) {
+        const std::vector<double> ev = loadAt(k);
+        const auto t0 = std::chrono::steady_clock::now();
+        full.solve(ev);
+        fullMs.push_back(msSince(t0));
+        truth.push_back(full.vonMisesPa());
+      }
+      int above = 0;
+      for (double vm : truth.back()) above += vm >= critical;
+      const Timing ft = timing(fullMs);
+      std::printf("%8d %8s %7s %9s %9.2f %9.2f %9.2f %6d %7d %10d %12s %10s %8s %6d\n",
+                  b.mesh.numNodes(), scene, "full", "-", ft.median, ft.mean, ft.max, opt.frames, 0,
+                  full.numFreeDofs(), "-", "-", "-", above);
+      std::fflush(stdout);
+      for (double marginMm : margins) {
+        LocalSolveOptions lo;
+        lo.marginM = 1e-3 * marginMm;
+        lo.slackM = 1e-3 * opt.slackMm;
+        lo.refreshEvery = opt.refresh;
+        local.setSolveMethod(StructuralSolveMethod::full, lo);  // drops the reference
+        local.setSolveMethod(StructuralSolveMethod::local, lo);
+        std::vector<double> ms;
+        int fulls = 0, builds = 0, regionDofs = 0, setDiff = 0;
+        double maxErr = 0, relL2 = 0;
+        for (int k = 0; k < opt.frames; ++k) {
+          const std::vector<double> ev = loadAt(k);
+          const auto t0 = std::chrono::steady_clock::now();
+          local.solve(ev);
+          ms.push_back(msSince(t0));
+          const StructuralSolveStats& st = local.lastSolveStats();
+          fulls += !st.local;
+          builds += st.regionBuilt;
+          regionDofs = std::max(regionDofs, st.regionDofs);
+          double err2 = 0, norm2 = 0;
+          int diff = 0;
+          for (size_t t = 0; t < truth[k].size(); ++t) {
+            const double want = truth[k][t], got = local.vonMisesPa()[t];
+            maxErr = std::max(maxErr, std::abs(got - want));
+            err2 += (got - want) * (got - want);
+            norm2 += want * want;
+            diff += (got >= critical) != (want >= critical);
+          }
+          relL2 = std::max(relL2, std::sqrt(err2 / norm2));
+          setDiff = std::max(setDiff, diff);
+        }
+        const Timing lt = timing(ms);
+        std::printf("%8d %8s %7s %9.1f %9.2f %9.2f %9.2f %6d %7d %10d %12.1f %10.1e %8d %6d\n",
+                    b.mesh.numNodes(), scene, "local", marginMm, lt.median, lt.mean, lt.max, fulls,
+                    builds, regionDofs, maxErr, relL2, setDiff, above);
+        std::fflush(stdout);
+      }
+    }
+  }
+  return cli::kExitOk;
+}
+
 int benchStructural(const BenchStructuralOptions& opt) {
+  if (opt.local) return benchLocal(opt);
   ESIM_VERIFY(opt.solves >= 1, "--solves must be >= 1");
   const std::vector<int> sizes = app::parseNodeCounts(opt.sizes, "bench structural");
   std::unique_ptr<std::ofstream> csv;
@@ -155,6 +312,22 @@ cli::Registrar registerBenchStructural(
       app.add_flag("--prepare-for-updates", opt->prepareForUpdates,
                    "StructuralOptions::prepareForUpdates for the phase of steps 1, 2 and 4 (the "
                    "factor converted to LDL' at construction: update5_ms is the steady state)");
+      app.add_flag("--local", opt->local,
+                   "instead: the local solve against the full one on a growing and a moving "
+                   "load (errors of von Mises, tets on the other side of the critical stress)");
+      app.add_option("--frames", opt->frames, "--local: frames per scene")->capture_default_str();
+      app.add_option("--step-mm", opt->stepMm, "--local: the moving load's step a frame [mm]")
+          ->capture_default_str();
+      app.add_option("--overload", opt->overload,
+                     "--local: the load's peak von Mises over the critical stress")
+          ->capture_default_str();
+      app.add_option("--margins-mm", opt->marginsMm,
+                     "--local: LocalSolveOptions::marginM values [mm], comma separated")
+          ->capture_default_str();
+      app.add_option("--slack-mm", opt->slackMm, "--local: LocalSolveOptions::slackM [mm]")
+          ->capture_default_str();
+      app.add_option("--refresh", opt->refresh, "--local: LocalSolveOptions::refreshEvery")
+          ->capture_default_str();
       app.add_option("--csv", opt->csv,
                      "write nodes,dofs,factor_ms,solve_ms,rebuild5_ms,update5_ms,convert_ms,"
                      "update_refactorized,solve_updated_ms,update_vs_rebuild,max_von_mises_pa "
