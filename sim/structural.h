@@ -42,10 +42,12 @@
 // Ownership: the phase copies the nodes, tets and alive flags it needs; the mesh may go
 // away, and removeTets does not touch it (the caller keeps its alive flags in step).
 // Threads: a phase is not thread-safe: solve() and removeTets() on one phase must not
-// overlap; distinct phases are independent (each owns its CHOLMOD workspace). CHOLMOD runs
-// with one OpenBLAS thread (set before each factorization and solve): on 2 shared cores
-// more threads only spin (measured: simulation_test's background rebuild test went from
-// 6.1 s to 0.7 s), and results do not depend on the thread count.
+// overlap; distinct phases are independent (each owns its CHOLMOD workspace). With
+// LocalSolveOptions::refreshOnThread the phase runs full solves on a thread of its own (its
+// own CHOLMOD workspace, reading the factor, which only removeTets changes after joining it).
+// CHOLMOD runs with one OpenBLAS thread (set before each factorization and solve): on 2 shared
+// cores more threads only spin (measured: simulation_test's background rebuild test went from 6.1 s
+// to 0.7 s), and results do not depend on the thread count.
 #pragma once
 
 #include <Eigen/Core>
@@ -121,6 +123,12 @@ struct LocalSolveOptions {
   int refreshEvery = 30;           // a full solve at least every this many solves (0: never
                                    // but the first, and regions too large)
   double maxRegionFraction = 0.5;  // more of the free components than this: a full solve
+  // the refresh on a thread of the phase instead of in the frame: every refreshEvery-th
+  // solve starts a full solve of its load on the thread, adopted as the reference (joined,
+  // waiting if unfinished) refreshEvery solves later, when the next one starts; so the
+  // reference is refreshEvery to 2 refreshEvery - 1 solves old, and the results do not
+  // depend on the thread's timing. removeTets and setSolveMethod join it first.
+  bool refreshOnThread = false;
 };
 
 // what the last solve() did
@@ -130,7 +138,9 @@ struct StructuralSolveStats {
   int regionDofs = 0;              // unknowns of the local solve (0: no load change)
   int regionTets = 0;              // tets whose stress the correction changes
   double regionFactorSeconds = 0;  // assembly and factorization of K_UU
-  double seconds = 0;              // wall time of the call
+  bool refreshAdopted = false;     // refreshOnThread: a refresh became the reference ...
+  bool refreshStarted = false;     // ... a refresh of this load started
+  double seconds = 0;              // wall time of the call (waits for the thread included)
 };
 
 // ---- the phase ----

@@ -731,6 +731,53 @@ TEST(StructuralLocal, WorksAfterRemoveTets) {
   EXPECT_LT(error, 0.2 * stale) << "local " << error << ", reference " << stale;
 }
 
+TEST(StructuralLocal, RefreshOnThreadIsScheduledAndDeterministic) {
+  TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  LocalSolveOptions o;
+  o.marginM = 0.004;
+  o.slackM = 0.001;
+  o.refreshEvery = 2;
+  o.refreshOnThread = true;
+  o.maxRegionFraction = 1;
+  StructuralPhase a(mesh, localPaper(o), clamp), b(mesh, localPaper(o), clamp);
+  StructuralPhase full(mesh, paper(), clamp);
+  std::vector<std::vector<double>> loads;
+  for (int k = 0; k < 8; ++k)
+    loads.push_back(bumpLoad(mesh, Vec3(-0.006 + 0.0015 * k, 0, kLz), 0.003));
+  loads[3] = loads[1];  // adopted at solve 3: the refresh of solve 1's load, exact
+  std::vector<int> started, adopted;
+  for (int k = 0; k < 8; ++k) {
+    a.solve(loads[k]);
+    b.solve(loads[k]);
+    const StructuralSolveStats& st = a.lastSolveStats();
+    EXPECT_EQ(st.local, k > 0);
+    if (st.refreshStarted) started.push_back(k);
+    if (st.refreshAdopted) adopted.push_back(k);
+    EXPECT_EQ(asVector(a.vonMisesPa()), asVector(b.vonMisesPa())) << "solve " << k;
+    if (k == 3) {
+      full.solve(loads[3]);
+      EXPECT_EQ(st.regionDofs, 0);
+      EXPECT_LT(relativeDifference(asVector(a.vonMisesPa()), asVector(full.vonMisesPa())), 1e-12);
+    }
+  }
+  EXPECT_EQ(started, (std::vector<int>{1, 3, 5, 7}));
+  EXPECT_EQ(adopted, (std::vector<int>{3, 5, 7}));
+  // a removal while a refresh runs joins and adopts it; the whole mesh is then exact
+  LocalSolveOptions whole = wholeMesh();
+  whole.refreshEvery = 5;
+  whole.refreshOnThread = true;
+  a.setSolveMethod(StructuralSolveMethod::local, whole);
+  a.solve(loads[0]);
+  EXPECT_TRUE(a.lastSolveStats().refreshStarted);
+  std::vector<int> top;
+  for (int t = 0; t < mesh.numTets(); ++t)
+    if (centroidZ(mesh, t) > 0.75 * kLz && t % 6 == 0 && top.size() < 5) top.push_back(t);
+  removeBoth(a, mesh, top);
+  expectSameAsFresh(a, mesh, clamp, "after a removal during a refresh");
+  EXPECT_TRUE(a.lastSolveStats().local);
+}
+
 TEST(StructuralLocal, RefreshScheduleAndUnchangedLoad) {
   const TetMesh mesh = biggerSlab();
   const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});

@@ -61,6 +61,7 @@ struct BenchStructuralOptions {
   std::string marginsMm = "5,10,15";
   double slackMm = LocalSolveOptions{}.slackM * 1e3;
   int refresh = LocalSolveOptions{}.refreshEvery;
+  bool refreshOnThread = false;
 };
 
 double msSince(std::chrono::steady_clock::time_point t0) {
@@ -122,8 +123,9 @@ int benchLocal(const BenchStructuralOptions& opt) {
   std::printf(
       "esim bench structural --local: paper slab, bottom clamped, Gaussian expansion (radius "
       "3 mm) scaled to a peak von Mises of %.2f x %.0f Pa; %d frames; moving: %.2f mm a frame "
-      "along x; slack %.1f mm, full refresh every %d solves; one BLAS thread\n",
-      opt.overload, critical, opt.frames, opt.stepMm, opt.slackMm, opt.refresh);
+      "along x; slack %.1f mm, full refresh every %d solves%s; one BLAS thread\n",
+      opt.overload, critical, opt.frames, opt.stepMm, opt.slackMm, opt.refresh,
+      opt.refreshOnThread ? " on a thread (fulls: the frame's own)" : "");
   std::printf("%8s %8s %7s %9s %9s %9s %9s %6s %7s %10s %12s %10s %8s %6s\n", "nodes", "scene",
               "method", "margin_mm", "med_ms", "mean_ms", "max_ms", "fulls", "builds",
               "region_dofs", "vm_maxerr_Pa", "vm_rel_l2", "set_diff", "above");
@@ -165,6 +167,7 @@ int benchLocal(const BenchStructuralOptions& opt) {
         lo.marginM = 1e-3 * marginMm;
         lo.slackM = 1e-3 * opt.slackMm;
         lo.refreshEvery = opt.refresh;
+        lo.refreshOnThread = opt.refreshOnThread;
         local.setSolveMethod(StructuralSolveMethod::full, lo);  // drops the reference
         local.setSolveMethod(StructuralSolveMethod::local, lo);
         std::vector<double> ms;
@@ -328,6 +331,8 @@ cli::Registrar registerBenchStructural(
           ->capture_default_str();
       app.add_option("--refresh", opt->refresh, "--local: LocalSolveOptions::refreshEvery")
           ->capture_default_str();
+      app.add_flag("--refresh-on-thread", opt->refreshOnThread,
+                   "--local: LocalSolveOptions::refreshOnThread");
       app.add_option("--csv", opt->csv,
                      "write nodes,dofs,factor_ms,solve_ms,rebuild5_ms,update5_ms,convert_ms,"
                      "update_refactorized,solve_updated_ms,update_vs_rebuild,max_von_mises_pa "
