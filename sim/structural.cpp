@@ -693,6 +693,8 @@ void StructuralPhase::Impl::finishRefresh(bool adopt) {
   refEv.swap(refresh.ev);
   refU.swap(refresh.u);
   refElastic.swap(refresh.elastic);
+  u = refU;  // outside the region too
+  appliedDofs.clear();
   changedNodes.clear();  // removeTets joins first: the refresh saw the current A
   localSinceFull = 0;
 }

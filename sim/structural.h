@@ -99,22 +99,26 @@ enum class StructuralSolveMethod {
 };
 
 // The local solve. The phase keeps a reference, (e_ref, u_ref): the load and displacement
-// of its last full solve. For a load e_v it solves only on U, the free components of the
-// nodes within marginM of the box around the tets whose load changed since,
+// of its last full solve (or adopted refresh, see refreshOnThread). For a load e_v it
+// solves only on U, the free components of the nodes within marginM of the box around the
+// tets whose load changed since,
 //   K_UU d_U = r_U,   r = f(e_v) - K u_ref = -sum_e V_e B_e^T sigma_e(u_ref, e_v),
 //   u = u_ref + d   (d = 0 outside U),
-// the Galerkin solution with u held at u_ref outside U: exact when U holds every free
-// component; its energy-norm error never grows when U grows (nested spaces); it is the
-// far-field response to the load change that it drops, which decays with distance (a
-// clamped slab: within a few thicknesses). The box: the alive tets whose |e_v - e_ref|
-// exceeds loadTolerance times the largest change, the removed tets and the nodes whose
-// reference changed (held at 0) since the full solve. The region (U, the tets that touch it,
-// and CHOLMOD's factor of K_UU) is built around that box grown by slackM, and reused while
-// the box stays inside (a moving load pays a region factorization every slackM of travel);
-// removeTets drops it (K changed). A full solve (the new reference) is done instead at the
-// first solve, every refreshEvery solves, and when U would hold more than
-// maxRegionFraction of the free components. Stress of the tets outside the region:
-// D B u_ref - K_b e_v (their elastic part kept per tet, 48 bytes a tet).
+// the Galerkin solution with u held at u_ref outside U: exact (to round-off) when U holds
+// every free component; its energy-norm error never grows when U grows (nested spaces).
+// What it drops is the response outside U to the load change since the reference, which
+// decays slowly on the clamped slab (see the measurements below): the error grows with
+// that change, so keep the reference fresh (refreshEvery) rather than the margin wide.
+// The box: the alive tets whose |e_v - e_ref| exceeds loadTolerance times the largest
+// change, the removed tets and the nodes held (u_ref set to 0) since the reference. The
+// region (U, the alive tets touching it, CHOLMOD's factor of K_UU, ordered as the whole
+// factor) is built around that box grown by slackM, and reused while the box stays inside
+// it (a moving load pays a region factorization every slackM or so of travel); removeTets
+// drops it (K changed). A full solve (the new reference) is done instead at the first
+// solve, after setSolveMethod(full, ...), every refreshEvery solves (unless
+// refreshOnThread), and when U would hold more than maxRegionFraction of the free
+// components. The stress of a tet outside U's tets is D B_e u_ref - K_b e_v: its elastic
+// part is kept per tet (48 bytes a tet; twice with refreshOnThread).
 struct LocalSolveOptions {
   double marginM = 0.01;           // the region: nodes within this of the box [m]
   double slackM = 0.005;           // the box grown by this when a region is built [m]
@@ -123,11 +127,12 @@ struct LocalSolveOptions {
   int refreshEvery = 30;           // a full solve at least every this many solves (0: never
                                    // but the first, and regions too large)
   double maxRegionFraction = 0.5;  // more of the free components than this: a full solve
-  // the refresh on a thread of the phase instead of in the frame: every refreshEvery-th
-  // solve starts a full solve of its load on the thread, adopted as the reference (joined,
-  // waiting if unfinished) refreshEvery solves later, when the next one starts; so the
-  // reference is refreshEvery to 2 refreshEvery - 1 solves old, and the results do not
-  // depend on the thread's timing. removeTets and setSolveMethod join it first.
+  // the refresh on a thread of the phase instead of in the frame: a local solve starts a
+  // full solve of its load on the thread, adopted as the reference (joined, waiting if
+  // unfinished) at the refreshEvery-th solve after it, which starts the next one; so the
+  // reference is at most 2 refreshEvery - 1 solves old, and the results do not depend on
+  // the thread's timing. removeTets joins and adopts it first; setSolveMethod and a full
+  // solve in the frame join and drop it (refreshEvery 0: no refresh)
   bool refreshOnThread = false;
 };
 

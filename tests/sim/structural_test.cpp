@@ -759,6 +759,7 @@ TEST(StructuralLocal, RefreshOnThreadIsScheduledAndDeterministic) {
       full.solve(loads[3]);
       EXPECT_EQ(st.regionDofs, 0);
       EXPECT_LT(relativeDifference(asVector(a.vonMisesPa()), asVector(full.vonMisesPa())), 1e-12);
+      EXPECT_LT(relativeDifference(a.displacementM(), full.displacementM()), 1e-12);
     }
   }
   EXPECT_EQ(started, (std::vector<int>{1, 3, 5, 7}));
