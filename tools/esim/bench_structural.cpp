@@ -24,8 +24,10 @@
 //            -frames * step / 2.
 // Per size, a full phase solves every frame (its von Mises is the truth) and one local
 // phase per --margins-mm (its first solve full, the reference; refreshed every
-// --refresh solves); table per scene and margin: solve ms (median, mean, max; region
-// factorizations and full refreshes included), the region's unknowns, max |vm - vm_full|,
+// --refresh solves, in the frame or with --refresh-on-thread on the phase's thread); table
+// per scene and margin: solve ms (median, mean, max; region factorizations and full
+// refreshes included), fulls (full solves in the frame), builds (region factorizations),
+// the region's largest count of unknowns, max |vm - vm_full|,
 // relative L2 of vm - vm_full over all tets, and the tets on different sides of the
 // critical stress (max over frames; above: the full solve's count at the last frame).
 // A benchmark, never a pass/fail test. BLAS runs on one thread (as in the phase).
