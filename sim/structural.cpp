@@ -1,14 +1,18 @@
 // structural.cpp - linear thermo-elastic P1 tetrahedra (see structural.h).
 #include "sim/structural.h"
 
-#include <Eigen/CholmodSupport>
+#include <cholmod.h>
+
 #include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 #include <Eigen/SparseCore>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <exception>
 #include <string>
+#include <thread>
 
 #include "sim/core_error.h"
 #include "sim/fem_p1.h"
@@ -18,7 +22,6 @@ extern "C" void openblas_set_num_threads(int num_threads);
 namespace esim {
 namespace {
 
-using Cholesky = Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower>;
 using Mat6 = Eigen::Matrix<double, 6, 6>;
 using Mat6x12 = Eigen::Matrix<double, 6, 12>;
 
@@ -56,17 +59,17 @@ Mat6x12 strainMatrix(const TetGeometry& g) {
 
 // do the held components remove all six rigid motions? (rank of the rigid motions'
 // values at the supports, positions taken about the supports' centroid and scaled)
-bool supportsFixRigidMotions(const TetMesh& mesh, const std::vector<Support>& supports) {
+bool supportsFixRigidMotions(const std::vector<Vec3>& nodes, const std::vector<Support>& supports) {
   if (supports.empty()) return false;
   Vec3 centre = Vec3::Zero();
-  for (const Support& s : supports) centre += mesh.nodes[s.node];
+  for (const Support& s : supports) centre += nodes[s.node];
   centre /= static_cast<double>(supports.size());
   double scale = 0;
-  for (const Support& s : supports) scale = std::max(scale, (mesh.nodes[s.node] - centre).norm());
+  for (const Support& s : supports) scale = std::max(scale, (nodes[s.node] - centre).norm());
   if (scale == 0) scale = 1;
   Mat6 gram = Mat6::Zero();
   for (const Support& s : supports) {
-    const Vec3 p = (mesh.nodes[s.node] - centre) / scale;
+    const Vec3 p = (nodes[s.node] - centre) / scale;
     // component `axis` of the translations e_x, e_y, e_z and the rotations e_k x p
     Eigen::Matrix<double, 6, 1> row = Eigen::Matrix<double, 6, 1>::Zero();
     row(s.axis) = 1;
@@ -75,50 +78,6 @@ bool supportsFixRigidMotions(const TetMesh& mesh, const std::vector<Support>& su
   }
   const Eigen::SelfAdjointEigenSolver<Mat6> eig(gram, Eigen::EigenvaluesOnly);
   return eig.eigenvalues()(0) > 1e-10 * eig.eigenvalues()(5);
-}
-
-// rigid pieces of the alive tets: tets connected through shared faces (a piece joined
-// to another by an edge or a node only can still turn about it); per alive tet its piece
-std::vector<int> alivePieces(const TetMesh& mesh, int& count) {
-  const int nt = mesh.numTets();
-  std::vector<int> parent(nt);
-  for (int t = 0; t < nt; ++t) parent[t] = t;
-  auto find = [&](int i) {
-    while (parent[i] != i) i = parent[i] = parent[parent[i]];
-    return i;
-  };
-  struct Face {
-    std::array<int, 3> key;
-    int tet;
-  };
-  std::vector<Face> faces;
-  faces.reserve(4 * static_cast<size_t>(nt));
-  for (int t = 0; t < nt; ++t) {
-    if (!mesh.isAlive(t)) continue;
-    const Tet& tet = mesh.tets[t];
-    for (int k = 0; k < 4; ++k) {
-      std::array<int, 3> key{tet[(k + 1) % 4], tet[(k + 2) % 4], tet[(k + 3) % 4]};
-      std::sort(key.begin(), key.end());
-      faces.push_back({key, t});
-    }
-  }
-  std::sort(faces.begin(), faces.end(), [](const Face& a, const Face& b) {
-    return a.key < b.key || (a.key == b.key && a.tet < b.tet);
-  });
-  for (size_t f = 1; f < faces.size(); ++f)
-    if (faces[f].key == faces[f - 1].key) {
-      const int a = find(faces[f].tet), b = find(faces[f - 1].tet);
-      if (a != b) parent[std::max(a, b)] = std::min(a, b);
-    }
-  std::vector<int> piece(nt, -1), idOfRoot(nt, -1);
-  count = 0;
-  for (int t = 0; t < nt; ++t) {
-    if (!mesh.isAlive(t)) continue;
-    const int r = find(t);
-    if (idOfRoot[r] < 0) idOfRoot[r] = count++;
-    piece[t] = idOfRoot[r];
-  }
-  return piece;
 }
 
 // steam tables: liquid water density at 20, 40, 60, 80, 100 C [kg/m^3]
@@ -151,21 +110,1127 @@ double vonMises(const VoigtStress& s) {
   return std::sqrt(0.5 * (a * a + b * b + c * c) + 3 * (s[3] * s[3] + s[4] * s[4] + s[5] * s[5]));
 }
 
+// ---- the phase's state ----
+
+namespace {
+
+using Mat12 = Eigen::Matrix<double, 12, 12>;
+using Voigt = Eigen::Matrix<double, 6, 1>;
+
+// a rigid piece: alive tets connected through shared faces
+struct Piece {
+  int tets = 0;               // alive tets in it (0: gone)
+  bool island = false;        // held in place: its own supports leave a rigid motion free
+  std::vector<int> supports;  // ascending indices of the supports on its nodes (not islands)
+};
+
+// per-dof views of a simplicial LDL' factor (columns sorted, diagonal first)
+struct SimplicialView {
+  const int* p;
+  const int* i;
+  const int* nz;
+  const double* x;
+  explicit SimplicialView(const cholmod_factor* f)
+      : p(static_cast<const int*>(f->p)),
+        i(static_cast<const int*>(f->i)),
+        nz(static_cast<const int*>(f->nz)),
+        x(static_cast<const double*>(f->x)) {}
+  int parent(int j) const { return nz[j] > 1 ? i[p[j] + 1] : -1; }  // elimination tree
+  double diagonal(int j) const { return x[p[j]]; }                  // D(j)
+};
+
+const char* const kNoPieceHeld = "structural: no piece of the body is held by the supports";
+
+// a view of the lower triangle of a symmetric Eigen matrix as a CHOLMOD matrix
+cholmod_sparse viewLower(const SparseMatrix& a) {
+  cholmod_sparse s{};
+  s.nrow = a.rows();
+  s.ncol = a.cols();
+  s.nzmax = a.nonZeros();
+  s.p = const_cast<int*>(a.outerIndexPtr());
+  s.i = const_cast<int*>(a.innerIndexPtr());
+  s.x = const_cast<double*>(a.valuePtr());
+  s.stype = -1;
+  s.itype = CHOLMOD_INT;
+  s.xtype = CHOLMOD_REAL;
+  s.dtype = CHOLMOD_DOUBLE;
+  s.sorted = 1;
+  s.packed = 1;
+  return s;
+}
+
+double secondsSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void verifyLocalOptions(const LocalSolveOptions& o) {
+  ESIM_VERIFY(std::isfinite(o.marginM) && o.marginM >= 0,
+              "structural: local.marginM must be >= 0, got " + messageNumber(o.marginM));
+  ESIM_VERIFY(std::isfinite(o.slackM) && o.slackM >= 0,
+              "structural: local.slackM must be >= 0, got " + messageNumber(o.slackM));
+  ESIM_VERIFY(
+      o.loadTolerance >= 0 && o.loadTolerance < 1,
+      "structural: local.loadTolerance must be in [0, 1), got " + messageNumber(o.loadTolerance));
+  ESIM_VERIFY(o.refreshEvery >= 0,
+              "structural: local.refreshEvery must be >= 0, got " + std::to_string(o.refreshEvery));
+  ESIM_VERIFY(o.maxRegionFraction > 0 && o.maxRegionFraction <= 1,
+              "structural: local.maxRegionFraction must be in (0, 1], got " +
+                  messageNumber(o.maxRegionFraction));
+}
+
+}  // namespace
+
 struct StructuralPhase::Impl {
-  std::vector<Tet> tets;            // copied from the mesh: the phase outlives no mesh
-  std::vector<std::uint8_t> alive;  // per tet, 1 alive
+  // ---- model: fixed at construction ----
+  std::vector<Vec3> nodes;  // positions [m] (the supports' rigid-motion test)
+  std::vector<Tet> tets;    // copied from the mesh: the phase outlives no mesh
   std::vector<TetGeometry> geo;
-  Mat6 d;                      // elasticity (Voigt); stress = D (B_e u_e - eps*)
-  std::vector<int> freeIndex;  // dof -> unknown, -1 when held
-  double bulkModulusPa = 0;    // lambda + 2 mu / 3: D eps* = K_b e_v (1, 1, 1, 0, 0, 0)
-  Cholesky factor;
-  Eigen::VectorXd rhs, freeSolution, u;
+  Mat6 d;                    // elasticity (Voigt); stress = D (B_e u_e - eps*)
+  double bulkModulusPa = 0;  // lambda + 2 mu / 3: D eps* = K_b e_v (1, 1, 1, 0, 0, 0)
+  std::vector<Support> supports;
+  Adjacency tetsOfNode;      // every tet, removed or not
+  Adjacency supportsOfNode;  // ascending support indices per node
+  Adjacency faceNeighbours;  // tets sharing a face, removed or not
+  // ---- state: changed by removeTets ----
+  std::vector<std::uint8_t> alive;  // per tet, 1 alive
+  std::vector<int> aliveTetsOfNode;
+  std::vector<std::uint8_t> held;  // per dof: 1 held at 0 (identity row of A)
+  int numFree = 0;
+  std::vector<int> pieceOf;   // per tet, -1 when removed
+  std::vector<Piece> pieces;  // by id; ids are never reused
+  int livePieces = 0, islands = 0;
+  std::string failure;  // set when a removal left no piece held
+  // ---- the factor of A = K on the free dofs, identity on the held ones (3n x 3n) ----
+  cholmod_common common;
+  cholmod_factor* symbolic = nullptr;  // analysis of the first A: every later A fits in it
+  cholmod_factor* factor = nullptr;    // supernodal LL' after a factorization, LDL' once updated
+  std::vector<int> rowOfDof;           // dof -> row of L (inverse of L->Perm)
+  double refactorFlops = 0;            // CHOLMOD's flop count of one factorization
+  double updateCostLimit = 1;          // StructuralOptions::updateCostLimit
+  bool prepareForUpdates = false;      // StructuralOptions::prepareForUpdates
+  cholmod_dense *x = nullptr, *y = nullptr, *e = nullptr;  // solve workspaces
+  Eigen::VectorXd rhs, u;
+  std::vector<int> mark;  // per row of L (etree walks), per tet (piece searches)
+  std::vector<int> tetMark;
+  int stamp = 0;
+  // ---- the local solve (see LocalSolveOptions) ----
+  StructuralSolveMethod method = StructuralSolveMethod::full;
+  LocalSolveOptions local;
+  bool hasReference = false;               // a full solve since local solves were chosen
+  std::vector<double> refEv;               // per tet: e_ref, the load of the last full solve
+  Eigen::VectorXd refU;                    // u_ref [m]
+  std::vector<Voigt> refElastic;           // per tet: D B_e u_ref [Pa]
+  std::vector<int> changedNodes;           // of removed tets, or held since the reference
+  int localSinceFull = 0;                  // local solves since the last full one
+  bool regionValid = false;                // the region below fits the current A
+  Eigen::AlignedBox3d regionBox;           // the box grown by slackM it was built around
+  std::vector<int> regionDofs;             // U: its free dofs, ascending
+  std::vector<int> localOfDof;             // per dof: index in regionDofs, -1 outside
+  std::vector<int> regionTets;             // alive tets with a node in U
+  std::vector<std::uint8_t> inRegion;      // per tet: in regionTets
+  cholmod_factor* regionFactor = nullptr;  // K_UU
+  cholmod_dense *rx = nullptr, *ry = nullptr, *re = nullptr;  // its solve workspaces
+  std::vector<int> appliedDofs;                               // dofs where u holds u_ref + d
+  struct Refresh {                                            // LocalSolveOptions::refreshOnThread
+    std::thread worker;
+    bool running = false;
+    int solvesSinceStart = 0;
+    std::vector<double> ev;  // the load it solves
+    Eigen::VectorXd rhs, u;
+    std::vector<Voigt> elastic;
+    std::exception_ptr error;
+    cholmod_common common;
+    cholmod_dense *x = nullptr, *y = nullptr, *e = nullptr;
+  } refresh;
+  StructuralSolveStats lastSolve;
+  // ---- outputs ----
   std::vector<VoigtStress> stress;
   std::vector<double> vonMisesPa;
   double factorSeconds = 0;
-  int islands = 0;
-  int numFree = 0;
+
+  Impl() {
+    cholmod_start(&common);
+    common.print = 0;
+    common.error_handler = nullptr;
+    common.supernodal = CHOLMOD_SUPERNODAL;  // the fast first factorization (BLAS 3)
+    common.grow2 = 0;                        // downdates never grow a column of L: pack it
+    cholmod_start(&refresh.common);
+    refresh.common.print = 0;
+    refresh.common.error_handler = nullptr;
+  }
+  ~Impl() {
+    if (refresh.worker.joinable()) refresh.worker.join();
+    if (refresh.x) cholmod_free_dense(&refresh.x, &refresh.common);
+    if (refresh.y) cholmod_free_dense(&refresh.y, &refresh.common);
+    if (refresh.e) cholmod_free_dense(&refresh.e, &refresh.common);
+    cholmod_finish(&refresh.common);
+    if (factor) cholmod_free_factor(&factor, &common);
+    if (symbolic) cholmod_free_factor(&symbolic, &common);
+    if (x) cholmod_free_dense(&x, &common);
+    if (y) cholmod_free_dense(&y, &common);
+    if (e) cholmod_free_dense(&e, &common);
+    if (regionFactor) cholmod_free_factor(&regionFactor, &common);
+    if (rx) cholmod_free_dense(&rx, &common);
+    if (ry) cholmod_free_dense(&ry, &common);
+    if (re) cholmod_free_dense(&re, &common);
+    cholmod_finish(&common);
+  }
+
+  int numDofs() const { return static_cast<int>(held.size()); }
+
+  Mat12 elementStiffness(int t) const {
+    const Mat6x12 b = strainMatrix(geo[t]);
+    return geo[t].volume * b.transpose() * (d * b);
+  }
+
+  // holds the 3 components of a node; returns how many were free
+  int holdNode(int v, std::vector<int>& newlyHeld) {
+    int count = 0;
+    for (int a = 0; a < 3; ++a)
+      if (!held[3 * v + a]) {
+        held[3 * v + a] = 1;
+        newlyHeld.push_back(3 * v + a);
+        --numFree;
+        ++count;
+      }
+    return count;
+  }
+
+  // sorted unique nodes of a list of tets
+  std::vector<int> nodesOf(const std::vector<int>& tetList) const {
+    std::vector<int> out;
+    out.reserve(4 * tetList.size());
+    for (int t : tetList)
+      for (int v : tets[t]) out.push_back(v);
+    std::sort(out.begin(), out.end());
+    out.erase(std::unique(out.begin(), out.end()), out.end());
+    return out;
+  }
+
+  // do the supports listed (ascending indices) fix the rigid motions of their piece?
+  bool fixes(const std::vector<int>& supportIds) const {
+    std::vector<Support> own;
+    own.reserve(supportIds.size());
+    for (int s : supportIds) own.push_back(supports[s]);
+    return supportsFixRigidMotions(nodes, own);
+  }
+
+  // ascending indices of the supports on the given nodes
+  std::vector<int> supportsOn(const std::vector<int>& nodeList) const {
+    std::vector<int> out;
+    for (int v : nodeList) out.insert(out.end(), supportsOfNode.begin(v), supportsOfNode.end(v));
+    std::sort(out.begin(), out.end());
+    return out;
+  }
+
+  // is node v in an island (an alive tet of it is)?
+  bool nodeInIsland(int v) const {
+    for (const int* t = tetsOfNode.begin(v); t != tetsOfNode.end(v); ++t)
+      if (pieceOf[*t] >= 0 && pieces[pieceOf[*t]].island) return true;
+    return false;
+  }
+
+  // is component `axis` of node v a support?
+  bool isSupport(int v, int axis) const {
+    for (const int* s = supportsOfNode.begin(v); s != supportsOfNode.end(v); ++s)
+      if (supports[*s].axis == axis) return true;
+    return false;
+  }
+
+  // does node v still have an alive tet in piece p?
+  bool nodeInPiece(int v, int p) const {
+    for (const int* t = tetsOfNode.begin(v); t != tetsOfNode.end(v); ++t)
+      if (pieceOf[*t] == p) return true;
+    return false;
+  }
+
+  // every tet of piece p, by a flood fill from one of them
+  std::vector<int> tetsOfPiece(int p, int start) {
+    std::vector<int> out{start};
+    ++stamp;
+    tetMark[start] = stamp;
+    for (size_t k = 0; k < out.size(); ++k)
+      for (const int* nb = faceNeighbours.begin(out[k]); nb != faceNeighbours.end(out[k]); ++nb)
+        if (pieceOf[*nb] == p && tetMark[*nb] != stamp) {
+          tetMark[*nb] = stamp;
+          out.push_back(*nb);
+        }
+    return out;
+  }
+
+  void classifyPieces(std::vector<int>& newlyHeld);
+  std::vector<std::vector<int>> splitPiece(const std::vector<int>& seeds);
+  SparseMatrix assemble() const;
+  void factorize();
+  void toSimplicial();
+  Voigt elasticStress(int t, const Eigen::VectorXd& disp) const;
+  void fullSolve(const std::vector<double>& ev);
+  void fullDisplacement(const std::vector<double>& ev, Eigen::VectorXd& f, Eigen::VectorXd& out,
+                        cholmod_common& c, cholmod_dense*& wx, cholmod_dense*& wy,
+                        cholmod_dense*& we) const;
+  void startRefresh(const std::vector<double>& ev);
+  void finishRefresh(bool adopt);
+  bool localSolve(const std::vector<double>& ev);
+  bool buildRegion(const Eigen::AlignedBox3d& box);
+  void dropRegion();
+  enum class From { solution, region, reference };  // where outputs() takes D B u from
+  void outputs(const std::vector<double>& ev, From from);
+  std::vector<int> rowPattern(int dof);
+  StructuralUpdateStats removeTets(const std::vector<int>& ids);
 };
+
+// rigid pieces of the alive tets (union-find over the face neighbours, one pass over the
+// tets): tets connected through shared faces, as a piece joined to another by an edge or a
+// node only can still turn about it. Pieces whose own supports leave a rigid motion free
+// (cut loose, or hanging by an edge or a node) are islands, held in place, all their nodes.
+void StructuralPhase::Impl::classifyPieces(std::vector<int>& newlyHeld) {
+  const int nt = static_cast<int>(tets.size());
+  std::vector<int> parent(nt);
+  for (int t = 0; t < nt; ++t) parent[t] = t;
+  auto find = [&](int i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  for (int t = 0; t < nt; ++t) {
+    if (!alive[t]) continue;
+    for (const int* nb = faceNeighbours.begin(t); nb != faceNeighbours.end(t); ++nb)
+      if (alive[*nb]) {
+        const int a = find(t), b = find(*nb);
+        if (a != b) parent[std::max(a, b)] = std::min(a, b);
+      }
+  }
+  pieceOf.assign(nt, -1);
+  std::vector<int> idOfRoot(nt, -1);
+  std::vector<std::vector<int>> members;
+  for (int t = 0; t < nt; ++t) {
+    if (!alive[t]) continue;
+    const int r = find(t);
+    if (idOfRoot[r] < 0) {
+      idOfRoot[r] = static_cast<int>(members.size());
+      members.emplace_back();
+    }
+    pieceOf[t] = idOfRoot[r];
+    members[idOfRoot[r]].push_back(t);
+  }
+  pieces.assign(members.size(), Piece{});
+  livePieces = static_cast<int>(members.size());
+  islands = 0;
+  for (size_t p = 0; p < members.size(); ++p) {
+    const std::vector<int> pieceNodes = nodesOf(members[p]);
+    pieces[p].tets = static_cast<int>(members[p].size());
+    pieces[p].supports = supportsOn(pieceNodes);
+    if (fixes(pieces[p].supports)) continue;
+    pieces[p].island = true;
+    pieces[p].supports.clear();
+    ++islands;
+    for (int v : pieceNodes) holdNode(v, newlyHeld);
+  }
+}
+
+// The components of a piece after some of its tets were removed. Every component holds one
+// of the seeds (the alive face neighbours of the removed tets), so one search starts from
+// each seed; the searches advance one tet each in turn, merge when they meet, and stop once
+// at most one is still going: the finished ones are the pieces split off (small ones finish
+// early), the one still going is the rest, never walked in full. Returns the tets of the
+// pieces split off; none when the piece held together.
+std::vector<std::vector<int>> StructuralPhase::Impl::splitPiece(const std::vector<int>& seeds) {
+  struct Search {
+    std::vector<int> tets;      // visited
+    std::vector<int> frontier;  // visited, neighbours not yet looked at (a stack)
+  };
+  std::vector<Search> searches;
+  std::vector<int> parent;
+  ++stamp;
+  const int base = stamp;  // tetMark[t] - base: the search that visited t
+  for (int s : seeds) {
+    if (tetMark[s] >= base) continue;
+    tetMark[s] = base + static_cast<int>(searches.size());
+    searches.push_back({{s}, {s}});
+    parent.push_back(static_cast<int>(parent.size()));
+  }
+  stamp = base + static_cast<int>(searches.size());
+  if (searches.size() < 2) {
+    stamp += 1;
+    return {};
+  }
+  auto find = [&](int i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  std::vector<int> going(searches.size());
+  for (size_t s = 0; s < searches.size(); ++s) going[s] = static_cast<int>(s);
+  while (going.size() > 1) {
+    std::vector<int> next;
+    for (int s : going) {
+      if (find(s) != s || searches[s].frontier.empty()) continue;  // merged or finished
+      const int t = searches[s].frontier.back();
+      searches[s].frontier.pop_back();
+      for (const int* nb = faceNeighbours.begin(t); nb != faceNeighbours.end(t); ++nb) {
+        if (!alive[*nb]) continue;
+        const int me = find(s);
+        if (tetMark[*nb] < base) {
+          tetMark[*nb] = base + me;
+          searches[me].tets.push_back(*nb);
+          searches[me].frontier.push_back(*nb);
+          continue;
+        }
+        const int other = find(tetMark[*nb] - base);
+        if (other == me) continue;
+        // merge the smaller search into the larger one
+        int big = me, small = other;
+        if (searches[big].tets.size() < searches[small].tets.size()) std::swap(big, small);
+        parent[small] = big;
+        Search& a = searches[big];
+        Search& b = searches[small];
+        a.tets.insert(a.tets.end(), b.tets.begin(), b.tets.end());
+        a.frontier.insert(a.frontier.end(), b.frontier.begin(), b.frontier.end());
+        b = Search{};
+        next.push_back(big);
+      }
+      if (find(s) == s && !searches[s].frontier.empty()) next.push_back(s);
+    }
+    // the searches still going (unique roots with a frontier)
+    std::vector<int> roots;
+    for (int s : next) {
+      const int r = find(s);
+      if (!searches[r].frontier.empty()) roots.push_back(r);
+    }
+    std::sort(roots.begin(), roots.end());
+    roots.erase(std::unique(roots.begin(), roots.end()), roots.end());
+    going.swap(roots);
+  }
+  // finished searches are whole pieces; the rest (going, or else the largest) keeps the id
+  std::vector<int> finished;
+  for (size_t s = 0; s < searches.size(); ++s)
+    if (find(static_cast<int>(s)) == static_cast<int>(s) && searches[s].frontier.empty())
+      finished.push_back(static_cast<int>(s));
+  if (going.empty()) {
+    auto largest = std::max_element(finished.begin(), finished.end(), [&](int a, int b) {
+      return searches[a].tets.size() < searches[b].tets.size();
+    });
+    finished.erase(largest);
+  }
+  std::vector<std::vector<int>> out;
+  for (int s : finished) {
+    std::sort(searches[s].tets.begin(), searches[s].tets.end());
+    out.push_back(std::move(searches[s].tets));
+  }
+  return out;
+}
+
+// A over all 3n dofs, lower triangle: K from the alive tets on the free dofs, 1 on the
+// diagonal of the held ones
+SparseMatrix StructuralPhase::Impl::assemble() const {
+  const int n = numDofs();
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(tets.size() * 78 + (n - numFree));
+  for (size_t t = 0; t < tets.size(); ++t) {
+    if (!alive[t]) continue;
+    const Mat12 ke = elementStiffness(static_cast<int>(t));
+    for (int i = 0; i < 12; ++i) {
+      const int di = 3 * tets[t][i / 3] + i % 3;
+      if (held[di]) continue;
+      for (int j = 0; j < 12; ++j) {
+        const int dj = 3 * tets[t][j / 3] + j % 3;
+        if (!held[dj] && dj <= di) triplets.emplace_back(di, dj, ke(i, j));
+      }
+    }
+  }
+  for (int dof = 0; dof < n; ++dof)
+    if (held[dof]) triplets.emplace_back(dof, dof, 1.0);
+  SparseMatrix a(n, n);
+  a.setFromTriplets(triplets.begin(), triplets.end());
+  a.makeCompressed();
+  return a;
+}
+
+// a fresh supernodal factorization of A within the first analysis (A only loses entries)
+void StructuralPhase::Impl::factorize() {
+  const SparseMatrix a = assemble();
+  cholmod_sparse view = viewLower(a);
+  if (!symbolic) {
+    symbolic = cholmod_analyze(&view, &common);
+    ESIM_RUN_CHECK(symbolic != nullptr, "structural: CHOLMOD analysis failed (out of memory?)");
+    refactorFlops = common.fl;
+    const int* perm = static_cast<const int*>(symbolic->Perm);
+    rowOfDof.assign(numDofs(), 0);
+    for (int k = 0; k < numDofs(); ++k) rowOfDof[perm[k]] = k;
+  }
+  if (factor) cholmod_free_factor(&factor, &common);
+  factor = cholmod_copy_factor(symbolic, &common);
+  ESIM_RUN_CHECK(factor != nullptr, "structural: out of memory copying the analysis");
+  openblas_set_num_threads(1);  // see the header: BLAS threads only spin here
+  const int ok = cholmod_factorize(&view, factor, &common);
+  ESIM_RUN_CHECK(ok && common.status == CHOLMOD_OK && factor->minor == factor->n,
+                 "structural: the stiffness matrix is not positive definite (degenerate tets, or "
+                 "supports that leave part of the body free)");
+  if (prepareForUpdates) toSimplicial();
+}
+
+// L as simplicial LDL' (what cholmod_updown, rowdel and rowadd take); O(nnz(L))
+void StructuralPhase::Impl::toSimplicial() {
+  if (!factor->is_super && !factor->is_ll) return;
+  const int ok = cholmod_change_factor(CHOLMOD_REAL, false, false, false, false, factor, &common);
+  ESIM_RUN_CHECK(ok, "structural: CHOLMOD could not convert the factor (out of memory?)");
+}
+
+// Rows j < k of L's row k = rowOfDof[dof] that may hold a nonzero (what cholmod_rowdel
+// must clear): the row subtree, climbed up the elimination tree of L from the couplings of
+// the dof in the first A (every tet at its node) until k. Updates and row deletions only
+// change values inside L's pattern, so this superset stays valid.
+std::vector<int> StructuralPhase::Impl::rowPattern(int dof) {
+  const SimplicialView l(factor);
+  const int k = rowOfDof[dof];
+  const int v = dof / 3;
+  std::vector<int> out, path;
+  ++stamp;
+  for (const int* t = tetsOfNode.begin(v); t != tetsOfNode.end(v); ++t)
+    for (int w : tets[*t])
+      for (int a = 0; a < 3; ++a) {
+        int j = rowOfDof[3 * w + a];
+        path.clear();
+        while (j >= 0 && j < k && mark[j] != stamp) {
+          path.push_back(j);
+          j = l.parent(j);
+        }
+        if (j != k && (j < 0 || j > k)) continue;  // not below k in the tree: L(k, .) = 0
+        for (int p : path) mark[p] = stamp;
+        out.insert(out.end(), path.begin(), path.end());
+      }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// ---- solves ----
+
+// D B_e u_e: the elastic part of the tet's stress for the displacement disp [Pa]
+Voigt StructuralPhase::Impl::elasticStress(int t, const Eigen::VectorXd& disp) const {
+  Eigen::Matrix<double, 12, 1> ue;
+  for (int i = 0; i < 4; ++i) ue.segment<3>(3 * i) = disp.segment<3>(3 * tets[t][i]);
+  // B_e rebuilt from the stored gradients: keeping D B_e per tet would cost 576 bytes
+  // a tet (92 MB for the liver's 161k tets, twice during a background rebuild)
+  return d * (strainMatrix(geo[t]) * ue);
+}
+
+// u solving K u = f(ev) over the whole body, with the given CHOLMOD workspace
+void StructuralPhase::Impl::fullDisplacement(const std::vector<double>& ev, Eigen::VectorXd& f,
+                                             Eigen::VectorXd& out, cholmod_common& c,
+                                             cholmod_dense*& wx, cholmod_dense*& wy,
+                                             cholmod_dense*& we) const {
+  const int nt = static_cast<int>(tets.size());
+  // f = sum_e V_e B_e^T D eps*_e; D eps* = K_b e_v (1,1,1,0,0,0), so node i of the tet
+  // gets V_e K_b e_v grad N_i; 0 on the held dofs (their rows of A are the identity)
+  f.setZero(numDofs());
+  for (int t = 0; t < nt; ++t) {
+    if (!alive[t] || ev[t] == 0) continue;
+    const double s = geo[t].volume * bulkModulusPa * ev[t];
+    for (int i = 0; i < 4; ++i)
+      for (int a = 0; a < 3; ++a) {
+        const int dof = 3 * tets[t][i] + a;
+        if (!held[dof]) f(dof) += s * geo[t].grad(i, a);
+      }
+  }
+  out.setZero(numDofs());
+  if (numFree == 0) return;
+  cholmod_dense b{};
+  b.nrow = numDofs();
+  b.ncol = 1;
+  b.nzmax = b.nrow;
+  b.d = b.nrow;
+  b.x = f.data();
+  b.xtype = CHOLMOD_REAL;
+  b.dtype = CHOLMOD_DOUBLE;
+  const int ok = cholmod_solve2(CHOLMOD_A, factor, &b, nullptr, &wx, nullptr, &wy, &we, &c);
+  ESIM_RUN_CHECK(ok, "structural: CHOLMOD solve failed (out of memory?)");
+  const double* xs = static_cast<const double*>(wx->x);
+  for (int dof = 0; dof < numDofs(); ++dof)
+    if (!held[dof]) out(dof) = xs[dof];
+}
+
+// K u = f over the whole body; with the local method, the new reference
+void StructuralPhase::Impl::fullSolve(const std::vector<double>& ev) {
+  finishRefresh(false);  // older than this one
+  openblas_set_num_threads(1);
+  fullDisplacement(ev, rhs, u, common, x, y, e);
+  appliedDofs.clear();
+  if (method == StructuralSolveMethod::local) {
+    hasReference = true;
+    refEv = ev;
+    refU = u;
+    refElastic.resize(tets.size());
+    changedNodes.clear();
+    localSinceFull = 0;
+  }
+  outputs(ev, From::solution);
+}
+
+// a full solve of ev on the thread, with its elastic stresses (the next reference)
+void StructuralPhase::Impl::startRefresh(const std::vector<double>& ev) {
+  refresh.ev = ev;
+  refresh.running = true;
+  refresh.solvesSinceStart = 0;
+  refresh.error = nullptr;
+  refresh.worker = std::thread([this] {
+    try {
+      fullDisplacement(refresh.ev, refresh.rhs, refresh.u, refresh.common, refresh.x, refresh.y,
+                       refresh.e);
+      refresh.elastic.resize(tets.size());
+      for (size_t t = 0; t < tets.size(); ++t)
+        if (alive[t]) refresh.elastic[t] = elasticStress(static_cast<int>(t), refresh.u);
+    } catch (...) {
+      refresh.error = std::current_exception();
+    }
+  });
+}
+
+// joins the thread's refresh (if any); adopt: it becomes the reference
+void StructuralPhase::Impl::finishRefresh(bool adopt) {
+  if (!refresh.running) return;
+  refresh.worker.join();
+  refresh.running = false;
+  if (refresh.error) std::rethrow_exception(refresh.error);
+  if (!adopt) return;
+  refEv.swap(refresh.ev);
+  refU.swap(refresh.u);
+  refElastic.swap(refresh.elastic);
+  u = refU;  // outside the region too
+  appliedDofs.clear();
+  changedNodes.clear();  // removeTets joins first: the refresh saw the current A
+  localSinceFull = 0;
+}
+
+// the local solve (see LocalSolveOptions); false when a full solve is due instead
+bool StructuralPhase::Impl::localSolve(const std::vector<double>& ev) {
+  if (!hasReference || numFree == 0) return false;
+  if (local.refreshOnThread) {
+    // the refresh started refreshEvery solves ago becomes the reference; the next starts
+    if (refresh.running && ++refresh.solvesSinceStart >= local.refreshEvery) {
+      finishRefresh(true);
+      lastSolve.refreshAdopted = true;
+    }
+  } else if (local.refreshEvery > 0 && localSinceFull + 1 >= local.refreshEvery) {
+    return false;
+  }
+  const int nt = static_cast<int>(tets.size());
+  // 1. the box around the load change (and what removals changed)
+  double largest = 0;
+  for (int t = 0; t < nt; ++t)
+    if (alive[t]) largest = std::max(largest, std::abs(ev[t] - refEv[t]));
+  Eigen::AlignedBox3d box;  // empty
+  if (largest > 0) {
+    const double threshold = local.loadTolerance * largest;
+    for (int t = 0; t < nt; ++t)
+      if (alive[t] && std::abs(ev[t] - refEv[t]) > threshold)
+        for (int v : tets[t]) box.extend(nodes[v]);
+  }
+  for (int v : changedNodes) box.extend(nodes[v]);
+  // 2. the region: kept while the box stays inside the one it was built around
+  ++localSinceFull;
+  const auto startNextRefresh = [&] {  // once this solve is local
+    if (local.refreshOnThread && !refresh.running && local.refreshEvery > 0) {
+      startRefresh(ev);
+      lastSolve.refreshStarted = true;
+    }
+  };
+  lastSolve.local = true;
+  if (box.isEmpty()) {  // nothing changed: the reference
+    for (int dof : appliedDofs) u(dof) = refU(dof);
+    appliedDofs.clear();
+    startNextRefresh();
+    outputs(ev, From::reference);
+    return true;
+  }
+  if (!(regionValid && regionBox.contains(box))) {
+    const auto t0 = std::chrono::steady_clock::now();
+    Eigen::AlignedBox3d grown = box;
+    grown.min().array() -= local.slackM;
+    grown.max().array() += local.slackM;
+    if (!buildRegion(grown)) {
+      --localSinceFull;
+      lastSolve.local = false;
+      return false;
+    }
+    lastSolve.regionBuilt = true;
+    lastSolve.regionFactorSeconds = secondsSince(t0);
+  }
+  lastSolve.regionDofs = static_cast<int>(regionDofs.size());
+  lastSolve.regionTets = static_cast<int>(regionTets.size());
+  // 3. r_U = -sum_e V_e B_e^T sigma_e(u_ref, e_v) over the tets touching U
+  Eigen::VectorXd r = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(regionDofs.size()));
+  for (int t : regionTets) {
+    const Voigt& s = refElastic[t];
+    const double p = bulkModulusPa * ev[t];
+    const double sxx = s(0) - p, syy = s(1) - p, szz = s(2) - p, syz = s(3), sxz = s(4), sxy = s(5);
+    const double vol = geo[t].volume;
+    for (int i = 0; i < 4; ++i) {
+      const double gx = geo[t].grad(i, 0), gy = geo[t].grad(i, 1), gz = geo[t].grad(i, 2);
+      const double force[3] = {gx * sxx + gy * sxy + gz * sxz, gx * sxy + gy * syy + gz * syz,
+                               gx * sxz + gy * syz + gz * szz};
+      for (int a = 0; a < 3; ++a) {
+        const int k = localOfDof[3 * tets[t][i] + a];
+        if (k >= 0) r(k) -= vol * force[a];
+      }
+    }
+  }
+  // 4. K_UU d_U = r_U; u = u_ref + d on U, u_ref elsewhere
+  cholmod_dense b{};
+  b.nrow = regionDofs.size();
+  b.ncol = 1;
+  b.nzmax = b.nrow;
+  b.d = b.nrow;
+  b.x = r.data();
+  b.xtype = CHOLMOD_REAL;
+  b.dtype = CHOLMOD_DOUBLE;
+  openblas_set_num_threads(1);
+  const int ok =
+      cholmod_solve2(CHOLMOD_A, regionFactor, &b, nullptr, &rx, nullptr, &ry, &re, &common);
+  ESIM_RUN_CHECK(ok, "structural: CHOLMOD solve failed (out of memory?)");
+  for (int dof : appliedDofs) u(dof) = refU(dof);
+  const double* correction = static_cast<const double*>(rx->x);
+  for (size_t k = 0; k < regionDofs.size(); ++k)
+    u(regionDofs[k]) = refU(regionDofs[k]) + correction[k];
+  appliedDofs = regionDofs;
+  startNextRefresh();
+  outputs(ev, From::region);
+  return true;
+}
+
+void StructuralPhase::Impl::dropRegion() {
+  regionValid = false;
+  for (int t : regionTets) inRegion[t] = 0;
+  for (int dof : regionDofs) localOfDof[dof] = -1;
+  regionTets.clear();
+  regionDofs.clear();
+  if (regionFactor) cholmod_free_factor(&regionFactor, &common);
+}
+
+// U = the free dofs of the nodes within marginM of the box, the alive tets touching them,
+// and the factor of K_UU; false (nothing built) when U is too large a part of the body
+bool StructuralPhase::Impl::buildRegion(const Eigen::AlignedBox3d& box) {
+  dropRegion();
+  const int n = static_cast<int>(nodes.size());
+  localOfDof.resize(numDofs(), -1);
+  inRegion.resize(tets.size(), 0);
+  std::vector<int> dofs;
+  for (int v = 0; v < n; ++v) {
+    if (aliveTetsOfNode[v] == 0 || box.exteriorDistance(nodes[v]) > local.marginM) continue;
+    for (int a = 0; a < 3; ++a)
+      if (!held[3 * v + a]) dofs.push_back(3 * v + a);
+  }
+  if (dofs.empty() || dofs.size() > local.maxRegionFraction * numFree) return false;
+  regionDofs = std::move(dofs);
+  for (size_t k = 0; k < regionDofs.size(); ++k) localOfDof[regionDofs[k]] = static_cast<int>(k);
+  for (int dof : regionDofs) {
+    if (dof % 3 != 0 && localOfDof[dof - dof % 3] >= 0) continue;  // node seen
+    const int v = dof / 3;
+    for (const int* t = tetsOfNode.begin(v); t != tetsOfNode.end(v); ++t)
+      if (alive[*t] && !inRegion[*t]) {
+        inRegion[*t] = 1;
+        regionTets.push_back(*t);
+      }
+  }
+  std::sort(regionTets.begin(), regionTets.end());
+  // K_UU, lower triangle, in the order of regionDofs
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(regionTets.size() * 78);
+  for (int t : regionTets) {
+    const Mat12 ke = elementStiffness(t);
+    for (int i = 0; i < 12; ++i) {
+      const int li = localOfDof[3 * tets[t][i / 3] + i % 3];
+      if (li < 0) continue;
+      for (int j = 0; j < 12; ++j) {
+        const int lj = localOfDof[3 * tets[t][j / 3] + j % 3];
+        if (lj >= 0 && lj <= li) triplets.emplace_back(li, lj, ke(i, j));
+      }
+    }
+  }
+  const int m = static_cast<int>(regionDofs.size());
+  SparseMatrix kuu(m, m);
+  kuu.setFromTriplets(triplets.begin(), triplets.end());
+  kuu.makeCompressed();
+  cholmod_sparse view = viewLower(kuu);
+  openblas_set_num_threads(1);
+  // the ordering: the whole factor's, restricted to U (no ordering cost; measured at 50k
+  // nodes, CHOLMOD's own AMD/METIS search took most of a region's build)
+  std::vector<int> order(m);
+  for (int k = 0; k < m; ++k) order[k] = k;
+  std::sort(order.begin(), order.end(),
+            [&](int a, int b) { return rowOfDof[regionDofs[a]] < rowOfDof[regionDofs[b]]; });
+  const int methods = common.nmethods, ordering = common.method[0].ordering;
+  common.nmethods = 1;
+  common.method[0].ordering = CHOLMOD_GIVEN;
+  regionFactor = cholmod_analyze_p(&view, order.data(), nullptr, 0, &common);
+  common.nmethods = methods;
+  common.method[0].ordering = ordering;
+  ESIM_RUN_CHECK(regionFactor != nullptr, "structural: CHOLMOD analysis failed (out of memory?)");
+  const int ok = cholmod_factorize(&view, regionFactor, &common);
+  ESIM_RUN_CHECK(ok && common.status == CHOLMOD_OK && regionFactor->minor == regionFactor->n,
+                 "structural: the region's stiffness matrix is not positive definite");
+  regionBox = box;
+  regionValid = true;
+  return true;
+}
+
+// stress and von Mises per tet: D B u from u (solution: every tet, stored as the reference
+// under the local method; region: the region's tets) or from the reference
+void StructuralPhase::Impl::outputs(const std::vector<double>& ev, From from) {
+  const int nt = static_cast<int>(tets.size());
+  const bool store = from == From::solution && method == StructuralSolveMethod::local;
+  for (int t = 0; t < nt; ++t) {
+    if (!alive[t]) {
+      stress[t] = VoigtStress{};
+      vonMisesPa[t] = 0;
+      continue;
+    }
+    const bool fresh = from == From::solution || (from == From::region && inRegion[t]);
+    const Voigt s = fresh ? elasticStress(t, u) : refElastic[t];
+    if (store) refElastic[t] = s;
+    // sigma = D B u - K_b e_v (1, 1, 1, 0, 0, 0)
+    const double p = bulkModulusPa * ev[t];
+    stress[t] = {s(0) - p, s(1) - p, s(2) - p, s(3), s(4), s(5)};
+    vonMisesPa[t] = vonMises(stress[t]);
+  }
+}
+
+// ---- removal ----
+
+// What removeTets weighs (see the header): the update's work, the sum over the columns j
+// of L it walks of nnz(L(:, j)) times the columns of C (and rows) that pass j, against the
+// flops of a supernodal refactorization (CHOLMOD's count, Common->fl). One unit of that
+// work takes as long as kUpdownCostPerEntry flops of the refactorization: measured on the
+// paper slab (esim bench structural, batches of 5 to 800 tets), update 1.0 to 1.7 ns per
+// unit, refactorization 0.45 ns per flop at 5k nodes, 0.28 at 20k (BLAS 3 gains with size).
+constexpr double kUpdownCostPerEntry = 5;
+
+StructuralUpdateStats StructuralPhase::Impl::removeTets(const std::vector<int>& ids) {
+  const auto t0 = std::chrono::steady_clock::now();
+  StructuralUpdateStats stats;
+  const int nt = static_cast<int>(tets.size());
+  for (int t : ids)
+    ESIM_VERIFY(t >= 0 && t < nt, "structural: removeTets: tet " + std::to_string(t) +
+                                      " is out of range (" + std::to_string(nt) + " tets)");
+  if (!failure.empty()) throw Error(failure);
+  finishRefresh(true);  // the thread reads A; its refresh is of the A before the removal
+  std::vector<int> removed;
+  for (int t : ids)
+    if (alive[t]) removed.push_back(t);
+  std::sort(removed.begin(), removed.end());
+  removed.erase(std::unique(removed.begin(), removed.end()), removed.end());
+  stats.tetsRemoved = static_cast<int>(removed.size());
+  if (removed.empty()) {
+    stats.seconds = secondsSince(t0);
+    return stats;
+  }
+
+  // 1. alive flags; nodes left without an alive tet are held
+  std::vector<int> newlyHeld;
+  std::vector<std::pair<int, int>> byPiece;  // (old piece, removed tet)
+  for (int t : removed) {
+    alive[t] = 0;
+    byPiece.emplace_back(pieceOf[t], t);
+    --pieces[pieceOf[t]].tets;
+    pieceOf[t] = -1;
+    for (int v : tets[t]) --aliveTetsOfNode[v];
+  }
+  for (int t : removed)
+    for (int v : tets[t])
+      if (aliveTetsOfNode[v] == 0) holdNode(v, newlyHeld);
+
+  // 2. pieces split off, and pieces that lost their supports, become islands
+  std::sort(byPiece.begin(), byPiece.end());
+  for (size_t r = 0; r < byPiece.size();) {
+    const int p = byPiece[r].first;
+    std::vector<int> gone;
+    for (; r < byPiece.size() && byPiece[r].first == p; ++r) gone.push_back(byPiece[r].second);
+    if (pieces[p].tets == 0) {  // removed whole
+      --livePieces;
+      if (pieces[p].island) --islands;
+      continue;
+    }
+    std::vector<int> seeds;
+    for (int t : gone)
+      for (const int* nb = faceNeighbours.begin(t); nb != faceNeighbours.end(t); ++nb)
+        if (pieceOf[*nb] == p) seeds.push_back(*nb);
+    const bool wasIsland = pieces[p].island;
+    std::vector<int> candidates = nodesOf(gone);  // nodes the rest may have lost
+    for (std::vector<int>& part : splitPiece(seeds)) {
+      const int q = static_cast<int>(pieces.size());
+      pieces.emplace_back();
+      for (int t : part) pieceOf[t] = q;
+      pieces[q].tets = static_cast<int>(part.size());
+      pieces[p].tets -= pieces[q].tets;
+      ++livePieces;
+      ++stats.piecesCutOff;
+      if (wasIsland) {  // a part of an island has fewer supports still
+        pieces[q].island = true;
+        ++islands;
+        continue;
+      }
+      const std::vector<int> partNodes = nodesOf(part);
+      candidates.insert(candidates.end(), partNodes.begin(), partNodes.end());
+      pieces[q].supports = supportsOn(partNodes);
+      if (fixes(pieces[q].supports)) continue;
+      pieces[q].island = true;
+      pieces[q].supports.clear();
+      ++islands;
+      for (int v : partNodes) holdNode(v, newlyHeld);
+    }
+    if (wasIsland) continue;
+    // the rest keeps its supports unless a supported node left it
+    bool lost = false;
+    for (int v : candidates)
+      if (supportsOfNode.count(v) > 0 && !nodeInPiece(v, p)) {
+        lost = true;
+        break;
+      }
+    if (!lost) continue;
+    std::vector<int>& own = pieces[p].supports;
+    own.erase(std::remove_if(own.begin(), own.end(),
+                             [&](int s) { return !nodeInPiece(supports[s].node, p); }),
+              own.end());
+    if (fixes(own)) continue;
+    pieces[p].island = true;
+    own.clear();
+    ++islands;
+    const int start =
+        *std::find_if(seeds.begin(), seeds.end(), [&](int t) { return pieceOf[t] == p; });
+    for (int v : nodesOf(tetsOfPiece(p, start))) holdNode(v, newlyHeld);
+  }
+  if (livePieces > 0 && islands == livePieces) {
+    failure = kNoPieceHeld;
+    throw Error(failure);
+  }
+  std::sort(newlyHeld.begin(), newlyHeld.end());
+  stats.dofsHeld = static_cast<int>(newlyHeld.size());
+
+  // 3. a node held as part of an island is free again once no island holds it (its tets in
+  // the island removed, those in a supported piece alive): the tets removed show them all
+  std::vector<int> newlyFreed;
+  {
+    const std::vector<int> candidates = nodesOf(removed);
+    for (int v : candidates) {
+      if (aliveTetsOfNode[v] == 0 || nodeInIsland(v)) continue;
+      for (int a = 0; a < 3; ++a)
+        if (held[3 * v + a] && !isSupport(v, a)) {
+          held[3 * v + a] = 0;
+          ++numFree;
+          newlyFreed.push_back(3 * v + a);
+        }
+    }
+  }
+  stats.dofsFreed = static_cast<int>(newlyFreed.size());
+
+  // the local solve's reference: u_ref is 0 on the dofs now held (the tets at their nodes
+  // change stress); these nodes and the removed tets' widen the next region's box; the
+  // region no longer fits A
+  if (hasReference) {
+    std::vector<int> heldNodes;
+    for (int dof : newlyHeld)
+      if (refU(dof) != 0) {
+        refU(dof) = 0;
+        heldNodes.push_back(dof / 3);
+      }
+    std::sort(heldNodes.begin(), heldNodes.end());
+    heldNodes.erase(std::unique(heldNodes.begin(), heldNodes.end()), heldNodes.end());
+    for (int v : heldNodes)
+      for (const int* t = tetsOfNode.begin(v); t != tetsOfNode.end(v); ++t)
+        if (alive[*t]) refElastic[*t] = elasticStress(*t, refU);
+    const std::vector<int> removedNodes = nodesOf(removed);
+    changedNodes.insert(changedNodes.end(), removedNodes.begin(), removedNodes.end());
+    changedNodes.insert(changedNodes.end(), heldNodes.begin(), heldNodes.end());
+  }
+  dropRegion();
+  if (numDofs() == 0) {
+    stats.seconds = secondsSince(t0);
+    return stats;
+  }
+
+  // 4. C C' = the removed tets' stiffness on the dofs free before and after: per tet the
+  // eigenpairs (lambda, v) of its element matrix there, columns sqrt(lambda) v in L's rows
+  std::vector<int> cp{0}, ci;
+  std::vector<double> cx;
+  using Local = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 12, 12>;
+  for (int t : removed) {
+    std::vector<std::pair<int, int>> free;  // (row of L, local dof)
+    for (int i = 0; i < 12; ++i) {
+      const int dof = 3 * tets[t][i / 3] + i % 3;
+      if (!held[dof] && !std::binary_search(newlyFreed.begin(), newlyFreed.end(), dof))
+        free.emplace_back(rowOfDof[dof], i);
+    }
+    if (free.empty()) continue;
+    std::sort(free.begin(), free.end());
+    const Mat12 ke = elementStiffness(t);
+    const int m = static_cast<int>(free.size());
+    Local sub(m, m);
+    for (int a = 0; a < m; ++a)
+      for (int b = 0; b < m; ++b) sub(a, b) = ke(free[a].second, free[b].second);
+    const Eigen::SelfAdjointEigenSolver<Local> eig(sub);
+    const double largest = eig.eigenvalues()(m - 1);
+    for (int k = 0; k < m; ++k) {
+      const double lambda = eig.eigenvalues()(k);
+      if (!(lambda > 1e-12 * largest)) continue;  // the rigid modes (round-off, either sign)
+      for (int a = 0; a < m; ++a) {
+        ci.push_back(free[a].first);
+        cx.push_back(std::sqrt(lambda) * eig.eigenvectors()(a, k));
+      }
+      cp.push_back(static_cast<int>(ci.size()));
+    }
+  }
+  stats.rank = static_cast<int>(cp.size()) - 1;
+
+  // 5. L becomes simplicial LDL' (once after each factorization: only those can be updated)
+  if (factor->is_super || factor->is_ll) {
+    const auto tc = std::chrono::steady_clock::now();
+    toSimplicial();
+    stats.convertSeconds = secondsSince(tc);
+  }
+
+  // 6. the columns of L the update walks: up the elimination tree from each deleted or
+  // added row and from the first row of each column of C; the work, those columns' lengths
+  // times the columns of C (and rows) that pass them
+  std::vector<int> walked;
+  std::vector<double> passes;
+  {
+    const SimplicialView l(factor);
+    std::vector<int> starts;
+    for (int dof : newlyHeld) starts.push_back(rowOfDof[dof]);
+    for (int dof : newlyFreed) starts.push_back(rowOfDof[dof]);
+    for (int c = 0; c + 1 < static_cast<int>(cp.size()); ++c) starts.push_back(ci[cp[c]]);
+    ++stamp;
+    const int first = stamp;
+    for (int s : starts)
+      for (int j = s; j >= 0 && mark[j] < first; j = l.parent(j)) {
+        mark[j] = first;
+        walked.push_back(j);
+      }
+    std::sort(walked.begin(), walked.end());
+    // passes per walked column: a tree sum, children before parents (ascending rows)
+    std::vector<int> slot(walked.size());
+    passes.assign(walked.size(), 0);
+    for (int s : starts)
+      passes[std::lower_bound(walked.begin(), walked.end(), s) - walked.begin()]++;
+    for (size_t w = 0; w < walked.size(); ++w) {
+      stats.updateWork += passes[w] * l.nz[walked[w]];
+      const int up = l.parent(walked[w]);
+      if (up >= 0)
+        passes[std::lower_bound(walked.begin(), walked.end(), up) - walked.begin()] += passes[w];
+    }
+  }
+
+  // 7. delete the rows now held, downdate by C C', add the rows free again; or refactorize
+  // when that costs more
+  stats.updateCost = kUpdownCostPerEntry * stats.updateWork / refactorFlops;
+  bool updated = false;
+  if (stats.updateCost <= updateCostLimit) {
+    bool ok = true;
+    for (int dof : newlyHeld) {
+      std::vector<int> pattern = rowPattern(dof);
+      int rp[2] = {0, static_cast<int>(pattern.size())};
+      cholmod_sparse r{};
+      r.nrow = numDofs();
+      r.ncol = 1;
+      r.nzmax = std::max<size_t>(1, pattern.size());
+      r.p = rp;
+      r.i = pattern.data();
+      r.itype = CHOLMOD_INT;
+      r.xtype = CHOLMOD_PATTERN;
+      r.dtype = CHOLMOD_DOUBLE;
+      r.sorted = 1;
+      r.packed = 1;
+      ok = ok && cholmod_rowdel(rowOfDof[dof], &r, factor, &common);
+    }
+    if (ok && stats.rank > 0) {
+      cholmod_sparse c{};
+      c.nrow = numDofs();
+      c.ncol = stats.rank;
+      c.nzmax = ci.size();
+      c.p = cp.data();
+      c.i = ci.data();
+      c.x = cx.data();
+      c.itype = CHOLMOD_INT;
+      c.xtype = CHOLMOD_REAL;
+      c.dtype = CHOLMOD_DOUBLE;
+      c.sorted = 1;
+      c.packed = 1;
+      ok = cholmod_updown(false, &c, factor, &common);
+    }
+    for (size_t k = 0; ok && k < newlyFreed.size(); ++k) {
+      // column of A at the dof: K over the alive tets, on the dofs free so far
+      const int dof = newlyFreed[k];
+      std::vector<std::pair<int, double>> entries;
+      const int v = dof / 3;
+      for (const int* t = tetsOfNode.begin(v); t != tetsOfNode.end(v); ++t) {
+        if (!alive[*t]) continue;
+        const Mat12 ke = elementStiffness(*t);
+        const int i = 3 * static_cast<int>(std::find(tets[*t].begin(), tets[*t].end(), v) -
+                                           tets[*t].begin()) +
+                      dof % 3;
+        for (int j = 0; j < 12; ++j) {
+          const int other = 3 * tets[*t][j / 3] + j % 3;
+          const auto later = std::lower_bound(newlyFreed.begin(), newlyFreed.end(), other);
+          if (held[other] || (later != newlyFreed.end() && *later == other &&
+                              later - newlyFreed.begin() > static_cast<long>(k)))
+            continue;  // held, or added after this one
+          entries.emplace_back(rowOfDof[other], ke(i, j));
+        }
+      }
+      std::sort(entries.begin(), entries.end(),
+                [](const auto& a, const auto& b) { return a.first < b.first; });
+      std::vector<int> ri;
+      std::vector<double> rx;
+      for (const auto& [row, value] : entries) {
+        if (!ri.empty() && ri.back() == row) {
+          rx.back() += value;
+        } else {
+          ri.push_back(row);
+          rx.push_back(value);
+        }
+      }
+      int rp[2] = {0, static_cast<int>(ri.size())};
+      cholmod_sparse r{};
+      r.nrow = numDofs();
+      r.ncol = 1;
+      r.nzmax = ri.size();
+      r.p = rp;
+      r.i = ri.data();
+      r.x = rx.data();
+      r.itype = CHOLMOD_INT;
+      r.xtype = CHOLMOD_REAL;
+      r.dtype = CHOLMOD_DOUBLE;
+      r.sorted = 1;
+      r.packed = 1;
+      ok = cholmod_rowadd(rowOfDof[dof], &r, factor, &common);
+    }
+    // a downdate that lost positive definiteness shows as D(j) <= 0 on the walked columns
+    const SimplicialView l(factor);
+    for (int j : walked) ok = ok && l.diagonal(j) > 0 && std::isfinite(l.diagonal(j));
+    updated = ok && common.status == CHOLMOD_OK;
+    stats.downdateFailed = !updated;
+  }
+  if (!updated) {
+    factorize();
+    stats.refactorized = true;
+  }
+  stats.seconds = secondsSince(t0);
+  return stats;
+}
+
+// ---- the phase ----
+
+namespace {
+
+// compressed rows from (row, id) pairs
+Adjacency compressedRows(int rows, std::vector<std::pair<int, int>> pairs) {
+  std::sort(pairs.begin(), pairs.end());
+  Adjacency adj;
+  adj.offsets.assign(rows + 1, 0);
+  for (const auto& p : pairs) adj.offsets[p.first + 1]++;
+  for (int i = 0; i < rows; ++i) adj.offsets[i + 1] += adj.offsets[i];
+  for (const auto& p : pairs) adj.ids.push_back(p.second);
+  return adj;
+}
+
+}  // namespace
 
 StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& options,
                                  const std::vector<Support>& supports)
@@ -176,142 +1241,107 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
               "structural: youngsModulusPa must be > 0, got " + std::to_string(e));
   ESIM_VERIFY(std::isfinite(nu) && nu >= 0 && nu < 0.5,
               "structural: poissonRatio must be in [0, 0.5), got " + std::to_string(nu));
-  const int n = mesh.numNodes();
+  const int n = mesh.numNodes(), nt = mesh.numTets();
+  m.nodes = mesh.nodes;
   m.tets = mesh.tets;
-  m.alive.resize(mesh.numTets());
-  for (int t = 0; t < mesh.numTets(); ++t) m.alive[t] = mesh.isAlive(t) ? 1 : 0;
+  m.alive.resize(nt);
+  for (int t = 0; t < nt; ++t) m.alive[t] = mesh.isAlive(t) ? 1 : 0;
   m.geo = tetGeometry(mesh);
   m.d = elasticity(e, nu);
   m.bulkModulusPa = e / (3 * (1 - 2 * nu));
+  m.supports = supports;
+  ESIM_VERIFY(!(options.updateCostLimit < 0), "structural: updateCostLimit must be >= 0, got " +
+                                                  messageNumber(options.updateCostLimit));
+  m.updateCostLimit = options.updateCostLimit;
+  m.prepareForUpdates = options.prepareForUpdates;
+  verifyLocalOptions(options.local);
+  m.method = options.solveMethod;
+  m.local = options.local;
 
-  // 1. unknowns: every component not held, of nodes that touch an alive tet
-  std::vector<std::uint8_t> held(3 * static_cast<size_t>(n), 1);
-  for (int t = 0; t < mesh.numTets(); ++t)
-    if (mesh.isAlive(t))
-      for (int node : mesh.tets[t])
-        for (int a = 0; a < 3; ++a) held[3 * node + a] = 0;
-  for (const Support& s : supports) {
+  // 1. held components: of nodes without an alive tet, and the supports
+  m.aliveTetsOfNode.assign(n, 0);
+  for (int t = 0; t < nt; ++t)
+    if (m.alive[t])
+      for (int v : mesh.tets[t]) ++m.aliveTetsOfNode[v];
+  m.held.assign(3 * static_cast<size_t>(n), 1);
+  for (int v = 0; v < n; ++v)
+    if (m.aliveTetsOfNode[v] > 0)
+      for (int a = 0; a < 3; ++a) m.held[3 * v + a] = 0;
+  std::vector<std::pair<int, int>> supportPairs;
+  for (size_t k = 0; k < supports.size(); ++k) {
+    const Support& s = supports[k];
     ESIM_VERIFY(s.node >= 0 && s.node < n && s.axis >= 0 && s.axis < 3,
                 "structural: support (node " + std::to_string(s.node) + ", axis " +
                     std::to_string(s.axis) + ") is out of range (" + std::to_string(n) +
                     " nodes, axes 0..2)");
-    held[3 * s.node + s.axis] = 1;
+    m.held[3 * s.node + s.axis] = 1;
+    supportPairs.emplace_back(s.node, static_cast<int>(k));
   }
-  ESIM_VERIFY(supportsFixRigidMotions(mesh, supports),
+  m.numFree = static_cast<int>(std::count(m.held.begin(), m.held.end(), 0));
+  ESIM_VERIFY(supportsFixRigidMotions(m.nodes, supports),
               "structural: the supports leave the body free to translate or rotate; hold at "
               "least 6 independent displacement components (e.g. clamp a face)");
-  // rigid pieces whose own supports leave a rigid motion free (cut loose, or hanging by an
-  // edge or a node) are held in place, all their nodes
-  int pieces = 0;
-  const std::vector<int> pieceOfTet = alivePieces(mesh, pieces);
-  if (pieces > 1) {
-    std::vector<std::vector<int>> nodesOf(pieces);
-    for (int t = 0; t < mesh.numTets(); ++t)
-      if (pieceOfTet[t] >= 0)
-        for (int v : mesh.tets[t]) nodesOf[pieceOfTet[t]].push_back(v);
-    std::vector<std::uint8_t> inPiece(n, 0);
-    for (int p = 0; p < pieces; ++p) {
-      std::vector<int>& nodes = nodesOf[p];
-      std::sort(nodes.begin(), nodes.end());
-      nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
-      for (int v : nodes) inPiece[v] = 1;
-      std::vector<Support> own;
-      for (const Support& s : supports)
-        if (inPiece[s.node]) own.push_back(s);
-      for (int v : nodes) inPiece[v] = 0;
-      if (supportsFixRigidMotions(mesh, own)) continue;
-      ++m.islands;
-      for (int v : nodes)
-        for (int a = 0; a < 3; ++a) held[3 * v + a] = 1;
-    }
-    ESIM_VERIFY(m.islands < pieces, "structural: no piece of the body is held by the supports");
-  }
-  m.freeIndex.assign(3 * static_cast<size_t>(n), -1);
-  int nf = 0;
-  for (size_t dof = 0; dof < held.size(); ++dof)
-    if (!held[dof]) m.freeIndex[dof] = nf++;
 
-  // 2. K over the unknowns (lower triangle)
-  std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(static_cast<size_t>(mesh.numAlive()) * 78);
-  for (int t = 0; t < mesh.numTets(); ++t) {
-    if (!mesh.isAlive(t)) continue;
-    const Mat6x12 b = strainMatrix(m.geo[t]);
-    const Eigen::Matrix<double, 12, 12> ke = m.geo[t].volume * b.transpose() * (m.d * b);
-    for (int i = 0; i < 12; ++i) {
-      const int fi = m.freeIndex[3 * mesh.tets[t][i / 3] + i % 3];
-      if (fi < 0) continue;
-      for (int j = 0; j < 12; ++j) {
-        const int fj = m.freeIndex[3 * mesh.tets[t][j / 3] + j % 3];
-        if (fj >= 0 && fj <= fi) triplets.emplace_back(fi, fj, ke(i, j));
-      }
-    }
-  }
-  m.numFree = nf;
-  SparseMatrix k(nf, nf);
-  k.setFromTriplets(triplets.begin(), triplets.end());
-  k.makeCompressed();
+  // 2. adjacency over every tet, removed or not (removeTets walks it), and the pieces
+  TetMesh whole;
+  whole.nodes = mesh.nodes;
+  whole.tets = mesh.tets;  // no alive flags: every tet
+  m.tetsOfNode = nodeTets(whole);
+  m.faceNeighbours = tetNeighbours(whole);
+  m.supportsOfNode = compressedRows(n, std::move(supportPairs));
+  m.mark.assign(3 * static_cast<size_t>(n), 0);
+  m.tetMark.assign(nt, 0);
+  std::vector<int> newlyHeld;
+  m.classifyPieces(newlyHeld);
+  ESIM_VERIFY(m.livePieces == 0 || m.islands < m.livePieces, kNoPieceHeld);
 
-  // 3. factorization, once
-  const auto t0 = std::chrono::steady_clock::now();
-  openblas_set_num_threads(1);      // see StructuralOptions: BLAS threads only spin here
-  if (nf > 0) m.factor.compute(k);  // nf == 0: everything held, nothing to solve
-  m.factorSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  ESIM_RUN_CHECK(nf == 0 || m.factor.info() == Eigen::Success,
-                 "structural: the stiffness matrix is not positive definite (degenerate tets, or "
-                 "supports that leave part of the body free)");
+  // 3. assembly and factorization of A (3n x 3n), once
   m.u = Eigen::VectorXd::Zero(3 * n);
-  m.stress.assign(mesh.numTets(), VoigtStress{});
-  m.vonMisesPa.assign(mesh.numTets(), 0.0);
+  m.stress.assign(nt, VoigtStress{});
+  m.vonMisesPa.assign(nt, 0.0);
+  if (n == 0) return;
+  const auto t0 = std::chrono::steady_clock::now();
+  m.factorize();
+  m.factorSeconds = secondsSince(t0);
 }
 
 StructuralPhase::~StructuralPhase() = default;
 
+StructuralUpdateStats StructuralPhase::removeTets(const std::vector<int>& tets) {
+  return impl_->removeTets(tets);
+}
+
 void StructuralPhase::solve(const std::vector<double>& ev) {
+  const auto t0 = std::chrono::steady_clock::now();
   Impl& m = *impl_;
   const int nt = static_cast<int>(m.tets.size());
   ESIM_VERIFY(static_cast<int>(ev.size()) == nt, "structural: " + std::to_string(ev.size()) +
                                                      " eigenstrains for " + std::to_string(nt) +
                                                      " tets");
-  // f = sum_e V_e B_e^T D eps*_e; D eps* = K_b e_v (1,1,1,0,0,0), so node i of the tet
-  // gets V_e K_b e_v grad N_i
-  m.rhs.setZero(m.numFree);
-  for (int t = 0; t < nt; ++t) {
-    if (!m.alive[t] || ev[t] == 0) continue;
-    ESIM_VERIFY(std::isfinite(ev[t]),
+  if (!m.failure.empty()) throw Error(m.failure);
+  for (int t = 0; t < nt; ++t)
+    ESIM_VERIFY(!m.alive[t] || std::isfinite(ev[t]),
                 "structural: eigenstrain of tet " + std::to_string(t) + " is not finite");
-    const double s = m.geo[t].volume * m.bulkModulusPa * ev[t];
-    for (int i = 0; i < 4; ++i)
-      for (int a = 0; a < 3; ++a) {
-        const int fi = m.freeIndex[3 * m.tets[t][i] + a];
-        if (fi >= 0) m.rhs(fi) += s * m.geo[t].grad(i, a);
-      }
-  }
-  if (m.numFree > 0) {
-    openblas_set_num_threads(1);
-    m.freeSolution = m.factor.solve(m.rhs);
-  }
-  m.u.setZero();
-  for (size_t dof = 0; dof < m.freeIndex.size(); ++dof)
-    if (m.freeIndex[dof] >= 0)
-      m.u(static_cast<Eigen::Index>(dof)) = m.freeSolution(m.freeIndex[dof]);
-  // sigma = D B u_e - K_b e_v (1, 1, 1, 0, 0, 0)
-  for (int t = 0; t < nt; ++t) {
-    if (!m.alive[t]) {
-      m.stress[t] = VoigtStress{};
-      m.vonMisesPa[t] = 0;
-      continue;
-    }
-    Eigen::Matrix<double, 12, 1> ue;
-    for (int i = 0; i < 4; ++i) ue.segment<3>(3 * i) = m.u.segment<3>(3 * m.tets[t][i]);
-    // B_e rebuilt from the stored gradients: keeping D B_e per tet would cost 576 bytes
-    // a tet (92 MB for the liver's 161k tets, twice during a background rebuild)
-    const Eigen::Matrix<double, 6, 1> s = m.d * (strainMatrix(m.geo[t]) * ue);
-    const double p = m.bulkModulusPa * ev[t];
-    m.stress[t] = {s(0) - p, s(1) - p, s(2) - p, s(3), s(4), s(5)};
-    m.vonMisesPa[t] = vonMises(m.stress[t]);
+  m.lastSolve = StructuralSolveStats{};
+  if (!(m.method == StructuralSolveMethod::local && m.localSolve(ev))) m.fullSolve(ev);
+  m.lastSolve.seconds = secondsSince(t0);
+}
+
+void StructuralPhase::setSolveMethod(StructuralSolveMethod method, const LocalSolveOptions& local) {
+  Impl& m = *impl_;
+  verifyLocalOptions(local);
+  m.finishRefresh(false);
+  m.method = method;
+  m.local = local;
+  m.dropRegion();
+  if (method == StructuralSolveMethod::full) {  // the reference is not kept up to date
+    m.hasReference = false;
+    m.refElastic = {};
+    m.refEv = {};
   }
 }
+
+const StructuralSolveStats& StructuralPhase::lastSolveStats() const { return impl_->lastSolve; }
 
 const Eigen::VectorXd& StructuralPhase::displacementM() const { return impl_->u; }
 const std::vector<VoigtStress>& StructuralPhase::stressPa() const { return impl_->stress; }

@@ -6,21 +6,48 @@
 // e_v the tet's volumetric expansion (dV / V, the paper's Delta v_liq + Delta v_gas).
 // P1 displacements (3 components per node, constant strain per tet); equilibrium
 //   K u = f,   K = sum_e V_e B_e^T D B_e,   f = sum_e V_e B_e^T D eps*_e,
-// with listed displacement components (Support) held at 0. K depends on the mesh,
-// E, nu and the supports only: it is factorized once (CHOLMOD) at construction and
-// every solve() is a right-hand side and two triangular solves.
+// with listed displacement components (Support) held at 0. The phase factorizes (CHOLMOD)
+//   A = K on the free components, the identity on the held ones   (3n x 3n, all components)
+// once at construction (supernodal LL'); every full solve() is a right-hand side (0 on the
+// held components) and two triangular solves (a local one, see LocalSolveOptions, a
+// correction on a region around the changed load).
 // Removed tets (alive == 0) contribute nothing; a node left without an alive tet is
-// held at 0, and so is every node of a floating island (alive tets connected through
-// shared nodes, none of them supported: a piece cut loose), so that K stays positive
-// definite; such islands carry no stress.
+// held at 0, and so is every node of a floating island (a rigid piece: alive tets
+// connected through shared faces, whose own supports leave a rigid motion free: cut
+// loose, or hanging by an edge or a node), so that K stays positive definite; such
+// islands carry no stress.
+// Removal (removeTets) updates the factor instead of rebuilding it: the rows of the
+// components it newly holds are deleted (cholmod_rowdel: they become identity rows), then
+// the removed tets' stiffness on the components still free is subtracted as a low-rank
+// downdate (cholmod_updown, <= 6 columns per tet; L is converted to simplicial LDL' at the
+// first removal after a factorization, O(nnz(L)) once, or right after each factorization
+// with StructuralOptions::prepareForUpdates). Its cost grows with the removed
+// tets, the pieces they cut off and the columns of L below them, not with the mesh; when
+// the estimate of that cost exceeds StructuralOptions::updateCostLimit times a
+// refactorization's, or a downdate loses positive definiteness (a pivot D(j) <= 0), it
+// refactorizes A instead. Either way the result equals a phase built afresh on the mesh
+// with the same tets removed and the same supports (to round-off; see the tests).
+// Measured (esim bench structural, paper slab, 5 tets under the top centre, 2 loaded
+// cores): update 1.2 / 39 / 270 / 974 ms against a rebuild of 18 / 344 / 2940 / 10265 ms
+// at 1k / 5k / 20k / 50k nodes, of which the one-off conversion to LDL' 0.4 / 17 / 148 /
+// 587 ms; a simplicial factorization from the start would cost 2x (5k) to 5.7x (20k) the
+// supernodal one, so the phase keeps the supernodal and converts at the first removal;
+// solves with the LDL' factor then take ~1.3x as long (105 vs 83 ms at 20k nodes).
+// Pieces: per tet its piece; a removal searches only from the removed tets' neighbours
+// (see splitPiece in structural.cpp), the pieces it cuts off and the supports they take.
 // Per tet after solve(): Cauchy stress in Voigt order (xx, yy, zz, yz, xz, xy) [Pa]
 // and its von Mises stress [Pa]. Displacement: 3 per node (x0, y0, z0, x1, ...) [m].
 // The supports must remove the rigid motions (at least 6 independent components,
 // e.g. a clamped face); otherwise the constructor throws esim::Error.
-// Ownership: the phase copies the tets and alive flags it needs; the mesh may go away.
-// Threads: CHOLMOD runs with one OpenBLAS thread (set before each factorization and
-// solve): on 2 shared cores more threads only spin (measured: simulation_test's background
-// rebuild test went from 6.1 s to 0.7 s), and results do not depend on the thread count.
+// Ownership: the phase copies the nodes, tets and alive flags it needs; the mesh may go
+// away, and removeTets does not touch it (the caller keeps its alive flags in step).
+// Threads: a phase is not thread-safe: solve() and removeTets() on one phase must not
+// overlap; distinct phases are independent (each owns its CHOLMOD workspace). With
+// LocalSolveOptions::refreshOnThread the phase runs full solves on a thread of its own (its
+// own CHOLMOD workspace, reading the factor, which only removeTets changes after joining it).
+// CHOLMOD runs with one OpenBLAS thread (set before each factorization and solve): on 2 shared
+// cores more threads only spin (measured: simulation_test's background rebuild test went from 6.1 s
+// to 0.7 s), and results do not depend on the thread count.
 #pragma once
 
 #include <Eigen/Core>
@@ -65,10 +92,105 @@ double waterDensityKg_m3(double temperatureC);
 double volumetricExpansion(const ExpansionParams& params, double temperatureC,
                            double vaporFraction);
 
+// ---- how solve() finds the displacement ----
+enum class StructuralSolveMethod {
+  full,   // K u = f over the whole body with the factor of A (the default)
+  local,  // a correction of the last full solve on a region around the changed load
+};
+
+// The local solve. The phase keeps a reference, (e_ref, u_ref): the load and displacement
+// of its last full solve (or adopted refresh, see refreshOnThread). For a load e_v it
+// solves only on U, the free components of the nodes within marginM of the box around the
+// tets whose load changed since,
+//   K_UU d_U = r_U,   r = f(e_v) - K u_ref = -sum_e V_e B_e^T sigma_e(u_ref, e_v),
+//   u = u_ref + d   (d = 0 outside U),
+// the Galerkin solution with u held at u_ref outside U: exact (to round-off) when U holds
+// every free component; its energy-norm error never grows when U grows (nested spaces).
+// What it drops is the response outside U to the load change since the reference, which
+// decays slowly on the clamped slab (see the measurements below): the error grows with
+// that change, so keep the reference fresh (refreshEvery) rather than the margin wide.
+// The box: the alive tets whose |e_v - e_ref| exceeds loadTolerance times the largest
+// change, the removed tets and the nodes held (u_ref set to 0) since the reference. The
+// region (U, the alive tets touching it, CHOLMOD's factor of K_UU, ordered as the whole
+// factor) is built around that box grown by slackM, and reused while the box stays inside
+// it (a moving load pays a region factorization every slackM or so of travel); removeTets
+// drops it (K changed). A full solve (the new reference) is done instead at the first
+// solve, after setSolveMethod(full, ...), every refreshEvery solves (unless
+// refreshOnThread), and when U would hold more than maxRegionFraction of the free
+// components. The stress of a tet outside U's tets is D B_e u_ref - K_b e_v: its elastic
+// part is kept per tet (48 bytes a tet; twice with refreshOnThread).
+// Measured (esim bench structural --local: paper slab, Gaussian expansion of radius 3 mm
+// scaled to a peak von Mises of 1.5 x 24.5 kPa, 40 frames, slack 5 mm, 2 loaded cores;
+// growing: its peak ramps from 0.6 to 1; moving: 0.5 mm a frame along x), at 50k nodes
+// (133k unknowns), full solve 150-160 ms (median). Refresh every 30 solves in the frame,
+// margin 5 / 10 / 20 mm: median 18 / 30 / 63 ms growing, 21 / 32 / 62 ms moving; mean
+// (a 0.4-1.8 s region build every ~10 frames moving, once growing, and the refreshes
+// included) 36 / 50 / 108 and 67 / 107 / 224 ms; max |vm - vm_full| 155 / 83 / 28 Pa and
+// 911 / 304 / 93 Pa; relative L2 over all tets 3.0 / 1.9 / 0.8 % and 6.8 / 4.1 / 1.6 %;
+// tets on the other side of 24.5 kPa 1 / 1 / 0 and 2 / 1 / 0 (of 76-78 above it). With
+// refreshOnThread, refreshEvery 10, margin 5 / 10 mm: median 36 / 41 and 25 / 36 ms (the
+// thread competes for the 2 cores), max error 102 / 54 and 774 / 236 Pa, same set
+// differences. At 20k nodes (full 43 ms): median 4-17 ms; at 5k (full 4.5 ms): 0.7-1.9 ms.
+struct LocalSolveOptions {
+  double marginM = 0.01;           // the region: nodes within this of the box [m]
+  double slackM = 0.005;           // the box grown by this when a region is built [m]
+  double loadTolerance = 1e-3;     // tets whose change exceeds this times the largest span
+                                   // the box (in [0, 1))
+  int refreshEvery = 30;           // a full solve at least every this many solves (0: never
+                                   // but the first, and regions too large)
+  double maxRegionFraction = 0.5;  // more of the free components than this: a full solve
+  // the refresh on a thread of the phase instead of in the frame: a local solve starts a
+  // full solve of its load on the thread, adopted as the reference (joined, waiting if
+  // unfinished) at the refreshEvery-th solve after it, which starts the next one; so the
+  // reference is at most 2 refreshEvery - 1 solves old, and the results do not depend on
+  // the thread's timing. removeTets joins and adopts it first; setSolveMethod and a full
+  // solve in the frame join and drop it (refreshEvery 0: no refresh)
+  bool refreshOnThread = false;
+};
+
+// what the last solve() did
+struct StructuralSolveStats {
+  bool local = false;              // a local solve (else a full one, the new reference)
+  bool regionBuilt = false;        // ... that built and factorized a region
+  int regionDofs = 0;              // unknowns of the local solve (0: no load change)
+  int regionTets = 0;              // tets whose stress the correction changes
+  double regionFactorSeconds = 0;  // assembly and factorization of K_UU
+  bool refreshAdopted = false;     // refreshOnThread: a refresh became the reference ...
+  bool refreshStarted = false;     // ... a refresh of this load started
+  double seconds = 0;              // wall time of the call (waits for the thread included)
+};
+
 // ---- the phase ----
 struct StructuralOptions {
   double youngsModulusPa = 4.75e4;  // E (paper Table 1)
   double poissonRatio = 0.4;        // nu in [0, 0.5) (paper Table 1)
+  // removeTets updates the factor while its estimated cost is at most this times a
+  // refactorization's, else refactorizes (1: the cheaper; 0: always refactorize; a large
+  // value: update unless a downdate fails)
+  double updateCostLimit = 1.0;
+  // convert the factor to simplicial LDL' right after each factorization (the constructor's
+  // and a fallback refactorization's) instead of at the first removal after it: a simulation
+  // that removes tets in its frame loop pays the conversion at set-up (solves are then ~1.3x
+  // slower from the start; results equal to round-off)
+  bool prepareForUpdates = false;
+  StructuralSolveMethod solveMethod = StructuralSolveMethod::full;  // see LocalSolveOptions
+  LocalSolveOptions local;
+};
+
+// what one removeTets call did
+struct StructuralUpdateStats {
+  int tetsRemoved = 0;          // newly removed (ids of removed tets and repeats are skipped)
+  int dofsHeld = 0;             // components newly held: rows deleted from L
+  int dofsFreed = 0;            // components of nodes no island holds any more: rows added
+  int rank = 0;                 // columns of the downdate C (<= 6 per removed tet)
+  int piecesCutOff = 0;         // pieces split off the ones the removed tets belonged to
+  double updateWork = 0;        // entries of L the update walks, times the columns passing
+  double updateCost = 0;        // estimated cost of the update / a refactorization's
+  bool refactorized = false;    // fell back to a full refactorization
+  bool downdateFailed = false;  // ... because the update lost positive definiteness
+  double convertSeconds = 0;    // supernodal LL' to simplicial LDL' (first update after a
+                                // factorization; 0 with StructuralOptions::prepareForUpdates)
+  double seconds = 0;           // wall time of the call
 };
 
 // one displacement component held at 0
@@ -93,15 +215,33 @@ class StructuralPhase {
   StructuralPhase& operator=(const StructuralPhase&) = delete;
 
   // displacement and stresses for one volumetric eigenstrain per tet (numTets()
-  // entries, removed tets ignored); throws esim::Error on a size mismatch or NaN
+  // entries, removed tets ignored), by the solve method (full, or local: see
+  // LocalSolveOptions); throws esim::Error on a size mismatch or NaN, or after a removal
+  // that left no piece held
   void solve(const std::vector<double>& volumetricEigenstrain);
+
+  // changes the solve method and its options (validated as the constructor does); the
+  // reference of a local solve is kept, its region dropped
+  void setSolveMethod(StructuralSolveMethod method, const LocalSolveOptions& local);
+  const StructuralSolveStats& lastSolveStats() const;  // of the last solve()
+
+  // Removes tets (mesh tet ids; ids already removed and repeats are skipped) and updates
+  // the factor (see the header comment): afterwards the phase is the one a constructor
+  // would build on the mesh with these tets removed too. Throws esim::Error (Input kind)
+  // on an id out of range (nothing changed); when no piece is held by the supports any
+  // more, it throws the constructor's esim::Error, "structural: no piece of the body is
+  // held by the supports" (Input kind, as the constructor: the caller names the cause),
+  // and the phase is dead: every later solve or removeTets throws it again; esim::RunError
+  // if CHOLMOD runs out of memory or a refactorization fails.
+  StructuralUpdateStats removeTets(const std::vector<int>& tets);
 
   const Eigen::VectorXd& displacementM() const;      // 3 per node [m]
   const std::vector<VoigtStress>& stressPa() const;  // per tet (0 for removed tets)
   const std::vector<double>& vonMisesPa() const;     // per tet (0 for removed tets)
   int numFreeDofs() const;                           // unknowns of K u = f
   int numFloatingIslands() const;                    // unsupported pieces held in place
-  double factorizationSeconds() const;               // wall time of the constructor's factorization
+  double factorizationSeconds() const;  // wall time of the constructor's factorization [s]
+                                        // (with the conversion if prepareForUpdates)
 
  private:
   struct Impl;

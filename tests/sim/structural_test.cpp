@@ -1,16 +1,21 @@
 // Tests for sim/structural.cpp against the uniform-eigenstrain solutions of
 // ../shared/REFERENCE.md (case 7), exact for P1 on any mesh: clamped body
 // (hydrostatic), laterally constrained layer, free expansion (no stress); plus removed
-// tets, linearity and bad input.
+// tets, linearity and bad input; removeTets against a phase built afresh on the same alive
+// set (updates, orphaned nodes, pieces cut loose or hanging by an edge, the fallback);
+// the local solve against the full one (exact on the whole mesh, an energy error that
+// does not grow with the region, after removals, the refresh schedule).
 #include "sim/structural.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <string>
 
 #include "sim/core_error.h"
+#include "sim/fem_p1.h"
 #include "sim/mesh_slab.h"
 
 namespace esim {
@@ -264,6 +269,541 @@ TEST(Structural, RejectsBadInput) {
   std::vector<double> nan(mesh.numTets(), 0.0);
   nan[3] = std::nan("");
   EXPECT_NE(message([&] { p.solve(nan); }).find("not finite"), std::string::npos);
+}
+
+// ---- removeTets: the updated phase equals a fresh build ----
+
+// a load that differs from tet to tet, so that displacements are not trivial
+std::vector<double> unevenLoad(const TetMesh& mesh) {
+  std::vector<double> ev(mesh.numTets());
+  for (int t = 0; t < mesh.numTets(); ++t) ev[t] = kEv * (1 + (t % 7) / 3.0);
+  return ev;
+}
+
+// |a - b| / |b|, 0 when both vanish
+double relativeDifference(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  const double scale = b.norm();
+  return scale == 0 ? a.norm() : (a - b).norm() / scale;
+}
+
+Eigen::VectorXd asVector(const std::vector<double>& v) {
+  return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
+}
+
+// the phase after its removals against one built on the mesh with the same tets removed
+void expectSameAsFresh(StructuralPhase& phase, const TetMesh& mesh,
+                       const std::vector<Support>& supports, const std::string& where) {
+  SCOPED_TRACE(where);
+  StructuralPhase fresh(mesh, paper(), supports);
+  const std::vector<double> ev = unevenLoad(mesh);
+  phase.solve(ev);
+  fresh.solve(ev);
+  EXPECT_EQ(phase.numFreeDofs(), fresh.numFreeDofs());
+  EXPECT_EQ(phase.numFloatingIslands(), fresh.numFloatingIslands());
+  EXPECT_GT(fresh.displacementM().norm(), 0.0);
+  EXPECT_LT(relativeDifference(phase.displacementM(), fresh.displacementM()), 1e-9);
+  EXPECT_LT(relativeDifference(asVector(phase.vonMisesPa()), asVector(fresh.vonMisesPa())), 1e-9);
+}
+
+// removes tets from the phase and from the mesh's alive flags
+StructuralUpdateStats removeBoth(StructuralPhase& phase, TetMesh& mesh,
+                                 const std::vector<int>& tets) {
+  for (int t : tets) mesh.alive[t] = 0;
+  return phase.removeTets(tets);
+}
+
+StructuralOptions alwaysUpdate() {  // tiny meshes: an update would otherwise lose to a refactor
+  StructuralOptions o = paper();
+  o.updateCostLimit = 1e300;
+  return o;
+}
+
+bool onBottom(const Vec3& p) { return p.z() < 1e-12; }
+
+double centroidZ(const TetMesh& mesh, int t) {
+  double z = 0;
+  for (int v : mesh.tets[t]) z += mesh.nodes[v].z() / 4;
+  return z;
+}
+
+// a slab with a few more cells than distortedSlab, interior nodes moved the same way
+TetMesh biggerSlab() {
+  SlabSpec s;
+  s.sizeM = {kLx, kLy, kLz};
+  s.nodesPerAxis = {8, 7, 5};
+  TetMesh mesh = makeSlab(s);
+  std::uint32_t state = 777;
+  for (Vec3& p : mesh.nodes) {
+    state = state * 1664525u + 1013904223u;
+    const double r = static_cast<double>(state >> 8) / (1u << 23) - 1.0;
+    if (!onBoundary(p)) p += 0.1 * r * Vec3(kLx / 7, kLy / 6, kLz / 4);
+  }
+  return mesh;
+}
+
+TEST(StructuralRemoval, OneFiveThenManyTetsEqualAFreshBuild) {
+  TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralPhase phase(mesh, alwaysUpdate(), clamp);
+  // the tets by distance of their centroid from the top centre
+  std::vector<int> order(mesh.numTets());
+  std::vector<double> dist(mesh.numTets());
+  for (int t = 0; t < mesh.numTets(); ++t) {
+    Vec3 c = Vec3::Zero();
+    for (int v : mesh.tets[t]) c += mesh.nodes[v] / 4;
+    dist[t] = (c - Vec3(0, 0, kLz)).norm();
+    order[t] = t;
+  }
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return dist[a] < dist[b]; });
+  StructuralUpdateStats st = removeBoth(phase, mesh, {order[0]});
+  EXPECT_EQ(st.tetsRemoved, 1);
+  EXPECT_GT(st.rank, 0);
+  EXPECT_LE(st.rank, 6);
+  EXPECT_FALSE(st.refactorized);
+  expectSameAsFresh(phase, mesh, clamp, "1 tet");
+  st = removeBoth(phase, mesh, {order[1], order[2], order[3], order[4], order[5], order[1]});
+  EXPECT_EQ(st.tetsRemoved, 5);  // the repeat and nothing else skipped
+  EXPECT_FALSE(st.refactorized);
+  expectSameAsFresh(phase, mesh, clamp, "5 tets");
+  // then many, in batches of 13 taken all over the upper half (a crater and scattered holes)
+  std::vector<int> upper;
+  for (int t = 6; t < mesh.numTets(); ++t)
+    if (centroidZ(mesh, order[t]) > 0.45 * kLz) upper.push_back(order[t]);
+  int removed = 6, batches = 0;
+  for (size_t k = 0; k + 13 <= upper.size() && batches < 25; k += 13, ++batches) {
+    std::vector<int> batch;
+    for (size_t j = 0; j < 13; ++j) batch.push_back(upper[(k + j * 37) % upper.size()]);
+    st = removeBoth(phase, mesh, batch);
+    removed += st.tetsRemoved;
+    EXPECT_FALSE(st.refactorized);
+    if (batches % 8 == 0) expectSameAsFresh(phase, mesh, clamp, "batch " + std::to_string(batches));
+  }
+  EXPECT_GT(removed, 200);
+  expectSameAsFresh(phase, mesh, clamp, "many tets");
+}
+
+TEST(StructuralRemoval, OrphanedNodeIsHeld) {
+  TetMesh mesh = distortedSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralPhase phase(mesh, alwaysUpdate(), clamp);
+  // every tet at the top corner node (x max, y max, z max)
+  int corner = 0;
+  for (int v = 0; v < mesh.numNodes(); ++v)
+    if (mesh.nodes[v].sum() > mesh.nodes[corner].sum()) corner = v;
+  std::vector<int> atCorner;
+  for (int t = 0; t < mesh.numTets(); ++t)
+    if (std::count(mesh.tets[t].begin(), mesh.tets[t].end(), corner)) atCorner.push_back(t);
+  ASSERT_FALSE(atCorner.empty());
+  const int freeBefore = phase.numFreeDofs();
+  const StructuralUpdateStats st = removeBoth(phase, mesh, atCorner);
+  EXPECT_EQ(st.dofsHeld, 3);
+  EXPECT_EQ(phase.numFreeDofs(), freeBefore - 3);
+  EXPECT_FALSE(st.refactorized);
+  expectSameAsFresh(phase, mesh, clamp, "orphaned corner");
+  phase.solve(unevenLoad(mesh));
+  EXPECT_EQ(phase.displacementM().segment<3>(3 * corner).norm(), 0.0);
+}
+
+TEST(StructuralRemoval, PieceCutLooseBecomesAnIsland) {
+  TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralPhase phase(mesh, alwaysUpdate(), clamp);
+  // the middle layer of cells, in two halves: the second cuts the top layer loose
+  std::vector<int> left, right;
+  for (int t = 0; t < mesh.numTets(); ++t) {
+    const double z = centroidZ(mesh, t);
+    if (z < kLz / 4 || z > kLz / 2) continue;
+    double x = 0;
+    for (int v : mesh.tets[t]) x += mesh.nodes[v].x() / 4;
+    (x < 0 ? left : right).push_back(t);
+  }
+  StructuralUpdateStats st = removeBoth(phase, mesh, left);
+  EXPECT_EQ(phase.numFloatingIslands(), 0);
+  expectSameAsFresh(phase, mesh, clamp, "half the layer");
+  st = removeBoth(phase, mesh, right);
+  EXPECT_GE(st.piecesCutOff, 1);
+  EXPECT_GT(st.dofsHeld, 0);
+  EXPECT_EQ(phase.numFloatingIslands(), 1);
+  EXPECT_FALSE(st.refactorized);
+  expectSameAsFresh(phase, mesh, clamp, "top cut loose");
+  // a removal inside the island, and one splitting it in two islands
+  std::vector<int> top;
+  for (int t = 0; t < mesh.numTets(); ++t)
+    if (mesh.alive[t] && centroidZ(mesh, t) > kLz / 2) {
+      double x = 0;
+      for (int v : mesh.tets[t]) x += mesh.nodes[v].x() / 4;
+      if (std::abs(x) < kLx / 14) top.push_back(t);
+    }
+  st = removeBoth(phase, mesh, top);
+  EXPECT_EQ(st.dofsHeld, 0);
+  EXPECT_EQ(st.rank, 0);  // all of it held already
+  expectSameAsFresh(phase, mesh, clamp, "island split");
+  EXPECT_EQ(phase.numFloatingIslands(), 2);
+}
+
+// A held at three nodes, E on its face (0, 1, 3), C on its face (1, 2, 3) and B on C's face
+// (2, 3, 4): removing C leaves B hanging from A by the edge (2, 3). B could turn about it
+// (its own supports, node 2's, leave that free), so it must be held, node 3 with it
+TEST(StructuralRemoval, PieceHangingByAnEdgeIsHeld) {
+  TetMesh mesh;
+  const double h = 0.01;
+  mesh.nodes = {Vec3(0, 0, 0), Vec3(h, 0, 0),      Vec3(0, h, 0),         Vec3(0, 0, h),
+                Vec3(h, h, h), Vec3(-h / 2, h, h), Vec3(h / 2, -h, h / 2)};
+  mesh.tets = {{0, 1, 2, 3}, {1, 2, 3, 4}, {2, 3, 4, 5}, {0, 1, 3, 6}};
+  for (Tet& t : mesh.tets)
+    if (tetSignedVolume(mesh.nodes[t[0]], mesh.nodes[t[1]], mesh.nodes[t[2]], mesh.nodes[t[3]]) < 0)
+      std::swap(t[0], t[1]);
+  mesh.alive.assign(mesh.tets.size(), 1);
+  std::vector<Support> s;
+  for (int v : {0, 1, 2})
+    for (int a = 0; a < 3; ++a) s.push_back({v, a});
+  StructuralPhase phase(mesh, alwaysUpdate(), s);
+  EXPECT_EQ(phase.numFloatingIslands(), 0);
+  expectSameAsFresh(phase, mesh, s, "whole");
+  const StructuralUpdateStats st = removeBoth(phase, mesh, {1});
+  EXPECT_EQ(st.piecesCutOff, 1);
+  EXPECT_EQ(st.dofsHeld, 9);  // nodes 3, 4, 5
+  EXPECT_EQ(phase.numFloatingIslands(), 1);
+  EXPECT_EQ(phase.numFreeDofs(), 3);  // node 6
+  expectSameAsFresh(phase, mesh, s, "hanging by an edge");
+  // removing B frees node 3 again (A and E hold it now), as a fresh build would
+  const StructuralUpdateStats gone = removeBoth(phase, mesh, {2});
+  EXPECT_EQ(gone.dofsFreed, 3);
+  EXPECT_EQ(phase.numFloatingIslands(), 0);
+  EXPECT_EQ(phase.numFreeDofs(), 6);  // nodes 3 and 6
+  expectSameAsFresh(phase, mesh, s, "island removed");
+}
+
+TEST(StructuralRemoval, RemovingTheClampedTissueIsTheFreshBuildsError) {
+  TetMesh mesh = distortedSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralPhase phase(mesh, alwaysUpdate(), clamp);
+  std::vector<int> first, second;  // the tets touching the clamped bottom, in two steps
+  for (int t = 0; t < mesh.numTets(); ++t) {
+    double zMin = 1;
+    for (int v : mesh.tets[t]) zMin = std::min(zMin, mesh.nodes[v].z());
+    if (zMin < 1e-12) (t % 2 ? first : second).push_back(t);
+  }
+  removeBoth(phase, mesh, first);
+  expectSameAsFresh(phase, mesh, clamp, "half the clamped tets");
+  for (int t : second) mesh.alive[t] = 0;
+  auto caught = [](auto&& f) -> std::pair<std::string, ErrorKind> {
+    try {
+      f();
+    } catch (const Error& e) {
+      return {e.what(), e.kind()};
+    }
+    return {"no error", ErrorKind::Internal};
+  };
+  const auto fresh = caught([&] { StructuralPhase p(mesh, paper(), clamp); });
+  const auto updated = caught([&] { phase.removeTets(second); });
+  EXPECT_NE(fresh.first.find("no piece of the body is held"), std::string::npos) << fresh.first;
+  EXPECT_EQ(updated.first, fresh.first);
+  EXPECT_EQ(updated.second, fresh.second);
+  // the phase is dead from then on
+  EXPECT_EQ(caught([&] { phase.solve(unevenLoad(mesh)); }).first, fresh.first);
+}
+
+TEST(StructuralRemoval, FallbackRefactorizationEqualsAFreshBuild) {
+  TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralOptions o = paper();
+  o.updateCostLimit = 0;  // always refactorize
+  StructuralPhase phase(mesh, o, clamp);
+  std::vector<int> top;
+  for (int t = 0; t < mesh.numTets(); ++t)
+    if (centroidZ(mesh, t) > 0.75 * kLz && t % 3 == 0) top.push_back(t);
+  const StructuralUpdateStats st = removeBoth(phase, mesh, top);
+  EXPECT_TRUE(st.refactorized);
+  EXPECT_FALSE(st.downdateFailed);
+  expectSameAsFresh(phase, mesh, clamp, "refactorized");
+  // and an update after a refactorization (the factor is supernodal again)
+  StructuralOptions both = paper();
+  StructuralPhase defaults(mesh, both, clamp);
+  const StructuralUpdateStats small = removeBoth(defaults, mesh, {top.back() + 1});
+  EXPECT_EQ(small.tetsRemoved, 1);
+  expectSameAsFresh(defaults, mesh, clamp, "default limit");
+}
+
+TEST(StructuralRemoval, PrepareForUpdatesGivesTheSameResults) {
+  TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralOptions prepared = alwaysUpdate();
+  prepared.prepareForUpdates = true;
+  StructuralPhase eager(mesh, prepared, clamp);
+  StructuralPhase lazy(mesh, alwaysUpdate(), clamp);
+  const std::vector<double> ev = unevenLoad(mesh);
+  eager.solve(ev);
+  lazy.solve(ev);
+  EXPECT_LT(relativeDifference(eager.displacementM(), lazy.displacementM()), 1e-12);
+  EXPECT_LT(relativeDifference(asVector(eager.vonMisesPa()), asVector(lazy.vonMisesPa())), 1e-12);
+  // the first update converts only the lazy one's factor; then both equal a fresh build
+  std::vector<int> top;
+  for (int t = 0; t < mesh.numTets(); ++t)
+    if (centroidZ(mesh, t) > 0.75 * kLz && t % 5 == 0) top.push_back(t);
+  top.resize(5);
+  const StructuralUpdateStats a = eager.removeTets(top), b = lazy.removeTets(top);
+  EXPECT_EQ(a.convertSeconds, 0.0);
+  EXPECT_GT(b.convertSeconds, 0.0);
+  EXPECT_FALSE(a.refactorized);
+  for (int t : top) mesh.alive[t] = 0;
+  expectSameAsFresh(eager, mesh, clamp, "prepared");
+  expectSameAsFresh(lazy, mesh, clamp, "lazy");
+  // a fallback refactorization (converted again) too
+  StructuralOptions refactor = prepared;
+  refactor.updateCostLimit = 0;
+  StructuralPhase fallback(mesh, refactor, clamp);
+  EXPECT_TRUE(removeBoth(fallback, mesh, {top.back() + 1}).refactorized);
+  expectSameAsFresh(fallback, mesh, clamp, "after the fallback");
+  EXPECT_TRUE(removeBoth(fallback, mesh, {top.back() + 2}).refactorized);
+  expectSameAsFresh(fallback, mesh, clamp, "after a second fallback");
+}
+
+TEST(StructuralRemoval, RejectsBadIds) {
+  TetMesh mesh = distortedSlab();
+  StructuralPhase phase(mesh, paper(), hold(mesh, onBottom, {0, 1, 2}));
+  try {
+    phase.removeTets({0, mesh.numTets()});
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Input);
+    EXPECT_NE(std::string(e.what()).find("out of range"), std::string::npos) << e.what();
+  }
+  // nothing was removed: tet 0 still is
+  EXPECT_EQ(phase.removeTets({0}).tetsRemoved, 1);
+  EXPECT_EQ(phase.removeTets({0}).tetsRemoved, 0);
+}
+
+// ---- the local solve ----
+
+// a load of compact support: kEv (1 - d^2 / R^2) within R of centre, 0 elsewhere
+std::vector<double> bumpLoad(const TetMesh& mesh, const Vec3& centre, double radius) {
+  std::vector<double> ev(mesh.numTets(), 0.0);
+  for (int t = 0; t < mesh.numTets(); ++t) {
+    Vec3 c = Vec3::Zero();
+    for (int v : mesh.tets[t]) c += mesh.nodes[v] / 4;
+    const double q = (c - centre).squaredNorm() / (radius * radius);
+    if (q < 1) ev[t] = kEv * (1 - q);
+  }
+  return ev;
+}
+
+LocalSolveOptions wholeMesh() {
+  LocalSolveOptions o;
+  o.marginM = 1;  // 1 m: every node of the 20 mm slab
+  o.maxRegionFraction = 1;
+  o.refreshEvery = 0;
+  return o;
+}
+
+StructuralOptions localPaper(const LocalSolveOptions& local) {
+  StructuralOptions o = alwaysUpdate();
+  o.solveMethod = StructuralSolveMethod::local;
+  o.local = local;
+  return o;
+}
+
+// energy norm of the error, sum_e V_e (s - s*)' D^-1 (s - s*), from the stresses (the load
+// is the same, so s - s* = D B (u - u*))
+double energyError(const TetMesh& mesh, const StructuralPhase& phase,
+                   const StructuralPhase& exact) {
+  const double lambda = kE * kNu / ((1 + kNu) * (1 - 2 * kNu)), mu = kE / (2 * (1 + kNu));
+  Eigen::Matrix<double, 6, 6> d = Eigen::Matrix<double, 6, 6>::Zero();
+  d.topLeftCorner<3, 3>().setConstant(lambda);
+  for (int i = 0; i < 3; ++i) {
+    d(i, i) = lambda + 2 * mu;
+    d(3 + i, 3 + i) = mu;
+  }
+  const Eigen::Matrix<double, 6, 6> compliance = d.inverse();
+  const std::vector<TetGeometry> geo = tetGeometry(mesh);
+  double sum = 0;
+  for (int t = 0; t < mesh.numTets(); ++t) {
+    Eigen::Matrix<double, 6, 1> e;
+    for (int k = 0; k < 6; ++k) e(k) = phase.stressPa()[t][k] - exact.stressPa()[t][k];
+    sum += geo[t].volume * e.dot(compliance * e);
+  }
+  return std::sqrt(sum);
+}
+
+TEST(StructuralLocal, WholeMeshRegionEqualsTheFullSolve) {
+  const TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralPhase local(mesh, localPaper(wholeMesh()), clamp);
+  StructuralPhase full(mesh, paper(), clamp);
+  local.solve(bumpLoad(mesh, Vec3(-0.004, 0, kLz), 0.004));  // the reference
+  EXPECT_FALSE(local.lastSolveStats().local);
+  for (const std::vector<double>& ev :
+       {bumpLoad(mesh, Vec3(0.004, 0.002, kLz), 0.004), unevenLoad(mesh)}) {
+    local.solve(ev);
+    full.solve(ev);
+    const StructuralSolveStats& st = local.lastSolveStats();
+    EXPECT_TRUE(st.local);
+    EXPECT_EQ(st.regionDofs, full.numFreeDofs());
+    EXPECT_LT(relativeDifference(local.displacementM(), full.displacementM()), 1e-9);
+    EXPECT_LT(relativeDifference(asVector(local.vonMisesPa()), asVector(full.vonMisesPa())), 1e-9);
+  }
+  EXPECT_FALSE(local.lastSolveStats().regionBuilt);  // the second reused the region
+}
+
+TEST(StructuralLocal, ErrorDoesNotGrowWithTheRegion) {
+  const TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  LocalSolveOptions o;
+  o.slackM = 0;
+  o.loadTolerance = 0;
+  o.refreshEvery = 0;
+  o.maxRegionFraction = 1;
+  StructuralPhase local(mesh, localPaper(o), clamp);
+  StructuralPhase full(mesh, paper(), clamp);
+  local.solve(bumpLoad(mesh, Vec3(-0.005, 0, kLz), 0.003));  // the reference
+  const std::vector<double> moved = bumpLoad(mesh, Vec3(-0.002, 0.001, kLz), 0.003);
+  full.solve(moved);
+  std::vector<double> errors;
+  std::vector<int> dofs;
+  for (double margin : {0.0, 0.002, 0.004, 0.006, 0.009, 0.013, 0.02, 1.0}) {
+    o.marginM = margin;
+    local.setSolveMethod(StructuralSolveMethod::local, o);
+    local.solve(moved);
+    ASSERT_TRUE(local.lastSolveStats().local);
+    errors.push_back(energyError(mesh, local, full));
+    dofs.push_back(local.lastSolveStats().regionDofs);
+  }
+  const double scale = energyError(mesh, full, StructuralPhase(mesh, paper(), clamp));
+  for (size_t k = 1; k < errors.size(); ++k) {
+    SCOPED_TRACE("margin " + std::to_string(k));
+    EXPECT_GE(dofs[k], dofs[k - 1]);
+    EXPECT_LE(errors[k], errors[k - 1] * (1 + 1e-9) + 1e-12 * scale);
+  }
+  EXPECT_GT(errors.front(), 10 * errors[errors.size() - 3]);  // it does shrink
+  EXPECT_LT(errors.back(), 1e-9 * scale);                     // the whole mesh: exact
+}
+
+TEST(StructuralLocal, WorksAfterRemoveTets) {
+  TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralPhase local(mesh, localPaper(wholeMesh()), clamp);
+  local.solve(unevenLoad(mesh));  // the reference, before the removals
+  std::vector<int> top;
+  for (int t = 0; t < mesh.numTets(); ++t)
+    if (centroidZ(mesh, t) > 0.75 * kLz && t % 4 == 0) top.push_back(t);
+  removeBoth(local, mesh, {top[0], top[1], top[2], top[3], top[4]});
+  expectSameAsFresh(local, mesh, clamp, "5 tets, whole mesh");
+  EXPECT_TRUE(local.lastSolveStats().local);
+  EXPECT_TRUE(local.lastSolveStats().regionBuilt);  // the removal dropped the region
+  // an orphaned node (held since the reference: u_ref set to 0 there)
+  int orphan = -1;
+  for (int v = 0; v < mesh.numNodes() && orphan < 0; ++v) {
+    std::vector<int> ts;
+    for (int t = 0; t < mesh.numTets(); ++t)
+      if (mesh.alive[t] && std::count(mesh.tets[t].begin(), mesh.tets[t].end(), v) > 0)
+        ts.push_back(t);
+    if (!ts.empty() && ts.size() <= 3 && mesh.nodes[v].z() > kLz / 2) {
+      orphan = v;
+      removeBoth(local, mesh, ts);
+    }
+  }
+  ASSERT_GE(orphan, 0);
+  expectSameAsFresh(local, mesh, clamp, "orphaned node, whole mesh");
+  EXPECT_EQ(local.displacementM().segment<3>(3 * orphan).norm(), 0.0);
+  // a region around new removals: much closer to a fresh build than the reference was
+  LocalSolveOptions near;
+  near.marginM = 0.004;
+  near.slackM = 0;
+  near.refreshEvery = 0;
+  near.maxRegionFraction = 1;
+  StructuralPhase small(mesh, localPaper(near), clamp);
+  StructuralPhase before(mesh, paper(), clamp);
+  const std::vector<double> ev = bumpLoad(mesh, Vec3(0, 0, kLz), 0.004);
+  small.solve(ev);  // the reference
+  before.solve(ev);
+  EXPECT_FALSE(small.lastSolveStats().local);
+  std::vector<int> more;
+  for (int t = 0; t < mesh.numTets(); ++t)
+    if (mesh.alive[t] && centroidZ(mesh, t) > 0.75 * kLz && t % 4 == 1 && more.size() < 4)
+      more.push_back(t);
+  removeBoth(small, mesh, more);
+  small.solve(ev);
+  EXPECT_TRUE(small.lastSolveStats().local);
+  EXPECT_LT(small.lastSolveStats().regionDofs, small.numFreeDofs());
+  StructuralPhase after(mesh, paper(), clamp);
+  after.solve(ev);
+  const double error = energyError(mesh, small, after), stale = energyError(mesh, before, after);
+  EXPECT_LT(error, 0.2 * stale) << "local " << error << ", reference " << stale;
+}
+
+TEST(StructuralLocal, RefreshOnThreadIsScheduledAndDeterministic) {
+  TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  LocalSolveOptions o;
+  o.marginM = 0.004;
+  o.slackM = 0.001;
+  o.refreshEvery = 2;
+  o.refreshOnThread = true;
+  o.maxRegionFraction = 1;
+  StructuralPhase a(mesh, localPaper(o), clamp), b(mesh, localPaper(o), clamp);
+  StructuralPhase full(mesh, paper(), clamp);
+  std::vector<std::vector<double>> loads;
+  for (int k = 0; k < 8; ++k)
+    loads.push_back(bumpLoad(mesh, Vec3(-0.006 + 0.0015 * k, 0, kLz), 0.003));
+  loads[3] = loads[1];  // adopted at solve 3: the refresh of solve 1's load, exact
+  std::vector<int> started, adopted;
+  for (int k = 0; k < 8; ++k) {
+    a.solve(loads[k]);
+    b.solve(loads[k]);
+    const StructuralSolveStats& st = a.lastSolveStats();
+    EXPECT_EQ(st.local, k > 0);
+    if (st.refreshStarted) started.push_back(k);
+    if (st.refreshAdopted) adopted.push_back(k);
+    EXPECT_EQ(asVector(a.vonMisesPa()), asVector(b.vonMisesPa())) << "solve " << k;
+    if (k == 3) {
+      full.solve(loads[3]);
+      EXPECT_EQ(st.regionDofs, 0);
+      EXPECT_LT(relativeDifference(asVector(a.vonMisesPa()), asVector(full.vonMisesPa())), 1e-12);
+      EXPECT_LT(relativeDifference(a.displacementM(), full.displacementM()), 1e-12);
+    }
+  }
+  EXPECT_EQ(started, (std::vector<int>{1, 3, 5, 7}));
+  EXPECT_EQ(adopted, (std::vector<int>{3, 5, 7}));
+  // a removal while a refresh runs joins and adopts it; the whole mesh is then exact
+  LocalSolveOptions whole = wholeMesh();
+  whole.refreshEvery = 5;
+  whole.refreshOnThread = true;
+  a.setSolveMethod(StructuralSolveMethod::local, whole);
+  a.solve(loads[0]);
+  EXPECT_TRUE(a.lastSolveStats().refreshStarted);
+  std::vector<int> top;
+  for (int t = 0; t < mesh.numTets(); ++t)
+    if (centroidZ(mesh, t) > 0.75 * kLz && t % 6 == 0 && top.size() < 5) top.push_back(t);
+  removeBoth(a, mesh, top);
+  expectSameAsFresh(a, mesh, clamp, "after a removal during a refresh");
+  EXPECT_TRUE(a.lastSolveStats().local);
+}
+
+TEST(StructuralLocal, RefreshScheduleAndUnchangedLoad) {
+  const TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  LocalSolveOptions o;
+  o.refreshEvery = 3;
+  o.maxRegionFraction = 1;
+  StructuralPhase local(mesh, localPaper(o), clamp);
+  std::vector<bool> wasLocal;
+  for (int k = 0; k < 7; ++k) {
+    local.solve(bumpLoad(mesh, Vec3(-0.006 + 0.002 * k, 0, kLz), 0.003));
+    wasLocal.push_back(local.lastSolveStats().local);
+  }
+  EXPECT_EQ(wasLocal, (std::vector<bool>{false, true, true, false, true, true, false}));
+  // the same load again: nothing to solve, the outputs stay
+  const std::vector<double> vm = local.vonMisesPa();
+  local.solve(bumpLoad(mesh, Vec3(0.006, 0, kLz), 0.003));
+  EXPECT_TRUE(local.lastSolveStats().local);
+  EXPECT_EQ(local.lastSolveStats().regionDofs, 0);
+  EXPECT_LT(relativeDifference(asVector(local.vonMisesPa()), asVector(vm)), 1e-12);
+  // bad options
+  o.marginM = -1;
+  EXPECT_THROW(local.setSolveMethod(StructuralSolveMethod::local, o), Error);
+  o.marginM = 0.01;
+  o.maxRegionFraction = 0;
+  EXPECT_THROW({ StructuralPhase bad(mesh, localPaper(o), clamp); }, Error);
 }
 
 }  // namespace
