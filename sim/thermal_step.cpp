@@ -4,6 +4,7 @@
 #include <Eigen/CholmodSupport>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -36,6 +37,43 @@ std::string fmt(double v) {
 void requirePositive(double v, const char* key, const char* what) {
   ESIM_VERIFY(std::isfinite(v) && v > 0,
               std::string(key) + " = " + fmt(v) + ": must be > 0 and finite (" + what + ")");
+}
+
+// the element terms, written once so that removeTets recomputes bitwise what the build
+// assembled (the same expressions as assembleStiffness / assembleMass / lumpedMass)
+Eigen::Matrix4d elementStiffness(double coeff, double volume,
+                                 const Eigen::Matrix<double, 4, 3>& grad) {
+  return coeff * volume * grad * grad.transpose();
+}
+double elementLumpedMass(double volume) { return 1.0 * volume / 4.0; }
+double elementMassEntry(double volume, bool diagonal) {
+  const double m = 1.0 * volume / 20.0;
+  return diagonal ? 2 * m : m;
+}
+
+// robin terms of a cooled face of area areaM2: load h T_amb A/3 per node [W]; coupling
+// lumped h A/3 on the diagonal, consistent h A (1 + delta_ij)/12 [W/K]
+double faceLoadW(double h, double ambientC, double areaM2) { return h * ambientC * areaM2 / 3.0; }
+double faceCoupling(bool lumped, double h, double areaM2, int i, int j) {
+  return lumped ? (i == j ? h * areaM2 / 3.0 : 0.0) : h * areaM2 * (i == j ? 2.0 : 1.0) / 12.0;
+}
+
+// local index (0..3 or 0..2) of node v in a tet or face, -1 if absent
+template <class Nodes>
+int localIndex(const Nodes& nodes, int v) {
+  for (int a = 0; a < static_cast<int>(nodes.size()); ++a)
+    if (nodes[a] == v) return a;
+  return -1;
+}
+
+// position of entry (inner, outer) in a compressed sparse matrix's value array
+template <class Matrix>
+double& entryRef(Matrix& a, int outer, int inner) {
+  const int* begin = a.innerIndexPtr() + a.outerIndexPtr()[outer];
+  const int* end = a.innerIndexPtr() + a.outerIndexPtr()[outer + 1];
+  const int* it = std::lower_bound(begin, end, inner);
+  ESIM_CHECK(it != end && *it == inner);  // removeTets keeps the pattern
+  return a.valuePtr()[it - a.innerIndexPtr()];
 }
 
 }  // namespace
@@ -117,7 +155,8 @@ void validateThermalParams(const ThermalParams& p) {
 // ---- operators, caches and workspace ----
 
 struct ThermalPhase::Impl {
-  Adjacency nodeTets;                // node -> alive tets
+  Adjacency nodeTets;                // node -> tets, alive ones in [begin, nodeTetsEnd)
+  std::vector<int> nodeTetsEnd;      // removeTets shrinks each node's range in place
   SparseMatrix stiffness;            // conduction + convection [W/K], column major
   RowMatrix stiffnessRows;           // the same, row major for products
   Eigen::VectorXd massM3;            // lumped mass (row sums) [m^3]; 0 on orphan nodes
@@ -129,6 +168,10 @@ struct ThermalPhase::Impl {
   Eigen::VectorXd convectionColSum;  // sum_i (K_h)_ij [W/K]: loss = colsum . T - sum(load)
   double convectionLoadTotalW = 0;
   bool convectionActive = false;
+  std::vector<double> cooledAreaM2;              // per cooled face [m^2]
+  Adjacency nodeCooled;                          // node -> cooled faces (all)
+  std::vector<std::pair<int, int>> cooledByTet;  // (tet, cooled face), sorted
+  int aliveCooled = 0;                           // cooled faces of alive tets
 
   // implicit system (c rho M/dt + theta K) T = b
   std::unique_ptr<Cholesky> factor;
@@ -139,9 +182,15 @@ struct ThermalPhase::Impl {
   std::string lastSolver = "none";
   // consistent mass factor (flux-form update, explicit)
   std::unique_ptr<Cholesky> massFactor;
+  bool massFactorStale = false;  // removeTets changed the values (same pattern)
 
   mutable double stableDt = -1;  // explicit limit, computed on first use
 
+  // alive tets of node i
+  const int* tetsBegin(int i) const { return nodeTets.begin(i); }
+  const int* tetsEnd(int i) const { return nodeTets.ids.data() + nodeTetsEnd[i]; }
+  // factors the consistent mass (+1 on orphan diagonals); analyze: also its pattern
+  void factorMass(bool analyze);
   // y = M^-1 x (lumped or consistent) on the active nodes, 0 on the orphan nodes
   void solveMass(bool lumped, const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
   // state's sensible and latent heat from its enthalpy and vapour fraction
@@ -175,9 +224,11 @@ void ThermalPhase::buildOperators(const TetMesh& mesh, const std::vector<TetGeom
   tets_ = mesh.tets;
   alive_.assign(mesh.tets.size(), 1);
   volumeM3_.assign(mesh.tets.size(), 0.0);
+  gradM_.resize(mesh.tets.size());
   for (int e = 0; e < mesh.numTets(); ++e) {
     alive_[e] = mesh.isAlive(e) ? 1 : 0;
     volumeM3_[e] = geo[e].volume;
+    gradM_[e] = geo[e].grad;
   }
   Impl& m = *impl_;
   const int n = numNodes_;
@@ -188,6 +239,7 @@ void ThermalPhase::buildOperators(const TetMesh& mesh, const std::vector<TetGeom
   const std::vector<double> ones(mesh.tets.size(), 1.0);
   m.massM3 = lumpedMass(mesh, geo, ones);
   m.nodeTets = esim::nodeTets(mesh);
+  m.nodeTetsEnd.assign(m.nodeTets.offsets.begin() + 1, m.nodeTets.offsets.end());
   m.active.assign(n, 0);
   for (int i = 0; i < n; ++i) m.active[i] = m.massM3[i] > 0 ? 1 : 0;
 
@@ -196,6 +248,10 @@ void ThermalPhase::buildOperators(const TetMesh& mesh, const std::vector<TetGeom
   m.convectionColSum = Eigen::VectorXd::Zero(n);
   m.convectionLoadTotalW = 0;
   m.convectionActive = false;
+  m.cooledAreaM2.assign(cooledFaces_.size(), 0.0);
+  m.cooledByTet.clear();
+  m.aliveCooled = 0;
+  std::vector<std::pair<int, int>> nodeFace;
   if (params_.convectionW_m2K > 0) {
     std::vector<Eigen::Triplet<double>> trip;
     const double h = params_.convectionW_m2K;
@@ -206,28 +262,41 @@ void ThermalPhase::buildOperators(const TetMesh& mesh, const std::vector<TetGeom
       for (int v : f.nodes)
         ESIM_VERIFY(v >= 0 && v < n, "thermal: cooled face node " + std::to_string(v) +
                                          " out of range (" + std::to_string(n) + " nodes)");
-      if (!mesh.isAlive(f.tet)) continue;
       const Vec3& a = mesh.nodes[f.nodes[0]];
       const Vec3& b = mesh.nodes[f.nodes[1]];
       const Vec3& c = mesh.nodes[f.nodes[2]];
       const double areaM2 = 0.5 * (b - a).cross(c - a).norm();
+      const int face = static_cast<int>(&f - cooledFaces_.data());
+      m.cooledAreaM2[face] = areaM2;
+      for (int v : f.nodes) nodeFace.emplace_back(v, face);
+      m.cooledByTet.emplace_back(f.tet, face);
+      if (!mesh.isAlive(f.tet)) continue;
       for (int i = 0; i < 3; ++i) {
-        m.convectionLoadW[f.nodes[i]] += h * params_.ambientTemperatureC * areaM2 / 3.0;
+        m.convectionLoadW[f.nodes[i]] += faceLoadW(h, params_.ambientTemperatureC, areaM2);
         for (int j = 0; j < 3; ++j) {
-          // lumped: h A/3 on the diagonal; consistent: h A (1 + delta_ij)/12
-          double kij = params_.lumpedMass ? (i == j ? h * areaM2 / 3.0 : 0.0)
-                                          : h * areaM2 * (i == j ? 2.0 : 1.0) / 12.0;
+          const double kij = faceCoupling(params_.lumpedMass, h, areaM2, i, j);
           if (kij != 0) trip.emplace_back(f.nodes[i], f.nodes[j], kij);
           m.convectionColSum[f.nodes[j]] += kij;
         }
       }
       m.convectionActive = true;
+      ++m.aliveCooled;
     }
     SparseMatrix kh(n, n);
     kh.setFromTriplets(trip.begin(), trip.end());
     m.stiffness += kh;
     m.convectionLoadTotalW = m.convectionLoadW.sum();
   }
+  std::sort(m.cooledByTet.begin(), m.cooledByTet.end());
+  // node -> cooled faces, ascending (the order in which the build summed them)
+  std::sort(nodeFace.begin(), nodeFace.end());
+  m.nodeCooled.offsets.assign(n + 1, 0);
+  m.nodeCooled.ids.clear();
+  for (const auto& [v, face] : nodeFace) {
+    ++m.nodeCooled.offsets[v + 1];
+    m.nodeCooled.ids.push_back(face);
+  }
+  for (int i = 0; i < n; ++i) m.nodeCooled.offsets[i + 1] += m.nodeCooled.offsets[i];
   m.stiffness.makeCompressed();
   m.stiffnessRows = m.stiffness;
   m.stiffnessDiag = m.stiffness.diagonal();
@@ -238,15 +307,12 @@ void ThermalPhase::buildOperators(const TetMesh& mesh, const std::vector<TetGeom
 
   // consistent mass (+ identity on orphan nodes so that it stays invertible)
   m.massFactor.reset();
+  m.massFactorStale = false;
   if (!params_.lumpedMass) {
     m.massConsistent = assembleMass(mesh, geo, ones);
-    SparseMatrix regular = m.massConsistent;
-    for (int i = 0; i < n; ++i)
-      if (!m.active[i]) regular.coeffRef(i, i) = 1.0;
+    m.massConsistent.makeCompressed();
     m.massFactor = std::make_unique<Cholesky>();
-    m.massFactor->compute(regular);
-    ESIM_RUN_CHECK(m.massFactor->info() == Eigen::Success,
-                   "thermal: the consistent mass matrix could not be factored");
+    m.factorMass(true);
   }
 
   // drop every cache that depends on the operators
@@ -268,6 +334,183 @@ void ThermalPhase::rebuild(const TetMesh& mesh, const std::vector<TetGeometry>& 
                   std::to_string(numNodes_) + " and " + std::to_string(numTets()) +
                   " (rebuild expects removed tets, not a renumbered mesh)");
   buildOperators(mesh, geo);
+}
+
+// ---- topology change in place ----
+
+ThermalPhase::RemovalStats ThermalPhase::removeTets(const std::vector<int>& tets) {
+  const auto t0 = std::chrono::steady_clock::now();
+  Impl& m = *impl_;
+  RemovalStats stats;
+  // checked before anything changes
+  for (int e : tets)
+    ESIM_VERIFY(e >= 0 && e < numTets(), "thermal removeTets: tet " + std::to_string(e) +
+                                             " out of range (" + std::to_string(numTets()) +
+                                             " tets)");
+  std::vector<int> removed;
+  for (int e : tets)
+    if (alive_[e]) removed.push_back(e);
+  std::sort(removed.begin(), removed.end());
+  removed.erase(std::unique(removed.begin(), removed.end()), removed.end());
+  stats.removedTets = static_cast<int>(removed.size());
+  if (removed.empty()) {
+    stats.ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    return stats;
+  }
+
+  // alive flags and node -> alive tets (each node's range shrinks, staying sorted)
+  std::vector<int> nodes;
+  for (int e : removed) {
+    alive_[e] = 0;
+    for (int v : tets_[e]) {
+      int* begin = m.nodeTets.ids.data() + m.nodeTets.offsets[v];
+      int* end = m.nodeTets.ids.data() + m.nodeTetsEnd[v];
+      int* last = std::remove(begin, end, e);
+      m.nodeTetsEnd[v] = static_cast<int>(last - m.nodeTets.ids.data());
+      nodes.push_back(v);
+    }
+  }
+  std::sort(nodes.begin(), nodes.end());
+  nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+
+  // lumped mass of the touched nodes, summed over their alive tets in tet order (as built)
+  for (int v : nodes) {
+    double mass = 0;
+    for (const int* e = m.tetsBegin(v); e != m.tetsEnd(v); ++e)
+      mass += elementLumpedMass(volumeM3_[*e]);
+    m.massM3[v] = mass;
+    const std::uint8_t active = mass > 0 ? 1 : 0;
+    if (m.active[v] && !active) ++stats.orphanedNodes;
+    m.active[v] = active;
+  }
+
+  // cooled faces of the removed tets: their nodes' robin terms are summed again
+  std::vector<int> faceNodes;
+  for (int e : removed) {
+    auto it = std::lower_bound(m.cooledByTet.begin(), m.cooledByTet.end(), std::make_pair(e, -1));
+    for (; it != m.cooledByTet.end() && it->first == e; ++it) {
+      ++stats.droppedCooledFaces;
+      --m.aliveCooled;
+      for (int v : cooledFaces_[it->second].nodes) faceNodes.push_back(v);
+    }
+  }
+  if (!faceNodes.empty()) {
+    std::sort(faceNodes.begin(), faceNodes.end());
+    faceNodes.erase(std::unique(faceNodes.begin(), faceNodes.end()), faceNodes.end());
+    recomputeConvection(faceNodes);
+  }
+
+  // conduction (+ robin) and consistent mass entries among the removed tets' nodes
+  stats.editedEntries = recomputeEntries(removed);
+
+  // what depends on the operators: deferred to the next use
+  stats.factorDropped = m.factorDt > 0;
+  m.factorDt = m.factorTheta = -1;  // refactored on the same analysis (same pattern)
+  if (!params_.lumpedMass) {
+    m.massFactorStale = true;
+    stats.massFactorDropped = true;
+  }
+  stats.explicitLimitDropped = m.stableDt > 0;
+  m.stableDt = -1;
+  stats.solverChoiceDropped = m.cgDecidedDt > 0;
+  m.cgDecidedDt = m.cgDecidedTheta = -1;
+  stats.ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return stats;
+}
+
+// convective load and column sums of `nodes` from their alive cooled faces, in face order
+// (as built); the total load and the active flag follow
+void ThermalPhase::recomputeConvection(const std::vector<int>& nodes) {
+  Impl& m = *impl_;
+  const double h = params_.convectionW_m2K;
+  for (int v : nodes) {
+    double load = 0, colSum = 0;
+    for (const int* f = m.nodeCooled.begin(v); f != m.nodeCooled.end(v); ++f) {
+      const BoundaryFace& face = cooledFaces_[*f];
+      if (!alive_[face.tet]) continue;
+      const double areaM2 = m.cooledAreaM2[*f];
+      load += faceLoadW(h, params_.ambientTemperatureC, areaM2);
+      const int j = localIndex(face.nodes, v);
+      for (int i = 0; i < 3; ++i) colSum += faceCoupling(params_.lumpedMass, h, areaM2, i, j);
+    }
+    m.convectionLoadW[v] = load;
+    m.convectionColSum[v] = colSum;
+  }
+  m.convectionLoadTotalW = m.convectionLoadW.sum();  // O(n), as built (same summation order)
+  m.convectionActive = m.aliveCooled > 0;
+}
+
+// every entry (i, j) with i, j nodes of a removed tet is summed again over the alive tets
+// holding both (tet order) plus the alive cooled faces holding both (face order): the
+// values a fresh assembly gives, bitwise; entries no alive tet holds become exact zeros.
+// then the diagonal and the gershgorin row sums of the touched rows. returns the count
+int ThermalPhase::recomputeEntries(const std::vector<int>& removed) {
+  Impl& m = *impl_;
+  std::vector<std::pair<int, int>> entries;
+  for (int e : removed)
+    for (int a : tets_[e])
+      for (int b : tets_[e]) entries.emplace_back(a, b);
+  std::sort(entries.begin(), entries.end());
+  entries.erase(std::unique(entries.begin(), entries.end()), entries.end());
+  const double lambda = params_.conductivityW_mK;
+  const double h = params_.convectionW_m2K;
+  for (const auto& [i, j] : entries) {
+    double conduction = 0, mass = 0;
+    bool any = false;
+    for (const int* it = m.tetsBegin(i); it != m.tetsEnd(i); ++it) {
+      const Tet& t = tets_[*it];
+      const int b = localIndex(t, j);
+      if (b < 0) continue;
+      const int a = localIndex(t, i);
+      const double ke = elementStiffness(lambda, volumeM3_[*it], gradM_[*it])(a, b);
+      const double me = elementMassEntry(volumeM3_[*it], i == j);
+      conduction = any ? conduction + ke : ke;
+      mass = any ? mass + me : me;
+      any = true;
+    }
+    if (h > 0) {
+      double robin = 0;
+      bool anyFace = false;
+      for (const int* f = m.nodeCooled.begin(i); f != m.nodeCooled.end(i); ++f) {
+        const BoundaryFace& face = cooledFaces_[*f];
+        const int b = localIndex(face.nodes, j);
+        if (b < 0 || !alive_[face.tet]) continue;
+        const double kij =
+            faceCoupling(params_.lumpedMass, h, m.cooledAreaM2[*f], localIndex(face.nodes, i), b);
+        if (kij == 0) continue;
+        robin = anyFace ? robin + kij : kij;
+        anyFace = true;
+      }
+      if (anyFace) conduction = conduction + robin;
+    }
+    entryRef(m.stiffness, j, i) = conduction;
+    entryRef(m.stiffnessRows, i, j) = conduction;
+    if (!params_.lumpedMass) entryRef(m.massConsistent, j, i) = mass;
+  }
+  // touched rows: diagonal and sum_j |K_ij| in row order (the zeros add nothing)
+  int lastRow = -1;
+  for (const auto& [i, j] : entries) {
+    if (i == lastRow) continue;
+    lastRow = i;
+    m.stiffnessDiag[i] = entryRef(m.stiffnessRows, i, i);
+    double absRow = 0;
+    for (RowMatrix::InnerIterator it(m.stiffnessRows, i); it; ++it) absRow += std::abs(it.value());
+    m.stiffnessAbsRow[i] = absRow;
+  }
+  return static_cast<int>(entries.size());
+}
+
+void ThermalPhase::Impl::factorMass(bool analyze) {
+  SparseMatrix regular = massConsistent;
+  for (int i = 0; i < static_cast<int>(active.size()); ++i)
+    if (!active[i]) regular.coeffRef(i, i) = 1.0;
+  if (analyze) massFactor->analyzePattern(regular);
+  massFactor->factorize(regular);
+  ESIM_RUN_CHECK(massFactor->info() == Eigen::Success,
+                 "thermal: the consistent mass matrix could not be factored");
+  massFactorStale = false;
 }
 
 void ThermalPhase::Impl::solveMass(bool lumped, const Eigen::VectorXd& x,
@@ -389,6 +632,7 @@ std::string ThermalPhase::lastSolverName() const { return impl_->lastSolver; }
 double ThermalPhase::stableExplicitDtS() const {
   Impl& m = *impl_;
   if (m.stableDt > 0) return m.stableDt;
+  if (m.massFactorStale) m.factorMass(false);
   const int n = numNodes_;
   const bool lumped = params_.lumpedMass;
   auto applyMass = [&](const Eigen::VectorXd& x, Eigen::VectorXd& y) {
@@ -539,6 +783,7 @@ ThermalPhase::StepStats ThermalPhase::step(double dtS, const std::vector<double>
                    .theta = thetaOf(params_.integrator),
                    .s = s};
 
+  if (impl_->massFactorStale) impl_->factorMass(false);  // after removeTets
   st.assembleSource(sourceW_m3);
   st.updateTemperature();  // from the primary unknown
 
@@ -892,7 +1137,7 @@ void ThermalPhase::Impl::Stepper::updateVapor() {
     const double v = d.vapor(enth[i]);
     if (v != vf[i]) {
       vf[i] = v;
-      for (const int* e = m.nodeTets.begin(i); e != m.nodeTets.end(i); ++e) {
+      for (const int* e = m.tetsBegin(i); e != m.tetsEnd(i); ++e) {
         const Tet& t = tets[*e];
         s.vaporFractionTet[*e] = 0.25 * (vf[t[0]] + vf[t[1]] + vf[t[2]] + vf[t[3]]);
       }
@@ -905,7 +1150,7 @@ void ThermalPhase::Impl::Stepper::markDesiccated() {
   const Eigen::VectorXd& vf = s.vaporFraction;
   for (int i = 0; i < n; ++i) {
     if (vf[i] < 1) continue;
-    for (const int* e = m.nodeTets.begin(i); e != m.nodeTets.end(i); ++e) {
+    for (const int* e = m.tetsBegin(i); e != m.tetsEnd(i); ++e) {
       const Tet& t = tets[*e];
       if (!s.desiccatedTet[*e] && vf[t[0]] >= 1 && vf[t[1]] >= 1 && vf[t[2]] >= 1 && vf[t[3]] >= 1)
         s.desiccatedTet[*e] = 1;

@@ -45,10 +45,11 @@
 // field (e.g. the whole body at rest at 37 C) changes nothing but the time and the damage
 // integral; it does no solve and returns StepStats.skipped = true.
 //
-// Ownership: ThermalPhase copies what it needs from the mesh (tets, alive flags, volumes)
-// and owns its operators and factorizations; ThermalState is plain data owned by the
-// caller. Enthalpy is the primary unknown: `temperatureC` is derived from it at every
-// step; to impose a temperature field use ThermalPhase::setTemperature.
+// Ownership: ThermalPhase copies what it needs from the mesh (tets, alive flags, volumes,
+// basis gradients: 96 bytes per tet, kept for removeTets) and owns its operators and
+// factorizations; ThermalState is plain data owned by the caller. Enthalpy is the primary
+// unknown: `temperatureC` is derived from it at every step; to impose a temperature field
+// use ThermalPhase::setTemperature.
 #pragma once
 
 #include <Eigen/Core>
@@ -159,6 +160,37 @@ class ThermalPhase {
   // integrator without sub-stepping, on a dt above the stability limit.
   StepStats step(double dtS, const std::vector<double>& sourceW_m3, ThermalState& state);
 
+  // What removeTets did (for the caller's timing row and logs).
+  struct RemovalStats {
+    int removedTets = 0;                // tets newly removed (ids already removed are ignored)
+    int orphanedNodes = 0;              // nodes left without an alive tet by this call
+    int droppedCooledFaces = 0;         // cooled faces of the removed tets
+    int editedEntries = 0;              // conduction matrix entries recomputed (pattern kept)
+    bool factorDropped = false;         // implicit Cholesky: refactored (no re-analysis) next step
+    bool massFactorDropped = false;     // consistent mass Cholesky: the same
+    bool explicitLimitDropped = false;  // explicit limit: Lanczos again on next use
+    bool solverChoiceDropped = false;   // Auto cg/cholmod: decided again next step
+    double ms = 0;                      // wall time of the call [ms]
+  };
+
+  // Topology change in place: marks `tets` (ids into the mesh's tet array; duplicates and
+  // tets already removed are ignored) removed and edits the operators locally, so that
+  // every later step() equals that of a ThermalPhase freshly built on the mesh with these
+  // tets dead and the cooled faces of dead tets dropped (the operators bitwise; the results
+  // to round-off of the Cholesky factors, whose pattern and ordering differ). The matrix
+  // patterns are kept (entries of removed couplings hold exact zeros). Work: the entries,
+  // lumped/consistent mass and convective terms around the removed tets' nodes,
+  // O(k x local degree) for k tets, plus an O(n) sum when a cooled face is removed; the
+  // O(n)-or-more parts a fresh build would redo are deferred to the next step (stats say
+  // which): the Cholesky factors are refactored on the same symbolic analysis (implicit
+  // Direct path, consistent mass), the explicit stability limit is recomputed by the same
+  // Lanczos as a fresh build (~40 stiffness products), the Auto solver choice is re-made.
+  // The ThermalState is not touched and keeps its size: orphan nodes (no alive tet left)
+  // keep their enthalpy and temperature, have zero mass and exchange nothing, as in a
+  // fresh build. Throws Error, before changing anything, on an id out of range. Not
+  // thread-safe: no other call on this phase may run concurrently.
+  RemovalStats removeTets(const std::vector<int>& tets);
+
   // Topology changed (tets removed; same node and tet arrays): refreshes the operators and
   // drops the factorizations and the explicit limit (recomputed on next use: ~40 stiffness
   // products); the state is kept. Nodes left without an alive tet keep their enthalpy but no
@@ -185,12 +217,15 @@ class ThermalPhase {
  private:
   struct Impl;
   void buildOperators(const TetMesh& mesh, const std::vector<TetGeometry>& geo);
+  int recomputeEntries(const std::vector<int>& removed);
+  void recomputeConvection(const std::vector<int>& nodes);
 
   ThermalParams params_;
   int numNodes_ = 0;
   std::vector<Tet> tets_;
   std::vector<std::uint8_t> alive_;
   std::vector<double> volumeM3_;
+  std::vector<Eigen::Matrix<double, 4, 3>> gradM_;  // basis gradients per tet [1/m]
   std::vector<BoundaryFace> cooledFaces_;
   std::unique_ptr<Impl> impl_;
 };

@@ -1,6 +1,6 @@
 // Tests for sim/thermal_step.cpp: exact uniform heating, Fourier-mode decay orders,
 // explicit stability limit, boiling plateau, energy balance, maximum principle, damage,
-// topology change and bad input.
+// topology change (rebuild, and removeTets against a fresh build) and bad input.
 #include "sim/thermal_step.h"
 
 #include <gtest/gtest.h>
@@ -488,7 +488,6 @@ TEST(ThermalStep, RebuildAfterRemovingTets) {
   EXPECT_THROW(phase.rebuild(smaller, tetGeometry(smaller)), Error);
 }
 
-// ---- 10. bad input ----
 void expectError(const std::function<void()>& f, const std::vector<std::string>& parts) {
   try {
     f();
@@ -499,6 +498,164 @@ void expectError(const std::function<void()>& f, const std::vector<std::string>&
       EXPECT_NE(msg.find(part), std::string::npos) << "message: " << msg;
   }
 }
+
+// ---- 10. removeTets: the local edit steps like a freshly built phase ----
+
+// the top faces of a slab (cooled in the removal tests)
+std::vector<BoundaryFace> topFaces(const TetMesh& mesh, double topZ) {
+  std::vector<BoundaryFace> top;
+  for (const BoundaryFace& f : boundaryFaces(mesh)) {
+    bool allTop = true;
+    for (int v : f.nodes) allTop = allTop && mesh.nodes[v].z() > topZ - 1e-9;
+    if (allTop) top.push_back(f);
+  }
+  return top;
+}
+
+// the alive tets holding node v
+std::vector<int> tetsOfNode(const TetMesh& mesh, int v) {
+  std::vector<int> out;
+  for (int e = 0; e < mesh.numTets(); ++e)
+    if (mesh.isAlive(e) &&
+        std::find(mesh.tets[e].begin(), mesh.tets[e].end(), v) != mesh.tets[e].end())
+      out.push_back(e);
+  return out;
+}
+
+// max |a - b| / max |b|
+double relativeDiff(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  return (a - b).cwiseAbs().maxCoeff() / std::max(1e-300, b.cwiseAbs().maxCoeff());
+}
+
+TEST(ThermalStep, RemoveTetsStepsLikeAFreshBuild) {
+  const double topZ = 0.006;
+  const TetMesh mesh = slab(Vec3(0.02, 0.02, topZ), {7, 7, 4});
+  const auto geo = tetGeometry(mesh);
+  const std::vector<BoundaryFace> top = topFaces(mesh, topZ);
+  const std::vector<double> source = hotSpot(mesh, 2e9, 0.002, topZ);
+  // the batches: every tet of the bottom corner node 0 (it becomes an orphan); the 5 tets
+  // nearest the hot spot (cooled faces among them); every tet of a top corner node (an
+  // orphan on the cooled surface)
+  int topCorner = 0;
+  for (int i = 0; i < mesh.numNodes(); ++i)
+    if (mesh.nodes[i].sum() > mesh.nodes[topCorner].sum()) topCorner = i;
+  std::vector<std::pair<double, int>> byDistance;
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    Vec3 c = Vec3::Zero();
+    for (int n : mesh.tets[e]) c += 0.25 * mesh.nodes[n];
+    byDistance.push_back({(c - Vec3(0, 0, topZ)).norm(), e});
+  }
+  std::sort(byDistance.begin(), byDistance.end());
+  std::vector<int> nearest;
+  for (int i = 0; i < 5; ++i) nearest.push_back(byDistance[i].second);
+  const std::vector<std::vector<int>> batches = {tetsOfNode(mesh, 0), nearest,
+                                                 tetsOfNode(mesh, topCorner)};
+
+  struct Case {
+    Variant v;
+    ThermalLinearSolver solver;
+  };
+  std::vector<Case> cases;
+  for (const Variant& v : kVariants) cases.push_back({v, ThermalLinearSolver::Auto});
+  cases.push_back({{ThermalIntegrator::BackwardEuler, true}, ThermalLinearSolver::Direct});
+  cases.push_back({{ThermalIntegrator::CrankNicolson, true}, ThermalLinearSolver::Direct});
+  for (const Case& c : cases) {
+    const std::string label =
+        name(c.v) + (c.solver == ThermalLinearSolver::Direct ? "/direct" : "");
+    ThermalParams p;
+    p.boiling = true;
+    p.damage = true;
+    p.integrator = c.v.integrator;
+    p.lumpedMass = c.v.lumped;
+    p.linearSolver = c.solver;
+    p.convectionW_m2K = 50;
+    TetMesh cut = mesh;
+    ThermalPhase phase(cut, geo, p, top);
+    ThermalState s;
+    phase.initState(s);
+    for (int k = 0; k < 6; ++k) phase.step(0.1, source, s);  // heated, boiling under the spot
+    ASSERT_GT(s.temperatureC.maxCoeff(), 99.0) << label;
+    double maxRel = 0;
+    for (size_t b = 0; b < batches.size(); ++b) {
+      const auto removal = phase.removeTets(batches[b]);
+      for (int e : batches[b]) cut.alive[e] = 0;
+      EXPECT_EQ(removal.removedTets, static_cast<int>(batches[b].size())) << label;
+      if (b != 1) {
+        EXPECT_EQ(removal.orphanedNodes, 1) << label << " batch " << b;
+      }
+      if (b == 1) {
+        EXPECT_GT(removal.droppedCooledFaces, 0) << label;
+      }
+      // the reference: a phase built on the cut mesh, cooled faces of alive tets only
+      std::vector<BoundaryFace> cooled;
+      for (const BoundaryFace& f : top)
+        if (cut.isAlive(f.tet)) cooled.push_back(f);
+      ThermalPhase fresh(cut, geo, p, cooled);
+      ThermalState sf = s;
+      EXPECT_EQ(phase.storedEnergyJ(s), fresh.storedEnergyJ(sf)) << label;
+      if (c.v.integrator == ThermalIntegrator::Explicit) {
+        EXPECT_NEAR(phase.stableExplicitDtS(), fresh.stableExplicitDtS(),
+                    1e-12 * fresh.stableExplicitDtS())
+            << label;
+      }
+      const double storedAtRemoval = phase.storedEnergyJ(s);
+      const double sourceAtRemoval = s.sourceJ, convectedAtRemoval = s.convectedJ;
+      for (int k = 0; k < 3; ++k) {
+        const auto a = phase.step(0.1, source, s);
+        const auto f = fresh.step(0.1, source, sf);
+        EXPECT_EQ(a.substeps, f.substeps) << label;
+        EXPECT_EQ(a.converged, f.converged) << label;
+        if (c.v.integrator != ThermalIntegrator::Explicit) {
+          EXPECT_EQ(phase.lastSolverName(), fresh.lastSolverName()) << label;
+        }
+        const double relT = relativeDiff(s.temperatureC, sf.temperatureC);
+        const double relH = relativeDiff(s.enthalpyJ_m3, sf.enthalpyJ_m3);
+        maxRel = std::max({maxRel, relT, relH});
+        EXPECT_LT(relT, 1e-9) << label << " batch " << b << " step " << k;
+        EXPECT_LT(relH, 1e-9) << label << " batch " << b << " step " << k;
+        EXPECT_EQ(s.sourceJ, sf.sourceJ) << label;
+        EXPECT_NEAR(s.convectedJ, sf.convectedJ, 1e-9 * std::abs(sf.convectedJ)) << label;
+        EXPECT_NEAR(s.latentJ, sf.latentJ, 1e-9 * sf.latentJ) << label;
+        for (int e = 0; e < mesh.numTets(); ++e) {
+          ASSERT_EQ(s.desiccatedTet[e], sf.desiccatedTet[e]) << label << " tet " << e;
+          ASSERT_NEAR(s.damageOmega[e], sf.damageOmega[e], 1e-9 * sf.damageOmega[e]) << label;
+          ASSERT_NEAR(s.vaporFractionTet[e], sf.vaporFractionTet[e], 1e-9) << label;
+        }
+      }
+      // energy balance from the removal on: stored change = source - convected
+      const double added = s.sourceJ - sourceAtRemoval;
+      const double lost = s.convectedJ - convectedAtRemoval;
+      EXPECT_GT(added, 0);
+      EXPECT_NEAR(phase.storedEnergyJ(s) - storedAtRemoval, added - lost, 1e-8 * s.sourceJ)
+          << label << " batch " << b;
+      EXPECT_EQ(s.temperatureC.size(), mesh.numNodes());  // the state keeps its size
+    }
+    std::printf("  %-36s after 3 batches: max relative difference to a fresh build %.2e\n",
+                label.c_str(), maxRel);
+    // lumped mass without a cholesky factor: the edited operators are the fresh ones, bitwise
+    if (c.v.lumped && c.solver == ThermalLinearSolver::Auto) {
+      EXPECT_EQ(maxRel, 0.0) << label;
+    }
+  }
+}
+
+TEST(ThermalStep, RemoveTetsChecksIdsAndIgnoresRepeats) {
+  const TetMesh mesh = slab(Vec3(0.01, 0.01, 0.005), {3, 3, 2});
+  const auto geo = tetGeometry(mesh);
+  ThermalPhase phase(mesh, geo, ThermalParams{});
+  expectError([&] { phase.removeTets({0, mesh.numTets()}); }, {"removeTets", "out of range"});
+  expectError([&] { phase.removeTets({-1}); }, {"tet -1"});
+  const auto first = phase.removeTets({2, 2, 3});
+  EXPECT_EQ(first.removedTets, 2);
+  EXPECT_GT(first.editedEntries, 0);
+  const auto again = phase.removeTets({2, 3});
+  EXPECT_EQ(again.removedTets, 0);
+  EXPECT_EQ(again.editedEntries, 0);
+  // the first error changed nothing: tet 0 is still alive
+  EXPECT_EQ(phase.removeTets({0}).removedTets, 1);
+}
+
+// ---- 11. bad input ----
 
 TEST(ThermalStep, BadInputGivesClearMessages) {
   ThermalParams p;
