@@ -17,13 +17,11 @@ namespace {
 
 constexpr double kGasConstantJ_molK = 8.314462618;
 constexpr double kKelvinOffset = 273.15;
-constexpr double kStabilityMargin = 0.95;  // on the Lanczos estimate of lambda_max
-constexpr double kCgMaxCondition = 4.0;    // Auto: CG when the Gershgorin bound is below this
-constexpr double kCgRoundOff = 1e-13;      // CG stop floor, relative to max |T|
-constexpr int kCgMaxIterations = 500;      // then Cholesky
-constexpr double kPinCapacity = 1e8;       // boiling iteration: relative capacity of plateau nodes
-constexpr int kPinIterations = 3;          // ... for this many iterations, then plain Chernoff
-constexpr int kLanczosSteps = 40;          // the top Ritz value has converged by ~30 on slabs
+constexpr double kCgMaxCondition = 4.0;  // Auto: CG when the Gershgorin bound is below this
+constexpr double kCgRoundOff = 1e-13;    // CG stop floor, relative to max |T|
+constexpr int kCgMaxIterations = 500;    // then Cholesky
+constexpr double kPinCapacity = 1e8;     // boiling iteration: relative capacity of plateau nodes
+constexpr int kPinIterations = 3;        // ... for this many iterations, then plain Chernoff
 
 using RowMatrix = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
 using Cholesky = Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower>;
@@ -184,7 +182,14 @@ struct ThermalPhase::Impl {
   std::unique_ptr<Cholesky> massFactor;
   bool massFactorStale = false;  // removeTets changed the values (same pattern)
 
-  mutable double stableDt = -1;  // explicit limit, computed on first use
+  // explicit limit from the element bound lambda_max(K, c rho M) <= max_e rate_e
+  std::vector<double> tetRate;  // rate_e = lambda_max(K_e + cooled faces, c rho M_e) [1/s]
+  std::vector<int> tetsByRate;  // the alive tets of the build, fastest first
+  size_t fastest = 0;           // first alive tet in tetsByRate
+  double stableDt = 0;          // 2 / rate of tetsByRate[fastest] [s]
+  bool ratesBuilt = false;      // at build for the explicit integrator, else on first use
+  // skips removed tets at the head of tetsByRate and sets stableDt
+  void updateExplicitLimit(const std::vector<std::uint8_t>& alive);
 
   // alive tets of node i
   const int* tetsBegin(int i) const { return nodeTets.begin(i); }
@@ -320,7 +325,8 @@ void ThermalPhase::buildOperators(const TetMesh& mesh, const std::vector<TetGeom
   m.factorAnalyzed = false;
   m.factorDt = m.factorTheta = -1;
   m.cgDecidedDt = m.cgDecidedTheta = -1;
-  m.stableDt = -1;
+  m.ratesBuilt = false;
+  if (params_.integrator == ThermalIntegrator::Explicit) elementRates();
   for (Eigen::VectorXd* v :
        {&m.load, &m.flux, &m.rhs, &m.g, &m.tempNew, &m.kTemp, &m.tempOld, &m.enthalpy0, &m.work,
         &m.cgR, &m.cgZ, &m.cgP, &m.cgAp, &m.cgKp, &m.diagS, &m.diagPrec})
@@ -411,8 +417,11 @@ ThermalPhase::RemovalStats ThermalPhase::removeTets(const std::vector<int>& tets
     m.massFactorStale = true;
     stats.massFactorDropped = true;
   }
-  stats.explicitLimitDropped = m.stableDt > 0;
-  m.stableDt = -1;
+  if (m.ratesBuilt) {
+    const double limitBefore = m.stableDt;
+    m.updateExplicitLimit(alive_);
+    stats.explicitLimitChanged = m.stableDt != limitBefore;
+  }
   stats.solverChoiceDropped = m.cgDecidedDt > 0;
   m.cgDecidedDt = m.cgDecidedTheta = -1;
   stats.ms =
@@ -627,63 +636,67 @@ double ThermalPhase::storedEnergyJ(const ThermalState& s) const {
 
 std::string ThermalPhase::lastSolverName() const { return impl_->lastSolver; }
 
-// ---- explicit stability limit: Lanczos on K v = lambda (c rho M) v ----
+// ---- explicit stability limit: element bound ----
+//
+// x' K x = sum_e x_e' K_e x_e <= max_e rate_e sum_e x_e' c rho M_e x_e = max_e rate_e x' c rho M x
+// (K_e with the robin terms of its cooled faces; M_e lumped or consistent), so
+// lambda_max((c rho M)^-1 K) <= max_e rate_e: dt <= 2 / max_e rate_e is stable, with no
+// margin. Without faces K_e 1 = 0 and c rho M_e = c rho V/4 I (lumped) or c rho V/20 I on
+// 1-perp (consistent): rate_e = (4 or 20) lambda mu_e / c rho, mu_e = lambda_max(G' G) of
+// the basis gradients G (3 x 3, closed form). Removing tets only drops terms of the max.
 
 double ThermalPhase::stableExplicitDtS() const {
+  if (!impl_->ratesBuilt) elementRates();
+  return impl_->stableDt;
+}
+
+void ThermalPhase::elementRates() const {
   Impl& m = *impl_;
-  if (m.stableDt > 0) return m.stableDt;
-  if (m.massFactorStale) m.factorMass(false);
-  const int n = numNodes_;
-  const bool lumped = params_.lumpedMass;
-  auto applyMass = [&](const Eigen::VectorXd& x, Eigen::VectorXd& y) {
-    if (lumped)
-      y = m.massM3.cwiseProduct(x);
-    else
-      y = m.massConsistent * x;
-  };
-  // deterministic start vector on the active nodes
-  Eigen::VectorXd q = Eigen::VectorXd::Zero(n), mq, u, w, mw;
-  std::uint64_t seed = 0x9E3779B97F4A7C15ull;
-  int numActive = 0;
-  for (int i = 0; i < n; ++i) {
-    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
-    if (!m.active[i]) continue;
-    q[i] = static_cast<double>(seed >> 11) / 9007199254740992.0 - 0.5;
-    ++numActive;
+  const double crho = params_.heatCapacityJ_m3K, lambda = params_.conductivityW_mK;
+  const double massShare = params_.lumpedMass ? 4.0 : 20.0;  // V / (that) per node
+  m.tetRate.assign(tets_.size(), 0.0);
+  m.tetsByRate.clear();
+  for (int e = 0; e < numTets(); ++e) {
+    if (!alive_[e]) continue;
+    const Eigen::Matrix3d gtg = gradM_[e].transpose() * gradM_[e];
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+    eig.computeDirect(gtg, Eigen::EigenvaluesOnly);
+    m.tetRate[e] = massShare * lambda * eig.eigenvalues().maxCoeff() / crho;
+    m.tetsByRate.push_back(e);
   }
-  if (numActive == 0) return m.stableDt = std::numeric_limits<double>::infinity();
-  applyMass(q, mq);
-  q /= std::sqrt(q.dot(mq));
-  const int steps = std::min(kLanczosSteps, numActive);
-  std::vector<Eigen::VectorXd> basis;
-  std::vector<double> alpha, beta;
-  for (int j = 0; j < steps; ++j) {
-    basis.push_back(q);
-    u = m.stiffnessRows * q;
-    const double a = q.dot(u);
-    alpha.push_back(a);
-    m.solveMass(lumped, u, w);
-    w -= a * q;
-    if (j > 0) w -= beta.back() * basis[j - 1];
-    applyMass(w, mw);  // full re-orthogonalisation (M inner product)
-    for (const Eigen::VectorXd& b : basis) w -= b.dot(mw) * b;
-    applyMass(w, mw);
-    const double b = std::sqrt(std::max(0.0, w.dot(mw)));
-    if (j + 1 == steps || b <= 1e-10 * std::abs(a)) break;
-    beta.push_back(b);
-    q = w / b;
+  // tets with cooled faces: the 4 x 4 generalized problem with the robin terms
+  const double h = params_.convectionW_m2K;
+  for (size_t k = 0; h > 0 && k < m.cooledByTet.size();) {
+    const int e = m.cooledByTet[k].first;
+    const double volume = volumeM3_[e];
+    Eigen::Matrix4d ke = elementStiffness(lambda, volume, gradM_[e]);
+    for (; k < m.cooledByTet.size() && m.cooledByTet[k].first == e; ++k) {
+      const BoundaryFace& f = cooledFaces_[m.cooledByTet[k].second];
+      const double areaM2 = m.cooledAreaM2[m.cooledByTet[k].second];
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+          ke(localIndex(tets_[e], f.nodes[i]), localIndex(tets_[e], f.nodes[j])) +=
+              faceCoupling(params_.lumpedMass, h, areaM2, i, j);
+    }
+    if (!alive_[e]) continue;
+    Eigen::Matrix4d me = Eigen::Matrix4d::Identity() * (crho * volume / 4.0);
+    if (!params_.lumpedMass)
+      me = (crho * volume / 20.0) * (Eigen::Matrix4d::Ones() + Eigen::Matrix4d::Identity());
+    Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::Matrix4d> eig(ke, me, Eigen::EigenvaluesOnly);
+    m.tetRate[e] = std::max(m.tetRate[e], eig.eigenvalues().maxCoeff());
   }
-  const int k = static_cast<int>(alpha.size());
-  Eigen::MatrixXd tri = Eigen::MatrixXd::Zero(k, k);
-  for (int i = 0; i < k; ++i) {
-    tri(i, i) = alpha[i];
-    if (i + 1 < k) tri(i, i + 1) = tri(i + 1, i) = beta[i];
-  }
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(tri, Eigen::EigenvaluesOnly);
-  const double lambdaMax = eig.eigenvalues().maxCoeff() / params_.heatCapacityJ_m3K;  // [1/s]
-  m.stableDt =
-      lambdaMax > 0 ? kStabilityMargin * 2.0 / lambdaMax : std::numeric_limits<double>::infinity();
-  return m.stableDt;
+  std::sort(m.tetsByRate.begin(), m.tetsByRate.end(), [&](int a, int b) {
+    return m.tetRate[a] != m.tetRate[b] ? m.tetRate[a] > m.tetRate[b] : a < b;
+  });
+  m.fastest = 0;
+  m.updateExplicitLimit(alive_);
+  m.ratesBuilt = true;
+}
+
+void ThermalPhase::Impl::updateExplicitLimit(const std::vector<std::uint8_t>& alive) {
+  while (fastest < tetsByRate.size() && !alive[tetsByRate[fastest]]) ++fastest;
+  const double rate = fastest < tetsByRate.size() ? tetRate[tetsByRate[fastest]] : 0.0;
+  stableDt = rate > 0 ? 2.0 / rate : std::numeric_limits<double>::infinity();
 }
 
 // ---- the step ----

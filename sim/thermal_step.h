@@ -36,8 +36,12 @@
 // contraction ~theta dt lambda_max < 1e-2 at frame steps) then takes over if needed.
 // CG stops when its preconditioned residual (~ the temperature error) is below 1e-3 of
 // the nonlinear tolerance.
-// Explicit: the stability limit dt <= 2 / lambda_max((c rho M)^-1 K) is computed from the
-// mesh (Lanczos, with a 5 % margin) and enforced by sub-stepping, or an Error.
+// Explicit: the stability limit dt <= 2 / lambda_max((c rho M)^-1 K) is enforced by
+// sub-stepping, or an Error, with lambda_max bounded by the elements' own:
+// lambda_max <= max_e lambda_max(K_e, c rho M_e) (K_e with its cooled faces' Robin terms).
+// Rigorous (no margin): 0.69-0.89 of the eigenvalue limit on the paper and slab_cut slabs
+// (the Lanczos estimate with a 5 % margin used before gave 0.95); O(tets) to build, and
+// removeTets keeps it in O(1). At 1/30 s frames those slabs (1k-50k nodes) need 1 sub-step.
 // Damage (optional): Arrhenius Omega += A exp(-Ea/(R T_K)) dt per tet, T_K the tet's mean
 // temperature in kelvin (trapezoid rule over each (sub)step); coagulation 1 - exp(-Omega).
 //
@@ -168,7 +172,7 @@ class ThermalPhase {
     int editedEntries = 0;              // conduction matrix entries recomputed (pattern kept)
     bool factorDropped = false;         // implicit Cholesky: refactored (no re-analysis) next step
     bool massFactorDropped = false;     // consistent mass Cholesky: the same
-    bool explicitLimitDropped = false;  // explicit limit: Lanczos again on next use
+    bool explicitLimitChanged = false;  // explicit limit raised (the fastest tet went)
     bool solverChoiceDropped = false;   // Auto cg/cholmod: decided again next step
     double ms = 0;                      // wall time of the call [ms]
   };
@@ -176,29 +180,30 @@ class ThermalPhase {
   // Topology change in place: marks `tets` (ids into the mesh's tet array; duplicates and
   // tets already removed are ignored) removed and edits the operators locally, so that
   // every later step() equals that of a ThermalPhase freshly built on the mesh with these
-  // tets dead and the cooled faces of dead tets dropped (the operators bitwise; the results
-  // to round-off of the Cholesky factors, whose pattern and ordering differ). The matrix
-  // patterns are kept (entries of removed couplings hold exact zeros). Work: the entries,
-  // lumped/consistent mass and convective terms around the removed tets' nodes,
-  // O(k x local degree) for k tets, plus an O(n) sum when a cooled face is removed; the
-  // O(n)-or-more parts a fresh build would redo are deferred to the next step (stats say
-  // which): the Cholesky factors are refactored on the same symbolic analysis (implicit
-  // Direct path, consistent mass), the explicit stability limit is recomputed by the same
-  // Lanczos as a fresh build (~40 stiffness products), the Auto solver choice is re-made.
+  // tets dead and the cooled faces of dead tets dropped: the operators, the explicit limit
+  // and the Auto solver choice bitwise (explicit and CG results are then bitwise the
+  // same), the Cholesky results to round-off (their pattern and ordering differ). The
+  // matrix patterns are kept (entries of removed couplings hold exact zeros).
+  // Cost: O(k x local degree) for k tets (the entries, lumped/consistent mass and Robin
+  // terms around the removed tets' nodes, the explicit limit), plus an O(n) sum when a
+  // cooled face goes; the Cholesky factors (implicit Direct path, consistent mass) are
+  // refactored on their symbolic analysis at the next step (stats say so), and the Auto
+  // solver choice, O(n), is made again there, as after a fresh build.
   // The ThermalState is not touched and keeps its size: orphan nodes (no alive tet left)
   // keep their enthalpy and temperature, have zero mass and exchange nothing, as in a
   // fresh build. Throws Error, before changing anything, on an id out of range. Not
-  // thread-safe: no other call on this phase may run concurrently.
+  // thread-safe: no other call on this phase (const ones included) may run concurrently.
   RemovalStats removeTets(const std::vector<int>& tets);
 
-  // Topology changed (tets removed; same node and tet arrays): refreshes the operators and
-  // drops the factorizations and the explicit limit (recomputed on next use: ~40 stiffness
-  // products); the state is kept. Nodes left without an alive tet keep their enthalpy but no
-  // longer exchange heat or count in the energy (the heat of removed tissue leaves with it).
-  // Cooled faces of removed tets are dropped; newly exposed faces are not cooled.
+  // Topology changed (tets removed; same node and tet arrays): rebuilds the operators and
+  // drops the factorizations; the state is kept (removeTets does the same locally). Nodes left
+  // without an alive tet keep their enthalpy but no longer exchange heat or count in the energy
+  // (the heat of removed tissue leaves with it). Cooled faces of removed tets are dropped; newly
+  // exposed faces are not cooled.
   void rebuild(const TetMesh& mesh, const std::vector<TetGeometry>& geo);
 
-  // explicit stability limit of this mesh [s] (computed on first use, 5 % margin)
+  // explicit stability limit of this mesh [s] (the element bound of the header; built
+  // with the phase for the explicit integrator, else on the first call: O(tets))
   double stableExplicitDtS() const;
 
   // sensible + latent heat stored in the alive tissue, relative to the initial state [J]
@@ -218,6 +223,7 @@ class ThermalPhase {
   struct Impl;
   void buildOperators(const TetMesh& mesh, const std::vector<TetGeometry>& geo);
   int recomputeEntries(const std::vector<int>& removed);
+  void elementRates() const;
   void recomputeConvection(const std::vector<int>& nodes);
 
   ThermalParams params_;

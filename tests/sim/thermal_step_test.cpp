@@ -7,7 +7,9 @@
 
 #include <Eigen/Dense>
 #include <Eigen/Eigenvalues>
+#include <Eigen/SparseCholesky>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -15,6 +17,8 @@
 
 #include "sim/core_error.h"
 #include "sim/mesh_slab.h"
+
+extern "C" void openblas_set_num_threads(int num_threads);
 
 namespace esim {
 namespace {
@@ -176,8 +180,8 @@ TEST(ThermalStep, ExplicitLimitMatchesTheDenseEigenvalue) {
     const double limit = phase.stableExplicitDtS();
     std::printf("  explicit limit (%s): %.4f s, exact 2/lambda_max %.4f s\n",
                 lumped ? "lumped" : "consistent", limit, exactLimit);
-    EXPECT_LE(limit, exactLimit);
-    EXPECT_GE(limit, 0.9 * exactLimit);
+    EXPECT_LE(limit, exactLimit);        // the element bound is rigorous
+    EXPECT_GE(limit, 0.6 * exactLimit);  // and not far off
   }
 }
 
@@ -593,11 +597,7 @@ TEST(ThermalStep, RemoveTetsStepsLikeAFreshBuild) {
       ThermalPhase fresh(cut, geo, p, cooled);
       ThermalState sf = s;
       EXPECT_EQ(phase.storedEnergyJ(s), fresh.storedEnergyJ(sf)) << label;
-      if (c.v.integrator == ThermalIntegrator::Explicit) {
-        EXPECT_NEAR(phase.stableExplicitDtS(), fresh.stableExplicitDtS(),
-                    1e-12 * fresh.stableExplicitDtS())
-            << label;
-      }
+      EXPECT_EQ(phase.stableExplicitDtS(), fresh.stableExplicitDtS()) << label;
       const double storedAtRemoval = phase.storedEnergyJ(s);
       const double sourceAtRemoval = s.sourceJ, convectedAtRemoval = s.convectedJ;
       for (int k = 0; k < 3; ++k) {
@@ -639,6 +639,43 @@ TEST(ThermalStep, RemoveTetsStepsLikeAFreshBuild) {
   }
 }
 
+// on a graded slab the tets differ: removing the fastest ones raises the explicit limit,
+// to what a fresh build finds
+TEST(ThermalStep, RemoveTetsKeepsTheExplicitLimitOfAFreshBuild) {
+  SlabSpec spec;
+  spec.sizeM = Vec3(0.02, 0.01, 0.005);
+  spec.nodesPerAxis = {9, 5, 4};
+  spec.grading.enabled = true;
+  spec.grading.cutFrom = Vec3(-0.005, 0, 0.005);
+  spec.grading.cutTo = Vec3(0.005, 0, 0.005);
+  spec.grading.widthM = 0.002;
+  TetMesh mesh = makeSlab(spec);
+  const auto geo = tetGeometry(mesh);
+  const std::vector<BoundaryFace> top = topFaces(mesh, spec.sizeM.z());
+  for (bool lumped : {true, false}) {
+    ThermalParams p;
+    p.lumpedMass = lumped;
+    p.convectionW_m2K = 50;
+    TetMesh cut = mesh;
+    ThermalPhase phase(cut, geo, p, top);
+    int raised = 0;
+    for (int e = 0; e < mesh.numTets() && raised < 5; ++e) {
+      const double before = phase.stableExplicitDtS();
+      const auto removal = phase.removeTets({e});
+      cut.alive[e] = 0;
+      std::vector<BoundaryFace> cooled;
+      for (const BoundaryFace& f : top)
+        if (cut.isAlive(f.tet)) cooled.push_back(f);
+      const ThermalPhase fresh(cut, geo, p, cooled);
+      ASSERT_EQ(phase.stableExplicitDtS(), fresh.stableExplicitDtS()) << "tet " << e;
+      EXPECT_EQ(removal.explicitLimitChanged, phase.stableExplicitDtS() != before);
+      EXPECT_GE(phase.stableExplicitDtS(), before);  // removal only drops terms of the max
+      raised += removal.explicitLimitChanged;
+    }
+    EXPECT_EQ(raised, 5) << (lumped ? "lumped" : "consistent");
+  }
+}
+
 TEST(ThermalStep, RemoveTetsChecksIdsAndIgnoresRepeats) {
   const TetMesh mesh = slab(Vec3(0.01, 0.01, 0.005), {3, 3, 2});
   const auto geo = tetGeometry(mesh);
@@ -653,6 +690,197 @@ TEST(ThermalStep, RemoveTetsChecksIdsAndIgnoresRepeats) {
   EXPECT_EQ(again.editedEntries, 0);
   // the first error changed nothing: tet 0 is still alive
   EXPECT_EQ(phase.removeTets({0}).removedTets, 1);
+}
+
+// ---- 12. measurements (not run by default: --gtest_also_run_disabled_tests) ----
+
+// removeTets of 5 tets near the top centre vs a fresh build, paper slab at ~1k..50k nodes.
+// a fresh build's factorization happens in its first step, a removal's refactorization in
+// the next one: both columns are shown (fresh: build + first step; update: remove + next)
+TEST(ThermalStep, DISABLED_RemoveTetsCostVsFreshBuild) {
+  openblas_set_num_threads(1);
+  using Clock = std::chrono::steady_clock;
+  auto msSince = [](Clock::time_point t0) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  };
+  std::printf("  %-28s %6s %7s %9s %9s %9s %9s %9s %9s\n", "integrator", "nodes", "tets",
+              "build_ms", "first_ms", "step_ms", "remove_ms", "next_ms", "speedup");
+  for (int target : {1013, 8000, 20000, 50000}) {
+    SlabSpec spec;
+    spec.targetNodes = target;
+    const TetMesh mesh = makeSlab(spec);
+    const auto geo = tetGeometry(mesh);
+    const double topZ = spec.sizeM.z();
+    const std::vector<BoundaryFace> top = topFaces(mesh, topZ);
+    const std::vector<double> source = hotSpot(mesh, 5e8, 0.002, topZ);
+    std::vector<std::pair<double, int>> byDistance;
+    for (int e = 0; e < mesh.numTets(); ++e) {
+      Vec3 c = Vec3::Zero();
+      for (int n : mesh.tets[e]) c += 0.25 * mesh.nodes[n];
+      byDistance.push_back({(c - Vec3(0, 0, topZ)).norm(), e});
+    }
+    std::sort(byDistance.begin(), byDistance.end());
+    struct Case {
+      const char* label;
+      ThermalIntegrator integrator;
+      bool lumped;
+      ThermalLinearSolver solver;
+    };
+    const Case cases[] = {
+        {"explicit/lumped", ThermalIntegrator::Explicit, true, ThermalLinearSolver::Auto},
+        {"crank-nicolson/lumped/auto", ThermalIntegrator::CrankNicolson, true,
+         ThermalLinearSolver::Auto},
+        {"crank-nicolson/lumped/direct", ThermalIntegrator::CrankNicolson, true,
+         ThermalLinearSolver::Direct},
+        {"backward-euler/consistent", ThermalIntegrator::BackwardEuler, false,
+         ThermalLinearSolver::Auto},
+    };
+    for (const Case& c : cases) {
+      ThermalParams p;
+      p.boiling = true;
+      p.integrator = c.integrator;
+      p.lumpedMass = c.lumped;
+      p.linearSolver = c.solver;
+      p.convectionW_m2K = 10;
+      const auto t0 = Clock::now();
+      ThermalPhase phase(mesh, geo, p, top);
+      const double buildMs = msSince(t0);
+      ThermalState s;
+      phase.initState(s);
+      auto t1 = Clock::now();
+      phase.step(1.0 / 30, source, s);
+      const double firstMs = msSince(t1);
+      for (int k = 0; k < 2; ++k) phase.step(1.0 / 30, source, s);
+      t1 = Clock::now();
+      phase.step(1.0 / 30, source, s);
+      const double stepMs = msSince(t1);
+      // 5 removals of 5 tets: medians
+      std::vector<double> removeMs, nextMs;
+      for (int r = 0; r < 5; ++r) {
+        std::vector<int> tets;
+        for (int i = 5 * r; i < 5 * r + 5; ++i) tets.push_back(byDistance[i].second);
+        removeMs.push_back(phase.removeTets(tets).ms);
+        t1 = Clock::now();
+        phase.step(1.0 / 30, source, s);
+        nextMs.push_back(msSince(t1));
+      }
+      std::sort(removeMs.begin(), removeMs.end());
+      std::sort(nextMs.begin(), nextMs.end());
+      const double fresh = buildMs + firstMs, update = removeMs[2] + nextMs[2];
+      std::printf("  %-28s %6d %7d %9.2f %9.2f %9.2f %9.4f %9.2f %9.1f\n", c.label, mesh.numNodes(),
+                  mesh.numTets(), buildMs, firstMs, stepMs, removeMs[2], nextMs[2], fresh / update);
+    }
+  }
+}
+
+// the explicit limit: the element bound (ThermalPhase) vs the eigenvalue limit 2/lambda_max
+// (power iteration, 400 steps) and a lanczos-like 0.95 of it (the rule before), and a
+// gershgorin bound per node (lumped); sub-steps per frame at 30 fps and at 1 s frames
+TEST(ThermalStep, DISABLED_ExplicitLimitElementBoundVsEigenvalue) {
+  SlabSpec paper;  // the paper's slab, 1013 nodes
+  SlabSpec cut;    // scenarios/slab_cut.yaml
+  cut.sizeM = Vec3(0.06, 0.03, 0.01);
+  cut.targetNodes = 8000;
+  cut.grading.enabled = true;
+  cut.grading.cutFrom = Vec3(-0.025, 0, 0.01);
+  cut.grading.cutTo = Vec3(0.025, 0, 0.01);
+  cut.grading.ratio = 4;
+  cut.grading.widthM = 0.004;
+  cut.grading.towardTop = true;
+  SlabSpec paper50k;
+  paper50k.targetNodes = 50000;
+  SlabSpec spot;  // scenarios/coagulation_spot.yaml (a golden scene)
+  spot.targetNodes = 20000;
+  spot.grading.enabled = true;
+  spot.grading.cutFrom = Vec3(-0.001, 0, 0.01);
+  spot.grading.cutTo = Vec3(0.001, 0, 0.01);
+  spot.grading.ratio = 5;
+  spot.grading.widthM = 0.004;
+  SlabSpec fine;  // scenarios/fine_cut.yaml
+  fine.targetNodes = 50000;
+  fine.grading.enabled = true;
+  fine.grading.cutFrom = Vec3(-0.04, 0, 0.01);
+  fine.grading.cutTo = Vec3(0.04, 0, 0.01);
+  fine.grading.ratio = 4;
+  fine.grading.widthM = 0.01;
+  std::printf("  %-21s %-10s %9s %9s %9s %9s %6s %6s %9s %9s %9s\n", "mesh", "mass", "eig_s",
+              "0.95eig_s", "element_s", "gersh_s", "ratio", "sub@30", "sub@1s_95", "sub@1s_el",
+              "build_ms");
+  struct Mesh {
+    const char* label;
+    SlabSpec spec;
+    bool consistentToo;  // the scenes run lumped; consistent where measured before
+  };
+  for (const auto& [label, spec, consistentToo] :
+       {Mesh{"paper slab 1013", paper, true}, Mesh{"slab_cut 8000 graded", cut, true},
+        Mesh{"paper slab 50000", paper50k, true}, Mesh{"coagulation_spot 20000", spot, false},
+        Mesh{"fine_cut 50000", fine, false}}) {
+    const TetMesh mesh = makeSlab(spec);
+    const auto geo = tetGeometry(mesh);
+    const std::vector<BoundaryFace> top = topFaces(mesh, spec.sizeM.z());
+    for (bool lumped : {true, false}) {
+      if (!lumped && !consistentToo) continue;
+      ThermalParams p;
+      p.lumpedMass = lumped;
+      p.convectionW_m2K = 10;
+      const auto t0 = std::chrono::steady_clock::now();
+      ThermalPhase phase(mesh, geo, p, top);
+      const double buildMs =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      const double element = phase.stableExplicitDtS();
+      const double crho = p.heatCapacityJ_m3K;
+      const std::vector<double> lam(mesh.tets.size(), p.conductivityW_mK);
+      const std::vector<double> ones(mesh.tets.size(), 1.0);
+      SparseMatrix k = assembleStiffness(mesh, geo, lam);
+      {
+        std::vector<Eigen::Triplet<double>> trip;
+        for (const BoundaryFace& f : top) {
+          const Vec3 &a = mesh.nodes[f.nodes[0]], &b = mesh.nodes[f.nodes[1]],
+                     &c = mesh.nodes[f.nodes[2]];
+          const double area = 0.5 * (b - a).cross(c - a).norm();
+          for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j)
+              trip.emplace_back(
+                  f.nodes[i], f.nodes[j],
+                  lumped ? (i == j ? 10 * area / 3 : 0.0) : 10 * area * (i == j ? 2.0 : 1.0) / 12);
+        }
+        SparseMatrix kh(mesh.numNodes(), mesh.numNodes());
+        kh.setFromTriplets(trip.begin(), trip.end());
+        k += kh;
+      }
+      const Eigen::VectorXd ml = crho * lumpedMass(mesh, geo, ones);
+      const SparseMatrix mc = crho * assembleMass(mesh, geo, ones);
+      Eigen::SimplicialLDLT<SparseMatrix> mcFactor;
+      if (!lumped) mcFactor.compute(mc);
+      // power iteration on M^-1 K; the rayleigh quotient x'Kx / x'Mx from below
+      Eigen::VectorXd x = Eigen::VectorXd::Random(mesh.numNodes()), kx;
+      double rayleigh = 0;
+      for (int it = 0; it < 400; ++it) {
+        kx = k * x;
+        const double mx = lumped ? x.dot(ml.cwiseProduct(x)) : x.dot(mc * x);
+        rayleigh = x.dot(kx) / mx;
+        x = lumped ? Eigen::VectorXd(kx.cwiseQuotient(ml)) : Eigen::VectorXd(mcFactor.solve(kx));
+        x /= x.norm();
+      }
+      const double eig = 2.0 / rayleigh;
+      double gersh = 0;
+      if (lumped) {
+        const Eigen::SparseMatrix<double, Eigen::RowMajor> kr = k;
+        for (int i = 0; i < kr.outerSize(); ++i) {
+          double row = 0;
+          for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(kr, i); it; ++it)
+            row += std::abs(it.value());
+          gersh = std::max(gersh, row / ml[i]);
+        }
+      }
+      EXPECT_LE(element, eig * (1 + 1e-6)) << label;
+      std::printf("  %-21s %-10s %9.4f %9.4f %9.4f %9.4f %6.3f %6.0f %9.0f %9.0f %9.1f\n", label,
+                  lumped ? "lumped" : "consistent", eig, 0.95 * eig, element,
+                  lumped ? 2.0 / gersh : 0.0, element / (0.95 * eig),
+                  std::ceil((1.0 / 30) / element), std::ceil(1.0 / (0.95 * eig)),
+                  std::ceil(1.0 / element), buildMs);
+    }
+  }
 }
 
 // ---- 11. bad input ----
