@@ -24,7 +24,66 @@ constexpr double kPinCapacity = 1e8;     // boiling iteration: relative capacity
 constexpr int kPinIterations = 3;        // ... for this many iterations, then plain Chernoff
 
 using RowMatrix = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
-using Cholesky = Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower>;
+using CholeskyBase = Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower>;
+
+// a rank-k modification A +- C C', C given by columns of (node, value) entries
+using FactorColumns = std::vector<std::vector<std::pair<int, double>>>;
+
+// CHOLMOD's supernodal Cholesky, whose factor can be modified in place (cholmod_updown):
+// the factor of A becomes that of A + C C' (update) or A - C C' (downdate), at a cost
+// set by the columns of L that C reaches, not by n. The first modification converts the
+// factor to simplicial LDL' (O(nnz(L))); a modified factor is not refactored on its
+// analysis (its pattern changed): a new Cholesky is analysed instead
+class Cholesky : public CholeskyBase {
+ public:
+  void analyzePattern(const SparseMatrix& a) {
+    inversePerm_.clear();
+    CholeskyBase::analyzePattern(a);
+  }
+  // false if CHOLMOD refuses (the factor is then unusable)
+  bool modify(bool update, const FactorColumns& columns) {
+    if (columns.empty()) return true;
+    cholmod_factor* factor = m_cholmodFactor;
+    cholmod_common& common = cholmod();
+    const int n = static_cast<int>(factor->n);
+    if (factor->is_super || factor->is_ll) {
+      if (!cholmod_change_factor(CHOLMOD_REAL, false, false, false, false, factor, &common))
+        return false;
+    }
+    if (inversePerm_.empty()) {  // C's rows go in the factor's (fill-reducing) order
+      const int* perm = static_cast<const int*>(factor->Perm);
+      inversePerm_.resize(n);
+      for (int k = 0; k < n; ++k) inversePerm_[perm ? perm[k] : k] = k;
+    }
+    size_t nnz = 0;
+    for (const auto& col : columns) nnz += col.size();
+    cholmod_sparse* c =
+        cholmod_allocate_sparse(n, columns.size(), nnz, true, true, 0, CHOLMOD_REAL, &common);
+    if (!c) return false;
+    int* colStart = static_cast<int*>(c->p);
+    int* rows = static_cast<int*>(c->i);
+    double* values = static_cast<double*>(c->x);
+    size_t at = 0;
+    std::vector<std::pair<int, double>> sorted;
+    for (size_t j = 0; j < columns.size(); ++j) {
+      colStart[j] = static_cast<int>(at);
+      sorted.clear();
+      for (const auto& [node, value] : columns[j]) sorted.emplace_back(inversePerm_[node], value);
+      std::sort(sorted.begin(), sorted.end());
+      for (const auto& [row, value] : sorted) {
+        rows[at] = row;
+        values[at++] = value;
+      }
+    }
+    colStart[columns.size()] = static_cast<int>(at);
+    const int ok = cholmod_updown(update, c, factor, &common);
+    cholmod_free_sparse(&c, &common);
+    return ok && common.status == CHOLMOD_OK && factor->minor == factor->n;
+  }
+
+ private:
+  std::vector<int> inversePerm_;  // node -> row of the permuted factor
+};
 
 std::string fmt(double v) {
   char buf[64];
@@ -174,13 +233,14 @@ struct ThermalPhase::Impl {
   // implicit system (c rho M/dt + theta K) T = b
   std::unique_ptr<Cholesky> factor;
   bool factorAnalyzed = false;
+  bool factorModified = false;  // by removeTets: a new dt or theta analyses again
   double factorDt = -1, factorTheta = -1;
   double cgDecidedDt = -1, cgDecidedTheta = -1;
   bool useCg = false;
   std::string lastSolver = "none";
   // consistent mass factor (flux-form update, explicit)
   std::unique_ptr<Cholesky> massFactor;
-  bool massFactorStale = false;  // removeTets changed the values (same pattern)
+  bool massFactorStale = false;  // removeTets could not modify it: factored again
 
   // explicit limit: the smaller of two bounds on lambda_max((c rho M)^-1 K) [1/s]
   std::vector<double> tetRate;  // element: lambda_max(K_e + cooled faces, c rho M_e)
@@ -198,8 +258,8 @@ struct ThermalPhase::Impl {
   // alive tets of node i
   const int* tetsBegin(int i) const { return nodeTets.begin(i); }
   const int* tetsEnd(int i) const { return nodeTets.ids.data() + nodeTetsEnd[i]; }
-  // factors the consistent mass (+1 on orphan diagonals); analyze: also its pattern
-  void factorMass(bool analyze);
+  // factors the consistent mass (+1 on orphan diagonals)
+  void factorMass();
   // y = M^-1 x (lumped or consistent) on the active nodes, 0 on the orphan nodes
   void solveMass(bool lumped, const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
   // state's sensible and latent heat from its enthalpy and vapour fraction
@@ -320,13 +380,13 @@ void ThermalPhase::buildOperators(const TetMesh& mesh, const std::vector<TetGeom
   if (!params_.lumpedMass) {
     m.massConsistent = assembleMass(mesh, geo, ones);
     m.massConsistent.makeCompressed();
-    m.massFactor = std::make_unique<Cholesky>();
-    m.factorMass(true);
+    m.factorMass();
   }
 
   // drop every cache that depends on the operators
   m.factor.reset();
   m.factorAnalyzed = false;
+  m.factorModified = false;
   m.factorDt = m.factorTheta = -1;
   m.cgDecidedDt = m.cgDecidedTheta = -1;
   m.ratesBuilt = false;
@@ -385,13 +445,14 @@ ThermalPhase::RemovalStats ThermalPhase::removeTets(const std::vector<int>& tets
   nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
 
   // lumped mass of the touched nodes, summed over their alive tets in tet order (as built)
+  std::vector<int> orphans;  // by this call
   for (int v : nodes) {
     double mass = 0;
     for (const int* e = m.tetsBegin(v); e != m.tetsEnd(v); ++e)
       mass += elementLumpedMass(volumeM3_[*e]);
     m.massM3[v] = mass;
     const std::uint8_t active = mass > 0 ? 1 : 0;
-    if (m.active[v] && !active) ++stats.orphanedNodes;
+    if (m.active[v] && !active) orphans.push_back(v);
     m.active[v] = active;
   }
 
@@ -414,13 +475,10 @@ ThermalPhase::RemovalStats ThermalPhase::removeTets(const std::vector<int>& tets
   // conduction (+ robin) and consistent mass entries among the removed tets' nodes
   stats.editedEntries = recomputeEntries(removed);
 
-  // what depends on the operators: deferred to the next use
-  stats.factorDropped = m.factorDt > 0;
-  m.factorDt = m.factorTheta = -1;  // refactored on the same analysis (same pattern)
-  if (!params_.lumpedMass) {
-    m.massFactorStale = true;
-    stats.massFactorDropped = true;
-  }
+  stats.orphanedNodes = static_cast<int>(orphans.size());
+
+  // the factors: modified in place (or, if CHOLMOD refuses, factored again at next use)
+  modifyFactors(removed, orphans, stats);
   if (m.ratesBuilt) {
     const double limitBefore = m.stableDt;
     for (int v : nodes) m.setRowRate(v, params_.heatCapacityJ_m3K, params_.lumpedMass, true);
@@ -432,6 +490,80 @@ ThermalPhase::RemovalStats ThermalPhase::removeTets(const std::vector<int>& tets
   stats.ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   return stats;
+}
+
+// the cholesky factors follow the removal in place: A loses sum_e dA_e, each a PSD 4 x 4
+// (its tet's conduction and cooled faces times theta, its mass times c rho / dt for the
+// implicit matrix; its consistent mass for the mass matrix), split into <= 4 columns by
+// its eigenvectors (downdate), after new orphan nodes get their 1 (update: A stays
+// positive definite throughout)
+void ThermalPhase::modifyFactors(const std::vector<int>& removed, const std::vector<int>& orphans,
+                                 RemovalStats& stats) {
+  Impl& m = *impl_;
+  const double lambda = params_.conductivityW_mK, h = params_.convectionW_m2K;
+  FactorColumns unit;
+  for (int v : orphans) unit.push_back({{v, 1.0}});
+  // columns of the PSD delta on tet t: sqrt(mu_k) v_k
+  auto addColumns = [](const Tet& t, const Eigen::Matrix4d& delta, FactorColumns& out) {
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> eig(delta);
+    const double top = eig.eigenvalues().maxCoeff();
+    for (int k = 0; k < 4; ++k) {
+      const double mu = eig.eigenvalues()[k];
+      if (!(mu > 1e-15 * top)) continue;  // the conduction's constant mode, round-off
+      std::vector<std::pair<int, double>> col;
+      for (int a = 0; a < 4; ++a) col.emplace_back(t[a], std::sqrt(mu) * eig.eigenvectors()(a, k));
+      out.push_back(std::move(col));
+    }
+  };
+  auto consistentMass = [](double volume) {
+    Eigen::Matrix4d me;
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 4; ++b) me(a, b) = elementMassEntry(volume, a == b);
+    return me;
+  };
+  // implicit matrix c rho M / dt + theta K, factored for (factorDt, factorTheta)
+  if (m.factor && m.factorDt > 0) {
+    const double capacity = params_.heatCapacityJ_m3K / m.factorDt, theta = m.factorTheta;
+    FactorColumns down;
+    for (int e : removed) {
+      Eigen::Matrix4d delta = theta * elementStiffness(lambda, volumeM3_[e], gradM_[e]);
+      auto it = std::lower_bound(m.cooledByTet.begin(), m.cooledByTet.end(), std::make_pair(e, -1));
+      for (; it != m.cooledByTet.end() && it->first == e; ++it) {
+        const BoundaryFace& f = cooledFaces_[it->second];
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j)
+            delta(localIndex(tets_[e], f.nodes[i]), localIndex(tets_[e], f.nodes[j])) +=
+                theta * faceCoupling(params_.lumpedMass, h, m.cooledAreaM2[it->second], i, j);
+      }
+      if (params_.lumpedMass)
+        delta.diagonal().array() += capacity * elementLumpedMass(volumeM3_[e]);
+      else
+        delta += capacity * consistentMass(volumeM3_[e]);
+      addColumns(tets_[e], delta, down);
+    }
+    stats.factorRank = static_cast<int>(down.size() + unit.size());
+    if (m.factor->modify(true, unit) && m.factor->modify(false, down)) {
+      stats.factorUpdated = true;
+      m.factorModified = true;
+    } else {  // analysed and factored again at the next step
+      m.factor.reset();
+      m.factorAnalyzed = false;
+      m.factorModified = false;
+      m.factorDt = m.factorTheta = -1;
+      stats.factorDropped = true;
+    }
+  }
+  // consistent mass (+1 on orphans)
+  if (!params_.lumpedMass && m.massFactor && !m.massFactorStale) {
+    FactorColumns down;
+    for (int e : removed) addColumns(tets_[e], consistentMass(volumeM3_[e]), down);
+    if (m.massFactor->modify(true, unit) && m.massFactor->modify(false, down)) {
+      stats.massFactorUpdated = true;
+    } else {
+      m.massFactorStale = true;
+      stats.massFactorDropped = true;
+    }
+  }
 }
 
 // convective load and column sums of `nodes` from their alive cooled faces, in face order
@@ -516,11 +648,12 @@ int ThermalPhase::recomputeEntries(const std::vector<int>& removed) {
   return static_cast<int>(entries.size());
 }
 
-void ThermalPhase::Impl::factorMass(bool analyze) {
+void ThermalPhase::Impl::factorMass() {
   SparseMatrix regular = massConsistent;
   for (int i = 0; i < static_cast<int>(active.size()); ++i)
     if (!active[i]) regular.coeffRef(i, i) = 1.0;
-  if (analyze) massFactor->analyzePattern(regular);
+  massFactor = std::make_unique<Cholesky>();
+  massFactor->analyzePattern(regular);
   massFactor->factorize(regular);
   ESIM_RUN_CHECK(massFactor->info() == Eigen::Success,
                  "thermal: the consistent mass matrix could not be factored");
@@ -823,7 +956,7 @@ ThermalPhase::StepStats ThermalPhase::step(double dtS, const std::vector<double>
                    .theta = thetaOf(params_.integrator),
                    .s = s};
 
-  if (impl_->massFactorStale) impl_->factorMass(false);  // after removeTets
+  if (impl_->massFactorStale) impl_->factorMass();  // removeTets could not modify it
   st.assembleSource(sourceW_m3);
   st.updateTemperature();  // from the primary unknown
 
@@ -1044,6 +1177,11 @@ void ThermalPhase::Impl::Stepper::solveDirect(const Eigen::VectorXd& b, Eigen::V
         if (!m.active[i]) a.coeffRef(i, i) += 1.0;
     }
     a.makeCompressed();
+    if (m.factorModified) {  // removeTets changed its pattern: analyse again
+      m.factor.reset();
+      m.factorAnalyzed = false;
+      m.factorModified = false;
+    }
     if (!m.factor) m.factor = std::make_unique<Cholesky>();
     if (!m.factorAnalyzed) {
       m.factor->analyzePattern(a);

@@ -172,8 +172,11 @@ class ThermalPhase {
     int orphanedNodes = 0;              // nodes left without an alive tet by this call
     int droppedCooledFaces = 0;         // cooled faces of the removed tets
     int editedEntries = 0;              // conduction matrix entries recomputed (pattern kept)
-    bool factorDropped = false;         // implicit Cholesky: refactored (no re-analysis) next step
-    bool massFactorDropped = false;     // consistent mass Cholesky: the same
+    bool factorUpdated = false;         // implicit Cholesky modified in place (cholmod_updown)
+    int factorRank = 0;                 // ... by this many rank-1 terms (<= 4 per tet + orphans)
+    bool massFactorUpdated = false;     // consistent mass Cholesky modified in place
+    bool factorDropped = false;         // CHOLMOD refused: factored again at the next step
+    bool massFactorDropped = false;     // the same for the mass
     bool explicitLimitChanged = false;  // explicit limit changed (up or down)
     bool solverChoiceDropped = false;   // Auto cg/cholmod: decided again next step
     double ms = 0;                      // wall time of the call [ms]
@@ -227,6 +230,8 @@ class ThermalPhase {
   int recomputeEntries(const std::vector<int>& removed);
   void elementRates() const;
   void recomputeConvection(const std::vector<int>& nodes);
+  void modifyFactors(const std::vector<int>& removed, const std::vector<int>& orphans,
+                     RemovalStats& stats);
 
   ThermalParams params_;
   int numNodes_ = 0;
