@@ -187,17 +187,21 @@ class ThermalPhase {
   // every later step() equals that of a ThermalPhase freshly built on the mesh with these
   // tets dead and the cooled faces of dead tets dropped: the operators, the explicit limit
   // and the Auto solver choice bitwise (explicit and CG results are then bitwise the
-  // same), the Cholesky results to round-off (their pattern and ordering differ). The
-  // matrix patterns are kept (entries of removed couplings hold exact zeros).
-  // Cost: O(k x local degree) for k tets (the entries, lumped/consistent mass and Robin
-  // terms around the removed tets' nodes, the explicit limit), plus an O(n) sum when a
-  // cooled face goes; the Cholesky factors (implicit Direct path, consistent mass) are
-  // refactored on their symbolic analysis at the next step (stats say so), and the Auto
-  // solver choice, O(n), is made again there, as after a fresh build.
+  // same), the Cholesky results to round-off. The matrix patterns are kept (entries of
+  // removed couplings hold exact zeros).
+  // Cost, for k tets: O(k x local degree) for the entries, lumped/consistent mass and
+  // Robin terms around the removed tets' nodes, O(log n) per touched node for the explicit
+  // limit, an O(n) sum when a cooled face goes; the Cholesky factors (implicit Direct
+  // path, consistent mass) are modified in place by a rank <= 4k update/downdate (CHOLMOD,
+  // cost set by the factor columns it reaches; the first one per factor also converts it
+  // to simplicial LDL', O(nnz(L))); a later change of dt then analyses and factors anew.
+  // The Auto solver choice, O(n), is made again at the next step, as after a fresh build.
   // The ThermalState is not touched and keeps its size: orphan nodes (no alive tet left)
   // keep their enthalpy and temperature, have zero mass and exchange nothing, as in a
-  // fresh build. Throws Error, before changing anything, on an id out of range. Not
-  // thread-safe: no other call on this phase (const ones included) may run concurrently.
+  // fresh build. Throws Error, before changing anything, on an id out of range; if CHOLMOD
+  // refuses a modification the factor is dropped and built again at the next step
+  // (stats.factorDropped), never an error. Not thread-safe: no other call on this phase
+  // (const ones included) may run concurrently.
   RemovalStats removeTets(const std::vector<int>& tets);
 
   // Topology changed (tets removed; same node and tet arrays): rebuilds the operators and
