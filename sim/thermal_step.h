@@ -52,10 +52,10 @@
 // integral; it does no solve and returns StepStats.skipped = true.
 //
 // Ownership: ThermalPhase copies what it needs from the mesh (tets, alive flags, volumes,
-// basis gradients: 96 bytes per tet, kept for removeTets) and owns its operators and
-// factorizations; ThermalState is plain data owned by the caller. Enthalpy is the primary
-// unknown: `temperatureC` is derived from it at every step; to impose a temperature field
-// use ThermalPhase::setTemperature.
+// and for removeTets and the explicit limit the basis gradients and per-tet rates: ~110
+// bytes per tet) and owns its operators and factorizations; ThermalState is plain data
+// owned by the caller. Enthalpy is the primary unknown: `temperatureC` is derived from it
+// at every step; to impose a temperature field use ThermalPhase::setTemperature.
 #pragma once
 
 #include <Eigen/Core>
@@ -211,8 +211,9 @@ class ThermalPhase {
   // exposed faces are not cooled.
   void rebuild(const TetMesh& mesh, const std::vector<TetGeometry>& geo);
 
-  // explicit stability limit of this mesh [s] (the element bound of the header; built
-  // with the phase for the explicit integrator, else on the first call: O(tets))
+  // explicit stability limit of this mesh [s] (the bounds of the header; built with the
+  // phase for the explicit integrator, else on the first call: O(tets log tets), which
+  // writes the phase's cache, so that first call must not race other calls)
   double stableExplicitDtS() const;
 
   // sensible + latent heat stored in the alive tissue, relative to the initial state [J]
