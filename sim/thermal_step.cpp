@@ -22,6 +22,9 @@ constexpr double kCgRoundOff = 1e-13;    // CG stop floor, relative to max |T|
 constexpr int kCgMaxIterations = 500;    // then Cholesky
 constexpr double kPinCapacity = 1e8;     // boiling iteration: relative capacity of plateau nodes
 constexpr int kPinIterations = 3;        // ... for this many iterations, then plain Chernoff
+// removeTets modifies a Cholesky factor in place up to this rank (<= 4 per tet + orphans),
+// else factors it again at the next step: measured break-even ~500 (8k and 50k nodes)
+constexpr int kMaxFactorUpdateRank = 400;
 
 using RowMatrix = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
 using CholeskyBase = Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower>;
@@ -500,6 +503,21 @@ ThermalPhase::RemovalStats ThermalPhase::removeTets(const std::vector<int>& tets
 void ThermalPhase::modifyFactors(const std::vector<int>& removed, const std::vector<int>& orphans,
                                  RemovalStats& stats) {
   Impl& m = *impl_;
+  // a large batch: factored again at the next step (the analysis too: as a fresh build)
+  if (4 * removed.size() + orphans.size() > static_cast<size_t>(kMaxFactorUpdateRank)) {
+    if (m.factor && m.factorDt > 0) {
+      m.factor.reset();
+      m.factorAnalyzed = false;
+      m.factorModified = false;
+      m.factorDt = m.factorTheta = -1;
+      stats.factorDropped = true;
+    }
+    if (!params_.lumpedMass) {
+      m.massFactorStale = true;
+      stats.massFactorDropped = true;
+    }
+    return;
+  }
   const double lambda = params_.conductivityW_mK, h = params_.convectionW_m2K;
   FactorColumns unit;
   for (int v : orphans) unit.push_back({{v, 1.0}});

@@ -646,6 +646,42 @@ TEST(ThermalStep, RemoveTetsStepsLikeAFreshBuild) {
   }
 }
 
+// a batch above the in-place rank: the factors are factored again, with the same results
+TEST(ThermalStep, RemoveTetsLargeBatchFactorsAgain) {
+  const double topZ = 0.006;
+  const TetMesh mesh = slab(Vec3(0.02, 0.02, topZ), {7, 7, 4});
+  const auto geo = tetGeometry(mesh);
+  const std::vector<double> source = hotSpot(mesh, 2e9, 0.002, topZ);
+  std::vector<int> batch;
+  for (int e = 0; e < 120; ++e) batch.push_back(3 * e);
+  for (const Variant& v : {Variant{ThermalIntegrator::CrankNicolson, true},
+                           Variant{ThermalIntegrator::BackwardEuler, false},
+                           Variant{ThermalIntegrator::Explicit, false}}) {
+    ThermalParams p;
+    p.boiling = true;
+    p.integrator = v.integrator;
+    p.lumpedMass = v.lumped;
+    p.linearSolver = ThermalLinearSolver::Direct;
+    TetMesh cut = mesh;
+    ThermalPhase phase(cut, geo, p);
+    ThermalState s;
+    phase.initState(s);
+    for (int k = 0; k < 4; ++k) phase.step(0.1, source, s);
+    const auto removal = phase.removeTets(batch);
+    EXPECT_EQ(removal.factorDropped, v.integrator != ThermalIntegrator::Explicit) << name(v);
+    EXPECT_EQ(removal.massFactorDropped, !v.lumped) << name(v);
+    for (int e : batch) cut.alive[e] = 0;
+    ThermalPhase fresh(cut, geo, p);
+    ThermalState sf = s;
+    for (int k = 0; k < 3; ++k) {
+      phase.step(0.1, source, s);
+      fresh.step(0.1, source, sf);
+      EXPECT_LT(relativeDiff(s.enthalpyJ_m3, sf.enthalpyJ_m3), 1e-9) << name(v);
+      EXPECT_LT(relativeDiff(s.temperatureC, sf.temperatureC), 1e-9) << name(v);
+    }
+  }
+}
+
 // on a graded slab the tets and nodes differ: removals change the explicit limit (up or
 // down), to what a fresh build finds
 TEST(ThermalStep, RemoveTetsKeepsTheExplicitLimitOfAFreshBuild) {
@@ -778,6 +814,52 @@ TEST(ThermalStep, DISABLED_RemoveTetsCostVsFreshBuild) {
       std::printf("  %-28s %6d %7d %9.2f %9.2f %9.2f %9.4f %9.4f %9.2f %9.1f\n", c.label,
                   mesh.numNodes(), mesh.numTets(), buildMs, firstMs, stepMs, firstRemoveMs,
                   removeMs[2], nextMs[2], fresh / update);
+    }
+  }
+}
+
+// the direct path's in-place modification vs factoring again, by batch size: removeTets
+// of the b tets nearest the top centre (the first removal: it converts the factor too) vs
+// the first step of a fresh phase (analysis and factorization)
+TEST(ThermalStep, DISABLED_RemoveTetsBatchSizeVsRefactor) {
+  openblas_set_num_threads(1);
+  using Clock = std::chrono::steady_clock;
+  std::printf("  %-28s %6s %6s %6s %11s %11s\n", "integrator", "nodes", "batch", "rank",
+              "remove_ms", "refactor_ms");
+  for (int target : {8000, 50000}) {
+    SlabSpec spec;
+    spec.targetNodes = target;
+    const TetMesh mesh = makeSlab(spec);
+    const auto geo = tetGeometry(mesh);
+    const double topZ = spec.sizeM.z();
+    const std::vector<double> source = hotSpot(mesh, 5e8, 0.002, topZ);
+    std::vector<std::pair<double, int>> byDistance;
+    for (int e = 0; e < mesh.numTets(); ++e) {
+      Vec3 c = Vec3::Zero();
+      for (int n : mesh.tets[e]) c += 0.25 * mesh.nodes[n];
+      byDistance.push_back({(c - Vec3(0, 0, topZ)).norm(), e});
+    }
+    std::sort(byDistance.begin(), byDistance.end());
+    for (bool lumped : {true, false}) {
+      ThermalParams p;
+      p.integrator = ThermalIntegrator::CrankNicolson;
+      p.lumpedMass = lumped;
+      p.linearSolver = ThermalLinearSolver::Direct;
+      for (int batch : {5, 20, 80, 320, 1280}) {
+        ThermalPhase phase(mesh, geo, p);
+        ThermalState s;
+        phase.initState(s);
+        const auto t0 = Clock::now();
+        phase.step(1.0 / 30, source, s);
+        const double refactorMs =
+            std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+        std::vector<int> tets;
+        for (int i = 0; i < batch; ++i) tets.push_back(byDistance[i].second);
+        const auto removal = phase.removeTets(tets);
+        std::printf("  %-28s %6d %6d %6d %11.2f %11.2f\n",
+                    lumped ? "crank-nicolson/lumped/direct" : "crank-nicolson/consistent",
+                    mesh.numNodes(), batch, removal.factorRank, removal.ms, refactorMs);
+      }
     }
   }
 }
