@@ -4,6 +4,7 @@
 #include <Eigen/CholmodSupport>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -16,16 +17,76 @@ namespace {
 
 constexpr double kGasConstantJ_molK = 8.314462618;
 constexpr double kKelvinOffset = 273.15;
-constexpr double kStabilityMargin = 0.95;  // on the Lanczos estimate of lambda_max
-constexpr double kCgMaxCondition = 4.0;    // Auto: CG when the Gershgorin bound is below this
-constexpr double kCgRoundOff = 1e-13;      // CG stop floor, relative to max |T|
-constexpr int kCgMaxIterations = 500;      // then Cholesky
-constexpr double kPinCapacity = 1e8;       // boiling iteration: relative capacity of plateau nodes
-constexpr int kPinIterations = 3;          // ... for this many iterations, then plain Chernoff
-constexpr int kLanczosSteps = 40;          // the top Ritz value has converged by ~30 on slabs
+constexpr double kCgMaxCondition = 4.0;  // Auto: CG when the Gershgorin bound is below this
+constexpr double kCgRoundOff = 1e-13;    // CG stop floor, relative to max |T|
+constexpr int kCgMaxIterations = 500;    // then Cholesky
+constexpr double kPinCapacity = 1e8;     // boiling iteration: relative capacity of plateau nodes
+constexpr int kPinIterations = 3;        // ... for this many iterations, then plain Chernoff
+// removeTets modifies a Cholesky factor in place up to this rank (<= 4 per tet + orphans),
+// else factors it again at the next step: measured break-even ~500 (8k and 50k nodes)
+constexpr int kMaxFactorUpdateRank = 400;
 
 using RowMatrix = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
-using Cholesky = Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower>;
+using CholeskyBase = Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower>;
+
+// a rank-k modification A +- C C', C given by columns of (node, value) entries
+using FactorColumns = std::vector<std::vector<std::pair<int, double>>>;
+
+// CHOLMOD's supernodal Cholesky, whose factor can be modified in place (cholmod_updown):
+// the factor of A becomes that of A + C C' (update) or A - C C' (downdate), at a cost
+// set by the columns of L that C reaches, not by n. The first modification converts the
+// factor to simplicial LDL' (O(nnz(L))); a modified factor is not refactored on its
+// analysis (its pattern changed): a new Cholesky is analysed instead
+class Cholesky : public CholeskyBase {
+ public:
+  void analyzePattern(const SparseMatrix& a) {
+    inversePerm_.clear();
+    CholeskyBase::analyzePattern(a);
+  }
+  // false if CHOLMOD refuses (the factor is then unusable)
+  bool modify(bool update, const FactorColumns& columns) {
+    if (columns.empty()) return true;
+    cholmod_factor* factor = m_cholmodFactor;
+    cholmod_common& common = cholmod();
+    const int n = static_cast<int>(factor->n);
+    if (factor->is_super || factor->is_ll) {
+      if (!cholmod_change_factor(CHOLMOD_REAL, false, false, false, false, factor, &common))
+        return false;
+    }
+    if (inversePerm_.empty()) {  // C's rows go in the factor's (fill-reducing) order
+      const int* perm = static_cast<const int*>(factor->Perm);
+      inversePerm_.resize(n);
+      for (int k = 0; k < n; ++k) inversePerm_[perm ? perm[k] : k] = k;
+    }
+    size_t nnz = 0;
+    for (const auto& col : columns) nnz += col.size();
+    cholmod_sparse* c =
+        cholmod_allocate_sparse(n, columns.size(), nnz, true, true, 0, CHOLMOD_REAL, &common);
+    if (!c) return false;
+    int* colStart = static_cast<int*>(c->p);
+    int* rows = static_cast<int*>(c->i);
+    double* values = static_cast<double*>(c->x);
+    size_t at = 0;
+    std::vector<std::pair<int, double>> sorted;
+    for (size_t j = 0; j < columns.size(); ++j) {
+      colStart[j] = static_cast<int>(at);
+      sorted.clear();
+      for (const auto& [node, value] : columns[j]) sorted.emplace_back(inversePerm_[node], value);
+      std::sort(sorted.begin(), sorted.end());
+      for (const auto& [row, value] : sorted) {
+        rows[at] = row;
+        values[at++] = value;
+      }
+    }
+    colStart[columns.size()] = static_cast<int>(at);
+    const int ok = cholmod_updown(update, c, factor, &common);
+    cholmod_free_sparse(&c, &common);
+    return ok && common.status == CHOLMOD_OK && factor->minor == factor->n;
+  }
+
+ private:
+  std::vector<int> inversePerm_;  // node -> row of the permuted factor
+};
 
 std::string fmt(double v) {
   char buf[64];
@@ -36,6 +97,43 @@ std::string fmt(double v) {
 void requirePositive(double v, const char* key, const char* what) {
   ESIM_VERIFY(std::isfinite(v) && v > 0,
               std::string(key) + " = " + fmt(v) + ": must be > 0 and finite (" + what + ")");
+}
+
+// the element terms, written once so that removeTets recomputes bitwise what the build
+// assembled (the same expressions as assembleStiffness / assembleMass / lumpedMass)
+Eigen::Matrix4d elementStiffness(double coeff, double volume,
+                                 const Eigen::Matrix<double, 4, 3>& grad) {
+  return coeff * volume * grad * grad.transpose();
+}
+double elementLumpedMass(double volume) { return 1.0 * volume / 4.0; }
+double elementMassEntry(double volume, bool diagonal) {
+  const double m = 1.0 * volume / 20.0;
+  return diagonal ? 2 * m : m;
+}
+
+// robin terms of a cooled face of area areaM2: load h T_amb A/3 per node [W]; coupling
+// lumped h A/3 on the diagonal, consistent h A (1 + delta_ij)/12 [W/K]
+double faceLoadW(double h, double ambientC, double areaM2) { return h * ambientC * areaM2 / 3.0; }
+double faceCoupling(bool lumped, double h, double areaM2, int i, int j) {
+  return lumped ? (i == j ? h * areaM2 / 3.0 : 0.0) : h * areaM2 * (i == j ? 2.0 : 1.0) / 12.0;
+}
+
+// local index (0..3 or 0..2) of node v in a tet or face, -1 if absent
+template <class Nodes>
+int localIndex(const Nodes& nodes, int v) {
+  for (int a = 0; a < static_cast<int>(nodes.size()); ++a)
+    if (nodes[a] == v) return a;
+  return -1;
+}
+
+// position of entry (inner, outer) in a compressed sparse matrix's value array
+template <class Matrix>
+double& entryRef(Matrix& a, int outer, int inner) {
+  const int* begin = a.innerIndexPtr() + a.outerIndexPtr()[outer];
+  const int* end = a.innerIndexPtr() + a.outerIndexPtr()[outer + 1];
+  const int* it = std::lower_bound(begin, end, inner);
+  ESIM_CHECK(it != end && *it == inner);  // removeTets keeps the pattern
+  return a.valuePtr()[it - a.innerIndexPtr()];
 }
 
 }  // namespace
@@ -117,7 +215,8 @@ void validateThermalParams(const ThermalParams& p) {
 // ---- operators, caches and workspace ----
 
 struct ThermalPhase::Impl {
-  Adjacency nodeTets;                // node -> alive tets
+  Adjacency nodeTets;                // node -> tets, alive ones in [begin, nodeTetsEnd)
+  std::vector<int> nodeTetsEnd;      // removeTets shrinks each node's range in place
   SparseMatrix stiffness;            // conduction + convection [W/K], column major
   RowMatrix stiffnessRows;           // the same, row major for products
   Eigen::VectorXd massM3;            // lumped mass (row sums) [m^3]; 0 on orphan nodes
@@ -129,19 +228,41 @@ struct ThermalPhase::Impl {
   Eigen::VectorXd convectionColSum;  // sum_i (K_h)_ij [W/K]: loss = colsum . T - sum(load)
   double convectionLoadTotalW = 0;
   bool convectionActive = false;
+  std::vector<double> cooledAreaM2;              // per cooled face [m^2]
+  Adjacency nodeCooled;                          // node -> cooled faces (all)
+  std::vector<std::pair<int, int>> cooledByTet;  // (tet, cooled face), sorted
+  int aliveCooled = 0;                           // cooled faces of alive tets
 
   // implicit system (c rho M/dt + theta K) T = b
   std::unique_ptr<Cholesky> factor;
   bool factorAnalyzed = false;
+  bool factorModified = false;  // by removeTets: a new dt or theta analyses again
   double factorDt = -1, factorTheta = -1;
   double cgDecidedDt = -1, cgDecidedTheta = -1;
   bool useCg = false;
   std::string lastSolver = "none";
   // consistent mass factor (flux-form update, explicit)
   std::unique_ptr<Cholesky> massFactor;
+  bool massFactorStale = false;  // removeTets could not modify it: factored again
 
-  mutable double stableDt = -1;  // explicit limit, computed on first use
+  // explicit limit: the smaller of two bounds on lambda_max((c rho M)^-1 K) [1/s]
+  std::vector<double> tetRate;  // element: lambda_max(K_e + cooled faces, c rho M_e)
+  std::vector<int> tetsByRate;  // the alive tets of the build, fastest first
+  size_t fastest = 0;           // first alive tet in tetsByRate
+  std::vector<double> rowRate;  // gershgorin per node, a max-tree: leaves from rowLeaf
+  int rowLeaf = 0;
+  double stableDt = 0;      // 2 / the smaller bound [s]
+  bool ratesBuilt = false;  // at build for the explicit integrator, else on first use
+  // node i's gershgorin rate into the max-tree (the leaf only when !propagate)
+  void setRowRate(int i, double crho, bool lumped, bool propagate);
+  // skips removed tets at the head of tetsByRate; stableDt from both bounds
+  void updateExplicitLimit(const std::vector<std::uint8_t>& alive);
 
+  // alive tets of node i
+  const int* tetsBegin(int i) const { return nodeTets.begin(i); }
+  const int* tetsEnd(int i) const { return nodeTets.ids.data() + nodeTetsEnd[i]; }
+  // factors the consistent mass (+1 on orphan diagonals)
+  void factorMass();
   // y = M^-1 x (lumped or consistent) on the active nodes, 0 on the orphan nodes
   void solveMass(bool lumped, const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
   // state's sensible and latent heat from its enthalpy and vapour fraction
@@ -175,9 +296,11 @@ void ThermalPhase::buildOperators(const TetMesh& mesh, const std::vector<TetGeom
   tets_ = mesh.tets;
   alive_.assign(mesh.tets.size(), 1);
   volumeM3_.assign(mesh.tets.size(), 0.0);
+  gradM_.resize(mesh.tets.size());
   for (int e = 0; e < mesh.numTets(); ++e) {
     alive_[e] = mesh.isAlive(e) ? 1 : 0;
     volumeM3_[e] = geo[e].volume;
+    gradM_[e] = geo[e].grad;
   }
   Impl& m = *impl_;
   const int n = numNodes_;
@@ -188,6 +311,7 @@ void ThermalPhase::buildOperators(const TetMesh& mesh, const std::vector<TetGeom
   const std::vector<double> ones(mesh.tets.size(), 1.0);
   m.massM3 = lumpedMass(mesh, geo, ones);
   m.nodeTets = esim::nodeTets(mesh);
+  m.nodeTetsEnd.assign(m.nodeTets.offsets.begin() + 1, m.nodeTets.offsets.end());
   m.active.assign(n, 0);
   for (int i = 0; i < n; ++i) m.active[i] = m.massM3[i] > 0 ? 1 : 0;
 
@@ -196,6 +320,10 @@ void ThermalPhase::buildOperators(const TetMesh& mesh, const std::vector<TetGeom
   m.convectionColSum = Eigen::VectorXd::Zero(n);
   m.convectionLoadTotalW = 0;
   m.convectionActive = false;
+  m.cooledAreaM2.assign(cooledFaces_.size(), 0.0);
+  m.cooledByTet.clear();
+  m.aliveCooled = 0;
+  std::vector<std::pair<int, int>> nodeFace;
   if (params_.convectionW_m2K > 0) {
     std::vector<Eigen::Triplet<double>> trip;
     const double h = params_.convectionW_m2K;
@@ -206,28 +334,41 @@ void ThermalPhase::buildOperators(const TetMesh& mesh, const std::vector<TetGeom
       for (int v : f.nodes)
         ESIM_VERIFY(v >= 0 && v < n, "thermal: cooled face node " + std::to_string(v) +
                                          " out of range (" + std::to_string(n) + " nodes)");
-      if (!mesh.isAlive(f.tet)) continue;
       const Vec3& a = mesh.nodes[f.nodes[0]];
       const Vec3& b = mesh.nodes[f.nodes[1]];
       const Vec3& c = mesh.nodes[f.nodes[2]];
       const double areaM2 = 0.5 * (b - a).cross(c - a).norm();
+      const int face = static_cast<int>(&f - cooledFaces_.data());
+      m.cooledAreaM2[face] = areaM2;
+      for (int v : f.nodes) nodeFace.emplace_back(v, face);
+      m.cooledByTet.emplace_back(f.tet, face);
+      if (!mesh.isAlive(f.tet)) continue;
       for (int i = 0; i < 3; ++i) {
-        m.convectionLoadW[f.nodes[i]] += h * params_.ambientTemperatureC * areaM2 / 3.0;
+        m.convectionLoadW[f.nodes[i]] += faceLoadW(h, params_.ambientTemperatureC, areaM2);
         for (int j = 0; j < 3; ++j) {
-          // lumped: h A/3 on the diagonal; consistent: h A (1 + delta_ij)/12
-          double kij = params_.lumpedMass ? (i == j ? h * areaM2 / 3.0 : 0.0)
-                                          : h * areaM2 * (i == j ? 2.0 : 1.0) / 12.0;
+          const double kij = faceCoupling(params_.lumpedMass, h, areaM2, i, j);
           if (kij != 0) trip.emplace_back(f.nodes[i], f.nodes[j], kij);
           m.convectionColSum[f.nodes[j]] += kij;
         }
       }
       m.convectionActive = true;
+      ++m.aliveCooled;
     }
     SparseMatrix kh(n, n);
     kh.setFromTriplets(trip.begin(), trip.end());
     m.stiffness += kh;
     m.convectionLoadTotalW = m.convectionLoadW.sum();
   }
+  std::sort(m.cooledByTet.begin(), m.cooledByTet.end());
+  // node -> cooled faces, ascending (the order in which the build summed them)
+  std::sort(nodeFace.begin(), nodeFace.end());
+  m.nodeCooled.offsets.assign(n + 1, 0);
+  m.nodeCooled.ids.clear();
+  for (const auto& [v, face] : nodeFace) {
+    ++m.nodeCooled.offsets[v + 1];
+    m.nodeCooled.ids.push_back(face);
+  }
+  for (int i = 0; i < n; ++i) m.nodeCooled.offsets[i + 1] += m.nodeCooled.offsets[i];
   m.stiffness.makeCompressed();
   m.stiffnessRows = m.stiffness;
   m.stiffnessDiag = m.stiffness.diagonal();
@@ -238,23 +379,21 @@ void ThermalPhase::buildOperators(const TetMesh& mesh, const std::vector<TetGeom
 
   // consistent mass (+ identity on orphan nodes so that it stays invertible)
   m.massFactor.reset();
+  m.massFactorStale = false;
   if (!params_.lumpedMass) {
     m.massConsistent = assembleMass(mesh, geo, ones);
-    SparseMatrix regular = m.massConsistent;
-    for (int i = 0; i < n; ++i)
-      if (!m.active[i]) regular.coeffRef(i, i) = 1.0;
-    m.massFactor = std::make_unique<Cholesky>();
-    m.massFactor->compute(regular);
-    ESIM_RUN_CHECK(m.massFactor->info() == Eigen::Success,
-                   "thermal: the consistent mass matrix could not be factored");
+    m.massConsistent.makeCompressed();
+    m.factorMass();
   }
 
   // drop every cache that depends on the operators
   m.factor.reset();
   m.factorAnalyzed = false;
+  m.factorModified = false;
   m.factorDt = m.factorTheta = -1;
   m.cgDecidedDt = m.cgDecidedTheta = -1;
-  m.stableDt = -1;
+  m.ratesBuilt = false;
+  if (params_.integrator == ThermalIntegrator::Explicit) elementRates();
   for (Eigen::VectorXd* v :
        {&m.load, &m.flux, &m.rhs, &m.g, &m.tempNew, &m.kTemp, &m.tempOld, &m.enthalpy0, &m.work,
         &m.cgR, &m.cgZ, &m.cgP, &m.cgAp, &m.cgKp, &m.diagS, &m.diagPrec})
@@ -268,6 +407,275 @@ void ThermalPhase::rebuild(const TetMesh& mesh, const std::vector<TetGeometry>& 
                   std::to_string(numNodes_) + " and " + std::to_string(numTets()) +
                   " (rebuild expects removed tets, not a renumbered mesh)");
   buildOperators(mesh, geo);
+}
+
+// ---- topology change in place ----
+
+ThermalPhase::RemovalStats ThermalPhase::removeTets(const std::vector<int>& tets) {
+  const auto t0 = std::chrono::steady_clock::now();
+  Impl& m = *impl_;
+  RemovalStats stats;
+  // checked before anything changes
+  for (int e : tets)
+    ESIM_VERIFY(e >= 0 && e < numTets(), "thermal removeTets: tet " + std::to_string(e) +
+                                             " out of range (" + std::to_string(numTets()) +
+                                             " tets)");
+  std::vector<int> removed;
+  for (int e : tets)
+    if (alive_[e]) removed.push_back(e);
+  std::sort(removed.begin(), removed.end());
+  removed.erase(std::unique(removed.begin(), removed.end()), removed.end());
+  stats.removedTets = static_cast<int>(removed.size());
+  if (removed.empty()) {
+    stats.ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    return stats;
+  }
+
+  // alive flags and node -> alive tets (each node's range shrinks, staying sorted)
+  std::vector<int> nodes;
+  for (int e : removed) {
+    alive_[e] = 0;
+    for (int v : tets_[e]) {
+      int* begin = m.nodeTets.ids.data() + m.nodeTets.offsets[v];
+      int* end = m.nodeTets.ids.data() + m.nodeTetsEnd[v];
+      int* last = std::remove(begin, end, e);
+      m.nodeTetsEnd[v] = static_cast<int>(last - m.nodeTets.ids.data());
+      nodes.push_back(v);
+    }
+  }
+  std::sort(nodes.begin(), nodes.end());
+  nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+
+  // lumped mass of the touched nodes, summed over their alive tets in tet order (as built)
+  std::vector<int> orphans;  // by this call
+  for (int v : nodes) {
+    double mass = 0;
+    for (const int* e = m.tetsBegin(v); e != m.tetsEnd(v); ++e)
+      mass += elementLumpedMass(volumeM3_[*e]);
+    m.massM3[v] = mass;
+    const std::uint8_t active = mass > 0 ? 1 : 0;
+    if (m.active[v] && !active) orphans.push_back(v);
+    m.active[v] = active;
+  }
+
+  // cooled faces of the removed tets: their nodes' robin terms are summed again
+  std::vector<int> faceNodes;
+  for (int e : removed) {
+    auto it = std::lower_bound(m.cooledByTet.begin(), m.cooledByTet.end(), std::make_pair(e, -1));
+    for (; it != m.cooledByTet.end() && it->first == e; ++it) {
+      ++stats.droppedCooledFaces;
+      --m.aliveCooled;
+      for (int v : cooledFaces_[it->second].nodes) faceNodes.push_back(v);
+    }
+  }
+  if (!faceNodes.empty()) {
+    std::sort(faceNodes.begin(), faceNodes.end());
+    faceNodes.erase(std::unique(faceNodes.begin(), faceNodes.end()), faceNodes.end());
+    recomputeConvection(faceNodes);
+  }
+
+  // conduction (+ robin) and consistent mass entries among the removed tets' nodes
+  stats.editedEntries = recomputeEntries(removed);
+
+  stats.orphanedNodes = static_cast<int>(orphans.size());
+
+  // the factors: modified in place (or, if CHOLMOD refuses, factored again at next use)
+  modifyFactors(removed, orphans, stats);
+  if (m.ratesBuilt) {
+    const double limitBefore = m.stableDt;
+    for (int v : nodes) m.setRowRate(v, params_.heatCapacityJ_m3K, params_.lumpedMass, true);
+    m.updateExplicitLimit(alive_);
+    stats.explicitLimitChanged = m.stableDt != limitBefore;
+  }
+  stats.solverChoiceDropped = m.cgDecidedDt > 0;
+  m.cgDecidedDt = m.cgDecidedTheta = -1;
+  stats.ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return stats;
+}
+
+// the cholesky factors follow the removal in place: A loses sum_e dA_e, each a PSD 4 x 4
+// (its tet's conduction and cooled faces times theta, its mass times c rho / dt for the
+// implicit matrix; its consistent mass for the mass matrix), split into <= 4 columns by
+// its eigenvectors (downdate), after new orphan nodes get their 1 (update: A stays
+// positive definite throughout)
+void ThermalPhase::modifyFactors(const std::vector<int>& removed, const std::vector<int>& orphans,
+                                 RemovalStats& stats) {
+  Impl& m = *impl_;
+  // a large batch: factored again at the next step (the analysis too: as a fresh build)
+  if (4 * removed.size() + orphans.size() > static_cast<size_t>(kMaxFactorUpdateRank)) {
+    if (m.factor && m.factorDt > 0) {
+      m.factor.reset();
+      m.factorAnalyzed = false;
+      m.factorModified = false;
+      m.factorDt = m.factorTheta = -1;
+      stats.factorDropped = true;
+    }
+    if (!params_.lumpedMass) {
+      m.massFactorStale = true;
+      stats.massFactorDropped = true;
+    }
+    return;
+  }
+  const double lambda = params_.conductivityW_mK, h = params_.convectionW_m2K;
+  FactorColumns unit;
+  for (int v : orphans) unit.push_back({{v, 1.0}});
+  // columns of the PSD delta on tet t: sqrt(mu_k) v_k
+  auto addColumns = [](const Tet& t, const Eigen::Matrix4d& delta, FactorColumns& out) {
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> eig(delta);
+    const double top = eig.eigenvalues().maxCoeff();
+    for (int k = 0; k < 4; ++k) {
+      const double mu = eig.eigenvalues()[k];
+      if (!(mu > 1e-15 * top)) continue;  // the conduction's constant mode, round-off
+      std::vector<std::pair<int, double>> col;
+      for (int a = 0; a < 4; ++a) col.emplace_back(t[a], std::sqrt(mu) * eig.eigenvectors()(a, k));
+      out.push_back(std::move(col));
+    }
+  };
+  auto consistentMass = [](double volume) {
+    Eigen::Matrix4d me;
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 4; ++b) me(a, b) = elementMassEntry(volume, a == b);
+    return me;
+  };
+  // implicit matrix c rho M / dt + theta K, factored for (factorDt, factorTheta)
+  if (m.factor && m.factorDt > 0) {
+    const double capacity = params_.heatCapacityJ_m3K / m.factorDt, theta = m.factorTheta;
+    FactorColumns down;
+    for (int e : removed) {
+      Eigen::Matrix4d delta = theta * elementStiffness(lambda, volumeM3_[e], gradM_[e]);
+      auto it = std::lower_bound(m.cooledByTet.begin(), m.cooledByTet.end(), std::make_pair(e, -1));
+      for (; it != m.cooledByTet.end() && it->first == e; ++it) {
+        const BoundaryFace& f = cooledFaces_[it->second];
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j)
+            delta(localIndex(tets_[e], f.nodes[i]), localIndex(tets_[e], f.nodes[j])) +=
+                theta * faceCoupling(params_.lumpedMass, h, m.cooledAreaM2[it->second], i, j);
+      }
+      if (params_.lumpedMass)
+        delta.diagonal().array() += capacity * elementLumpedMass(volumeM3_[e]);
+      else
+        delta += capacity * consistentMass(volumeM3_[e]);
+      addColumns(tets_[e], delta, down);
+    }
+    stats.factorRank = static_cast<int>(down.size() + unit.size());
+    if (m.factor->modify(true, unit) && m.factor->modify(false, down)) {
+      stats.factorUpdated = true;
+      m.factorModified = true;
+    } else {  // analysed and factored again at the next step
+      m.factor.reset();
+      m.factorAnalyzed = false;
+      m.factorModified = false;
+      m.factorDt = m.factorTheta = -1;
+      stats.factorDropped = true;
+    }
+  }
+  // consistent mass (+1 on orphans)
+  if (!params_.lumpedMass && m.massFactor && !m.massFactorStale) {
+    FactorColumns down;
+    for (int e : removed) addColumns(tets_[e], consistentMass(volumeM3_[e]), down);
+    if (m.massFactor->modify(true, unit) && m.massFactor->modify(false, down)) {
+      stats.massFactorUpdated = true;
+    } else {
+      m.massFactorStale = true;
+      stats.massFactorDropped = true;
+    }
+  }
+}
+
+// convective load and column sums of `nodes` from their alive cooled faces, in face order
+// (as built); the total load and the active flag follow
+void ThermalPhase::recomputeConvection(const std::vector<int>& nodes) {
+  Impl& m = *impl_;
+  const double h = params_.convectionW_m2K;
+  for (int v : nodes) {
+    double load = 0, colSum = 0;
+    for (const int* f = m.nodeCooled.begin(v); f != m.nodeCooled.end(v); ++f) {
+      const BoundaryFace& face = cooledFaces_[*f];
+      if (!alive_[face.tet]) continue;
+      const double areaM2 = m.cooledAreaM2[*f];
+      load += faceLoadW(h, params_.ambientTemperatureC, areaM2);
+      const int j = localIndex(face.nodes, v);
+      for (int i = 0; i < 3; ++i) colSum += faceCoupling(params_.lumpedMass, h, areaM2, i, j);
+    }
+    m.convectionLoadW[v] = load;
+    m.convectionColSum[v] = colSum;
+  }
+  m.convectionLoadTotalW = m.convectionLoadW.sum();  // O(n), as built (same summation order)
+  m.convectionActive = m.aliveCooled > 0;
+}
+
+// every entry (i, j) with i, j nodes of a removed tet is summed again over the alive tets
+// holding both (tet order) plus the alive cooled faces holding both (face order): the
+// values a fresh assembly gives, bitwise; entries no alive tet holds become exact zeros.
+// then the diagonal and the gershgorin row sums of the touched rows. returns the count
+int ThermalPhase::recomputeEntries(const std::vector<int>& removed) {
+  Impl& m = *impl_;
+  std::vector<std::pair<int, int>> entries;
+  for (int e : removed)
+    for (int a : tets_[e])
+      for (int b : tets_[e]) entries.emplace_back(a, b);
+  std::sort(entries.begin(), entries.end());
+  entries.erase(std::unique(entries.begin(), entries.end()), entries.end());
+  const double lambda = params_.conductivityW_mK;
+  const double h = params_.convectionW_m2K;
+  for (const auto& [i, j] : entries) {
+    double conduction = 0, mass = 0;
+    bool any = false;
+    for (const int* it = m.tetsBegin(i); it != m.tetsEnd(i); ++it) {
+      const Tet& t = tets_[*it];
+      const int b = localIndex(t, j);
+      if (b < 0) continue;
+      const int a = localIndex(t, i);
+      const double ke = elementStiffness(lambda, volumeM3_[*it], gradM_[*it])(a, b);
+      const double me = elementMassEntry(volumeM3_[*it], i == j);
+      conduction = any ? conduction + ke : ke;
+      mass = any ? mass + me : me;
+      any = true;
+    }
+    if (h > 0) {
+      double robin = 0;
+      bool anyFace = false;
+      for (const int* f = m.nodeCooled.begin(i); f != m.nodeCooled.end(i); ++f) {
+        const BoundaryFace& face = cooledFaces_[*f];
+        const int b = localIndex(face.nodes, j);
+        if (b < 0 || !alive_[face.tet]) continue;
+        const double kij =
+            faceCoupling(params_.lumpedMass, h, m.cooledAreaM2[*f], localIndex(face.nodes, i), b);
+        if (kij == 0) continue;
+        robin = anyFace ? robin + kij : kij;
+        anyFace = true;
+      }
+      if (anyFace) conduction = conduction + robin;
+    }
+    entryRef(m.stiffness, j, i) = conduction;
+    entryRef(m.stiffnessRows, i, j) = conduction;
+    if (!params_.lumpedMass) entryRef(m.massConsistent, j, i) = mass;
+  }
+  // touched rows: diagonal and sum_j |K_ij| in row order (the zeros add nothing)
+  int lastRow = -1;
+  for (const auto& [i, j] : entries) {
+    if (i == lastRow) continue;
+    lastRow = i;
+    m.stiffnessDiag[i] = entryRef(m.stiffnessRows, i, i);
+    double absRow = 0;
+    for (RowMatrix::InnerIterator it(m.stiffnessRows, i); it; ++it) absRow += std::abs(it.value());
+    m.stiffnessAbsRow[i] = absRow;
+  }
+  return static_cast<int>(entries.size());
+}
+
+void ThermalPhase::Impl::factorMass() {
+  SparseMatrix regular = massConsistent;
+  for (int i = 0; i < static_cast<int>(active.size()); ++i)
+    if (!active[i]) regular.coeffRef(i, i) = 1.0;
+  massFactor = std::make_unique<Cholesky>();
+  massFactor->analyzePattern(regular);
+  massFactor->factorize(regular);
+  ESIM_RUN_CHECK(massFactor->info() == Eigen::Success,
+                 "thermal: the consistent mass matrix could not be factored");
+  massFactorStale = false;
 }
 
 void ThermalPhase::Impl::solveMass(bool lumped, const Eigen::VectorXd& x,
@@ -384,62 +792,89 @@ double ThermalPhase::storedEnergyJ(const ThermalState& s) const {
 
 std::string ThermalPhase::lastSolverName() const { return impl_->lastSolver; }
 
-// ---- explicit stability limit: Lanczos on K v = lambda (c rho M) v ----
+// ---- explicit stability limit: element and gershgorin bounds ----
+//
+// element: x' K x = sum_e x_e' K_e x_e <= max_e rate_e sum_e x_e' c rho M_e x_e
+// = max_e rate_e x' c rho M x (K_e with the robin terms of its cooled faces; M_e lumped or
+// consistent), so lambda_max((c rho M)^-1 K) <= max_e rate_e. Without faces K_e 1 = 0 and
+// c rho M_e = c rho V/4 I (lumped) or c rho V/20 I on 1-perp (consistent): rate_e = (4 or
+// 20) lambda mu_e / c rho, mu_e = lambda_max(G' G) of the basis gradients G (3 x 3, closed
+// form). Removing tets only drops terms of the max: a sorted list, O(1) to keep.
+// gershgorin: lambda_max((c rho M_L)^-1 K) <= max_i sum_j |K_ij| / (c rho m_i), and
+// M_c >= M_L / 5 (per element: V/20 (I + 1 1') >= V/20 I), so 5 times that for the
+// consistent mass. Better than the element bound where a node's mass comes from many tets
+// (slivers, graded zones); a max-tree over the nodes, O(log n) per touched node.
+// dt <= 2 / min(both) is stable, with no margin.
 
 double ThermalPhase::stableExplicitDtS() const {
+  if (!impl_->ratesBuilt) elementRates();
+  return impl_->stableDt;
+}
+
+void ThermalPhase::elementRates() const {
   Impl& m = *impl_;
-  if (m.stableDt > 0) return m.stableDt;
-  const int n = numNodes_;
-  const bool lumped = params_.lumpedMass;
-  auto applyMass = [&](const Eigen::VectorXd& x, Eigen::VectorXd& y) {
-    if (lumped)
-      y = m.massM3.cwiseProduct(x);
-    else
-      y = m.massConsistent * x;
-  };
-  // deterministic start vector on the active nodes
-  Eigen::VectorXd q = Eigen::VectorXd::Zero(n), mq, u, w, mw;
-  std::uint64_t seed = 0x9E3779B97F4A7C15ull;
-  int numActive = 0;
-  for (int i = 0; i < n; ++i) {
-    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
-    if (!m.active[i]) continue;
-    q[i] = static_cast<double>(seed >> 11) / 9007199254740992.0 - 0.5;
-    ++numActive;
+  const double crho = params_.heatCapacityJ_m3K, lambda = params_.conductivityW_mK;
+  const double massShare = params_.lumpedMass ? 4.0 : 20.0;  // V / (that) per node
+  m.tetRate.assign(tets_.size(), 0.0);
+  m.tetsByRate.clear();
+  for (int e = 0; e < numTets(); ++e) {
+    if (!alive_[e]) continue;
+    const Eigen::Matrix3d gtg = gradM_[e].transpose() * gradM_[e];
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+    eig.computeDirect(gtg, Eigen::EigenvaluesOnly);
+    m.tetRate[e] = massShare * lambda * eig.eigenvalues().maxCoeff() / crho;
+    m.tetsByRate.push_back(e);
   }
-  if (numActive == 0) return m.stableDt = std::numeric_limits<double>::infinity();
-  applyMass(q, mq);
-  q /= std::sqrt(q.dot(mq));
-  const int steps = std::min(kLanczosSteps, numActive);
-  std::vector<Eigen::VectorXd> basis;
-  std::vector<double> alpha, beta;
-  for (int j = 0; j < steps; ++j) {
-    basis.push_back(q);
-    u = m.stiffnessRows * q;
-    const double a = q.dot(u);
-    alpha.push_back(a);
-    m.solveMass(lumped, u, w);
-    w -= a * q;
-    if (j > 0) w -= beta.back() * basis[j - 1];
-    applyMass(w, mw);  // full re-orthogonalisation (M inner product)
-    for (const Eigen::VectorXd& b : basis) w -= b.dot(mw) * b;
-    applyMass(w, mw);
-    const double b = std::sqrt(std::max(0.0, w.dot(mw)));
-    if (j + 1 == steps || b <= 1e-10 * std::abs(a)) break;
-    beta.push_back(b);
-    q = w / b;
+  // tets with cooled faces: the 4 x 4 generalized problem with the robin terms
+  const double h = params_.convectionW_m2K;
+  for (size_t k = 0; h > 0 && k < m.cooledByTet.size();) {
+    const int e = m.cooledByTet[k].first;
+    const double volume = volumeM3_[e];
+    Eigen::Matrix4d ke = elementStiffness(lambda, volume, gradM_[e]);
+    for (; k < m.cooledByTet.size() && m.cooledByTet[k].first == e; ++k) {
+      const BoundaryFace& f = cooledFaces_[m.cooledByTet[k].second];
+      const double areaM2 = m.cooledAreaM2[m.cooledByTet[k].second];
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+          ke(localIndex(tets_[e], f.nodes[i]), localIndex(tets_[e], f.nodes[j])) +=
+              faceCoupling(params_.lumpedMass, h, areaM2, i, j);
+    }
+    if (!alive_[e]) continue;
+    Eigen::Matrix4d me = Eigen::Matrix4d::Identity() * (crho * volume / 4.0);
+    if (!params_.lumpedMass)
+      me = (crho * volume / 20.0) * (Eigen::Matrix4d::Ones() + Eigen::Matrix4d::Identity());
+    Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::Matrix4d> eig(ke, me, Eigen::EigenvaluesOnly);
+    m.tetRate[e] = std::max(m.tetRate[e], eig.eigenvalues().maxCoeff());
   }
-  const int k = static_cast<int>(alpha.size());
-  Eigen::MatrixXd tri = Eigen::MatrixXd::Zero(k, k);
-  for (int i = 0; i < k; ++i) {
-    tri(i, i) = alpha[i];
-    if (i + 1 < k) tri(i, i + 1) = tri(i + 1, i) = beta[i];
-  }
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(tri, Eigen::EigenvaluesOnly);
-  const double lambdaMax = eig.eigenvalues().maxCoeff() / params_.heatCapacityJ_m3K;  // [1/s]
-  m.stableDt =
-      lambdaMax > 0 ? kStabilityMargin * 2.0 / lambdaMax : std::numeric_limits<double>::infinity();
-  return m.stableDt;
+  std::sort(m.tetsByRate.begin(), m.tetsByRate.end(), [&](int a, int b) {
+    return m.tetRate[a] != m.tetRate[b] ? m.tetRate[a] > m.tetRate[b] : a < b;
+  });
+  m.fastest = 0;
+  // gershgorin rates of every node, then the inner levels of the max-tree
+  m.rowLeaf = 1;
+  while (m.rowLeaf < numNodes_) m.rowLeaf *= 2;
+  m.rowRate.assign(2 * static_cast<size_t>(m.rowLeaf), 0.0);
+  for (int i = 0; i < numNodes_; ++i) m.setRowRate(i, crho, params_.lumpedMass, false);
+  for (int k = m.rowLeaf - 1; k >= 1; --k)
+    m.rowRate[k] = std::max(m.rowRate[2 * k], m.rowRate[2 * k + 1]);
+  m.updateExplicitLimit(alive_);
+  m.ratesBuilt = true;
+}
+
+void ThermalPhase::Impl::setRowRate(int i, double crho, bool lumped, bool propagate) {
+  const double rate =
+      active[i] ? (lumped ? 1.0 : 5.0) * stiffnessAbsRow[i] / (crho * massM3[i]) : 0.0;
+  size_t k = static_cast<size_t>(rowLeaf) + i;
+  rowRate[k] = rate;
+  if (!propagate) return;
+  for (k /= 2; k >= 1; k /= 2) rowRate[k] = std::max(rowRate[2 * k], rowRate[2 * k + 1]);
+}
+
+void ThermalPhase::Impl::updateExplicitLimit(const std::vector<std::uint8_t>& alive) {
+  while (fastest < tetsByRate.size() && !alive[tetsByRate[fastest]]) ++fastest;
+  const double element = fastest < tetsByRate.size() ? tetRate[tetsByRate[fastest]] : 0.0;
+  const double rate = std::min(element, rowRate[1]);
+  stableDt = rate > 0 ? 2.0 / rate : std::numeric_limits<double>::infinity();
 }
 
 // ---- the step ----
@@ -539,6 +974,7 @@ ThermalPhase::StepStats ThermalPhase::step(double dtS, const std::vector<double>
                    .theta = thetaOf(params_.integrator),
                    .s = s};
 
+  if (impl_->massFactorStale) impl_->factorMass();  // removeTets could not modify it
   st.assembleSource(sourceW_m3);
   st.updateTemperature();  // from the primary unknown
 
@@ -760,6 +1196,11 @@ void ThermalPhase::Impl::Stepper::solveDirect(const Eigen::VectorXd& b, Eigen::V
         if (!m.active[i]) a.coeffRef(i, i) += 1.0;
     }
     a.makeCompressed();
+    if (m.factorModified) {  // removeTets changed its pattern: analyse again
+      m.factor.reset();
+      m.factorAnalyzed = false;
+      m.factorModified = false;
+    }
     if (!m.factor) m.factor = std::make_unique<Cholesky>();
     if (!m.factorAnalyzed) {
       m.factor->analyzePattern(a);
@@ -894,7 +1335,7 @@ void ThermalPhase::Impl::Stepper::updateVapor() {
     const double v = d.vapor(enth[i]);
     if (v != vf[i]) {
       vf[i] = v;
-      for (const int* e = m.nodeTets.begin(i); e != m.nodeTets.end(i); ++e) {
+      for (const int* e = m.tetsBegin(i); e != m.tetsEnd(i); ++e) {
         const Tet& t = tets[*e];
         s.vaporFractionTet[*e] = 0.25 * (vf[t[0]] + vf[t[1]] + vf[t[2]] + vf[t[3]]);
       }
@@ -907,7 +1348,7 @@ void ThermalPhase::Impl::Stepper::markDesiccated() {
   const Eigen::VectorXd& vf = s.vaporFraction;
   for (int i = 0; i < n; ++i) {
     if (vf[i] < 1) continue;
-    for (const int* e = m.nodeTets.begin(i); e != m.nodeTets.end(i); ++e) {
+    for (const int* e = m.tetsBegin(i); e != m.tetsEnd(i); ++e) {
       const Tet& t = tets[*e];
       if (!s.desiccatedTet[*e] && vf[t[0]] >= 1 && vf[t[1]] >= 1 && vf[t[2]] >= 1 && vf[t[3]] >= 1)
         s.desiccatedTet[*e] = 1;

@@ -1,13 +1,15 @@
 // Tests for sim/thermal_step.cpp: exact uniform heating, Fourier-mode decay orders,
 // explicit stability limit, boiling plateau, energy balance, maximum principle, damage,
-// topology change and bad input.
+// topology change (rebuild, and removeTets against a fresh build) and bad input.
 #include "sim/thermal_step.h"
 
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
 #include <Eigen/Eigenvalues>
+#include <Eigen/SparseCholesky>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -15,6 +17,8 @@
 
 #include "sim/core_error.h"
 #include "sim/mesh_slab.h"
+
+extern "C" void openblas_set_num_threads(int num_threads);
 
 namespace esim {
 namespace {
@@ -176,8 +180,8 @@ TEST(ThermalStep, ExplicitLimitMatchesTheDenseEigenvalue) {
     const double limit = phase.stableExplicitDtS();
     std::printf("  explicit limit (%s): %.4f s, exact 2/lambda_max %.4f s\n",
                 lumped ? "lumped" : "consistent", limit, exactLimit);
-    EXPECT_LE(limit, exactLimit);
-    EXPECT_GE(limit, 0.9 * exactLimit);
+    EXPECT_LE(limit, exactLimit);        // the element bound is rigorous
+    EXPECT_GE(limit, 0.6 * exactLimit);  // and not far off
   }
 }
 
@@ -488,7 +492,6 @@ TEST(ThermalStep, RebuildAfterRemovingTets) {
   EXPECT_THROW(phase.rebuild(smaller, tetGeometry(smaller)), Error);
 }
 
-// ---- 10. bad input ----
 void expectError(const std::function<void()>& f, const std::vector<std::string>& parts) {
   try {
     f();
@@ -499,6 +502,467 @@ void expectError(const std::function<void()>& f, const std::vector<std::string>&
       EXPECT_NE(msg.find(part), std::string::npos) << "message: " << msg;
   }
 }
+
+// ---- 10. removeTets: the local edit steps like a freshly built phase ----
+
+// the top faces of a slab (cooled in the removal tests)
+std::vector<BoundaryFace> topFaces(const TetMesh& mesh, double topZ) {
+  std::vector<BoundaryFace> top;
+  for (const BoundaryFace& f : boundaryFaces(mesh)) {
+    bool allTop = true;
+    for (int v : f.nodes) allTop = allTop && mesh.nodes[v].z() > topZ - 1e-9;
+    if (allTop) top.push_back(f);
+  }
+  return top;
+}
+
+// the alive tets holding node v
+std::vector<int> tetsOfNode(const TetMesh& mesh, int v) {
+  std::vector<int> out;
+  for (int e = 0; e < mesh.numTets(); ++e)
+    if (mesh.isAlive(e) &&
+        std::find(mesh.tets[e].begin(), mesh.tets[e].end(), v) != mesh.tets[e].end())
+      out.push_back(e);
+  return out;
+}
+
+// max |a - b| / max |b|
+double relativeDiff(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  return (a - b).cwiseAbs().maxCoeff() / std::max(1e-300, b.cwiseAbs().maxCoeff());
+}
+
+TEST(ThermalStep, RemoveTetsStepsLikeAFreshBuild) {
+  const double topZ = 0.006;
+  const TetMesh mesh = slab(Vec3(0.02, 0.02, topZ), {7, 7, 4});
+  const auto geo = tetGeometry(mesh);
+  const std::vector<BoundaryFace> top = topFaces(mesh, topZ);
+  const std::vector<double> source = hotSpot(mesh, 2e9, 0.002, topZ);
+  // the batches: every tet of the bottom corner node 0 (it becomes an orphan); the 5 tets
+  // nearest the hot spot (cooled faces among them); every tet of a top corner node (an
+  // orphan on the cooled surface)
+  int topCorner = 0;
+  for (int i = 0; i < mesh.numNodes(); ++i)
+    if (mesh.nodes[i].sum() > mesh.nodes[topCorner].sum()) topCorner = i;
+  std::vector<std::pair<double, int>> byDistance;
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    Vec3 c = Vec3::Zero();
+    for (int n : mesh.tets[e]) c += 0.25 * mesh.nodes[n];
+    byDistance.push_back({(c - Vec3(0, 0, topZ)).norm(), e});
+  }
+  std::sort(byDistance.begin(), byDistance.end());
+  std::vector<int> nearest;
+  for (int i = 0; i < 5; ++i) nearest.push_back(byDistance[i].second);
+  const std::vector<std::vector<int>> batches = {tetsOfNode(mesh, 0), nearest,
+                                                 tetsOfNode(mesh, topCorner)};
+
+  struct Case {
+    Variant v;
+    ThermalLinearSolver solver;
+  };
+  std::vector<Case> cases;
+  for (const Variant& v : kVariants) cases.push_back({v, ThermalLinearSolver::Auto});
+  cases.push_back({{ThermalIntegrator::BackwardEuler, true}, ThermalLinearSolver::Direct});
+  cases.push_back({{ThermalIntegrator::CrankNicolson, true}, ThermalLinearSolver::Direct});
+  for (const Case& c : cases) {
+    const std::string label =
+        name(c.v) + (c.solver == ThermalLinearSolver::Direct ? "/direct" : "");
+    ThermalParams p;
+    p.boiling = true;
+    p.damage = true;
+    p.integrator = c.v.integrator;
+    p.lumpedMass = c.v.lumped;
+    p.linearSolver = c.solver;
+    p.convectionW_m2K = 50;
+    TetMesh cut = mesh;
+    ThermalPhase phase(cut, geo, p, top);
+    ThermalState s;
+    phase.initState(s);
+    for (int k = 0; k < 6; ++k) phase.step(0.1, source, s);  // heated, boiling under the spot
+    ASSERT_GT(s.temperatureC.maxCoeff(), 99.0) << label;
+    double maxRel = 0;
+    for (size_t b = 0; b < batches.size(); ++b) {
+      const auto removal = phase.removeTets(batches[b]);
+      for (int e : batches[b]) cut.alive[e] = 0;
+      EXPECT_EQ(removal.removedTets, static_cast<int>(batches[b].size())) << label;
+      if (b != 1) {
+        EXPECT_EQ(removal.orphanedNodes, 1) << label << " batch " << b;
+      }
+      if (b == 1) {
+        EXPECT_GT(removal.droppedCooledFaces, 0) << label;
+      }
+      // the cholesky factors (implicit direct path, consistent mass) are modified in place
+      const bool direct = c.v.integrator != ThermalIntegrator::Explicit &&
+                          (c.solver == ThermalLinearSolver::Direct || !c.v.lumped);
+      EXPECT_EQ(removal.factorUpdated, direct) << label;
+      EXPECT_EQ(removal.massFactorUpdated, !c.v.lumped) << label;
+      EXPECT_FALSE(removal.factorDropped || removal.massFactorDropped) << label;
+      // the reference: a phase built on the cut mesh, cooled faces of alive tets only
+      std::vector<BoundaryFace> cooled;
+      for (const BoundaryFace& f : top)
+        if (cut.isAlive(f.tet)) cooled.push_back(f);
+      ThermalPhase fresh(cut, geo, p, cooled);
+      ThermalState sf = s;
+      EXPECT_EQ(phase.storedEnergyJ(s), fresh.storedEnergyJ(sf)) << label;
+      EXPECT_EQ(phase.stableExplicitDtS(), fresh.stableExplicitDtS()) << label;
+      const double storedAtRemoval = phase.storedEnergyJ(s);
+      const double sourceAtRemoval = s.sourceJ, convectedAtRemoval = s.convectedJ;
+      for (int k = 0; k < 3; ++k) {
+        const double dt = k < 2 ? 0.1 : 0.05;  // a new dt: the modified factors factored again
+        const auto a = phase.step(dt, source, s);
+        const auto f = fresh.step(dt, source, sf);
+        EXPECT_EQ(a.substeps, f.substeps) << label;
+        EXPECT_EQ(a.converged, f.converged) << label;
+        if (c.v.integrator != ThermalIntegrator::Explicit) {
+          EXPECT_EQ(phase.lastSolverName(), fresh.lastSolverName()) << label;
+        }
+        const double relT = relativeDiff(s.temperatureC, sf.temperatureC);
+        const double relH = relativeDiff(s.enthalpyJ_m3, sf.enthalpyJ_m3);
+        maxRel = std::max({maxRel, relT, relH});
+        EXPECT_LT(relT, 1e-9) << label << " batch " << b << " step " << k;
+        EXPECT_LT(relH, 1e-9) << label << " batch " << b << " step " << k;
+        EXPECT_EQ(s.sourceJ, sf.sourceJ) << label;
+        EXPECT_NEAR(s.convectedJ, sf.convectedJ, 1e-9 * std::abs(sf.convectedJ)) << label;
+        EXPECT_NEAR(s.latentJ, sf.latentJ, 1e-9 * sf.latentJ) << label;
+        for (int e = 0; e < mesh.numTets(); ++e) {
+          ASSERT_EQ(s.desiccatedTet[e], sf.desiccatedTet[e]) << label << " tet " << e;
+          ASSERT_NEAR(s.damageOmega[e], sf.damageOmega[e], 1e-9 * sf.damageOmega[e]) << label;
+          ASSERT_NEAR(s.vaporFractionTet[e], sf.vaporFractionTet[e], 1e-9) << label;
+        }
+      }
+      // energy balance from the removal on: stored change = source - convected
+      const double added = s.sourceJ - sourceAtRemoval;
+      const double lost = s.convectedJ - convectedAtRemoval;
+      EXPECT_GT(added, 0);
+      EXPECT_NEAR(phase.storedEnergyJ(s) - storedAtRemoval, added - lost, 1e-8 * s.sourceJ)
+          << label << " batch " << b;
+      EXPECT_EQ(s.temperatureC.size(), mesh.numNodes());  // the state keeps its size
+    }
+    std::printf("  %-36s after 3 batches: max relative difference to a fresh build %.2e\n",
+                label.c_str(), maxRel);
+    // lumped mass without a cholesky factor: the edited operators are the fresh ones, bitwise
+    if (c.v.lumped && c.solver == ThermalLinearSolver::Auto) {
+      EXPECT_EQ(maxRel, 0.0) << label;
+    }
+  }
+}
+
+// a batch above the in-place rank: the factors are factored again, with the same results
+TEST(ThermalStep, RemoveTetsLargeBatchFactorsAgain) {
+  const double topZ = 0.006;
+  const TetMesh mesh = slab(Vec3(0.02, 0.02, topZ), {7, 7, 4});
+  const auto geo = tetGeometry(mesh);
+  const std::vector<double> source = hotSpot(mesh, 2e9, 0.002, topZ);
+  std::vector<int> batch;
+  for (int e = 0; e < 120; ++e) batch.push_back(3 * e);
+  for (const Variant& v : {Variant{ThermalIntegrator::CrankNicolson, true},
+                           Variant{ThermalIntegrator::BackwardEuler, false},
+                           Variant{ThermalIntegrator::Explicit, false}}) {
+    ThermalParams p;
+    p.boiling = true;
+    p.integrator = v.integrator;
+    p.lumpedMass = v.lumped;
+    p.linearSolver = ThermalLinearSolver::Direct;
+    TetMesh cut = mesh;
+    ThermalPhase phase(cut, geo, p);
+    ThermalState s;
+    phase.initState(s);
+    for (int k = 0; k < 4; ++k) phase.step(0.1, source, s);
+    const auto removal = phase.removeTets(batch);
+    EXPECT_EQ(removal.factorDropped, v.integrator != ThermalIntegrator::Explicit) << name(v);
+    EXPECT_EQ(removal.massFactorDropped, !v.lumped) << name(v);
+    for (int e : batch) cut.alive[e] = 0;
+    ThermalPhase fresh(cut, geo, p);
+    ThermalState sf = s;
+    for (int k = 0; k < 3; ++k) {
+      phase.step(0.1, source, s);
+      fresh.step(0.1, source, sf);
+      EXPECT_LT(relativeDiff(s.enthalpyJ_m3, sf.enthalpyJ_m3), 1e-9) << name(v);
+      EXPECT_LT(relativeDiff(s.temperatureC, sf.temperatureC), 1e-9) << name(v);
+    }
+  }
+}
+
+// on a graded slab the tets and nodes differ: removals change the explicit limit (up or
+// down), to what a fresh build finds
+TEST(ThermalStep, RemoveTetsKeepsTheExplicitLimitOfAFreshBuild) {
+  SlabSpec spec;
+  spec.sizeM = Vec3(0.02, 0.01, 0.005);
+  spec.nodesPerAxis = {9, 5, 4};
+  spec.grading.enabled = true;
+  spec.grading.cutFrom = Vec3(-0.005, 0, 0.005);
+  spec.grading.cutTo = Vec3(0.005, 0, 0.005);
+  spec.grading.widthM = 0.002;
+  TetMesh mesh = makeSlab(spec);
+  const auto geo = tetGeometry(mesh);
+  const std::vector<BoundaryFace> top = topFaces(mesh, spec.sizeM.z());
+  for (bool lumped : {true, false}) {
+    ThermalParams p;
+    p.lumpedMass = lumped;
+    p.convectionW_m2K = 50;
+    TetMesh cut = mesh;
+    ThermalPhase phase(cut, geo, p, top);
+    int changed = 0;
+    for (int e = 0; e < mesh.numTets() && changed < 5; ++e) {
+      const double before = phase.stableExplicitDtS();
+      const auto removal = phase.removeTets({e});
+      cut.alive[e] = 0;
+      std::vector<BoundaryFace> cooled;
+      for (const BoundaryFace& f : top)
+        if (cut.isAlive(f.tet)) cooled.push_back(f);
+      const ThermalPhase fresh(cut, geo, p, cooled);
+      ASSERT_EQ(phase.stableExplicitDtS(), fresh.stableExplicitDtS()) << "tet " << e;
+      EXPECT_EQ(removal.explicitLimitChanged, phase.stableExplicitDtS() != before);
+      changed += removal.explicitLimitChanged;
+    }
+    EXPECT_EQ(changed, 5) << (lumped ? "lumped" : "consistent");
+  }
+}
+
+TEST(ThermalStep, RemoveTetsChecksIdsAndIgnoresRepeats) {
+  const TetMesh mesh = slab(Vec3(0.01, 0.01, 0.005), {3, 3, 2});
+  const auto geo = tetGeometry(mesh);
+  ThermalPhase phase(mesh, geo, ThermalParams{});
+  expectError([&] { phase.removeTets({0, mesh.numTets()}); }, {"removeTets", "out of range"});
+  expectError([&] { phase.removeTets({-1}); }, {"tet -1"});
+  const auto first = phase.removeTets({2, 2, 3});
+  EXPECT_EQ(first.removedTets, 2);
+  EXPECT_GT(first.editedEntries, 0);
+  const auto again = phase.removeTets({2, 3});
+  EXPECT_EQ(again.removedTets, 0);
+  EXPECT_EQ(again.editedEntries, 0);
+  // the first error changed nothing: tet 0 is still alive
+  EXPECT_EQ(phase.removeTets({0}).removedTets, 1);
+}
+
+// ---- 12. measurements (not run by default: --gtest_also_run_disabled_tests) ----
+
+// removeTets of 5 tets near the top centre vs a fresh build, paper slab at ~1k..50k nodes.
+// a fresh build's factorization happens in its first step, and the Auto solver choice is
+// made again in the step after a removal: speedup = (build + first step) / (remove + next
+// step), medians of 5 removals; remove1 = the first removal (it converts the factors)
+TEST(ThermalStep, DISABLED_RemoveTetsCostVsFreshBuild) {
+  openblas_set_num_threads(1);
+  using Clock = std::chrono::steady_clock;
+  auto msSince = [](Clock::time_point t0) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  };
+  std::printf("  %-28s %6s %7s %9s %9s %9s %9s %9s %9s %9s\n", "integrator", "nodes", "tets",
+              "build_ms", "first_ms", "step_ms", "remove1_ms", "remove_ms", "next_ms", "speedup");
+  for (int target : {1013, 8000, 20000, 50000}) {
+    SlabSpec spec;
+    spec.targetNodes = target;
+    const TetMesh mesh = makeSlab(spec);
+    const auto geo = tetGeometry(mesh);
+    const double topZ = spec.sizeM.z();
+    const std::vector<BoundaryFace> top = topFaces(mesh, topZ);
+    const std::vector<double> source = hotSpot(mesh, 5e8, 0.002, topZ);
+    std::vector<std::pair<double, int>> byDistance;
+    for (int e = 0; e < mesh.numTets(); ++e) {
+      Vec3 c = Vec3::Zero();
+      for (int n : mesh.tets[e]) c += 0.25 * mesh.nodes[n];
+      byDistance.push_back({(c - Vec3(0, 0, topZ)).norm(), e});
+    }
+    std::sort(byDistance.begin(), byDistance.end());
+    struct Case {
+      const char* label;
+      ThermalIntegrator integrator;
+      bool lumped;
+      ThermalLinearSolver solver;
+    };
+    const Case cases[] = {
+        {"explicit/lumped", ThermalIntegrator::Explicit, true, ThermalLinearSolver::Auto},
+        {"crank-nicolson/lumped/auto", ThermalIntegrator::CrankNicolson, true,
+         ThermalLinearSolver::Auto},
+        {"crank-nicolson/lumped/direct", ThermalIntegrator::CrankNicolson, true,
+         ThermalLinearSolver::Direct},
+        {"backward-euler/consistent", ThermalIntegrator::BackwardEuler, false,
+         ThermalLinearSolver::Auto},
+    };
+    for (const Case& c : cases) {
+      ThermalParams p;
+      p.boiling = true;
+      p.integrator = c.integrator;
+      p.lumpedMass = c.lumped;
+      p.linearSolver = c.solver;
+      p.convectionW_m2K = 10;
+      const auto t0 = Clock::now();
+      ThermalPhase phase(mesh, geo, p, top);
+      const double buildMs = msSince(t0);
+      ThermalState s;
+      phase.initState(s);
+      auto t1 = Clock::now();
+      phase.step(1.0 / 30, source, s);
+      const double firstMs = msSince(t1);
+      for (int k = 0; k < 2; ++k) phase.step(1.0 / 30, source, s);
+      t1 = Clock::now();
+      phase.step(1.0 / 30, source, s);
+      const double stepMs = msSince(t1);
+      // 5 removals of 5 tets: medians
+      std::vector<double> removeMs, nextMs;
+      for (int r = 0; r < 5; ++r) {
+        std::vector<int> tets;
+        for (int i = 5 * r; i < 5 * r + 5; ++i) tets.push_back(byDistance[i].second);
+        removeMs.push_back(phase.removeTets(tets).ms);
+        t1 = Clock::now();
+        phase.step(1.0 / 30, source, s);
+        nextMs.push_back(msSince(t1));
+      }
+      const double firstRemoveMs = removeMs[0];  // with the factors' conversion to simplicial
+      std::sort(removeMs.begin(), removeMs.end());
+      std::sort(nextMs.begin(), nextMs.end());
+      const double fresh = buildMs + firstMs, update = removeMs[2] + nextMs[2];
+      std::printf("  %-28s %6d %7d %9.2f %9.2f %9.2f %9.4f %9.4f %9.2f %9.1f\n", c.label,
+                  mesh.numNodes(), mesh.numTets(), buildMs, firstMs, stepMs, firstRemoveMs,
+                  removeMs[2], nextMs[2], fresh / update);
+    }
+  }
+}
+
+// the direct path's in-place modification vs factoring again, by batch size: removeTets
+// of the b tets nearest the top centre (the first removal: it converts the factor too) vs
+// the first step of a fresh phase (analysis and factorization)
+TEST(ThermalStep, DISABLED_RemoveTetsBatchSizeVsRefactor) {
+  openblas_set_num_threads(1);
+  using Clock = std::chrono::steady_clock;
+  std::printf("  %-28s %6s %6s %6s %11s %11s\n", "integrator", "nodes", "batch", "rank",
+              "remove_ms", "refactor_ms");
+  for (int target : {8000, 50000}) {
+    SlabSpec spec;
+    spec.targetNodes = target;
+    const TetMesh mesh = makeSlab(spec);
+    const auto geo = tetGeometry(mesh);
+    const double topZ = spec.sizeM.z();
+    const std::vector<double> source = hotSpot(mesh, 5e8, 0.002, topZ);
+    std::vector<std::pair<double, int>> byDistance;
+    for (int e = 0; e < mesh.numTets(); ++e) {
+      Vec3 c = Vec3::Zero();
+      for (int n : mesh.tets[e]) c += 0.25 * mesh.nodes[n];
+      byDistance.push_back({(c - Vec3(0, 0, topZ)).norm(), e});
+    }
+    std::sort(byDistance.begin(), byDistance.end());
+    for (bool lumped : {true, false}) {
+      ThermalParams p;
+      p.integrator = ThermalIntegrator::CrankNicolson;
+      p.lumpedMass = lumped;
+      p.linearSolver = ThermalLinearSolver::Direct;
+      for (int batch : {5, 20, 80, 320, 1280}) {
+        ThermalPhase phase(mesh, geo, p);
+        ThermalState s;
+        phase.initState(s);
+        const auto t0 = Clock::now();
+        phase.step(1.0 / 30, source, s);
+        const double refactorMs =
+            std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+        std::vector<int> tets;
+        for (int i = 0; i < batch; ++i) tets.push_back(byDistance[i].second);
+        const auto removal = phase.removeTets(tets);
+        std::printf("  %-28s %6d %6d %6d %11.2f %11.2f\n",
+                    lumped ? "crank-nicolson/lumped/direct" : "crank-nicolson/consistent",
+                    mesh.numNodes(), batch, removal.factorRank, removal.ms, refactorMs);
+      }
+    }
+  }
+}
+
+// the explicit limit of ThermalPhase, the smaller rate of the element and gershgorin bounds,
+// vs the eigenvalue limit 2/lambda_max (power iteration, 400 steps), a lanczos-like 0.95 of
+// it (the rule before), and each bound alone; sub-steps per frame at 30 fps and 1 s frames
+TEST(ThermalStep, DISABLED_ExplicitLimitBoundsVsEigenvalue) {
+  SlabSpec paper;  // the paper's slab, 1013 nodes
+  SlabSpec cut;    // scenarios/slab_cut.yaml
+  cut.sizeM = Vec3(0.06, 0.03, 0.01);
+  cut.targetNodes = 8000;
+  cut.grading.enabled = true;
+  cut.grading.cutFrom = Vec3(-0.025, 0, 0.01);
+  cut.grading.cutTo = Vec3(0.025, 0, 0.01);
+  cut.grading.ratio = 4;
+  cut.grading.widthM = 0.004;
+  cut.grading.towardTop = true;
+  SlabSpec paper50k;
+  paper50k.targetNodes = 50000;
+  SlabSpec spot;  // scenarios/coagulation_spot.yaml (a golden scene)
+  spot.targetNodes = 20000;
+  spot.grading.enabled = true;
+  spot.grading.cutFrom = Vec3(-0.001, 0, 0.01);
+  spot.grading.cutTo = Vec3(0.001, 0, 0.01);
+  spot.grading.ratio = 5;
+  spot.grading.widthM = 0.004;
+  SlabSpec fine;  // scenarios/fine_cut.yaml
+  fine.targetNodes = 50000;
+  fine.grading.enabled = true;
+  fine.grading.cutFrom = Vec3(-0.04, 0, 0.01);
+  fine.grading.cutTo = Vec3(0.04, 0, 0.01);
+  fine.grading.ratio = 4;
+  fine.grading.widthM = 0.01;
+  std::printf("  %-23s %-10s %8s %9s %9s %8s %8s %6s %6s %9s %9s %8s\n", "mesh", "mass", "eig_s",
+              "0.95eig_s", "element_s", "gersh_s", "phase_s", "ratio", "sub@30", "sub@1s_95",
+              "sub@1s_ph", "build_ms");
+  struct Mesh {
+    const char* label;
+    SlabSpec spec;
+    bool consistentToo;  // the scenes run lumped; consistent where measured before
+  };
+  for (const auto& [label, spec, consistentToo] :
+       {Mesh{"paper slab 1013", paper, true}, Mesh{"slab_cut 8000 graded", cut, true},
+        Mesh{"paper slab 50000", paper50k, true}, Mesh{"coagulation_spot 20000", spot, false},
+        Mesh{"fine_cut 50000", fine, false}}) {
+    const TetMesh mesh = makeSlab(spec);
+    const auto geo = tetGeometry(mesh);
+    for (bool lumped : {true, false}) {
+      if (!lumped && !consistentToo) continue;
+      ThermalParams p;  // insulated: the bounds of the conduction alone
+      p.lumpedMass = lumped;
+      const auto t0 = std::chrono::steady_clock::now();
+      ThermalPhase phase(mesh, geo, p);
+      const double limit = phase.stableExplicitDtS();
+      const double buildMs =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      const double crho = p.heatCapacityJ_m3K;
+      const std::vector<double> lam(mesh.tets.size(), p.conductivityW_mK);
+      const std::vector<double> ones(mesh.tets.size(), 1.0);
+      const SparseMatrix k = assembleStiffness(mesh, geo, lam);
+      const Eigen::VectorXd ml = crho * lumpedMass(mesh, geo, ones);
+      const SparseMatrix mc = crho * assembleMass(mesh, geo, ones);
+      Eigen::SimplicialLDLT<SparseMatrix> mcFactor;
+      if (!lumped) mcFactor.compute(mc);
+      // power iteration on M^-1 K; the rayleigh quotient x'Kx / x'Mx from below
+      Eigen::VectorXd x = Eigen::VectorXd::Random(mesh.numNodes()), kx;
+      double rayleigh = 0;
+      for (int it = 0; it < 400; ++it) {
+        kx = k * x;
+        const double mx = lumped ? x.dot(ml.cwiseProduct(x)) : x.dot(mc * x);
+        rayleigh = x.dot(kx) / mx;
+        x = lumped ? Eigen::VectorXd(kx.cwiseQuotient(ml)) : Eigen::VectorXd(mcFactor.solve(kx));
+        x /= x.norm();
+      }
+      const double eig = 2.0 / rayleigh;
+      // each bound alone: max_e lambda_max(K_e, M_e); max_i sum_j |K_ij| / m_i (x5 consistent)
+      double element = 0, gersh = 0;
+      for (int e = 0; e < mesh.numTets(); ++e) {
+        const Eigen::Matrix4d ke =
+            p.conductivityW_mK * geo[e].volume * geo[e].grad * geo[e].grad.transpose();
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> es(ke, Eigen::EigenvaluesOnly);
+        const double share = lumped ? 4.0 : 20.0;
+        element = std::max(element, share * es.eigenvalues().maxCoeff() / (crho * geo[e].volume));
+      }
+      const Eigen::SparseMatrix<double, Eigen::RowMajor> kr = k;
+      for (int i = 0; i < kr.outerSize(); ++i) {
+        double row = 0;
+        for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(kr, i); it; ++it)
+          row += std::abs(it.value());
+        gersh = std::max(gersh, (lumped ? 1.0 : 5.0) * row / ml[i]);
+      }
+      EXPECT_LE(limit, eig * (1 + 1e-6)) << label;
+      EXPECT_NEAR(limit, std::max(2 / element, 2 / gersh), 1e-9 * limit) << label;
+      std::printf("  %-23s %-10s %8.4f %9.4f %9.4f %8.4f %8.4f %6.3f %6.0f %9.0f %9.0f %8.1f\n",
+                  label, lumped ? "lumped" : "consistent", eig, 0.95 * eig, 2 / element, 2 / gersh,
+                  limit, limit / (0.95 * eig), std::ceil((1.0 / 30) / limit),
+                  std::ceil(1.0 / (0.95 * eig)), std::ceil(1.0 / limit), buildMs);
+    }
+  }
+}
+
+// ---- 11. bad input ----
 
 TEST(ThermalStep, BadInputGivesClearMessages) {
   ThermalParams p;
