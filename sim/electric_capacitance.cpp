@@ -20,9 +20,33 @@
 // prefetch() fills the cache ahead of contact (e.g. the contact nodes along a
 // scripted tool path, at setup or a few frames ahead).
 // setMatrix refactorizes and empties the cache (the patches are rebuilt).
+//
+// updateMatrix (a cut, issue #11), in the base indices of the last setMatrix (nodes that
+// stop being free keep their index with an identity row and column):
+//   1. factor: the nodes leaving the free set are deleted (cholmod_rowdel: row/column ->
+//      e_i), then the change E on the nodes staying free, a small dense symmetric
+//      matrix (its rows: the nodes of the removed elements), is split by an eigen-
+//      decomposition into E = C+ C+^T - C- C-^T (rank <= touched nodes; a removal is
+//      negative semidefinite, so C+ is empty up to rounding) and applied with
+//      cholmod_updown (update, then downdate). CHOLMOD modifies only a simplicial LDL'
+//      factor: the supernodal factor is converted on the first update (O(nnz(L))).
+//      Afterwards: every pivot > 0 and the residual of one solve <= 1e-10, else the
+//      update falls back to setMatrix.
+//   2. cached columns: z = K^-1 e_j gives K' z = e_j + E z, so
+//        z' = K'^-1 e_j = z - K'^-1 (E z) = z - Y (E z)_S,   Y = K'^-1 I_:S
+//      (S: the rows of E staying free; rows leaving the free set give z'_D = 0). One block
+//      solve for Y (s columns), then all cached columns at once in chunks: R = (E Z)_S,
+//      Z -= Y R (BLAS-3 dgemm), 2 n_f s flops per column, against about 4 nnz(L) flops to
+//      solve a column again: above kCorrectionShare of that the cache is dropped instead.
+//   3. patches: kept; setContactCandidates with the new surface adds patches for the new
+//      candidates and keeps the cache; prefetch their columns outside the frame loop.
+// After an update, a column corrected in place and one solved with the updated factor
+// agree to rounding, not to the bit: results stay deterministic for a given sequence of
+// calls, but no longer independent of cache size and eviction.
 #include <cblas.h>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -33,54 +57,103 @@
 namespace esim::electric_detail {
 namespace {
 
+// columns are corrected in place when that costs less than this share of solving them
+// again (the share of the cache the tool still needs is unknown; see the header)
+constexpr double kCorrectionShare = 0.5;
+// a modified factor must solve to this relative residual, else setMatrix
+constexpr double kUpdateResidual = 1e-10;
+// largest number of base indices (changed + dropped) modified in place, as a fraction
+// of n_f (plus 64): above, a new factorization is cheaper (provisional, to be set from
+// esim bench electric --update)
+constexpr double kMaxUpdateFraction = 0.1;
+
 class CapacitanceSolver final : public ElectricSolver {
  public:
   explicit CapacitanceSolver(const ElectricSolverOptions& options) : options_(options) {}
 
   void setMatrix(const SparseMatrix& K, const std::vector<int>& grounded) override {
     setBlasThreads(options_.threads);
-    const ResetOnThrow guard(classes_);
-    classes_.build(K, grounded);
-    const int nf = classes_.numFree();
+    const ResetOnThrow guard(free_.current);
+    free_.set(K, grounded);
+    const int nf = free_.size();
     columns_.clear();
     slotNode_.clear();
     lastUsed_.clear();
     slotOf_.assign(nf, -1);
-    kff_ = SparseMatrix();
+    patchOf_.assign(nf, -1);
+    patches_.clear();
     if (nf == 0) return;
-    kff_ = restrictToFree(K, classes_);
-    factor_.analyze(kff_);
-    factor_.factorize(kff_, "capacitance");
+    factor_.analyze(free_.matrix);
+    factor_.factorize(free_.matrix, "capacitance");
     buildPatches();
+  }
+
+  ElectricUpdateStats updateMatrix(const SparseMatrix& K,
+                                   const std::vector<int>& grounded) override {
+    ESIM_CHECK(free_.current.n > 0);  // setMatrix before updateMatrix
+    const ResetOnThrow guard(free_.current);
+    const BaseChange change = free_.diff(K, grounded);
+    ElectricUpdateStats stats;
+    const auto fallBack = [&](const std::string& why) {
+      const int cached = cachedColumns();
+      setMatrix(K, grounded);
+      stats.fellBack = true;
+      stats.fallbackReason = why;
+      stats.columnsDropped = cached;
+      stats.rank = 0;
+      stats.columnsCorrected = 0;
+      return stats;
+    };
+    if (!change.fallback.empty()) return fallBack(change.fallback);
+    stats.changedNodes = static_cast<int>(change.touched.size());
+    stats.droppedNodes = static_cast<int>(change.dropped.size());
+    if (change.empty()) return stats;
+    const int nf = free_.size();
+    if (change.touched.size() + change.dropped.size() > kMaxUpdateFraction * nf + 64)
+      return fallBack(std::to_string(change.touched.size() + change.dropped.size()) +
+                      " rows change, above " + messageNumber(kMaxUpdateFraction) +
+                      " n_f: a new factorization is cheaper");
+    setBlasThreads(options_.threads);
+    // 1. the factor: rows leaving the free set, then E on the rows staying free
+    try {
+      for (int d : change.dropped) factor_.deleteRow(d);
+      stats.rank = modifyFactor(change);
+    } catch (const Error& e) {
+      if (e.kind() == ErrorKind::Internal) throw;
+      return fallBack(std::string("the factor update failed: ") + e.what());
+    }
+    free_.apply(change);
+    if (!factor_.pivotsPositive())
+      return fallBack("the downdate lost positive definiteness (a pivot <= 0)");
+    const double residual = checkResidual();
+    if (!(residual <= kUpdateResidual))
+      return fallBack("the modified factor solves to a residual of " + messageNumber(residual));
+    // 2. the cached columns
+    correctColumns(change, stats);
+    return stats;
   }
 
   void setContactCandidates(const std::vector<int>& nodes) override {
     candidates_ = nodes;
     std::sort(candidates_.begin(), candidates_.end());
     candidates_.erase(std::unique(candidates_.begin(), candidates_.end()), candidates_.end());
-    if (classes_.n > 0) {
-      // new blocks: drop the cache so that every column keeps one block composition
-      columns_.clear();
-      slotNode_.clear();
-      lastUsed_.clear();
-      slotOf_.assign(classes_.numFree(), -1);
-      buildPatches();
-    }
+    // after setMatrix: existing patches and the cache stay, new candidates get patches
+    if (free_.current.n > 0) buildPatches();
   }
 
   ElectricSolveStats solve(const std::vector<int>& contact, double voltageV,
                            Eigen::VectorXd& potential) override {
-    ESIM_CHECK(classes_.n > 0);  // setMatrix before solve
+    ESIM_CHECK(free_.current.n > 0);  // setMatrix before solve
     ElectricSolveStats stats;
-    const std::vector<int> cf = classes_.contactFreeIndices(contact);
+    const std::vector<int> cf = free_.contactBaseIndices(contact);
     if (cf.empty()) {
-      potential.setZero(classes_.n);
+      potential.setZero(free_.current.n);
       return stats;
     }
     setBlasThreads(options_.threads);
     ++frame_;
     const int c = static_cast<int>(cf.size());
-    const int nf = classes_.numFree();
+    const int nf = free_.size();
     // 1. the columns of the contact nodes (cached ones marked used first: never evicted)
     for (int j : cf)
       if (slotOf_[j] >= 0) lastUsed_[slotOf_[j]] = frame_;
@@ -103,18 +176,18 @@ class CapacitanceSolver final : public ElectricSolver {
     // 3. u = Z f
     Eigen::VectorXd u = Eigen::VectorXd::Zero(nf);
     for (int k = 0; k < c; ++k) cblas_daxpy(nf, f[k], z[k], 1, u.data(), 1);
-    scatterPotential(classes_, u, cf, voltageV, potential);
+    free_.scatter(u, cf, voltageV, potential);
     return stats;
   }
 
   void prefetch(const std::vector<int>& nodes) override {
-    if (classes_.n == 0 || classes_.numFree() == 0) return;
+    if (free_.current.n == 0 || free_.current.numFree() == 0) return;
     setBlasThreads(options_.threads);
     std::vector<int> missing;
     for (int node : nodes) {
-      if (node < 0 || node >= classes_.n) continue;
-      const int j = classes_.freeIndex[node];
-      if (j >= 0 && slotOf_[j] < 0) missing.push_back(j);
+      if (node < 0 || node >= free_.current.n || free_.current.freeIndex[node] < 0) continue;
+      const int j = free_.base.freeIndex[node];
+      if (slotOf_[j] < 0) missing.push_back(j);
     }
     std::sort(missing.begin(), missing.end());
     missing.erase(std::unique(missing.begin(), missing.end()), missing.end());
@@ -123,7 +196,7 @@ class CapacitanceSolver final : public ElectricSolver {
   }
 
   double memoryBytes() const override {
-    double bytes = factor_.memoryBytes() + 12.0 * static_cast<double>(kff_.nonZeros());
+    double bytes = factor_.memoryBytes() + 12.0 * static_cast<double>(free_.matrix.nonZeros());
     for (const auto& col : columns_) bytes += 8.0 * static_cast<double>(col.size());
     return bytes;
   }
@@ -131,24 +204,29 @@ class CapacitanceSolver final : public ElectricSolver {
 
  private:
   size_t maxSlots() const {
-    const double columnBytes = 8.0 * std::max(1, classes_.numFree());
+    const double columnBytes = 8.0 * std::max(1, free_.size());
     return static_cast<size_t>(
         std::max(1.0, std::floor(options_.cacheMemoryLimitBytes / columnBytes)));
   }
 
-  // patches of up to capacitancePatchNodes candidate nodes, grown breadth-first over
-  // the graph of K_ff from the lowest unassigned candidate
+  int cachedColumns() const {
+    int count = 0;
+    for (int node : slotNode_) count += node >= 0;
+    return count;
+  }
+
+  // patches of up to capacitancePatchNodes candidate nodes still free and in no patch,
+  // grown breadth-first over the graph of K_ff from the lowest unassigned candidate
+  // (setMatrix clears the patches first; later calls only add patches)
   void buildPatches() {
-    const int nf = classes_.numFree();
-    patchOf_.assign(nf, -1);
-    patches_.clear();
     const int maxNodes = std::max(1, options_.capacitancePatchNodes);
-    std::vector<std::uint8_t> isCandidate(nf, 0);
+    const SparseMatrix& kff = free_.matrix;
+    std::vector<std::uint8_t> isCandidate(free_.size(), 0);
     std::vector<int> cand;
     for (int node : candidates_) {
-      if (node < 0 || node >= classes_.n) continue;
-      const int j = classes_.freeIndex[node];
-      if (j >= 0) {
+      if (node < 0 || node >= free_.current.n || free_.current.freeIndex[node] < 0) continue;
+      const int j = free_.base.freeIndex[node];
+      if (patchOf_[j] < 0) {
         isCandidate[j] = 1;
         cand.push_back(j);
       }
@@ -159,9 +237,9 @@ class CapacitanceSolver final : public ElectricSolver {
       patchOf_[seed] = static_cast<int>(patches_.size());
       for (size_t head = 0; head < patch.size() && static_cast<int>(patch.size()) < maxNodes;
            ++head) {
-        for (SparseMatrix::InnerIterator it(kff_, patch[head]); it; ++it) {
+        for (SparseMatrix::InnerIterator it(kff, patch[head]); it; ++it) {
           const int i = static_cast<int>(it.row());
-          if (!isCandidate[i] || patchOf_[i] >= 0) continue;
+          if (!isCandidate[i] || patchOf_[i] >= 0 || it.value() == 0.0) continue;
           patchOf_[i] = static_cast<int>(patches_.size());
           patch.push_back(i);
           if (static_cast<int>(patch.size()) >= maxNodes) break;
@@ -170,6 +248,125 @@ class CapacitanceSolver final : public ElectricSolver {
       std::sort(patch.begin(), patch.end());
       patches_.push_back(std::move(patch));
     }
+  }
+
+  // applies E (on the rows staying free) to the factor: update by its positive part,
+  // downdate by its negative part; returns the rank applied
+  int modifyFactor(const BaseChange& change) {
+    const std::vector<int>& rows = change.touched;
+    const int s = static_cast<int>(rows.size());
+    if (s == 0) return 0;
+    std::vector<int> where(free_.size(), -1);
+    for (int k = 0; k < s; ++k) where[rows[k]] = k;
+    Eigen::MatrixXd e = Eigen::MatrixXd::Zero(s, s);
+    for (int j : rows)
+      for (SparseMatrix::InnerIterator it(change.delta, j); it; ++it)
+        if (where[it.row()] >= 0) e(where[it.row()], where[j]) = it.value();
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(e);
+    ESIM_RUN_CHECK(eig.info() == Eigen::Success, "capacitance: eigendecomposition failed");
+    const Eigen::VectorXd& lambda = eig.eigenvalues();
+    // eigenvalues at rounding level are dropped (a tet's matrix has rank 3, not 4)
+    const double drop = 1e-13 * lambda.cwiseAbs().maxCoeff();
+    int rank = 0;
+    for (bool update : {true, false}) {
+      std::vector<Eigen::Triplet<double>> t;
+      int cols = 0;
+      for (int k = 0; k < s; ++k) {
+        const double l = update ? lambda[k] : -lambda[k];
+        if (!(l > drop)) continue;
+        const double scale = std::sqrt(l);
+        for (int i = 0; i < s; ++i)
+          if (eig.eigenvectors()(i, k) != 0.0)
+            t.emplace_back(rows[i], cols, scale * eig.eigenvectors()(i, k));
+        ++cols;
+      }
+      SparseMatrix c(free_.size(), cols);
+      c.setFromTriplets(t.begin(), t.end());
+      factor_.updateDowndate(update, c);
+      rank += cols;
+    }
+    return rank;
+  }
+
+  // relative residual ||K' x - b|| / ||b|| of one solve with the modified factor
+  double checkResidual() {
+    const int nf = free_.size();
+    Eigen::VectorXd b(nf), x(nf);
+    for (int i = 0; i < nf; ++i) b[i] = 1.0 + 0.5 * std::sin(0.7 * i);  // fixed, generic
+    factor_.solve(b.data(), x.data());
+    return (free_.matrix * x - b).norm() / b.norm();
+  }
+
+  // z' = z - Y (E z)_S for every cached column still free (see the file comment), or
+  // drops the cache when solving the columns again is cheaper
+  void correctColumns(const BaseChange& change, ElectricUpdateStats& stats) {
+    const int nf = free_.size();
+    // columns of nodes leaving the free set go
+    for (int d : change.dropped) {
+      if (slotOf_[d] < 0) continue;
+      slotNode_[slotOf_[d]] = -1;
+      slotOf_[d] = -1;
+      ++stats.columnsDropped;
+    }
+    std::vector<int> slots;
+    for (size_t slot = 0; slot < slotNode_.size(); ++slot)
+      if (slotNode_[slot] >= 0) slots.push_back(static_cast<int>(slot));
+    if (slots.empty()) return;
+    // S: rows of E staying free
+    std::vector<int> where(nf, -1), rows;
+    for (int j = 0; j < nf; ++j)
+      for (SparseMatrix::InnerIterator it(change.delta, j); it; ++it)
+        if (free_.active[it.row()]) where[it.row()] = 1;
+    for (int i = 0; i < nf; ++i)
+      if (where[i] >= 0) {
+        where[i] = static_cast<int>(rows.size());
+        rows.push_back(i);
+      }
+    const int s = static_cast<int>(rows.size());
+    const double correctFlops = 2.0 * nf * s * slots.size() + 4.0 * factor_.factorEntries() * s;
+    const double solveFlops = 4.0 * factor_.factorEntries() * slots.size();
+    if (correctFlops > kCorrectionShare * solveFlops) {
+      for (int slot : slots) {
+        slotOf_[slotNode_[slot]] = -1;
+        slotNode_[slot] = -1;
+      }
+      stats.columnsDropped += static_cast<int>(slots.size());
+      return;
+    }
+    // Y = K'^-1 I_:S
+    Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(nf, s), y(nf, s);
+    for (int k = 0; k < s; ++k) rhs(rows[k], k) = 1.0;
+    factor_.solve(rhs.data(), y.data(), s);
+    // the entries of E in the rows S: (position in S, column, value)
+    struct Entry {
+      int row, col;
+      double value;
+    };
+    std::vector<Entry> entries;
+    for (int j = 0; j < nf; ++j)
+      for (SparseMatrix::InnerIterator it(change.delta, j); it; ++it)
+        if (where[it.row()] >= 0) entries.push_back({where[it.row()], j, it.value()});
+    // chunks of columns: R = (E Z)_S, Z -= Y R, then z_D = 0 for every index not free
+    const int chunk = 64;
+    Eigen::MatrixXd z, r;
+    for (size_t k0 = 0; k0 < slots.size(); k0 += chunk) {
+      const int cols = static_cast<int>(std::min<size_t>(chunk, slots.size() - k0));
+      z.resize(nf, cols);
+      r.setZero(s, cols);
+      for (int k = 0; k < cols; ++k) {
+        const Eigen::VectorXd& col = columns_[slots[k0 + k]];
+        z.col(k) = col;
+        for (const Entry& en : entries) r(en.row, k) += en.value * col[en.col];
+      }
+      cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, nf, cols, s, -1.0, y.data(), nf,
+                  r.data(), s, 1.0, z.data(), nf);
+      for (int k = 0; k < cols; ++k) {
+        Eigen::VectorXd& col = columns_[slots[k0 + k]];
+        col = z.col(k);
+        for (int d : change.dropped) col[d] = 0.0;
+      }
+    }
+    stats.columnsCorrected = static_cast<int>(slots.size());
   }
 
   // a free slot, or the least recently used one not used by the current frame (ties:
@@ -192,7 +389,7 @@ class CapacitanceSolver final : public ElectricSolver {
         return slot;
       }
     }
-    columns_.emplace_back(classes_.numFree());
+    columns_.emplace_back(free_.size());
     slotNode_.push_back(-1);
     lastUsed_.push_back(0);
     return static_cast<int>(columns_.size()) - 1;
@@ -203,7 +400,7 @@ class CapacitanceSolver final : public ElectricSolver {
   // (at most budget columns, if given)
   int computeColumns(const std::vector<int>& missing,
                      size_t budget = std::numeric_limits<size_t>::max()) {
-    const int nf = classes_.numFree();
+    const int nf = free_.size();
     int solved = 0;
     for (int j : missing) {
       if (slotOf_[j] >= 0) continue;  // came with an earlier patch
@@ -218,6 +415,7 @@ class CapacitanceSolver final : public ElectricSolver {
       solved += cols;
       for (int k = 0; k < cols; ++k) {
         const int i = block[k];
+        if (!free_.active[i]) continue;  // left the free set: solved only to keep the block
         int slot = slotOf_[i];
         if (slot < 0) slot = acquireSlot();
         columns_[slot] = block_.col(k);
@@ -230,8 +428,7 @@ class CapacitanceSolver final : public ElectricSolver {
   }
 
   ElectricSolverOptions options_;
-  NodeClasses classes_;
-  SparseMatrix kff_;  // K restricted to the free nodes (patch graph)
+  FreeBase free_;  // node classes, K_ff in base indices (also the patch graph)
   CholmodFactor factor_;
   std::vector<int> candidates_;            // node ids the tool may touch (sorted)
   std::vector<int> patchOf_;               // free index -> patch (-1: solved alone)
