@@ -22,16 +22,27 @@
 // setMatrix refactorizes and empties the cache (the patches are rebuilt).
 //
 // updateMatrix (a cut, issue #11), in the base indices of the last setMatrix (nodes that
-// stop being free keep their index with an identity row and column):
-//   1. factor: the nodes leaving the free set are deleted (cholmod_rowdel: row/column ->
-//      e_i), then the change E on the nodes staying free, a small dense symmetric
-//      matrix (its rows: the nodes of the removed elements), is split by an eigen-
-//      decomposition into E = C+ C+^T - C- C-^T (rank <= touched nodes; a removal is
-//      negative semidefinite, so C+ is empty up to rounding) and applied with
-//      cholmod_updown (update, then downdate). CHOLMOD modifies only a simplicial LDL'
-//      factor: the supernodal factor is converted on the first update (O(nnz(L))).
-//      Afterwards: every pivot > 0 and the residual of one solve <= 1e-10, else the
-//      update falls back to setMatrix.
+// stop being free keep their index with an identity row and column). E = K' - K is
+// supported on a few rows S (the nodes of the removed elements, the nodes leaving the
+// free set):
+//   1. the factor, two ways (ElectricSolverOptions::capacitanceUpdate):
+//      Woodbury (default): the supernodal factor of K0 (the matrix last factorized) is
+//        kept; with E0 = K' - K0 on the accumulated rows S0 (s0 of them),
+//          K'^-1 b = x - Y0 M x_S0,  x = K0^-1 b,  Y0 = K0^-1 I_:S0,
+//          M = E0 (I + Y0_S0 E0)^-1  (s0 x s0, one LU per update),
+//        so an update costs one supernodal block solve for the new rows of S0 and an
+//        s0^3 LU, and every later solve 2 n_f s0 flops more. When that exceeds half of a
+//        solve (2 n_f s0 > 2 nnz(L)) the factor is recomputed numerically with the kept
+//        ordering (stats.refactored; no symbolic analysis, the cache stays valid).
+//      Downdate: rows leaving the free set are deleted (cholmod_rowdel), then E on the
+//        rows staying free, split by an eigendecomposition into C+ C+^T - C- C-^T (a
+//        removal is negative semidefinite: C+ is empty up to rounding), is applied by
+//        cholmod_updown. CHOLMOD modifies only a simplicial LDL' factor: the supernodal
+//        one is converted at the first update, and its solves are 2-3.5x slower
+//        (measured: esim bench electric --only-update, 8k-20k nodes), which is why this
+//        is not the default.
+//      Afterwards one solve must reach a relative residual <= 1e-10 (and, Downdate,
+//      every pivot > 0); else the factor is recomputed (Woodbury) or setMatrix is done.
 //   2. cached columns: z = K^-1 e_j gives K' z = e_j + E z, so
 //        z' = K'^-1 e_j = z - K'^-1 (E z) = z - Y (E z)_S,   Y = K'^-1 I_:S
 //      (S: the rows of E staying free; rows leaving the free set give z'_D = 0). One block
@@ -47,6 +58,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -62,10 +74,14 @@ namespace {
 constexpr double kCorrectionShare = 0.5;
 // a modified factor must solve to this relative residual, else setMatrix
 constexpr double kUpdateResidual = 1e-10;
-// largest number of base indices (changed + dropped) modified in place, as a fraction
-// of n_f (plus 64): above, a new factorization is cheaper (provisional, to be set from
-// esim bench electric --update)
+// Downdate: largest number of base indices (changed + dropped) modified in place, as a
+// fraction of n_f (plus 64): above, a new factorization is cheaper
 constexpr double kMaxUpdateFraction = 0.1;
+// Woodbury: the term is folded into a numeric refactorization when it costs more than
+// this share of a solve with the factor (2 n_f s0 flops vs 4 nnz(L) per column), or
+// above kMaxWoodburyRows rows
+constexpr double kWoodburyShare = 0.5;
+constexpr int kMaxWoodburyRows = 1024;
 
 class CapacitanceSolver final : public ElectricSolver {
  public:
@@ -84,7 +100,7 @@ class CapacitanceSolver final : public ElectricSolver {
     patches_.clear();
     if (nf == 0) return;
     factor_.analyze(free_.matrix);
-    factor_.factorize(free_.matrix, "capacitance");
+    refactorNumeric();
     buildPatches();
   }
 
@@ -101,6 +117,7 @@ class CapacitanceSolver final : public ElectricSolver {
       stats.fallbackReason = why;
       stats.columnsDropped = cached;
       stats.rank = 0;
+      stats.refactored = false;
       stats.columnsCorrected = 0;
       return stats;
     };
@@ -109,25 +126,36 @@ class CapacitanceSolver final : public ElectricSolver {
     stats.droppedNodes = static_cast<int>(change.dropped.size());
     if (change.empty()) return stats;
     const int nf = free_.size();
-    if (change.touched.size() + change.dropped.size() > kMaxUpdateFraction * nf + 64)
+    const bool downdate = options_.capacitanceUpdate == CapacitanceUpdate::Downdate;
+    if (downdate && change.touched.size() + change.dropped.size() > kMaxUpdateFraction * nf + 64)
       return fallBack(std::to_string(change.touched.size() + change.dropped.size()) +
                       " rows change, above " + messageNumber(kMaxUpdateFraction) +
                       " n_f: a new factorization is cheaper");
     setBlasThreads(options_.threads);
-    // 1. the factor: rows leaving the free set, then E on the rows staying free
+    // 1. the factor
     try {
-      for (int d : change.dropped) factor_.deleteRow(d);
-      stats.rank = modifyFactor(change);
+      if (downdate) {
+        for (int d : change.dropped) factor_.deleteRow(d);
+        stats.rank = modifyFactor(change);
+        free_.apply(change);
+        if (!factor_.pivotsPositive())
+          return fallBack("the downdate lost positive definiteness (a pivot <= 0)");
+      } else {
+        free_.apply(change);
+        stats.rank = extendWoodbury(change, stats);
+      }
+      double residual = checkResidual();
+      if (!(residual <= kUpdateResidual) && !downdate && !stats.refactored) {
+        refactorNumeric();
+        stats.refactored = true;
+        residual = checkResidual();
+      }
+      if (!(residual <= kUpdateResidual))
+        return fallBack("the updated factor solves to a residual of " + messageNumber(residual));
     } catch (const Error& e) {
       if (e.kind() == ErrorKind::Internal) throw;
       return fallBack(std::string("the factor update failed: ") + e.what());
     }
-    free_.apply(change);
-    if (!factor_.pivotsPositive())
-      return fallBack("the downdate lost positive definiteness (a pivot <= 0)");
-    const double residual = checkResidual();
-    if (!(residual <= kUpdateResidual))
-      return fallBack("the modified factor solves to a residual of " + messageNumber(residual));
     // 2. the cached columns
     correctColumns(change, stats);
     return stats;
@@ -196,7 +224,8 @@ class CapacitanceSolver final : public ElectricSolver {
   }
 
   double memoryBytes() const override {
-    double bytes = factor_.memoryBytes() + 12.0 * static_cast<double>(free_.matrix.nonZeros());
+    double bytes = factor_.memoryBytes() + 20.0 * static_cast<double>(free_.matrix.nonZeros()) +
+                   8.0 * static_cast<double>(y0_.size() + m_.size());
     for (const auto& col : columns_) bytes += 8.0 * static_cast<double>(col.size());
     return bytes;
   }
@@ -250,6 +279,88 @@ class CapacitanceSolver final : public ElectricSolver {
     }
   }
 
+  // ---- the Woodbury term (see the file comment) ----
+
+  // factorizes the current matrix with the kept ordering; the Woodbury term is emptied
+  void refactorNumeric() {
+    factor_.factorize(free_.matrix, "capacitance");
+    factoredValues_.assign(free_.matrix.valuePtr(),
+                           free_.matrix.valuePtr() + free_.matrix.nonZeros());
+    woodburyRows_.clear();
+    woodburyPos_.assign(free_.size(), -1);
+    y0_.resize(free_.size(), 0);
+    m_.resize(0, 0);
+  }
+
+  // adds the rows of this change to S0 (one block solve for the new ones) and recomputes
+  // M; folds everything into a numeric refactorization when the term grows too large.
+  // Returns the rows of the change.
+  int extendWoodbury(const BaseChange& change, ElectricUpdateStats& stats) {
+    const int nf = free_.size();
+    std::vector<int> rows, fresh;
+    std::vector<std::uint8_t> seen(nf, 0);
+    for (int j = 0; j < nf; ++j)
+      for (SparseMatrix::InnerIterator it(change.delta, j); it; ++it) seen[it.row()] = 1;
+    for (int i = 0; i < nf; ++i) {
+      if (!seen[i]) continue;
+      rows.push_back(i);
+      if (woodburyPos_[i] < 0) fresh.push_back(i);
+    }
+    const int s0 = static_cast<int>(woodburyRows_.size() + fresh.size());
+    const double limit = std::min<double>(
+        kMaxWoodburyRows, kWoodburyShare * 4.0 * factor_.factorEntries() / (2.0 * nf));
+    if (s0 > limit) {
+      refactorNumeric();
+      stats.refactored = true;
+      return static_cast<int>(rows.size());
+    }
+    // Y0 for the new rows
+    if (!fresh.empty()) {
+      const int k = static_cast<int>(fresh.size());
+      Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(nf, k), y(nf, k);
+      for (int c = 0; c < k; ++c) rhs(fresh[c], c) = 1.0;
+      factor_.solve(rhs.data(), y.data(), k);
+      y0_.conservativeResize(nf, s0);
+      y0_.rightCols(k) = y;
+      for (int i : fresh) {
+        woodburyPos_[i] = static_cast<int>(woodburyRows_.size());
+        woodburyRows_.push_back(i);
+      }
+    }
+    // E0 = K' - K0 on S0 (every changed entry has its row and column in S0)
+    const int* outer = free_.matrix.outerIndexPtr();
+    const int* inner = free_.matrix.innerIndexPtr();
+    const double* value = free_.matrix.valuePtr();
+    Eigen::MatrixXd e0 = Eigen::MatrixXd::Zero(s0, s0), g0(s0, s0);
+    for (int b = 0; b < s0; ++b) {
+      const int j = woodburyRows_[b];
+      for (int p = outer[j]; p < outer[j + 1]; ++p)
+        if (woodburyPos_[inner[p]] >= 0)
+          e0(woodburyPos_[inner[p]], b) = value[p] - factoredValues_[p];
+      g0.row(b) = y0_.row(j);
+    }
+    // M = E0 (I + G0 E0)^-1, i.e. (I + G0 E0)^T M^T = E0
+    const Eigen::MatrixXd t = Eigen::MatrixXd::Identity(s0, s0) + g0 * e0;
+    const Eigen::PartialPivLU<Eigen::MatrixXd> lu(t.transpose());
+    m_ = lu.solve(e0).transpose();
+    ESIM_RUN_CHECK(m_.allFinite(), "capacitance: the Woodbury term is singular");
+    return static_cast<int>(rows.size());
+  }
+
+  // x = K'^-1 b for `cols` right-hand sides: the factor's solve plus the Woodbury term
+  void solveBlock(const double* b, double* x, int cols) {
+    factor_.solve(b, x, cols);
+    const int s0 = static_cast<int>(woodburyRows_.size());
+    if (s0 == 0) return;
+    const int nf = free_.size();
+    Eigen::Map<Eigen::MatrixXd> xm(x, nf, cols);
+    Eigen::MatrixXd xs(s0, cols);
+    for (int a = 0; a < s0; ++a) xs.row(a) = xm.row(woodburyRows_[a]);
+    const Eigen::MatrixXd w = m_ * xs;
+    cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, nf, cols, s0, -1.0, y0_.data(), nf,
+                w.data(), s0, 1.0, x, nf);
+  }
+
   // applies E (on the rows staying free) to the factor: update by its positive part,
   // downdate by its negative part; returns the rank applied
   int modifyFactor(const BaseChange& change) {
@@ -293,7 +404,7 @@ class CapacitanceSolver final : public ElectricSolver {
     const int nf = free_.size();
     Eigen::VectorXd b(nf), x(nf);
     for (int i = 0; i < nf; ++i) b[i] = 1.0 + 0.5 * std::sin(0.7 * i);  // fixed, generic
-    factor_.solve(b.data(), x.data());
+    solveBlock(b.data(), x.data(), 1);
     return (free_.matrix * x - b).norm() / b.norm();
   }
 
@@ -336,7 +447,7 @@ class CapacitanceSolver final : public ElectricSolver {
     // Y = K'^-1 I_:S
     Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(nf, s), y(nf, s);
     for (int k = 0; k < s; ++k) rhs(rows[k], k) = 1.0;
-    factor_.solve(rhs.data(), y.data(), s);
+    solveBlock(rhs.data(), y.data(), s);
     // the entries of E in the rows S: (position in S, column, value)
     struct Entry {
       int row, col;
@@ -411,7 +522,7 @@ class CapacitanceSolver final : public ElectricSolver {
       rhs_.setZero(nf, cols);
       for (int k = 0; k < cols; ++k) rhs_(block[k], k) = 1.0;
       block_.resize(nf, cols);
-      factor_.solve(rhs_.data(), block_.data(), cols);
+      solveBlock(rhs_.data(), block_.data(), cols);
       solved += cols;
       for (int k = 0; k < cols; ++k) {
         const int i = block[k];
@@ -438,6 +549,12 @@ class CapacitanceSolver final : public ElectricSolver {
   std::vector<long> lastUsed_;             // slot -> frame of last use
   std::vector<int> slotOf_;                // free index -> slot (-1: not cached)
   Eigen::MatrixXd rhs_, block_;            // identity columns and their solutions
+  // the Woodbury term: K'^-1 = K0^-1 - Y0 M Y0^T on the rows S0 (see the file comment)
+  std::vector<double> factoredValues_;  // K0: free_.matrix values when factorized
+  std::vector<int> woodburyRows_;       // S0, in the order added
+  std::vector<int> woodburyPos_;        // base index -> position in S0 (-1: not in S0)
+  Eigen::MatrixXd y0_;                  // K0^-1 I_:S0 (n_f x s0)
+  Eigen::MatrixXd m_;                   // E0 (I + Y0_S0 E0)^-1 (s0 x s0)
   long frame_ = 0;
 };
 

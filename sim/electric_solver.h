@@ -94,6 +94,12 @@ enum class ElectricStrategy { Refactor, DenseInverse, Capacitance, Pcg };
 
 enum class PcgPreconditioner { Jacobi, IncompleteCholesky };
 
+// how capacitance applies updateMatrix to its factor (see electric_capacitance.cpp)
+enum class CapacitanceUpdate {
+  Woodbury,  // keep the supernodal factor, add a low-rank Woodbury term to its solves
+  Downdate   // modify a simplicial LDL' factor (CHOLMOD rowdel, updown): slower solves
+};
+
 // "refactor", "dense-inverse", "capacitance", "pcg"; throws Error listing the valid names
 ElectricStrategy parseElectricStrategy(const std::string& name);
 
@@ -108,7 +114,8 @@ struct ElectricSolverOptions {
   double denseMemoryLimitBytes = 2048.0 * 1048576.0;  // dense-inverse refuses above (2 GiB)
   double cacheMemoryLimitBytes = 1e9;                 // capacitance column cache cap (LRU eviction)
   int capacitancePatchNodes = 16;                     // capacitance: candidates solved together
-  int threads = 1;                                    // BLAS threads (CHOLMOD supernodal uses BLAS)
+  CapacitanceUpdate capacitanceUpdate = CapacitanceUpdate::Woodbury;  // capacitance updateMatrix
+  int threads = 1;  // BLAS threads (CHOLMOD supernodal uses BLAS)
 };
 
 // Checks the options; throws Error naming the scenario key (solvers.electric.*).
@@ -128,6 +135,8 @@ struct ElectricUpdateStats {
   int changedNodes = 0;        // free nodes whose row of K_ff changed (still free)
   int droppedNodes = 0;        // free nodes that left the free set (floating or grounded)
   int rank = 0;                // capacitance, dense-inverse: rank of the change applied
+  bool refactored = false;     // capacitance: the factor was recomputed numerically (same
+                               // ordering; the Woodbury term had grown too large)
   int columnsCorrected = 0;    // capacitance: cached columns corrected in place
   int columnsDropped = 0;      // capacitance: cached columns dropped (node left the free
                                // set, or correcting them would cost more than solving again)

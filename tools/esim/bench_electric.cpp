@@ -68,7 +68,7 @@ struct BenchElectricOptions {
   bool onlyUpdate = false;  // only that table
   std::string updateSizes = "1013,8000,20000,50000";
   std::string updateTets = "5";
-  std::string updateStrategies = "capacitance,refactor,pcg,dense-inverse";
+  std::string updateStrategies = "capacitance,capacitance-downdate,refactor,pcg,dense-inverse";
   int updateReps = 1;
 };
 
@@ -322,9 +322,10 @@ struct UpdateTiming {
 // sweep (capacitance: their columns are cached), then `tets` tets nearest the top of the
 // path at x = 0 are removed
 UpdateTiming timeUpdate(const Scene& s, ElectricStrategy strategy, const BenchElectricOptions& opt,
-                        int tets) {
+                        int tets, bool downdate) {
   ElectricSolverOptions so;
   so.strategy = strategy;
+  if (downdate) so.capacitanceUpdate = CapacitanceUpdate::Downdate;
   so.threads = opt.threads;
   so.pcgTolerance = opt.pcgTolerance;
   so.denseMemoryLimitBytes = opt.denseLimitGb * 1e9;
@@ -386,7 +387,14 @@ UpdateTiming timeUpdate(const Scene& s, ElectricStrategy strategy, const BenchEl
 
 void runUpdate(const BenchElectricOptions& opt) {
   const std::vector<int> sizes = app::parseNodeCounts(opt.updateSizes, "bench electric");
-  const std::vector<ElectricStrategy> strategies = parseStrategies(opt.updateStrategies);
+  // strategies, and "capacitance-downdate" (capacitance with CapacitanceUpdate::Downdate)
+  std::vector<std::pair<ElectricStrategy, bool>> strategies;
+  for (const std::string& item : app::splitList(opt.updateStrategies)) {
+    if (item == "capacitance-downdate")
+      strategies.emplace_back(ElectricStrategy::Capacitance, true);
+    else
+      strategies.emplace_back(parseElectricStrategy(item), false);
+  }
   std::vector<int> tetCounts;
   for (const std::string& item : app::splitList(opt.updateTets))
     tetCounts.push_back(std::stoi(item));
@@ -397,21 +405,23 @@ void runUpdate(const BenchElectricOptions& opt) {
       "solved before the cut; new = a contact set never solved (n columns computed);\n"
       "best of %d run(s), ms\n",
       40, opt.updateReps);
-  std::printf("%-14s %7s %5s %10s %10s %8s %10s %10s %10s %10s %9s  %s\n", "strategy", "nodes",
+  std::printf("%-20s %7s %5s %10s %10s %8s %10s %10s %10s %10s %9s  %s\n", "strategy", "nodes",
               "tets", "update_ms", "set_ms", "set/upd", "cached_up", "cached_fr", "new_up",
               "new_fr", "rel_err", "what was done");
   for (int target : sizes) {
     Scene s = buildScene(target);
     sweepContacts(s, std::max(opt.frames, 60));
     for (int tets : tetCounts) {
-      for (ElectricStrategy st : strategies) {
+      for (const auto& [st, downdate] : strategies) {
+        const std::string name =
+            std::string(electricStrategyName(st)) + (downdate ? "-downdate" : "");
         UpdateTiming best;
         bool have = false;
         std::string skipped;
         for (int rep = 0; rep < std::max(1, opt.updateReps); ++rep) {
           UpdateTiming t;
           try {
-            t = timeUpdate(s, st, opt, tets);
+            t = timeUpdate(s, st, opt, tets, downdate);
           } catch (const Error& e) {
             skipped = e.what();
             break;
@@ -420,8 +430,8 @@ void runUpdate(const BenchElectricOptions& opt) {
           have = true;
         }
         if (!have) {
-          std::printf("%-14s %7d %5d  skipped: %.60s\n", electricStrategyName(st),
-                      s.mesh.numNodes(), tets, skipped.c_str());
+          std::printf("%-20s %7d %5d  skipped: %.60s\n", name.c_str(), s.mesh.numNodes(), tets,
+                      skipped.c_str());
           continue;
         }
         const ElectricUpdateStats& u = best.stats;
@@ -435,8 +445,8 @@ void runUpdate(const BenchElectricOptions& opt) {
         char newUp[32], newFr[32];
         std::snprintf(newUp, sizeof newUp, "%.2f(%d)", best.newAfterMs, best.newAfter);
         std::snprintf(newFr, sizeof newFr, "%.2f(%d)", best.newFreshMs, best.newFresh);
-        std::printf("%-14s %7d %5d %10.3f %10.2f %8.1f %10.3f %10.3f %10s %10s %9.1e  %s\n",
-                    electricStrategyName(st), s.mesh.numNodes(), tets, best.updateMs, best.setMs,
+        std::printf("%-20s %7d %5d %10.3f %10.2f %8.1f %10.3f %10.3f %10s %10s %9.1e  %s\n",
+                    name.c_str(), s.mesh.numNodes(), tets, best.updateMs, best.setMs,
                     best.setMs / std::max(best.updateMs, 1e-6), best.cachedAfterMs,
                     best.cachedFreshMs, newUp, newFr, best.maxRelError, what);
         std::fflush(stdout);
