@@ -41,12 +41,13 @@
 //        one is converted at the first update, and its solves are 2-3.5x slower
 //        (measured: esim bench electric --only-update, 8k-20k nodes), which is why this
 //        is not the default.
-//      Afterwards one solve must reach a relative residual <= 1e-10 (and, Downdate,
+//      Afterwards Y = K'^-1 I_:S (S: the changed rows staying free; Woodbury: from Y0
+//      without a solve) must satisfy ||K' Y - I||_F / sqrt(s) <= 1e-10 (and, Downdate,
 //      every pivot > 0); else the factor is recomputed (Woodbury) or setMatrix is done.
 //   2. cached columns: z = K^-1 e_j gives K' z = e_j + E z, so
 //        z' = K'^-1 e_j = z - K'^-1 (E z) = z - Y (E z)_S,   Y = K'^-1 I_:S
-//      (S: the rows of E staying free; rows leaving the free set give z'_D = 0). One block
-//      solve for Y (s columns), then all cached columns at once in chunks: R = (E Z)_S,
+//      (S: the rows of E staying free; rows leaving the free set give z'_D = 0). Y from
+//      step 1, then all cached columns at once in chunks: R = (E Z)_S,
 //      Z -= Y R (BLAS-3 dgemm), 2 n_f s flops per column, against about 4 nnz(L) flops to
 //      solve a column again: above kCorrectionShare of that the cache is dropped instead.
 //   3. patches: kept; setContactCandidates with the new surface adds patches for the new
@@ -132,6 +133,8 @@ class CapacitanceSolver final : public ElectricSolver {
                       " rows change, above " + messageNumber(kMaxUpdateFraction) +
                       " n_f: a new factorization is cheaper");
     setBlasThreads(options_.threads);
+    std::vector<int> rows;
+    Eigen::MatrixXd y;
     // 1. the factor
     try {
       if (downdate) {
@@ -144,11 +147,16 @@ class CapacitanceSolver final : public ElectricSolver {
         free_.apply(change);
         stats.rank = extendWoodbury(change, stats);
       }
-      double residual = checkResidual();
+      // Y = K'^-1 I_:S on the rows S of E staying free: checks the update along the
+      // directions it changed, then corrects the cached columns
+      rows = stayingRows(change);
+      y = inverseColumns(rows);
+      double residual = identityResidual(rows, y);
       if (!(residual <= kUpdateResidual) && !downdate && !stats.refactored) {
         refactorNumeric();
         stats.refactored = true;
-        residual = checkResidual();
+        y = inverseColumns(rows);
+        residual = identityResidual(rows, y);
       }
       if (!(residual <= kUpdateResidual))
         return fallBack("the updated factor solves to a residual of " + messageNumber(residual));
@@ -157,7 +165,7 @@ class CapacitanceSolver final : public ElectricSolver {
       return fallBack(std::string("the factor update failed: ") + e.what());
     }
     // 2. the cached columns
-    correctColumns(change, stats);
+    correctColumns(change, rows, y, stats);
     return stats;
   }
 
@@ -400,17 +408,56 @@ class CapacitanceSolver final : public ElectricSolver {
   }
 
   // relative residual ||K' x - b|| / ||b|| of one solve with the modified factor
-  double checkResidual() {
+  // the base indices staying free with a changed row (ascending)
+  std::vector<int> stayingRows(const BaseChange& change) const {
     const int nf = free_.size();
-    Eigen::VectorXd b(nf), x(nf);
-    for (int i = 0; i < nf; ++i) b[i] = 1.0 + 0.5 * std::sin(0.7 * i);  // fixed, generic
-    solveBlock(b.data(), x.data(), 1);
-    return (free_.matrix * x - b).norm() / b.norm();
+    std::vector<std::uint8_t> seen(nf, 0);
+    for (int j = 0; j < nf; ++j)
+      for (SparseMatrix::InnerIterator it(change.delta, j); it; ++it)
+        if (free_.active[it.row()]) seen[it.row()] = 1;
+    std::vector<int> rows;
+    for (int i = 0; i < nf; ++i)
+      if (seen[i]) rows.push_back(i);
+    return rows;
+  }
+
+  // K'^-1 I_:rows; from Y0 without a solve when every row is in S0 (Woodbury)
+  Eigen::MatrixXd inverseColumns(const std::vector<int>& rows) {
+    const int nf = free_.size(), s = static_cast<int>(rows.size());
+    Eigen::MatrixXd y(nf, s);
+    bool inS0 = !woodburyRows_.empty();
+    for (int i : rows) inS0 = inS0 && woodburyPos_[i] >= 0;
+    if (inS0) {
+      // x = K0^-1 I_:rows = Y0 columns; K'^-1 I_:rows = x - Y0 M x_S0
+      const int s0 = static_cast<int>(woodburyRows_.size());
+      Eigen::MatrixXd xs(s0, s);
+      for (int k = 0; k < s; ++k) {
+        y.col(k) = y0_.col(woodburyPos_[rows[k]]);
+        for (int a = 0; a < s0; ++a) xs(a, k) = y0_(woodburyRows_[a], woodburyPos_[rows[k]]);
+      }
+      const Eigen::MatrixXd w = m_ * xs;
+      cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, nf, s, s0, -1.0, y0_.data(), nf,
+                  w.data(), s0, 1.0, y.data(), nf);
+      return y;
+    }
+    Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(nf, s);
+    for (int k = 0; k < s; ++k) rhs(rows[k], k) = 1.0;
+    solveBlock(rhs.data(), y.data(), s);
+    return y;
+  }
+
+  // ||K' Y - I_:rows||_F / sqrt(s): the relative residual of the s unit right-hand sides
+  double identityResidual(const std::vector<int>& rows, const Eigen::MatrixXd& y) const {
+    if (rows.empty()) return 0.0;
+    Eigen::MatrixXd r = free_.matrix * y;
+    for (size_t k = 0; k < rows.size(); ++k) r(rows[k], k) -= 1.0;
+    return r.norm() / std::sqrt(static_cast<double>(rows.size()));
   }
 
   // z' = z - Y (E z)_S for every cached column still free (see the file comment), or
-  // drops the cache when solving the columns again is cheaper
-  void correctColumns(const BaseChange& change, ElectricUpdateStats& stats) {
+  // drops the cache when solving the columns again is cheaper; rows: S, y: K'^-1 I_:S
+  void correctColumns(const BaseChange& change, const std::vector<int>& rows,
+                      const Eigen::MatrixXd& y, ElectricUpdateStats& stats) {
     const int nf = free_.size();
     // columns of nodes leaving the free set go
     for (int d : change.dropped) {
@@ -423,18 +470,10 @@ class CapacitanceSolver final : public ElectricSolver {
     for (size_t slot = 0; slot < slotNode_.size(); ++slot)
       if (slotNode_[slot] >= 0) slots.push_back(static_cast<int>(slot));
     if (slots.empty()) return;
-    // S: rows of E staying free
-    std::vector<int> where(nf, -1), rows;
-    for (int j = 0; j < nf; ++j)
-      for (SparseMatrix::InnerIterator it(change.delta, j); it; ++it)
-        if (free_.active[it.row()]) where[it.row()] = 1;
-    for (int i = 0; i < nf; ++i)
-      if (where[i] >= 0) {
-        where[i] = static_cast<int>(rows.size());
-        rows.push_back(i);
-      }
     const int s = static_cast<int>(rows.size());
-    const double correctFlops = 2.0 * nf * s * slots.size() + 4.0 * factor_.factorEntries() * s;
+    std::vector<int> where(nf, -1);
+    for (int k = 0; k < s; ++k) where[rows[k]] = k;
+    const double correctFlops = 2.0 * nf * s * slots.size();
     const double solveFlops = 4.0 * factor_.factorEntries() * slots.size();
     if (correctFlops > kCorrectionShare * solveFlops) {
       for (int slot : slots) {
@@ -444,10 +483,6 @@ class CapacitanceSolver final : public ElectricSolver {
       stats.columnsDropped += static_cast<int>(slots.size());
       return;
     }
-    // Y = K'^-1 I_:S
-    Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(nf, s), y(nf, s);
-    for (int k = 0; k < s; ++k) rhs(rows[k], k) = 1.0;
-    solveBlock(rhs.data(), y.data(), s);
     // the entries of E in the rows S: (position in S, column, value)
     struct Entry {
       int row, col;
