@@ -149,22 +149,30 @@ class CapacitanceSolver final : public ElectricSolver {
       }
       // Y = K'^-1 I_:S on the rows S of E staying free: checks the update along the
       // directions it changed, then corrects the cached columns
+      // (a new numeric factorization needs no check)
       rows = stayingRows(change);
-      y = inverseColumns(rows);
-      double residual = identityResidual(rows, y);
-      if (!(residual <= kUpdateResidual) && !downdate && !stats.refactored) {
-        refactorNumeric();
-        stats.refactored = true;
+      if (!stats.refactored) {
         y = inverseColumns(rows);
-        residual = identityResidual(rows, y);
+        const double residual = identityResidual(rows, y);
+        if (!(residual <= kUpdateResidual)) {
+          if (downdate)
+            return fallBack("the updated factor solves to a residual of " +
+                            messageNumber(residual));
+          refactorNumeric();
+          stats.refactored = true;
+          y.resize(0, 0);
+        }
       }
-      if (!(residual <= kUpdateResidual))
-        return fallBack("the updated factor solves to a residual of " + messageNumber(residual));
+      // 2. the cached columns (after a refactorization Y costs s solves: only if it pays)
+      const double entries = factor_.factorEntries(), cached = cachedColumns();
+      if (y.cols() != static_cast<int>(rows.size()) &&
+          4.0 * entries * rows.size() + 2.0 * nf * rows.size() * cached <
+              kCorrectionShare * 4.0 * entries * cached)
+        y = inverseColumns(rows);
     } catch (const Error& e) {
       if (e.kind() == ErrorKind::Internal) throw;
       return fallBack(std::string("the factor update failed: ") + e.what());
     }
-    // 2. the cached columns
     correctColumns(change, rows, y, stats);
     return stats;
   }
@@ -455,7 +463,8 @@ class CapacitanceSolver final : public ElectricSolver {
   }
 
   // z' = z - Y (E z)_S for every cached column still free (see the file comment), or
-  // drops the cache when solving the columns again is cheaper; rows: S, y: K'^-1 I_:S
+  // drops the cache when solving the columns again is cheaper or y is not given;
+  // rows: S, y: K'^-1 I_:S
   void correctColumns(const BaseChange& change, const std::vector<int>& rows,
                       const Eigen::MatrixXd& y, ElectricUpdateStats& stats) {
     const int nf = free_.size();
@@ -475,7 +484,7 @@ class CapacitanceSolver final : public ElectricSolver {
     for (int k = 0; k < s; ++k) where[rows[k]] = k;
     const double correctFlops = 2.0 * nf * s * slots.size();
     const double solveFlops = 4.0 * factor_.factorEntries() * slots.size();
-    if (correctFlops > kCorrectionShare * solveFlops) {
+    if (y.cols() != s || correctFlops > kCorrectionShare * solveFlops) {
       for (int slot : slots) {
         slotOf_[slotNode_[slot]] = -1;
         slotNode_[slot] = -1;
