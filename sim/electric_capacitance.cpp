@@ -75,11 +75,19 @@ namespace {
 constexpr double kCorrectionShare = 0.5;
 // a modified factor must solve to this relative residual, else setMatrix
 constexpr double kUpdateResidual = 1e-10;
-// Downdate: largest number of base indices (changed + dropped) modified in place, as a
-// fraction of n_f (plus 64): above, a new factorization is cheaper
-constexpr double kMaxUpdateFraction = 0.1;
-// Woodbury: the term is folded into a numeric refactorization when it costs more than
-// this share of a solve with the factor (2 n_f s0 flops vs 4 nnz(L) per column), or
+// an update is done in place while the solves for its new rows of S (4 nnz(L) flops
+// each) cost less than kRefactorShare of a numeric factorization (CHOLMOD's flop count)
+// or kMinRefactorFlops; above, Woodbury refactorizes numerically (same ordering) and
+// Downdate does setMatrix. Measured (esim bench electric --only-update --update-tets
+// 5,50,200, 20k and 50k nodes, Woodbury, shared machine): in place is 2.5-6x faster than
+// setMatrix at 5 tets (s ~ 9), about even at 50 tets at 20k (s ~ 30, the cache
+// correction dominating), slower beyond; these solves alone reach one factorization at
+// s ~ 70-85. The cached columns are corrected only when that is cheaper than solving
+// them again (kCorrectionShare), whatever the factor did.
+constexpr double kRefactorShare = 1.0;
+constexpr double kMinRefactorFlops = 5e7;
+// Woodbury: the term is also folded into a numeric refactorization when it costs more
+// than this share of a solve with the factor (2 n_f s0 flops vs 4 nnz(L) per column), or
 // above kMaxWoodburyRows rows
 constexpr double kWoodburyShare = 0.5;
 constexpr int kMaxWoodburyRows = 1024;
@@ -128,10 +136,9 @@ class CapacitanceSolver final : public ElectricSolver {
     if (change.empty()) return stats;
     const int nf = free_.size();
     const bool downdate = options_.capacitanceUpdate == CapacitanceUpdate::Downdate;
-    if (downdate && change.touched.size() + change.dropped.size() > kMaxUpdateFraction * nf + 64)
+    if (downdate && rowSolveFlops(change.touched.size() + change.dropped.size()) > refactorFlops())
       return fallBack(std::to_string(change.touched.size() + change.dropped.size()) +
-                      " rows change, above " + messageNumber(kMaxUpdateFraction) +
-                      " n_f: a new factorization is cheaper");
+                      " rows change: a new factorization is cheaper");
     setBlasThreads(options_.threads);
     std::vector<int> rows;
     Eigen::MatrixXd y;
@@ -295,6 +302,16 @@ class CapacitanceSolver final : public ElectricSolver {
     }
   }
 
+  // flops of solving for s unit right-hand sides
+  double rowSolveFlops(size_t s) const {
+    return 4.0 * factor_.factorEntries() * static_cast<double>(s);
+  }
+
+  // the in-place budget (see kRefactorShare)
+  double refactorFlops() const {
+    return std::max(kRefactorShare * factor_.factorizeFlops(), kMinRefactorFlops);
+  }
+
   // ---- the Woodbury term (see the file comment) ----
 
   // factorizes the current matrix with the kept ordering; the Woodbury term is emptied
@@ -325,7 +342,7 @@ class CapacitanceSolver final : public ElectricSolver {
     const int s0 = static_cast<int>(woodburyRows_.size() + fresh.size());
     const double limit = std::min<double>(
         kMaxWoodburyRows, kWoodburyShare * 4.0 * factor_.factorEntries() / (2.0 * nf));
-    if (s0 > limit) {
+    if (s0 > limit || rowSolveFlops(fresh.size()) > refactorFlops()) {
       refactorNumeric();
       stats.refactored = true;
       return static_cast<int>(rows.size());

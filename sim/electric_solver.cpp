@@ -340,6 +340,7 @@ void CholmodFactor::analyze(const SparseMatrix& A) {
   ESIM_RUN_CHECK(impl_->factor != nullptr,
                  "electric solver: CHOLMOD symbolic analysis failed "
                  "(out of memory?)");
+  factorizeFlops_ = c->fl;
 }
 
 void CholmodFactor::factorize(const SparseMatrix& A, const char* what) {

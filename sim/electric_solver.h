@@ -291,11 +291,14 @@ class CholmodFactor {
   bool pivotsPositive() const;
   // stored entries of L (a solve costs about 4 flops per entry per right-hand side)
   double factorEntries() const;
+  // flops of one numeric factorization (from the symbolic analysis)
+  double factorizeFlops() const { return factorizeFlops_; }
 
  private:
   struct Impl;
   Impl* impl_;
   bool factorized_ = false;
+  double factorizeFlops_ = 0;
 };
 
 // the strategies (one file each)
