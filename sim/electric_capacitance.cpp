@@ -33,14 +33,16 @@
 //        so an update costs one supernodal block solve for the new rows of S0 and an
 //        s0^3 LU, and every later solve 2 n_f s0 flops more. When that exceeds half of a
 //        solve (2 n_f s0 > 2 nnz(L)) the factor is recomputed numerically with the kept
-//        ordering (stats.refactored; no symbolic analysis, the cache stays valid).
+//        ordering (stats.refactored; no symbolic analysis; the cached columns are then
+//        corrected only if the s solves for Y pay, else dropped).
 //      Downdate: rows leaving the free set are deleted (cholmod_rowdel), then E on the
 //        rows staying free, split by an eigendecomposition into C+ C+^T - C- C-^T (a
 //        removal is negative semidefinite: C+ is empty up to rounding), is applied by
 //        cholmod_updown. CHOLMOD modifies only a simplicial LDL' factor: the supernodal
-//        one is converted at the first update, and its solves are 2-3.5x slower
-//        (measured: esim bench electric --only-update, 8k-20k nodes), which is why this
-//        is not the default.
+//        one is converted at the first update, and its column solves are 1.6-2.6x
+//        slower (measured: esim bench electric --only-update, 8k-50k nodes; the
+//        Woodbury solves cost the same as a fresh factor's), which is why this is not
+//        the default. Its updates were also 1.5-2.5x slower than Woodbury's.
 //      Afterwards Y = K'^-1 I_:S (S: the changed rows staying free; Woodbury: from Y0
 //      without a solve) must satisfy ||K' Y - I||_F / sqrt(s) <= 1e-10 (and, Downdate,
 //      every pivot > 0); else the factor is recomputed (Woodbury) or setMatrix is done.

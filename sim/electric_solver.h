@@ -48,7 +48,7 @@
 //                   (z' = z - K'^-1 (K' - K) z, one BLAS-3 product, 2 n_f s flops
 //                   a column) unless solving it again is cheaper.
 //                   CapacitanceUpdate::Downdate modifies a simplicial LDL' factor
-//                   instead (CHOLMOD rowdel, updown; 2-3.5x slower solves after).
+//                   instead (CHOLMOD rowdel, updown; 1.6-2.6x slower solves after).
 //                   See electric_capacitance.cpp.
 //   pcg           - conjugate gradients on the reduced system, warm-started from
 //                   the input potential, Jacobi or incomplete-Cholesky
