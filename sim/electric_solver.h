@@ -152,7 +152,8 @@ struct ElectricUpdateStats {
   int droppedNodes = 0;        // free nodes that left the free set (floating or grounded)
   int rank = 0;                // capacitance, dense-inverse: rank of the change applied
   bool refactored = false;     // capacitance: the factor was recomputed numerically (same
-                               // ordering; the Woodbury term had grown too large)
+                               // ordering): the change or the Woodbury term was too large
+                               // to pay, or the accuracy check after the update failed
   int columnsCorrected = 0;    // capacitance: cached columns corrected in place
   int columnsDropped = 0;      // capacitance: cached columns dropped (node left the free
                                // set, or correcting them would cost more than solving again)
@@ -181,9 +182,9 @@ class ElectricSolver {
   virtual void prefetch(const std::vector<int>& /*nodes*/) {}
   // the nodes the tool can touch (the surface nodes); capacitance groups them into
   // patches solved together (see electric_capacitance.cpp); others ignore it. Kept
-  // across setMatrix; call again after the surface changes (after a setMatrix: every
-  // patch is rebuilt at the next setMatrix; between, candidates already in a patch keep
-  // it, new ones are grouped into new patches, and the column cache is kept).
+  // across setMatrix, which rebuilds every patch; call again after the surface changes:
+  // between setMatrix calls, candidates already in a patch keep it, new ones are grouped
+  // into new patches and the column cache is kept.
   virtual void setContactCandidates(const std::vector<int>& /*nodes*/) {}
   // bytes held by factorizations, inverses, caches
   virtual double memoryBytes() const = 0;
