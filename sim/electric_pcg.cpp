@@ -8,7 +8,8 @@
 // thirds the iterations but is recomputed whenever the contact set or the matrix
 // changes, which on the slab benchmark costs more than it saves (`esim bench
 // electric --pcg-preconditioner ic`). setMatrix only replaces the matrix: the warm start
-// carries over, so a small conductivity change costs a few iterations.
+// carries over, so a small conductivity change costs a few iterations. updateMatrix
+// (a cut) is setMatrix: O(nnz), nothing to update.
 // Not converging is not an exception: stats.residual > pcgTolerance says so.
 // Single-threaded (Eigen without OpenMP), deterministic.
 #include <Eigen/IterativeLinearSolvers>
@@ -36,8 +37,15 @@ class PcgSolver final : public ElectricSolver {
     const ResetOnThrow guard(classes_);
     classes_.build(K, grounded);
     kff_ = restrictToFree(K, classes_);
-    system_ = kff_;
+    system_ = kff_;  // a new pattern: the preconditioner is computed again
     prepared_ = false;
+  }
+
+  // a new matrix is all pcg needs (O(nnz); the warm start carries over)
+  ElectricUpdateStats updateMatrix(const SparseMatrix& K,
+                                   const std::vector<int>& grounded) override {
+    setMatrix(K, grounded);
+    return {};
   }
 
   ElectricSolveStats solve(const std::vector<int>& contact, double voltageV,

@@ -6,6 +6,9 @@
 // is done once per setMatrix and each contact change costs one numeric CHOLMOD
 // supernodal factorization. A solve with an unchanged contact set and voltage
 // reuses the factorization (one triangular solve pair).
+// updateMatrix keeps the indices, pattern and symbolic analysis of the last setMatrix
+// (nodes that stop being free get identity rows) and only rewrites the values, O(nnz);
+// the next solve refactors numerically, as it would for a new contact set.
 #include <algorithm>
 
 #include "sim/core_error.h"
@@ -20,26 +23,45 @@ class RefactorSolver final : public ElectricSolver {
 
   void setMatrix(const SparseMatrix& K, const std::vector<int>& grounded) override {
     setBlasThreads(options_.threads);
-    const ResetOnThrow guard(classes_);
-    classes_.build(K, grounded);
-    kff_ = restrictToFree(K, classes_);
-    system_ = kff_;
-    if (classes_.numFree() > 0) factor_.analyze(system_);
+    const ResetOnThrow guard(free_.current);
+    free_.set(K, grounded);
+    system_ = free_.matrix;
+    if (free_.size() > 0) factor_.analyze(system_);
     hasFactor_ = false;
+  }
+
+  ElectricUpdateStats updateMatrix(const SparseMatrix& K,
+                                   const std::vector<int>& grounded) override {
+    ESIM_CHECK(free_.current.n > 0);  // setMatrix before updateMatrix
+    const ResetOnThrow guard(free_.current);
+    const BaseChange change = free_.diff(K, grounded);
+    ElectricUpdateStats stats;
+    if (!change.fallback.empty()) {
+      setMatrix(K, grounded);
+      stats.fellBack = true;
+      stats.fallbackReason = change.fallback;
+      return stats;
+    }
+    stats.changedNodes = static_cast<int>(change.touched.size());
+    stats.droppedNodes = static_cast<int>(change.dropped.size());
+    if (change.empty()) return stats;
+    free_.apply(change);
+    hasFactor_ = false;
+    return stats;
   }
 
   ElectricSolveStats solve(const std::vector<int>& contact, double voltageV,
                            Eigen::VectorXd& potential) override {
-    ESIM_CHECK(classes_.n > 0);  // setMatrix before solve
+    ESIM_CHECK(free_.current.n > 0);  // setMatrix before solve
     ElectricSolveStats stats;
-    const std::vector<int> cf = classes_.contactFreeIndices(contact);
+    const std::vector<int> cf = free_.contactBaseIndices(contact);
     if (cf.empty()) {
-      potential.setZero(classes_.n);
+      potential.setZero(free_.current.n);
       return stats;
     }
     setBlasThreads(options_.threads);
     Eigen::VectorXd b;
-    dirichletSystem(kff_, cf, voltageV, system_, b);
+    dirichletSystem(free_.matrix, cf, voltageV, system_, b);
     if (!hasFactor_ || cf != factoredContact_) {
       factor_.factorize(system_, "refactor");
       factoredContact_ = cf;
@@ -48,20 +70,19 @@ class RefactorSolver final : public ElectricSolver {
     }
     Eigen::VectorXd x(b.size());
     factor_.solve(b.data(), x.data());
-    scatterPotential(classes_, x, cf, voltageV, potential);
+    free_.scatter(x, cf, voltageV, potential);
     return stats;
   }
 
   double memoryBytes() const override {
-    return factor_.memoryBytes() + 2.0 * 12.0 * static_cast<double>(kff_.nonZeros());
+    return factor_.memoryBytes() + 2.0 * 12.0 * static_cast<double>(free_.matrix.nonZeros());
   }
   const char* name() const override { return "refactor"; }
 
  private:
   ElectricSolverOptions options_;
-  NodeClasses classes_;
-  SparseMatrix kff_;     // K restricted to the free nodes
-  SparseMatrix system_;  // kff_ with the contact rows/columns set to the identity
+  FreeBase free_;        // K restricted to the free nodes (base indices)
+  SparseMatrix system_;  // free_.matrix with the contact rows/columns set to the identity
   CholmodFactor factor_;
   bool hasFactor_ = false;
   std::vector<int> factoredContact_;

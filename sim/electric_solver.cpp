@@ -15,6 +15,15 @@ namespace esim {
 
 ElectricSolver::~ElectricSolver() = default;
 
+ElectricUpdateStats ElectricSolver::updateMatrix(const SparseMatrix& K,
+                                                 const std::vector<int>& grounded) {
+  setMatrix(K, grounded);
+  ElectricUpdateStats stats;
+  stats.fellBack = true;
+  stats.fallbackReason = std::string(name()) + " has no in-place update";
+  return stats;
+}
+
 // ---- names ----
 
 ElectricStrategy parseElectricStrategy(const std::string& name) {
@@ -149,6 +158,100 @@ SparseMatrix restrictToFree(const SparseMatrix& K, const NodeClasses& classes) {
   return A;
 }
 
+// ---- base index space ----
+
+void FreeBase::set(const SparseMatrix& K, const std::vector<int>& grounded) {
+  current = NodeClasses{};
+  base.build(K, grounded);
+  matrix = restrictToFree(K, base);
+  active.assign(base.numFree(), 1);
+  current = base;
+}
+
+BaseChange FreeBase::diff(const SparseMatrix& K, const std::vector<int>& grounded) const {
+  BaseChange ch;
+  ch.classes.build(K, grounded);
+  if (ch.classes.n != base.n) {
+    ch.fallback = "the node count changed";
+    return ch;
+  }
+  for (int i = 0; i < base.n; ++i) {
+    if (ch.classes.freeIndex[i] >= 0 && current.freeIndex[i] < 0) {
+      ch.fallback = "node " + std::to_string(i) + " joined the free set";
+      return ch;
+    }
+  }
+  const int m = size();
+  std::vector<std::uint8_t> stays(m, 0);
+  for (int b = 0; b < m; ++b) {
+    stays[b] = ch.classes.freeIndex[base.freeNodes[b]] >= 0;
+    if (active[b] && !stays[b]) ch.dropped.push_back(b);
+  }
+  // new values in the base pattern: K's entries between nodes still free, identity rows
+  // and columns for the others
+  const int* outer = matrix.outerIndexPtr();
+  const int* inner = matrix.innerIndexPtr();
+  const double* old = matrix.valuePtr();
+  ch.values.assign(matrix.nonZeros(), 0.0);
+  std::vector<int> position(m, -1);
+  std::vector<Eigen::Triplet<double>> delta;
+  std::vector<std::uint8_t> touched(m, 0);
+  for (int j = 0; j < m; ++j) {
+    for (int p = outer[j]; p < outer[j + 1]; ++p) position[inner[p]] = p;
+    if (!stays[j]) {
+      ESIM_CHECK(position[j] >= 0);  // restrictToFree keeps the diagonal of a free node
+      ch.values[position[j]] = 1.0;
+    } else {
+      for (SparseMatrix::InnerIterator it(K, base.freeNodes[j]); it; ++it) {
+        const int b = base.freeIndex[it.row()];
+        if (b < 0 || !stays[b]) continue;
+        if (position[b] < 0) {
+          if (it.value() != 0.0 && ch.fallback.empty())
+            ch.fallback = "K_ff gained a nonzero outside the pattern of the last setMatrix";
+          continue;
+        }
+        ch.values[position[b]] = it.value();
+      }
+    }
+    for (int p = outer[j]; p < outer[j + 1]; ++p) {
+      const int i = inner[p];
+      const double d = ch.values[p] - old[p];
+      if (d != 0.0) {
+        delta.emplace_back(i, j, d);
+        if (stays[i] && stays[j]) touched[i] = touched[j] = 1;
+      }
+      position[i] = -1;
+    }
+  }
+  if (!ch.fallback.empty()) return ch;
+  ch.delta.resize(m, m);
+  ch.delta.setFromTriplets(delta.begin(), delta.end());
+  for (int b = 0; b < m; ++b)
+    if (touched[b]) ch.touched.push_back(b);
+  return ch;
+}
+
+void FreeBase::apply(const BaseChange& change) {
+  ESIM_CHECK(change.fallback.empty() && change.values.size() == size_t(matrix.nonZeros()));
+  current = change.classes;
+  std::copy(change.values.begin(), change.values.end(), matrix.valuePtr());
+  for (int d : change.dropped) active[d] = 0;
+}
+
+std::vector<int> FreeBase::contactBaseIndices(const std::vector<int>& contact) const {
+  std::vector<int> out = current.contactFreeIndices(contact);
+  for (int& c : out) c = base.freeIndex[current.freeNodes[c]];
+  return out;
+}
+
+void FreeBase::scatter(const Eigen::VectorXd& baseValues, const std::vector<int>& contactBase,
+                       double voltageV, Eigen::VectorXd& potential) const {
+  potential.setZero(base.n);
+  for (int b = 0; b < size(); ++b)
+    if (active[b]) potential[base.freeNodes[b]] = baseValues[b];
+  for (int c : contactBase) potential[base.freeNodes[c]] = voltageV;
+}
+
 void scatterPotential(const NodeClasses& classes, const Eigen::VectorXd& freeValues,
                       const std::vector<int>& contactFree, double voltageV,
                       Eigen::VectorXd& potential) {
@@ -237,6 +340,7 @@ void CholmodFactor::analyze(const SparseMatrix& A) {
   ESIM_RUN_CHECK(impl_->factor != nullptr,
                  "electric solver: CHOLMOD symbolic analysis failed "
                  "(out of memory?)");
+  factorizeFlops_ = c->fl;
 }
 
 void CholmodFactor::factorize(const SparseMatrix& A, const char* what) {
@@ -268,6 +372,76 @@ void CholmodFactor::solve(const double* b, double* x, int ncols) {
                                 &impl_->y, &impl_->e, c);
   ESIM_RUN_CHECK(ok, "electric solver: CHOLMOD solve failed (out of memory?)");
   std::copy_n(static_cast<const double*>(impl_->x->x), static_cast<size_t>(n) * ncols, x);
+}
+
+void CholmodFactor::toSimplicial() {
+  ESIM_CHECK(factorized_);
+  cholmod_factor* f = impl_->factor;
+  if (!f->is_super && !f->is_ll) return;
+  // simplicial LDL', not packed (room for fill), not monotonic
+  const int ok = cholmod_change_factor(CHOLMOD_REAL, false, false, false, false, f, &impl_->common);
+  ESIM_RUN_CHECK(ok && !f->is_super && !f->is_ll,
+                 "electric solver: CHOLMOD could not convert the factor to LDL' (out of memory?)");
+}
+
+bool CholmodFactor::isSupernodal() const { return impl_->factor && impl_->factor->is_super; }
+
+void CholmodFactor::deleteRow(int i) {
+  toSimplicial();
+  cholmod_factor* f = impl_->factor;
+  const int* perm = static_cast<const int*>(f->Perm);
+  int k = 0;
+  while (k < static_cast<int>(f->n) && perm[k] != i) ++k;
+  ESIM_CHECK(k < static_cast<int>(f->n));
+  const int ok = cholmod_rowdel(k, nullptr, f, &impl_->common);
+  ESIM_RUN_CHECK(ok, "electric solver: CHOLMOD rowdel failed (status " +
+                         std::to_string(impl_->common.status) + ")");
+}
+
+void CholmodFactor::updateDowndate(bool update, const SparseMatrix& C) {
+  toSimplicial();
+  cholmod_factor* f = impl_->factor;
+  const int n = static_cast<int>(f->n);
+  ESIM_CHECK(C.rows() == n);
+  if (C.cols() == 0) return;
+  // rows of C in the order of L: row i of A is row inversePerm[i] of L
+  const int* perm = static_cast<const int*>(f->Perm);
+  std::vector<int> inversePerm(n);
+  for (int k = 0; k < n; ++k) inversePerm[perm[k]] = k;
+  std::vector<Eigen::Triplet<double>> t;
+  t.reserve(C.nonZeros());
+  for (int j = 0; j < C.cols(); ++j)
+    for (SparseMatrix::InnerIterator it(C, j); it; ++it)
+      t.emplace_back(inversePerm[it.row()], j, it.value());
+  SparseMatrix permuted(n, C.cols());
+  permuted.setFromTriplets(t.begin(), t.end());  // compressed, rows sorted
+  cholmod_sparse cs = viewLower(permuted);
+  cs.stype = 0;  // unsymmetric n x r
+  const int ok = cholmod_updown(update, &cs, f, &impl_->common);
+  ESIM_RUN_CHECK(ok, "electric solver: CHOLMOD update/downdate failed (status " +
+                         std::to_string(impl_->common.status) + ")");
+}
+
+bool CholmodFactor::pivotsPositive() const {
+  const cholmod_factor* f = impl_->factor;
+  if (!f || f->is_super || f->is_ll) return factorized_;
+  const int* p = static_cast<const int*>(f->p);
+  const double* x = static_cast<const double*>(f->x);
+  for (size_t j = 0; j < f->n; ++j) {
+    const double d = x[p[j]];  // the diagonal comes first in each column
+    if (!(d > 0.0) || !std::isfinite(d)) return false;
+  }
+  return true;
+}
+
+double CholmodFactor::factorEntries() const {
+  const cholmod_factor* f = impl_->factor;
+  if (!f) return 0;
+  if (f->is_super) return static_cast<double>(f->xsize);
+  const int* nz = static_cast<const int*>(f->nz);
+  double entries = 0;
+  for (size_t j = 0; j < f->n; ++j) entries += nz[j];
+  return entries;
 }
 
 int CholmodFactor::size() const { return impl_->factor ? static_cast<int>(impl_->factor->n) : 0; }

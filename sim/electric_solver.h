@@ -6,7 +6,7 @@
 // contact nodes (tool). K is the n x n stiffness of the whole mesh (conductivity
 // [S/m] inside, entries [S]). Insulated (natural) boundary elsewhere.
 //
-// Node classes (fixed by setMatrix):
+// Node classes (fixed by setMatrix, then by each updateMatrix):
 //   grounded  - the ids passed to setMatrix, held at 0 V;
 //   floating  - nodes with no path to a grounded node through the nonzeros of K
 //               (nodes with no alive element, islands cut off by removal): their
@@ -18,17 +18,21 @@
 // o = f \ c are solved.
 //
 // Strategies (and what setMatrix costs, i.e. when K changes: conductivity
-// feedback, removed elements):
+// feedback, removed elements; updateMatrix: see below):
 //   refactor      - the conventional method (paper eq. 6-7): K_ff with the
 //                   contact rows/columns replaced by the identity (same pattern
 //                   for every contact set, so the symbolic analysis is done once
 //                   per setMatrix) is factorized numerically (CHOLMOD supernodal)
 //                   again whenever the contact set changes. setMatrix: a new
-//                   symbolic analysis; the next solve refactors.
+//                   symbolic analysis; the next solve refactors. updateMatrix:
+//                   new values in the kept pattern (no analysis); the next solve
+//                   refactors.
 //   dense-inverse - the paper's method (eq. 8-13): L = K_ff^-1 precomputed
 //                   (n_f^2 * 8 bytes, refused above denseMemoryLimitBytes);
 //                   per frame f_c = L_cc^-1 u_c, u_o = L_oc f_c (BLAS).
-//                   setMatrix: the whole inverse is recomputed.
+//                   setMatrix: the whole inverse is recomputed. updateMatrix: a
+//                   Sherman-Morrison-Woodbury update of rank s (the rows of
+//                   K_ff that changed), 2 n_f^2 s flops.
 //   capacitance   - one CHOLMOD factorization of K_ff; per contact set the
 //                   columns z_i = K_ff^-1 e_i of the contact nodes (cached across
 //                   frames: a new contact node costs one solve, or one block
@@ -36,15 +40,59 @@
 //                   setContactCandidates was given; least recently used columns
 //                   are evicted above cacheMemoryLimitBytes), the small system
 //                   Z_cc f = u_c, then u = Z f. setMatrix: a new factorization
-//                   and the cache is emptied.
+//                   and the cache is emptied. updateMatrix: the supernodal
+//                   factor is kept and a Woodbury term of rank s (the changed
+//                   rows) is added to its solves (one block solve of s columns),
+//                   folded into a numeric refactorization (kept ordering) when it
+//                   grows; every cached column is corrected in place
+//                   (z' = z - K'^-1 (K' - K) z, one BLAS-3 product, 2 n_f s flops
+//                   a column) unless solving it again is cheaper.
+//                   CapacitanceUpdate::Downdate modifies a simplicial LDL' factor
+//                   instead (CHOLMOD rowdel, updown; 1.6-2.6x slower solves after).
+//                   See electric_capacitance.cpp.
 //   pcg           - conjugate gradients on the reduced system, warm-started from
 //                   the input potential, Jacobi or incomplete-Cholesky
 //                   preconditioner, stopping at ||r|| <= pcgTolerance ||b||.
-//                   setMatrix: only the matrix is replaced (the warm start stays).
+//                   setMatrix: only the matrix is replaced (the warm start stays);
+//                   updateMatrix is setMatrix.
 // All strategies run with explicit thread counts (OpenBLAS set to `threads`,
 // Eigen single-threaded) and are deterministic for a given input.
 // Ownership: a solver owns copies of what it needs; K is not referenced after
-// setMatrix returns.
+// setMatrix or updateMatrix returns.
+// Thread safety: none inside one solver (every call, solve included, mutates caches);
+// distinct solvers may run on distinct threads.
+//
+// Matrix updates (issue #11, cutting): updateMatrix(K, grounded) gives the same
+// potential as setMatrix(K, grounded) (to rounding: 1e-9 relative is tested, every
+// strategy, any sequence of updates) at a cost set by the change, not the mesh:
+//   - made for element removal: K is the stiffness assembled from the alive elements
+//     after the cut (assembleStiffness; same pattern with explicit zeros or
+//     recompressed, both accepted). The change is read from K itself: the entries that
+//     differ from the current matrix (an O(nnz) comparison plus the node classes,
+//     O(nnz) breadth-first search). Unchanged entries must be bitwise unchanged (a
+//     fresh assembly gives that), otherwise they only count as changed rows;
+//   - nodes may leave the free set (no alive element left, an island cut off from the
+//     ground, a node newly grounded): they keep their index with an identity
+//     row/column, so orderings and factor sizes stay those of the last setMatrix;
+//   - it falls back to setMatrix (stats.fellBack, stats.fallbackReason) when a node
+//     joins the free set (the grounded set shrank and the node still has elements, or
+//     a floating island reconnects), when K_ff gains a nonzero outside the pattern of
+//     the last setMatrix, when the change is too large for an update to pay (the
+//     crossovers are in the strategy files) or when a factor modification fails
+//     numerically (a non-positive pivot or a residual above 1e-10);
+//   - throws Error on bad input exactly as setMatrix does (and then, like a failed
+//     setMatrix, leaves the solver unusable until the next setMatrix); a failed
+//     factorization in a fallback throws as setMatrix does;
+//   - cost (esim bench electric --only-update, 5 tets removed, one core, shared
+//     machine): capacitance 0.12-0.35 s vs 0.7-2.0 s for setMatrix at 50k nodes,
+//     with ~340 cached columns corrected, and the next solve of a cached contact set
+//     costs < 1 ms instead of solving its columns; refactor 7-24 ms (next solve
+//     refactors as always); pcg = setMatrix; dense-inverse 0.1 s vs 5 s at 8k nodes.
+// Capacitance after a cut, in this order: updateMatrix(K, grounded);
+// setContactCandidates(new surface nodes); prefetch(newly exposed nodes the tool may
+// touch) - all outside the frame loop, so the frame's solve finds its columns cached.
+// updateMatrix modifies the solver in place: a caller that keeps solving frames while
+// a cut is processed on another thread needs its own solver for that (or must wait).
 #pragma once
 
 #include <Eigen/Core>
@@ -62,6 +110,12 @@ enum class ElectricStrategy { Refactor, DenseInverse, Capacitance, Pcg };
 
 enum class PcgPreconditioner { Jacobi, IncompleteCholesky };
 
+// how capacitance applies updateMatrix to its factor (see electric_capacitance.cpp)
+enum class CapacitanceUpdate {
+  Woodbury,  // keep the supernodal factor, add a low-rank Woodbury term to its solves
+  Downdate   // modify a simplicial LDL' factor (CHOLMOD rowdel, updown): slower solves
+};
+
 // "refactor", "dense-inverse", "capacitance", "pcg"; throws Error listing the valid names
 ElectricStrategy parseElectricStrategy(const std::string& name);
 
@@ -76,7 +130,8 @@ struct ElectricSolverOptions {
   double denseMemoryLimitBytes = 2048.0 * 1048576.0;  // dense-inverse refuses above (2 GiB)
   double cacheMemoryLimitBytes = 1e9;                 // capacitance column cache cap (LRU eviction)
   int capacitancePatchNodes = 16;                     // capacitance: candidates solved together
-  int threads = 1;                                    // BLAS threads (CHOLMOD supernodal uses BLAS)
+  CapacitanceUpdate capacitanceUpdate = CapacitanceUpdate::Woodbury;  // capacitance updateMatrix
+  int threads = 1;  // BLAS threads (CHOLMOD supernodal uses BLAS)
 };
 
 // Checks the options; throws Error naming the scenario key (solvers.electric.*).
@@ -89,12 +144,34 @@ struct ElectricSolveStats {
   double residual = 0;      // pcg: relative residual reached
 };
 
+// what updateMatrix did
+struct ElectricUpdateStats {
+  bool fellBack = false;       // a full setMatrix was done instead
+  std::string fallbackReason;  // why (empty when updated in place)
+  int changedNodes = 0;        // free nodes whose row of K_ff changed (still free)
+  int droppedNodes = 0;        // free nodes that left the free set (floating or grounded)
+  int rank = 0;                // capacitance, dense-inverse: rank of the change applied
+  bool refactored = false;     // capacitance: the factor was recomputed numerically (same
+                               // ordering): the change or the Woodbury term was too large
+                               // to pay, or the accuracy check after the update failed
+  int columnsCorrected = 0;    // capacitance: cached columns corrected in place
+  int columnsDropped = 0;      // capacitance: cached columns dropped (node left the free
+                               // set, or correcting them would cost more than solving again)
+};
+
 class ElectricSolver {
  public:
   virtual ~ElectricSolver();
   // K: n x n stiffness of the whole mesh (conductivity inside); grounded: sorted ids
   // held at 0 V (at least one). Pre-processing. Throws Error on bad input.
   virtual void setMatrix(const SparseMatrix& K, const std::vector<int>& grounded) = 0;
+  // K changed a little since the last setMatrix/updateMatrix (elements removed by a cut):
+  // the same result as setMatrix(K, grounded) at the cost of the change (see "Matrix
+  // updates" above). The default is setMatrix (stats.fellBack). Capacitance: afterwards
+  // call setContactCandidates with the new surface (cache and patches are kept, the new
+  // candidates get patches) and prefetch the newly exposed nodes the tool may touch, so
+  // their columns are solved here and not in the frame loop.
+  virtual ElectricUpdateStats updateMatrix(const SparseMatrix& K, const std::vector<int>& grounded);
   // contact: sorted ids held at voltageV (disjoint from grounded, else Error "short
   // circuit"); potential: size n, in: warm start (pcg), out: the solution.
   // Empty contact -> potential 0 everywhere.
@@ -105,7 +182,9 @@ class ElectricSolver {
   virtual void prefetch(const std::vector<int>& /*nodes*/) {}
   // the nodes the tool can touch (the surface nodes); capacitance groups them into
   // patches solved together (see electric_capacitance.cpp); others ignore it. Kept
-  // across setMatrix; call again after the surface changes.
+  // across setMatrix, which rebuilds every patch; call again after the surface changes:
+  // between setMatrix calls, candidates already in a patch keep it, new ones are grouped
+  // into new patches and the column cache is kept.
   virtual void setContactCandidates(const std::vector<int>& /*nodes*/) {}
   // bytes held by factorizations, inverses, caches
   virtual double memoryBytes() const = 0;
@@ -153,6 +232,42 @@ class ResetOnThrow {
 // K restricted to the free nodes (both triangles), compressed
 SparseMatrix restrictToFree(const SparseMatrix& K, const NodeClasses& classes);
 
+// ---- the base index space of updateMatrix ----
+// Base indices are the free indices of the last setMatrix. A node that leaves the free
+// set later keeps its base index with an identity row and column (value 1 on the
+// diagonal, 0 elsewhere), so the base matrix keeps its size and pattern.
+
+// the difference between a new (K, grounded) and a FreeBase's current matrix
+struct BaseChange {
+  NodeClasses classes;         // of the new (K, grounded)
+  std::vector<double> values;  // the new base matrix values, in the base pattern
+  std::vector<int> dropped;    // base indices leaving the free set now, ascending
+  std::vector<int> touched;    // base indices staying free whose row changes, ascending
+  SparseMatrix delta;          // new - current base matrix (both triangles, changed entries)
+  std::string fallback;        // non-empty: cannot be applied in place (why)
+  bool empty() const { return dropped.empty() && delta.nonZeros() == 0; }
+};
+
+struct FreeBase {
+  NodeClasses base;                  // classes at the last setMatrix
+  NodeClasses current;               // classes now (free nodes: a subset of base's)
+  SparseMatrix matrix;               // current K_ff in base indices (both triangles)
+  std::vector<std::uint8_t> active;  // base index -> still free
+
+  // setMatrix: classes and K_ff (throws Error on bad input)
+  void set(const SparseMatrix& K, const std::vector<int>& grounded);
+  // the change to (K, grounded): O(nnz(K) + nnz(matrix)); throws Error on bad input
+  BaseChange diff(const SparseMatrix& K, const std::vector<int>& grounded) const;
+  // adopts a change without a fallback reason
+  void apply(const BaseChange& change);
+  // contactFreeIndices of the current classes, as base indices (ascending)
+  std::vector<int> contactBaseIndices(const std::vector<int>& contact) const;
+  // scatterPotential for base values (nodes no longer free: 0)
+  void scatter(const Eigen::VectorXd& baseValues, const std::vector<int>& contactBase,
+               double voltageV, Eigen::VectorXd& potential) const;
+  int size() const { return base.numFree(); }
+};
+
 // scatters free values into a full-size potential (fixed and floating nodes: 0,
 // contact: voltage)
 void scatterPotential(const NodeClasses& classes, const Eigen::VectorXd& freeValues,
@@ -181,11 +296,26 @@ class CholmodFactor {
   int size() const;
   double memoryBytes() const;
   bool factorized() const { return factorized_; }
+  // ---- in-place modification (CHOLMOD Modify; the factor becomes simplicial LDL') ----
+  // converts a supernodal LL' factor to simplicial LDL' (O(nnz(L)), no refactorization)
+  void toSimplicial();
+  bool isSupernodal() const;
+  // A -> A with row and column i (an index of A, not of the permuted L) set to e_i
+  void deleteRow(int i);
+  // A -> A + C C^T (update) or A - C C^T (downdate); C: n x r, rows are indices of A
+  void updateDowndate(bool update, const SparseMatrix& C);
+  // simplicial LDL': every pivot D_jj finite and > 0
+  bool pivotsPositive() const;
+  // stored entries of L (a solve costs about 4 flops per entry per right-hand side)
+  double factorEntries() const;
+  // flops of one numeric factorization (from the symbolic analysis)
+  double factorizeFlops() const { return factorizeFlops_; }
 
  private:
   struct Impl;
   Impl* impl_;
   bool factorized_ = false;
+  double factorizeFlops_ = 0;
 };
 
 // the strategies (one file each)

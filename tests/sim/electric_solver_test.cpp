@@ -1,6 +1,7 @@
 // Tests for sim/electric_solver.h and its four strategies: one discrete answer
 // (checked against an independent Eigen solve of the reduced system), caching and
-// refactoring behaviour, matrix changes, floating nodes, error messages.
+// refactoring behaviour, matrix changes, floating nodes, error messages, in-place
+// updates after element removal (updateMatrix).
 #include "sim/electric_solver.h"
 
 #include <gtest/gtest.h>
@@ -10,6 +11,7 @@
 #include <iostream>
 #include <limits>
 #include <random>
+#include <set>
 
 #include "sim/core_error.h"
 #include "sim/electrode.h"
@@ -397,6 +399,268 @@ TEST(ElectricSolver, ThreadCountDoesNotChangeTheAnswer) {
     EXPECT_EQ((u1 - u3).cwiseAbs().maxCoeff(), 0.0);
   }
   setBlasThreads(1);
+}
+
+// ---- updateMatrix: element removal ----
+
+// a slab being cut: the alive set, its stiffness, surface and return-electrode nodes
+struct CutSlab {
+  TetMesh mesh;
+  std::vector<TetGeometry> geo;
+  SparseMatrix K;
+  std::vector<int> surface, grounded;
+
+  explicit CutSlab(int targetNodes) {
+    SlabSpec spec;
+    spec.targetNodes = targetNodes;
+    mesh = makeSlab(spec);
+    geo = tetGeometry(mesh);
+    assemble();
+  }
+  void assemble() {
+    K = assembleStiffness(mesh, geo, std::vector<double>(mesh.numTets(), kSigma));
+    surface = boundaryNodes(mesh, boundaryFaces(mesh));
+    grounded = returnElectrodeNodes(mesh, surface, ReturnElectrode{});
+  }
+  void remove(const std::vector<int>& tets) {
+    for (int e : tets) mesh.alive[e] = 0;
+    assemble();
+  }
+  int nearestNode(const Vec3& p) const {
+    int best = 0;
+    for (int i = 1; i < mesh.numNodes(); ++i)
+      if ((mesh.nodes[i] - p).squaredNorm() < (mesh.nodes[best] - p).squaredNorm()) best = i;
+    return best;
+  }
+  std::vector<int> aliveTetsWith(int node) const {
+    std::vector<int> out;
+    for (int e = 0; e < mesh.numTets(); ++e)
+      if (mesh.isAlive(e) && std::count(mesh.tets[e].begin(), mesh.tets[e].end(), node))
+        out.push_back(e);
+    return out;
+  }
+  // the nodes of the 2 x 2 node columns at the (xmin, ymax) corner, through the depth
+  std::vector<int> cornerIsland() const {
+    std::set<double> xs, ys;
+    for (const Vec3& v : mesh.nodes) {
+      xs.insert(v.x());
+      ys.insert(v.y());
+    }
+    const double x1 = *std::next(xs.begin()), y1 = *std::next(ys.rbegin());
+    std::vector<int> out;
+    for (int i = 0; i < mesh.numNodes(); ++i)
+      if (mesh.nodes[i].x() <= x1 + 1e-12 && mesh.nodes[i].y() >= y1 - 1e-12) out.push_back(i);
+    return out;
+  }
+  // alive tets with nodes both inside and outside `island`
+  std::vector<int> tetsAcross(const std::vector<int>& island) const {
+    std::vector<std::uint8_t> in(mesh.numNodes(), 0);
+    for (int i : island) in[i] = 1;
+    std::vector<int> out;
+    for (int e = 0; e < mesh.numTets(); ++e) {
+      if (!mesh.isAlive(e)) continue;
+      int inside = 0;
+      for (int v : mesh.tets[e]) inside += in[v];
+      if (inside > 0 && inside < 4) out.push_back(e);
+    }
+    return out;
+  }
+};
+
+std::vector<int> sortedUnion(std::vector<int> a, const std::vector<int>& b) {
+  a.insert(a.end(), b.begin(), b.end());
+  std::sort(a.begin(), a.end());
+  a.erase(std::unique(a.begin(), a.end()), a.end());
+  return a;
+}
+
+// Three cuts, each followed by updateMatrix, for every strategy: (1) every tet of a top
+// node inside a contact set (the node is orphaned), (2) the tets around the corner
+// column (an island of alive tets cut off from the ground, touched by a contact set),
+// (3) every tet of a grounded node (it leaves the return electrode). Before the cuts the
+// contact sets are solved (the capacitance cache holds their columns); after each cut
+// the potential of every set matches a fresh setMatrix of the same strategy and a fresh
+// refactor to 1e-9 (pcg: its tolerance), and the stats say what was done.
+TEST(ElectricSolverUpdate, ThreeCutsMatchAFreshSolverForEveryStrategy) {
+  const CutSlab initial(1013);
+  const Problem p = paperSlab(1013);
+  std::vector<std::vector<int>> sets = sampleContacts(p);
+  const int orphan = initial.nearestNode(Vec3(0.0, 0.0, 0.01));
+  const std::vector<int> island = initial.cornerIsland();
+  const int islandTop = initial.nearestNode(Vec3(-0.05, 0.05, 0.01));
+  ASSERT_TRUE(std::count(island.begin(), island.end(), islandTop));
+  const int groundNode = initial.nearestNode(Vec3(0.01, 0.01, 0.0));
+  ASSERT_TRUE(std::binary_search(initial.grounded.begin(), initial.grounded.end(), groundNode));
+  ASSERT_TRUE(std::binary_search(sets[0].begin(), sets[0].end(), orphan));
+  sets.push_back(sortedUnion(sets[2], {islandTop}));  // reaches into the future island
+  const std::vector<std::vector<int>> cuts = {
+      initial.aliveTetsWith(orphan), initial.tetsAcross(island), initial.aliveTetsWith(groundNode)};
+  const int expectDropped[3] = {1, static_cast<int>(island.size()), 0};
+  std::vector<ElectricSolverOptions> variants;
+  for (ElectricStrategy s : kAll) variants.push_back({.strategy = s, .pcgTolerance = 1e-12});
+  variants.push_back({.strategy = ElectricStrategy::Capacitance,
+                      .capacitanceUpdate = CapacitanceUpdate::Downdate});
+  for (const ElectricSolverOptions& opt : variants) {
+    const ElectricStrategy s = opt.strategy;
+    const bool downdate = opt.capacitanceUpdate == CapacitanceUpdate::Downdate;
+    SCOPED_TRACE(std::string(electricStrategyName(s)) + (downdate ? " downdate" : ""));
+    CutSlab cut = initial;
+    auto solver = makeElectricSolver(opt);
+    solver->setContactCandidates(cut.surface);
+    solver->setMatrix(cut.K, cut.grounded);
+    Eigen::VectorXd u;
+    for (const auto& contact : sets) solver->solve(contact, kVolt, u);
+    for (int b = 0; b < 3; ++b) {
+      SCOPED_TRACE("cut " + std::to_string(b + 1));
+      cut.remove(cuts[b]);
+      const ElectricUpdateStats st = solver->updateMatrix(cut.K, cut.grounded);
+      std::cout << electricStrategyName(s) << (downdate ? " (downdate)" : "") << " cut " << b + 1
+                << ": " << cuts[b].size() << " tets, fell back " << st.fellBack << " ("
+                << st.fallbackReason << "), changed " << st.changedNodes << ", dropped "
+                << st.droppedNodes << ", rank " << st.rank << ", refactored " << st.refactored
+                << ", columns corrected " << st.columnsCorrected << ", dropped "
+                << st.columnsDropped << "\n";
+      EXPECT_FALSE(st.fellBack) << st.fallbackReason;
+      if (s != ElectricStrategy::Pcg) {
+        EXPECT_EQ(st.droppedNodes, expectDropped[b]);
+        EXPECT_GT(st.changedNodes, 0);
+      }
+      if (s == ElectricStrategy::Capacitance) {
+        EXPECT_GT(st.rank, 0);
+        EXPECT_GT(st.columnsCorrected, 0);
+        if (b < 2) {
+          EXPECT_GE(st.columnsDropped, 1);  // the orphan's, the island corner's
+        }
+        solver->setContactCandidates(cut.surface);
+        // sets[1] was cached before the cuts: its columns are still valid
+        EXPECT_EQ(solver->solve(sets[1], kVolt, u).newColumns, 0);
+      }
+      if (s == ElectricStrategy::DenseInverse) {
+        EXPECT_GT(st.rank, 0);
+      }
+      auto fresh = makeElectricSolver(opt);
+      fresh->setMatrix(cut.K, cut.grounded);
+      auto reference = makeElectricSolver({.strategy = ElectricStrategy::Refactor});
+      reference->setMatrix(cut.K, cut.grounded);
+      double worst = 0;
+      for (const auto& contact : sets) {
+        Eigen::VectorXd uf, ur;
+        solver->solve(contact, kVolt, u);
+        fresh->solve(contact, kVolt, uf);
+        reference->solve(contact, kVolt, ur);
+        ASSERT_TRUE(u.allFinite());
+        const double tol = s == ElectricStrategy::Pcg ? 1e-7 : 1e-9;
+        EXPECT_LT(relError(u, uf), tol) << "c=" << contact.size();
+        worst = std::max(worst, relError(u, ur));
+        EXPECT_LT(relError(u, ur), tol) << "c=" << contact.size();
+        EXPECT_EQ(u[orphan], 0.0);  // floating from the first cut on
+        if (b >= 1) {
+          for (int i : island) EXPECT_EQ(u[i], 0.0);
+        }
+      }
+      std::cout << "  max relative error vs a fresh refactor: " << worst << "\n";
+    }
+  }
+}
+
+// the grounded set shrinks by a node that keeps its elements: it joins the free set,
+// which an in-place update cannot do: setMatrix, said in the stats, same answer
+TEST(ElectricSolverUpdate, ANodeJoiningTheFreeSetFallsBackToSetMatrix) {
+  const CutSlab cut(1013);
+  const Problem p = paperSlab(1013);
+  const auto sets = sampleContacts(p);
+  std::vector<int> fewer = cut.grounded;
+  fewer.erase(fewer.begin() + fewer.size() / 2);
+  for (ElectricStrategy s : {ElectricStrategy::Refactor, ElectricStrategy::DenseInverse,
+                             ElectricStrategy::Capacitance}) {
+    auto solver = makeElectricSolver({.strategy = s});
+    solver->setMatrix(cut.K, cut.grounded);
+    Eigen::VectorXd u, uf;
+    solver->solve(sets[0], kVolt, u);
+    const ElectricUpdateStats st = solver->updateMatrix(cut.K, fewer);
+    EXPECT_TRUE(st.fellBack) << electricStrategyName(s);
+    EXPECT_NE(st.fallbackReason.find("joined the free set"), std::string::npos)
+        << st.fallbackReason;
+    auto fresh = makeElectricSolver({.strategy = s});
+    fresh->setMatrix(cut.K, fewer);
+    solver->solve(sets[0], kVolt, u);
+    fresh->solve(sets[0], kVolt, uf);
+    EXPECT_EQ((u - uf).cwiseAbs().maxCoeff(), 0.0);  // it is setMatrix
+  }
+}
+
+// capacitance: the columns of the nodes a cut exposes can be solved outside the frame
+// loop (setContactCandidates with the new surface, prefetch), and the update is
+// deterministic (the same sequence twice gives the same bits)
+TEST(ElectricSolverUpdate, CapacitanceNewSurfaceIsPrefetchedAndUpdatesAreDeterministic) {
+  const CutSlab initial(1013);
+  const int centre = initial.nearestNode(Vec3(0.0, 0.0, 0.01));
+  // a slot: the tets of the top centre node and of its neighbours along x
+  std::vector<int> tets = initial.aliveTetsWith(centre);
+  for (double dx : {-0.006, 0.006}) {
+    const auto more = initial.aliveTetsWith(initial.nearestNode(Vec3(dx, 0.0, 0.01)));
+    tets = sortedUnion(tets, more);
+  }
+  Eigen::VectorXd u[2];
+  for (int run = 0; run < 2; ++run) {
+    CutSlab cut = initial;
+    auto solver = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
+    solver->setContactCandidates(cut.surface);
+    solver->setMatrix(cut.K, cut.grounded);
+    Eigen::VectorXd v;
+    solver->solve({initial.nearestNode(Vec3(0.02, 0.0, 0.01))}, kVolt, v);
+    const std::vector<int> before = cut.surface;
+    cut.remove(tets);
+    const ElectricUpdateStats st = solver->updateMatrix(cut.K, cut.grounded);
+    EXPECT_FALSE(st.fellBack) << st.fallbackReason;
+    std::vector<int> exposed;
+    std::set_difference(cut.surface.begin(), cut.surface.end(), before.begin(), before.end(),
+                        std::back_inserter(exposed));
+    ASSERT_FALSE(exposed.empty());
+    solver->setContactCandidates(cut.surface);
+    solver->prefetch(exposed);
+    // the tool in the slot touches only newly exposed nodes: nothing left to solve
+    const std::vector<int> contact(exposed.begin(),
+                                   exposed.begin() + std::min<size_t>(6, exposed.size()));
+    EXPECT_EQ(solver->solve(contact, kVolt, u[run]).newColumns, 0);
+    auto fresh = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
+    fresh->setMatrix(cut.K, cut.grounded);
+    fresh->solve(contact, kVolt, v);
+    EXPECT_LT(relError(u[run], v), 1e-9);
+  }
+  EXPECT_EQ((u[0] - u[1]).cwiseAbs().maxCoeff(), 0.0);
+}
+
+// capacitance, Woodbury: cut after cut the term grows until it is folded into a numeric
+// refactorization (same ordering); the cache stays valid throughout
+TEST(ElectricSolverUpdate, CapacitanceWoodburyTermIsFoldedIntoARefactorization) {
+  CutSlab cut(1013);
+  const Problem p = paperSlab(1013);
+  const auto sets = sampleContacts(p);
+  auto solver = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
+  solver->setContactCandidates(cut.surface);
+  solver->setMatrix(cut.K, cut.grounded);
+  Eigen::VectorXd u, uf;
+  for (const auto& contact : sets) solver->solve(contact, kVolt, u);
+  int refactored = 0;
+  for (int k = 0; k < 12; ++k) {
+    // a top node on a line away from the contact spots loses its tets
+    const int node = cut.nearestNode(Vec3(-0.04 + 0.006 * k, -0.03, 0.01));
+    cut.remove(cut.aliveTetsWith(node));
+    const ElectricUpdateStats st = solver->updateMatrix(cut.K, cut.grounded);
+    EXPECT_FALSE(st.fellBack) << st.fallbackReason;
+    refactored += st.refactored;
+    auto fresh = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
+    fresh->setMatrix(cut.K, cut.grounded);
+    for (const auto& contact : sets) {
+      EXPECT_EQ(solver->solve(contact, kVolt, u).newColumns, 0) << "cut " << k;
+      fresh->solve(contact, kVolt, uf);
+      EXPECT_LT(relError(u, uf), 1e-9) << "cut " << k;
+    }
+  }
+  std::cout << "12 cuts: " << refactored << " numeric refactorizations\n";
+  EXPECT_GE(refactored, 1);
+  EXPECT_LE(refactored, 6);
 }
 
 }  // namespace

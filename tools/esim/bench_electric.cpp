@@ -22,6 +22,10 @@
 // 6. Fig. 9(a) of the paper: refactor vs dense-inverse with 1 and 2 BLAS threads at
 //    506 and 1013 nodes, a new contact set every frame; percentages next to the
 //    paper's.
+// 7. With --update (issue #11): a cut removes --update-tets tets next to the blade's
+//    path; updateMatrix vs a fresh setMatrix, then the first solve with a contact set
+//    whose columns were cached and one with columns to solve (capacitance: simplicial
+//    LDL' after an update vs supernodal LL' after setMatrix).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -60,6 +64,12 @@ struct BenchElectricOptions {
   bool fig9 = true;
   bool pathPrefetch = true;
   int fig9Frames = 60;
+  bool update = false;      // the updateMatrix table
+  bool onlyUpdate = false;  // only that table
+  std::string updateSizes = "1013,8000,20000,50000";
+  std::string updateTets = "5";
+  std::string updateStrategies = "capacitance,capacitance-downdate,refactor,pcg,dense-inverse";
+  int updateReps = 1;
 };
 
 double seconds(Clock::time_point a, Clock::time_point b) {
@@ -297,7 +307,160 @@ void runFig9(const BenchElectricOptions& opt) {
   setBlasThreads(1);
 }
 
+// ---- updateMatrix after a cut ----
+
+struct UpdateTiming {
+  double updateMs = 0, setMs = 0;               // updateMatrix; fresh setMatrix (+candidates)
+  double cachedAfterMs = 0, cachedFreshMs = 0;  // first solve, contact columns cached before
+  double newAfterMs = 0, newFreshMs = 0;        // solve with columns to compute
+  int newAfter = 0, newFresh = 0;               // columns computed in those solves
+  double maxRelError = 0;                       // updated vs fresh potential
+  ElectricUpdateStats stats;
+};
+
+// one cut on a scene for one strategy: the solver has run `warmFrames` frames of the
+// sweep (capacitance: their columns are cached), then `tets` tets nearest the top of the
+// path at x = 0 are removed
+UpdateTiming timeUpdate(const Scene& s, ElectricStrategy strategy, const BenchElectricOptions& opt,
+                        int tets, bool downdate) {
+  ElectricSolverOptions so;
+  so.strategy = strategy;
+  if (downdate) so.capacitanceUpdate = CapacitanceUpdate::Downdate;
+  so.threads = opt.threads;
+  so.pcgTolerance = opt.pcgTolerance;
+  so.denseMemoryLimitBytes = opt.denseLimitGb * 1e9;
+  const int warmFrames = std::min<int>(40, s.contacts.size() - 1);
+  // the cut: alive tets whose centroid is nearest the top of the first pass at x = 0
+  const double top = s.mesh.nodes[s.mesh.nodeSets.at("top").front()].z();
+  const Vec3 at(0.0, s.contacts.empty() ? 0.0 : 0.3 * s.spacingM - 0.0, top);
+  std::vector<std::pair<double, int>> byDistance;
+  for (int e = 0; e < s.mesh.numTets(); ++e) {
+    Vec3 c = Vec3::Zero();
+    for (int v : s.mesh.tets[e]) c += 0.25 * s.mesh.nodes[v];
+    byDistance.emplace_back((c - at).squaredNorm(), e);
+  }
+  std::partial_sort(byDistance.begin(), byDistance.begin() + tets, byDistance.end());
+  TetMesh cut = s.mesh;
+  for (int k = 0; k < tets; ++k) cut.alive[byDistance[k].second] = 0;
+  const SparseMatrix K =
+      assembleStiffness(cut, tetGeometry(cut), std::vector<double>(cut.numTets(), 0.144));
+  const std::vector<int> surface = boundaryNodes(cut, boundaryFaces(cut));
+  const std::vector<int> grounded = returnElectrodeNodes(cut, surface, ReturnElectrode{});
+  // a contact set cached before the cut, one far from the warm frames (columns to solve)
+  const std::vector<int>& cachedContact = s.contacts[warmFrames - 1];
+  const std::vector<int>& newContact = s.contacts.back();
+  UpdateTiming t;
+  auto solver = makeElectricSolver(so);
+  solver->setContactCandidates(s.surface);
+  solver->setMatrix(s.K, s.grounded);
+  Eigen::VectorXd u = Eigen::VectorXd::Zero(s.mesh.numNodes()), uf = u;
+  for (int f = 0; f < warmFrames; ++f) solver->solve(s.contacts[f], 72.0, u);
+  const Eigen::VectorXd warm = u;  // pcg: both start from here
+  auto a = Clock::now();
+  t.stats = solver->updateMatrix(K, grounded);
+  solver->setContactCandidates(surface);
+  t.updateMs = 1e3 * seconds(a, Clock::now());
+  a = Clock::now();
+  solver->solve(cachedContact, 72.0, u);
+  t.cachedAfterMs = 1e3 * seconds(a, Clock::now());
+  // fresh
+  auto fresh = makeElectricSolver(so);
+  a = Clock::now();
+  fresh->setContactCandidates(surface);
+  fresh->setMatrix(K, grounded);
+  t.setMs = 1e3 * seconds(a, Clock::now());
+  uf = warm;
+  a = Clock::now();
+  fresh->solve(cachedContact, 72.0, uf);
+  t.cachedFreshMs = 1e3 * seconds(a, Clock::now());
+  t.maxRelError = (u - uf).cwiseAbs().maxCoeff() / uf.cwiseAbs().maxCoeff();
+  a = Clock::now();
+  t.newAfter = solver->solve(newContact, 72.0, u).newColumns;
+  t.newAfterMs = 1e3 * seconds(a, Clock::now());
+  a = Clock::now();
+  t.newFresh = fresh->solve(newContact, 72.0, uf).newColumns;
+  t.newFreshMs = 1e3 * seconds(a, Clock::now());
+  t.maxRelError =
+      std::max(t.maxRelError, (u - uf).cwiseAbs().maxCoeff() / uf.cwiseAbs().maxCoeff());
+  return t;
+}
+
+void runUpdate(const BenchElectricOptions& opt) {
+  const std::vector<int> sizes = app::parseNodeCounts(opt.updateSizes, "bench electric");
+  // strategies, and "capacitance-downdate" (capacitance with CapacitanceUpdate::Downdate)
+  std::vector<std::pair<ElectricStrategy, bool>> strategies;
+  for (const std::string& item : app::splitList(opt.updateStrategies)) {
+    if (item == "capacitance-downdate")
+      strategies.emplace_back(ElectricStrategy::Capacitance, true);
+    else
+      strategies.emplace_back(parseElectricStrategy(item), false);
+  }
+  std::vector<int> tetCounts;
+  for (const std::string& item : app::splitList(opt.updateTets))
+    tetCounts.push_back(std::stoi(item));
+  std::printf(
+      "\nupdateMatrix after a cut (issue #11): tets removed at the top of the blade path, %d "
+      "warm frames solved before;\nupdate = updateMatrix + setContactCandidates(new surface), "
+      "set = fresh setContactCandidates + setMatrix;\ncached = first solve of a contact set "
+      "solved before the cut; new = a contact set never solved (n columns computed);\n"
+      "best of %d run(s), ms\n",
+      40, opt.updateReps);
+  std::printf("%-20s %7s %5s %10s %10s %8s %10s %10s %10s %10s %9s  %s\n", "strategy", "nodes",
+              "tets", "update_ms", "set_ms", "set/upd", "cached_up", "cached_fr", "new_up",
+              "new_fr", "rel_err", "what was done");
+  for (int target : sizes) {
+    Scene s = buildScene(target);
+    sweepContacts(s, std::max(opt.frames, 60));
+    for (int tets : tetCounts) {
+      for (const auto& [st, downdate] : strategies) {
+        const std::string name =
+            std::string(electricStrategyName(st)) + (downdate ? "-downdate" : "");
+        UpdateTiming best;
+        bool have = false;
+        std::string skipped;
+        for (int rep = 0; rep < std::max(1, opt.updateReps); ++rep) {
+          UpdateTiming t;
+          try {
+            t = timeUpdate(s, st, opt, tets, downdate);
+          } catch (const Error& e) {
+            skipped = e.what();
+            break;
+          }
+          if (!have || t.updateMs < best.updateMs) best = t;
+          have = true;
+        }
+        if (!have) {
+          std::printf("%-20s %7d %5d  skipped: %.60s\n", name.c_str(), s.mesh.numNodes(), tets,
+                      skipped.c_str());
+          continue;
+        }
+        const ElectricUpdateStats& u = best.stats;
+        char what[256];
+        if (u.fellBack)
+          std::snprintf(what, sizeof what, "fell back: %s", u.fallbackReason.c_str());
+        else
+          std::snprintf(
+              what, sizeof what, "rows %d, dropped %d, rank %d, columns corrected %d dropped %d",
+              u.changedNodes, u.droppedNodes, u.rank, u.columnsCorrected, u.columnsDropped);
+        char newUp[32], newFr[32];
+        std::snprintf(newUp, sizeof newUp, "%.2f(%d)", best.newAfterMs, best.newAfter);
+        std::snprintf(newFr, sizeof newFr, "%.2f(%d)", best.newFreshMs, best.newFresh);
+        std::printf("%-20s %7d %5d %10.3f %10.2f %8.1f %10.3f %10.3f %10s %10s %9.1e  %s\n",
+                    name.c_str(), s.mesh.numNodes(), tets, best.updateMs, best.setMs,
+                    best.setMs / std::max(best.updateMs, 1e-6), best.cachedAfterMs,
+                    best.cachedFreshMs, newUp, newFr, best.maxRelError, what);
+        std::fflush(stdout);
+      }
+    }
+  }
+  setBlasThreads(1);
+}
+
 int benchElectric(const BenchElectricOptions& opt) {
+  if (opt.onlyUpdate) {
+    runUpdate(opt);
+    return kExitOk;
+  }
   // 1. options
   const std::vector<int> sizes = app::parseNodeCounts(opt.sizes, "bench electric");
   const std::vector<ElectricStrategy> strategies = parseStrategies(opt.strategies);
@@ -377,6 +540,8 @@ int benchElectric(const BenchElectricOptions& opt) {
   }
   // 6. the paper's Fig. 9(a)
   if (opt.fig9) runFig9(opt);
+  // 7. updateMatrix after a cut
+  if (opt.update) runUpdate(opt);
   return kExitOk;
 }
 
@@ -408,6 +573,16 @@ const Registrar registrar(
       app.add_flag("!--no-fig9", opt->fig9, "skip the paper's Fig. 9(a) comparison");
       app.add_flag("!--no-prefetch", opt->pathPrefetch,
                    "skip the capacitance+prefetch row (scripted path prefetched at setup)");
+      app.add_flag("--update", opt->update, "also the updateMatrix-after-a-cut table");
+      app.add_flag("--only-update", opt->onlyUpdate, "only the updateMatrix-after-a-cut table");
+      app.add_option("--update-sizes", opt->updateSizes, "node counts of the update table")
+          ->capture_default_str();
+      app.add_option("--update-tets", opt->updateTets, "comma-separated tets removed per cut")
+          ->capture_default_str();
+      app.add_option("--update-strategies", opt->updateStrategies, "strategies of the update table")
+          ->capture_default_str();
+      app.add_option("--update-reps", opt->updateReps, "runs per row (best taken)")
+          ->capture_default_str();
       return [opt] { return benchElectric(*opt); };
     });
 
