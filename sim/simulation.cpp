@@ -408,8 +408,12 @@ std::unique_ptr<SimModel> Simulation::buildModel(std::vector<std::uint8_t> alive
       m.electric->prefetch(scriptedContacts(m.contactFinder, m.ground, prefetchFrom, prefetchTo));
   }
   checkInterrupt();
-  if (config_.phases.structural)
-    m.structural = std::make_unique<StructuralPhase>(m.mesh, config_.structural, m.supports);
+  if (config_.phases.structural) {
+    StructuralOptions so = config_.structural;
+    // update mode: the factor's conversion for low-rank updates is paid here, not in a frame
+    so.prepareForUpdates = config_.phases.rupture && config_.rebuildMode == RebuildMode::Update;
+    m.structural = std::make_unique<StructuralPhase>(m.mesh, so, m.supports);
+  }
   m.buildMs =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   return out;
@@ -456,7 +460,7 @@ void Simulation::updateModel(const std::vector<int>& broken, FrameRecord& rec) {
     removeFromBoundary(m.mesh, *m.faceNeighbours, broken, m.surface);
     m.surfaceNodes = boundaryNodes(m.mesh, m.surface);
     buildSnapshotTopology(m);
-    if (m.thermal) m.thermal->rebuild(m.mesh, *m.geo);
+    if (m.thermal) m.thermal->removeTets(broken);
     if (m.electric) {
       std::vector<int> ground =
           returnElectrodeNodes(m.mesh, m.surfaceNodes, config_.returnElectrode);
@@ -464,12 +468,14 @@ void Simulation::updateModel(const std::vector<int>& broken, FrameRecord& rec) {
                      "rupture: the cut removed all the tissue on the return electrode");
       m.ground = std::move(ground);
       m.contactFinder = ContactFinder(m.mesh, m.surfaceNodes);
+      // assembled again (entries the cut did not touch bitwise as before: what updateMatrix
+      // reads the change from), then the solver's low-rank update, then the new candidates
+      // (the capacitance cache is kept; new surface nodes get their columns on first touch)
       m.stiffness = assembleStiffness(m.mesh, *m.geo, m.sigmaAssembled);
+      m.electric->updateMatrix(m.stiffness, m.ground);
       m.electric->setContactCandidates(m.surfaceNodes);
-      m.electric->setMatrix(m.stiffness, m.ground);
     }
-    if (m.structural)
-      m.structural = std::make_unique<StructuralPhase>(m.mesh, config_.structural, m.supports);
+    if (m.structural) m.structural->removeTets(broken);
   } catch (const Error& e) {
     throwRebuildError(e, state_.frame);
   }

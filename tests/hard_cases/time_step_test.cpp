@@ -56,7 +56,7 @@ class HardTimeStep : public ::testing::TestWithParam<Combo> {
   // frames: a few, and at least 1e-5 s of simulated time
   int frames() const { return std::get<0>(GetParam()) < 1e-5 ? 10 : 4; }
 
-  // on this mesh the explicit limit is 3.1 s (7.2 s without the cooled faces): even 10 s frames
+  // on this mesh the explicit limit is 2.87 s (6.97 s without the cooled faces): even 10 s frames
   // are sub-stepped (2-4 sub-steps),
   // never refused (the refusal: HardTimeStepLimits.ExplicitAtTenSecondsIsRefusedUpFront)
   std::unique_ptr<Simulation> make(const SimulationConfig& c) {

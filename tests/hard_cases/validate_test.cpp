@@ -3,8 +3,8 @@
 //
 // tools/app/run_config.h promises that "a file that `esim validate` accepts never fails at
 // set-up" (checkRunnable runs every check of the set-up). The explicit integrator's sub-step
-// bound is not among them: it needs the mesh's stability limit (a Lanczos estimate,
-// ThermalPhase::stableExplicitDtS, ~40 stiffness products), which checkRunnable does not
+// bound is not among them: it needs the mesh's stability limit (element and Gershgorin bounds,
+// ThermalPhase::stableExplicitDtS, one pass over the tets), which checkRunnable does not
 // compute. Reproducer: scenarios/paper_slab.yaml with
 //   --set material.heat_capacity_j_per_m3k=1   (allowed: (0, 1e8])
 // `esim validate` prints "ok", `esim run` exits 2 at set-up with "solvers.thermal.integrator:

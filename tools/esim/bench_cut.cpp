@@ -1,0 +1,118 @@
+// bench_cut.cpp - `esim bench cut`: the whole cut (electric, thermal, boiling, structural,
+// rupture) per mesh size and rebuild strategy, physics only (no rendering), measured side by
+// side in one run.
+//
+// The scene is scenarios/slab_cut.yaml (a blade drawn 40 mm through a 60 x 30 x 10 mm slab,
+// graded along the cut) with mesh.slab.nodes set to each --sizes entry, tool.voltage_v to
+// --voltage and solvers.rebuild.mode to each strategy; --frames frames (default: the whole
+// 4 s cut, 120 frames). Per (strategy, size): physics time per frame (median, p95, max,
+// removal frames included), tets removed, rebuilds, the rebuild stage's median on the frames
+// that removed tets, and the frames that waited for a background rebuild. --csv writes
+// strategy,nodes,frames,median_ms,p95_ms,max_ms,removed_tets,rebuilds,rebuild_median_ms,waits.
+// A benchmark, never a pass/fail test.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+
+#include "sim/core_error.h"
+#include "sim/io/scenario.h"
+#include "sim/simulation.h"
+#include "tools/app/bench_common.h"
+#include "tools/app/run_config.h"
+#include "tools/esim/command.h"
+
+namespace esim {
+namespace {
+
+struct BenchCutOptions {
+  std::string sizes = "1013,8000,20000,50000";
+  std::string strategy = "all";
+  std::string scenario = "scenarios/slab_cut.yaml";
+  double voltageV = 200;
+  int frames = 0;  // 0: the scenario's duration
+  std::string csv;
+};
+
+double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size())))];
+}
+
+int benchCut(const BenchCutOptions& opt) {
+  const std::vector<int> sizes = app::parseNodeCounts(opt.sizes, "bench cut");
+  std::vector<std::string> strategies =
+      opt.strategy == "all" ? std::vector<std::string>{"synchronous", "background", "update"}
+                            : app::splitList(opt.strategy);
+  for (const std::string& s : strategies)
+    ESIM_VERIFY(s == "synchronous" || s == "background" || s == "update",
+                "--strategy: '" + s + "' is not synchronous, background, update or all");
+  ESIM_VERIFY(opt.frames >= 0, "--frames must be >= 0");
+  std::unique_ptr<std::ofstream> csv;
+  if (!opt.csv.empty()) {
+    csv = std::make_unique<std::ofstream>(opt.csv);
+    ESIM_VERIFY(csv->good(), "--csv: cannot write '" + opt.csv + "'");
+    *csv << "strategy,nodes,frames,median_ms,p95_ms,max_ms,removed_tets,rebuilds,"
+            "rebuild_median_ms,waits\n";
+  }
+  std::printf("esim bench cut: %s at %.0f V, physics per frame (no rendering), one BLAS thread\n",
+              opt.scenario.c_str(), opt.voltageV);
+  std::printf("%-12s %7s %6s %10s %9s %9s %8s %8s %11s %6s\n", "strategy", "nodes", "frames",
+              "median_ms", "p95_ms", "max_ms", "removed", "rebuilds", "rebuild_med", "waits");
+  for (const int nodes : sizes)
+    for (const std::string& strategy : strategies) {
+      const Scenario sc = loadScenario(
+          opt.scenario, {"mesh.slab.nodes=" + std::to_string(nodes),
+                         "tool.voltage_v=" + std::to_string(opt.voltageV),
+                         "solvers.rebuild.mode=" + strategy,
+                         "physics=[electric,thermal,boiling,structural,rupture]"});
+      const SimulationConfig config = app::makeSimulationConfig(sc);
+      Simulation sim(app::buildMesh(sc), config);
+      const int frames =
+          opt.frames > 0 ? opt.frames
+                         : std::max(1, static_cast<int>(sc.time.durationS * sc.time.fps + 0.5));
+      std::vector<double> ms, rebuildMs;
+      int waits = 0;
+      for (int f = 0; f < frames; ++f) {
+        const FrameRecord& r = sim.step();
+        ms.push_back(r.physicsMs());
+        if (r.removedTets > 0) rebuildMs.push_back(r.ms[static_cast<int>(Stage::Rebuild)]);
+        if (r.rebuildWaitMs > 1.0) ++waits;
+      }
+      const double med = quantile(ms, 0.5), p95 = quantile(ms, 0.95),
+                   mx = *std::max_element(ms.begin(), ms.end()),
+                   rmed = quantile(rebuildMs, 0.5);
+      std::printf("%-12s %7d %6d %10.2f %9.2f %9.2f %8d %8d %11.2f %6d\n", strategy.c_str(),
+                  sim.mesh().numNodes(), frames, med, p95, mx, sim.removedTets(), sim.rebuilds(),
+                  rmed, waits);
+      std::fflush(stdout);
+      if (csv)
+        *csv << strategy << ',' << sim.mesh().numNodes() << ',' << frames << ',' << med << ','
+             << p95 << ',' << mx << ',' << sim.removedTets() << ',' << sim.rebuilds() << ','
+             << rmed << ',' << waits << '\n';
+    }
+  if (csv) std::printf("wrote %s\n", opt.csv.c_str());
+  return cli::kExitOk;
+}
+
+cli::Registrar registerBenchCut(
+    {"bench", "cut"},
+    "The whole cut per mesh size and rebuild strategy (synchronous, background, update)",
+    [](CLI::App& app) -> cli::Runner {
+      auto opt = std::make_shared<BenchCutOptions>();
+      app.add_option("--sizes", opt->sizes, "slab node counts, comma separated")
+          ->capture_default_str();
+      app.add_option("--strategy", opt->strategy, "synchronous, background, update or all")
+          ->capture_default_str();
+      app.add_option("--scenario", opt->scenario, "the cut scene")->capture_default_str();
+      app.add_option("--voltage", opt->voltageV, "tool voltage [V]")->capture_default_str();
+      app.add_option("--frames", opt->frames, "frames per run (0: the scene's duration)")
+          ->capture_default_str();
+      app.add_option("--csv", opt->csv, "write the table to FILE");
+      return [opt] { return benchCut(*opt); };
+    });
+
+}  // namespace
+}  // namespace esim
