@@ -63,16 +63,16 @@ int benchCut(const BenchCutOptions& opt) {
               "median_ms", "p95_ms", "max_ms", "removed", "rebuilds", "rebuild_med", "waits");
   for (const int nodes : sizes)
     for (const std::string& strategy : strategies) {
-      const Scenario sc = loadScenario(
-          opt.scenario, {"mesh.slab.nodes=" + std::to_string(nodes),
-                         "tool.voltage_v=" + std::to_string(opt.voltageV),
-                         "solvers.rebuild.mode=" + strategy,
-                         "physics=[electric,thermal,boiling,structural,rupture]"});
+      const Scenario sc =
+          loadScenario(opt.scenario, {"mesh.slab.nodes=" + std::to_string(nodes),
+                                      "tool.voltage_v=" + std::to_string(opt.voltageV),
+                                      "solvers.rebuild.mode=" + strategy,
+                                      "physics=[electric,thermal,boiling,structural,rupture]"});
       const SimulationConfig config = app::makeSimulationConfig(sc);
       Simulation sim(app::buildMesh(sc), config);
-      const int frames =
-          opt.frames > 0 ? opt.frames
-                         : std::max(1, static_cast<int>(sc.time.durationS * sc.time.fps + 0.5));
+      const int frames = opt.frames > 0
+                             ? opt.frames
+                             : std::max(1, static_cast<int>(sc.time.durationS * sc.time.fps + 0.5));
       std::vector<double> ms, rebuildMs;
       int waits = 0;
       for (int f = 0; f < frames; ++f) {
@@ -82,16 +82,15 @@ int benchCut(const BenchCutOptions& opt) {
         if (r.rebuildWaitMs > 1.0) ++waits;
       }
       const double med = quantile(ms, 0.5), p95 = quantile(ms, 0.95),
-                   mx = *std::max_element(ms.begin(), ms.end()),
-                   rmed = quantile(rebuildMs, 0.5);
+                   mx = *std::max_element(ms.begin(), ms.end()), rmed = quantile(rebuildMs, 0.5);
       std::printf("%-12s %7d %6d %10.2f %9.2f %9.2f %8d %8d %11.2f %6d\n", strategy.c_str(),
                   sim.mesh().numNodes(), frames, med, p95, mx, sim.removedTets(), sim.rebuilds(),
                   rmed, waits);
       std::fflush(stdout);
       if (csv)
         *csv << strategy << ',' << sim.mesh().numNodes() << ',' << frames << ',' << med << ','
-             << p95 << ',' << mx << ',' << sim.removedTets() << ',' << sim.rebuilds() << ','
-             << rmed << ',' << waits << '\n';
+             << p95 << ',' << mx << ',' << sim.removedTets() << ',' << sim.rebuilds() << ',' << rmed
+             << ',' << waits << '\n';
     }
   if (csv) std::printf("wrote %s\n", opt.csv.c_str());
   return cli::kExitOk;
