@@ -3,12 +3,12 @@
 #include "sim/electric_solver.h"
 
 #include <cblas.h>
-#include <cholmod.h>
 
 #include <algorithm>
 #include <cmath>
 #include <string>
 
+#include "sim/cholmod_view.h"
 #include "sim/core_error.h"
 
 namespace esim {
@@ -294,25 +294,6 @@ struct CholmodFactor::Impl {
   cholmod_dense* e = nullptr;
 };
 
-namespace {
-cholmod_sparse viewLower(const SparseMatrix& A) {
-  cholmod_sparse s{};
-  s.nrow = A.rows();
-  s.ncol = A.cols();
-  s.nzmax = A.nonZeros();
-  s.p = const_cast<int*>(A.outerIndexPtr());
-  s.i = const_cast<int*>(A.innerIndexPtr());
-  s.x = const_cast<double*>(A.valuePtr());
-  s.stype = -1;  // symmetric, lower triangle used
-  s.itype = CHOLMOD_INT;
-  s.xtype = CHOLMOD_REAL;
-  s.dtype = CHOLMOD_DOUBLE;
-  s.sorted = 1;
-  s.packed = 1;
-  return s;
-}
-}  // namespace
-
 CholmodFactor::CholmodFactor() : impl_(new Impl) {
   cholmod_start(&impl_->common);
   impl_->common.supernodal = CHOLMOD_SUPERNODAL;
@@ -335,7 +316,7 @@ void CholmodFactor::analyze(const SparseMatrix& A) {
   cholmod_common* c = &impl_->common;
   if (impl_->factor) cholmod_free_factor(&impl_->factor, c);
   factorized_ = false;
-  cholmod_sparse s = viewLower(A);
+  cholmod_sparse s = cholmodViewLower(A);
   impl_->factor = cholmod_analyze(&s, c);
   ESIM_RUN_CHECK(impl_->factor != nullptr,
                  "electric solver: CHOLMOD symbolic analysis failed "
@@ -346,7 +327,7 @@ void CholmodFactor::analyze(const SparseMatrix& A) {
 void CholmodFactor::factorize(const SparseMatrix& A, const char* what) {
   ESIM_CHECK(impl_->factor != nullptr);  // analyze before factorize
   cholmod_common* c = &impl_->common;
-  cholmod_sparse s = viewLower(A);
+  cholmod_sparse s = cholmodViewLower(A);
   const int ok = cholmod_factorize(&s, impl_->factor, c);
   factorized_ = ok && c->status == CHOLMOD_OK && impl_->factor->minor == impl_->factor->n;
   ESIM_RUN_CHECK(factorized_, std::string(what) +
@@ -415,7 +396,7 @@ void CholmodFactor::updateDowndate(bool update, const SparseMatrix& C) {
       t.emplace_back(inversePerm[it.row()], j, it.value());
   SparseMatrix permuted(n, C.cols());
   permuted.setFromTriplets(t.begin(), t.end());  // compressed, rows sorted
-  cholmod_sparse cs = viewLower(permuted);
+  cholmod_sparse cs = cholmodViewLower(permuted);
   cs.stype = 0;  // unsymmetric n x r
   const int ok = cholmod_updown(update, &cs, f, &impl_->common);
   ESIM_RUN_CHECK(ok, "electric solver: CHOLMOD update/downdate failed (status " +

@@ -1,8 +1,6 @@
 // structural.cpp - linear thermo-elastic P1 tetrahedra (see structural.h).
 #include "sim/structural.h"
 
-#include <cholmod.h>
-
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <Eigen/SparseCore>
@@ -14,6 +12,7 @@
 #include <string>
 #include <thread>
 
+#include "sim/cholmod_view.h"
 #include "sim/core_error.h"
 #include "sim/fem_p1.h"
 
@@ -140,24 +139,6 @@ struct SimplicialView {
 };
 
 const char* const kNoPieceHeld = "structural: no piece of the body is held by the supports";
-
-// a view of the lower triangle of a symmetric Eigen matrix as a CHOLMOD matrix
-cholmod_sparse viewLower(const SparseMatrix& a) {
-  cholmod_sparse s{};
-  s.nrow = a.rows();
-  s.ncol = a.cols();
-  s.nzmax = a.nonZeros();
-  s.p = const_cast<int*>(a.outerIndexPtr());
-  s.i = const_cast<int*>(a.innerIndexPtr());
-  s.x = const_cast<double*>(a.valuePtr());
-  s.stype = -1;
-  s.itype = CHOLMOD_INT;
-  s.xtype = CHOLMOD_REAL;
-  s.dtype = CHOLMOD_DOUBLE;
-  s.sorted = 1;
-  s.packed = 1;
-  return s;
-}
 
 double secondsSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -547,7 +528,7 @@ SparseMatrix StructuralPhase::Impl::assemble() const {
 // a fresh supernodal factorization of A within the first analysis (A only loses entries)
 void StructuralPhase::Impl::factorize() {
   const SparseMatrix a = assemble();
-  cholmod_sparse view = viewLower(a);
+  cholmod_sparse view = cholmodViewLower(a);
   if (!symbolic) {
     symbolic = cholmod_analyze(&view, &common);
     ESIM_RUN_CHECK(symbolic != nullptr, "structural: CHOLMOD analysis failed (out of memory?)");
@@ -848,7 +829,7 @@ bool StructuralPhase::Impl::buildRegion(const Eigen::AlignedBox3d& box) {
   SparseMatrix kuu(m, m);
   kuu.setFromTriplets(triplets.begin(), triplets.end());
   kuu.makeCompressed();
-  cholmod_sparse view = viewLower(kuu);
+  cholmod_sparse view = cholmodViewLower(kuu);
   openblas_set_num_threads(1);
   // the ordering: the whole factor's, restricted to U (no ordering cost; measured at 50k
   // nodes, CHOLMOD's own AMD/METIS search took most of a region's build)
