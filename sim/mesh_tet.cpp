@@ -28,6 +28,39 @@ Adjacency buildCsr(int rows, std::vector<std::pair<int, int>>& pairs) {
   return adj;
 }
 
+// a face of a tet under its sorted node triple; where = tet * 4 + local face
+struct FaceEntry {
+  Tri key;
+  int where;
+};
+
+// the faces of the tets (alive ones only, or all), sorted by key then where: a face two
+// tets share comes as two neighbouring entries
+std::vector<FaceEntry> sortedFaceEntries(const TetMesh& mesh, bool aliveOnly) {
+  std::vector<FaceEntry> entries;
+  entries.reserve(static_cast<size_t>(aliveOnly ? mesh.numAlive() : mesh.numTets()) * 4);
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    if (aliveOnly && !mesh.isAlive(e)) continue;
+    for (int f = 0; f < 4; ++f) {
+      Tri key = {mesh.tets[e][kFaceLocal[f][0]], mesh.tets[e][kFaceLocal[f][1]],
+                 mesh.tets[e][kFaceLocal[f][2]]};
+      std::sort(key.begin(), key.end());
+      entries.push_back({key, e * 4 + f});
+    }
+  }
+  std::sort(entries.begin(), entries.end(), [](const FaceEntry& a, const FaceEntry& b) {
+    return a.key != b.key ? a.key < b.key : a.where < b.where;
+  });
+  return entries;
+}
+
+// the outward face at slot where = tet * 4 + local face
+BoundaryFace faceAt(const TetMesh& mesh, int where) {
+  const int e = where / 4, f = where % 4;
+  const Tet& t = mesh.tets[e];
+  return {{t[kFaceLocal[f][0]], t[kFaceLocal[f][1]], t[kFaceLocal[f][2]]}, e};
+}
+
 }  // namespace
 
 int TetMesh::numAlive() const {
@@ -59,25 +92,7 @@ double meshVolume(const TetMesh& mesh) {
 }
 
 std::vector<BoundaryFace> boundaryFaces(const TetMesh& mesh) {
-  // key: sorted node triple; value: tet * 4 + local face
-  struct Entry {
-    Tri key;
-    int where;
-  };
-  std::vector<Entry> entries;
-  entries.reserve(static_cast<size_t>(mesh.numAlive()) * 4);
-  for (int e = 0; e < mesh.numTets(); ++e) {
-    if (!mesh.isAlive(e)) continue;
-    for (int f = 0; f < 4; ++f) {
-      Tri key = {mesh.tets[e][kFaceLocal[f][0]], mesh.tets[e][kFaceLocal[f][1]],
-                 mesh.tets[e][kFaceLocal[f][2]]};
-      std::sort(key.begin(), key.end());
-      entries.push_back({key, e * 4 + f});
-    }
-  }
-  std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) {
-    return a.key != b.key ? a.key < b.key : a.where < b.where;
-  });
+  const std::vector<FaceEntry> entries = sortedFaceEntries(mesh, true);
   std::vector<int> boundary;
   for (size_t i = 0; i < entries.size();) {
     size_t j = i + 1;
@@ -88,31 +103,12 @@ std::vector<BoundaryFace> boundaryFaces(const TetMesh& mesh) {
   std::sort(boundary.begin(), boundary.end());
   std::vector<BoundaryFace> faces;
   faces.reserve(boundary.size());
-  for (int w : boundary) {
-    const int e = w / 4, f = w % 4;
-    const Tet& t = mesh.tets[e];
-    faces.push_back({{t[kFaceLocal[f][0]], t[kFaceLocal[f][1]], t[kFaceLocal[f][2]]}, e});
-  }
+  for (int w : boundary) faces.push_back(faceAt(mesh, w));
   return faces;
 }
 
 std::vector<std::array<int, 4>> tetFaceNeighbours(const TetMesh& mesh) {
-  struct Entry {
-    Tri key;
-    int where;  // tet * 4 + local face
-  };
-  std::vector<Entry> entries;
-  entries.reserve(static_cast<size_t>(mesh.numTets()) * 4);
-  for (int e = 0; e < mesh.numTets(); ++e)
-    for (int f = 0; f < 4; ++f) {
-      Tri key = {mesh.tets[e][kFaceLocal[f][0]], mesh.tets[e][kFaceLocal[f][1]],
-                 mesh.tets[e][kFaceLocal[f][2]]};
-      std::sort(key.begin(), key.end());
-      entries.push_back({key, e * 4 + f});
-    }
-  std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) {
-    return a.key != b.key ? a.key < b.key : a.where < b.where;
-  });
+  const std::vector<FaceEntry> entries = sortedFaceEntries(mesh, false);
   std::vector<std::array<int, 4>> out(mesh.numTets(), {-1, -1, -1, -1});
   for (size_t i = 0; i + 1 < entries.size(); ++i)
     if (entries[i].key == entries[i + 1].key) {
@@ -152,18 +148,10 @@ void removeFromBoundary(const TetMesh& mesh, const std::vector<std::array<int, 4
   for (const BoundaryFace& bf : faces) {
     if (!mesh.isAlive(bf.tet)) continue;
     const int w = where(bf);
-    for (; j < joining.size() && joining[j] < w; ++j) {
-      const int e = joining[j] / 4, f = joining[j] % 4;
-      const Tet& t = mesh.tets[e];
-      out.push_back({{t[kFaceLocal[f][0]], t[kFaceLocal[f][1]], t[kFaceLocal[f][2]]}, e});
-    }
+    for (; j < joining.size() && joining[j] < w; ++j) out.push_back(faceAt(mesh, joining[j]));
     out.push_back(bf);
   }
-  for (; j < joining.size(); ++j) {
-    const int e = joining[j] / 4, f = joining[j] % 4;
-    const Tet& t = mesh.tets[e];
-    out.push_back({{t[kFaceLocal[f][0]], t[kFaceLocal[f][1]], t[kFaceLocal[f][2]]}, e});
-  }
+  for (; j < joining.size(); ++j) out.push_back(faceAt(mesh, joining[j]));
   faces.swap(out);
 }
 
