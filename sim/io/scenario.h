@@ -34,7 +34,7 @@ inline const SimulationConfig& core() { return defaultSimulationConfig(); }
 
 // choices held as enums from the load on (their names are in the schema, scenario_schema.cpp;
 // the core's own enums where it has one: ElectrodeKind, ElectricStrategy, ThermalIntegrator,
-// RebuildMode)
+// RebuildMode, StructuralSolveMethod)
 enum class MeshSource { Slab, File };
 enum class HeatSourceKind { None, Gaussian };
 enum class ThermalMass { Lumped, Consistent };
@@ -209,7 +209,15 @@ struct ScenarioSolvers {
       scenario_detail::core().thermal.lumpedMass ? ThermalMass::Lumped : ThermalMass::Consistent;
   bool thermalAllowSubstepping = scenario_detail::core().thermal.allowSubstepping;
   int thermalMaxSubsteps = scenario_detail::core().thermal.maxSubsteps;  // explicit, per frame
-  // synchronous | background
+  // full | local (sim/structural.h LocalSolveOptions)
+  StructuralSolveMethod structuralMethod = scenario_detail::core().structural.solveMethod;
+  // local: the region is the nodes within this of the load change's box
+  double structuralLocalMarginM = scenario_detail::core().structural.local.marginM;
+  // local: a full solve (the new reference) at least every this many solves
+  int structuralLocalRefreshEvery = scenario_detail::core().structural.local.refreshEvery;
+  // local: that full solve on a thread of the phase, adopted refresh_every solves later
+  bool structuralLocalRefreshOnThread = scenario_detail::core().structural.local.refreshOnThread;
+  // synchronous | background | update
   RebuildMode rebuildMode = scenario_detail::core().rebuildMode;
   // background: frames until the swap
   int rebuildLagFrames = scenario_detail::core().rebuildLagFrames;

@@ -273,6 +273,25 @@ const std::vector<Field>& schema() {
                         closed(1, 1e6),
                         "explicit: a frame needing more sub-steps is refused before the run "
                         "(the work of a frame is bounded; use an implicit integrator)"));
+    f.push_back(choice("solvers.structural.method", ESIM_ENUM_REF(solvers.structuralMethod),
+                       {"full", "local"},
+                       "structural: each frame's displacement from the whole body's factor, or "
+                       "as a correction of the last full solve on a region around the tets whose "
+                       "load changed (the far field held; a full solve refreshes it every "
+                       "local_refresh_every solves; see README for the stress error it costs)"));
+    f.push_back(number("solvers.structural.local_margin_m",
+                       ESIM_REF(solvers.structuralLocalMarginM), "m", positive(10.0),
+                       "local: the region is every node within this of the box around the "
+                       "changed load"));
+    f.push_back(integer("solvers.structural.local_refresh_every",
+                        ESIM_REF(solvers.structuralLocalRefreshEvery), "solves", closed(0, 1e6),
+                        "local: a full solve at least every this many solves (0: only the "
+                        "first)"));
+    f.push_back(boolean("solvers.structural.local_refresh_on_thread",
+                        ESIM_REF(solvers.structuralLocalRefreshOnThread),
+                        "local: run that full solve on a thread of its own, adopted "
+                        "local_refresh_every solves later (deterministic), instead of in the "
+                        "frame"));
     f.push_back(choice("solvers.rebuild.mode", ESIM_ENUM_REF(solvers.rebuildMode),
                        {"synchronous", "background", "update"},
                        "after rupture: build the new model in the frame that breaks tets, or on "

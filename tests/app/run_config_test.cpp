@@ -86,6 +86,33 @@ TEST(RunConfig, EveryDefaultComesFromTheCore) {
   EXPECT_EQ(c.rebuildMode, d.rebuildMode);
   EXPECT_EQ(c.rebuildLagFrames, d.rebuildLagFrames);
   EXPECT_EQ(c.recomputeLagFrames, d.recomputeLagFrames);
+  EXPECT_EQ(c.structural.solveMethod, d.structural.solveMethod);
+  EXPECT_EQ(c.structural.local.marginM, d.structural.local.marginM);
+  EXPECT_EQ(c.structural.local.refreshEvery, d.structural.local.refreshEvery);
+  EXPECT_EQ(c.structural.local.refreshOnThread, d.structural.local.refreshOnThread);
+}
+
+// solvers.structural.*: the local solve's keys reach the structural phase's options
+TEST(RunConfig, StructuralLocalSolveKeysReachThePhase) {
+  const Scenario s = parseScenario(
+      "name: local\nsolvers:\n  structural:\n    method: local\n    local_margin_m: 0.004\n"
+      "    local_refresh_every: 7\n    local_refresh_on_thread: true\n",
+      "local.yaml");
+  const SimulationConfig c = makeSimulationConfig(s);
+  EXPECT_EQ(c.structural.solveMethod, StructuralSolveMethod::local);
+  EXPECT_EQ(c.structural.local.marginM, 0.004);
+  EXPECT_EQ(c.structural.local.refreshEvery, 7);
+  EXPECT_TRUE(c.structural.local.refreshOnThread);
+  try {
+    parseScenario("name: bad\nsolvers:\n  structural:\n    method: nearby\n", "bad.yaml");
+    ADD_FAILURE() << "accepted method: nearby";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Input);
+    const std::string what = e.what();
+    EXPECT_NE(what.find("bad.yaml:4"), std::string::npos) << what;
+    EXPECT_NE(what.find("solvers.structural.method"), std::string::npos) << what;
+    EXPECT_NE(what.find("full"), std::string::npos) << what;
+  }
 }
 
 void expectRefused(const Scenario& s, const std::string& part) {

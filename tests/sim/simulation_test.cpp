@@ -7,10 +7,12 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdio>
 #include <memory>
 
 #include "sim/core_error.h"
 #include "sim/mesh_slab.h"
+#include "sim/structural.h"
 
 namespace esim {
 namespace {
@@ -319,6 +321,54 @@ TEST(Simulation, UpdateModeCutsLikeTheSynchronousRebuild) {
   // the surfaces are the same faces in the same order (removeFromBoundary)
   const SurfaceSnapshot sa = upd->snapshot(), sb = sync->snapshot();
   EXPECT_EQ(sa.triangles, sb.triangles);
+}
+
+// solvers.structural.method: local through the whole cut (update mode): the removed set
+// and the stress stay close to the full solve's (the local solve holds the far field of
+// its last full solve; see LocalSolveOptions)
+TEST(Simulation, LocalStructuralSolveCutsLikeTheFullOne) {
+  auto make = [](StructuralSolveMethod method) {
+    SimulationConfig c = cutConfig(true);
+    c.phases.structural = c.phases.rupture = true;
+    c.toolVoltageV = 400;
+    c.toolPath.keys[1].timeS = 2.0;
+    c.rebuildMode = RebuildMode::Update;
+    c.structural.solveMethod = method;
+    c.structural.local.marginM = 0.006;
+    c.structural.local.refreshEvery = 10;
+    return std::make_unique<Simulation>(smallSlab(), c);
+  };
+  auto full = make(StructuralSolveMethod::full), local = make(StructuralSolveMethod::local);
+  // the two side by side: the stress error of each local solve while the alive sets agree
+  int localSolves = 0;
+  double worst = 0;
+  for (int f = 0; f < 45; ++f) {
+    full->step();
+    local->step();
+    if (!local->model().structural->lastSolveStats().local) continue;
+    ++localSolves;
+    if (full->mesh().alive != local->mesh().alive) continue;
+    double num = 0, den = 0;
+    const std::vector<double>& a = *local->vonMisesPa();
+    const std::vector<double>& b = *full->vonMisesPa();
+    for (size_t e = 0; e < a.size(); ++e) {
+      num += (a[e] - b[e]) * (a[e] - b[e]);
+      den += b[e] * b[e];
+    }
+    worst = std::max(worst, std::sqrt(num / std::max(den, 1e-300)));
+  }
+  EXPECT_GT(localSolves, 10) << "the local method fell back to full solves";
+  ASSERT_GT(full->removedTets(), 20) << "the scene does not cut";
+  int differ = 0;
+  for (size_t e = 0; e < full->mesh().alive.size(); ++e)
+    differ += full->mesh().alive[e] != local->mesh().alive[e];
+  std::printf(
+      "local vs full: %d local solves, worst von Mises error %.3g, %d of %d removed "
+      "tets differ\n",
+      localSolves, worst, differ, full->removedTets());
+  EXPECT_GT(worst, 0.0) << "no local solve was compared";
+  EXPECT_LT(worst, 0.05);
+  EXPECT_LE(differ, full->removedTets() / 10);
 }
 
 // background rebuild: the new structures are built on a thread and swapped in exactly

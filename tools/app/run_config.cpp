@@ -77,6 +77,10 @@ void mapStructural(const Scenario& s, SimulationConfig& c) {
   c.vaporLiquidVolumeRatio = m.vaporLiquidVolumeRatio;
   c.maxVaporExpansion = m.maxVaporExpansion;
   c.clampBandM = s.effects.structuralClampBandM;
+  c.structural.solveMethod = s.solvers.structuralMethod;
+  c.structural.local.marginM = s.solvers.structuralLocalMarginM;
+  c.structural.local.refreshEvery = s.solvers.structuralLocalRefreshEvery;
+  c.structural.local.refreshOnThread = s.solvers.structuralLocalRefreshOnThread;
   c.rebuildMode = s.solvers.rebuildMode;
   c.rebuildLagFrames = s.solvers.rebuildLagFrames;
   c.recomputeLagFrames = s.solvers.rebuildRecompute;

@@ -11,7 +11,9 @@
 // strategy,nodes,frames,median_ms,p95_ms,max_ms,removed_tets,rebuilds,rebuild_median_ms,waits.
 // A benchmark, never a pass/fail test.
 #include <algorithm>
+#include <array>
 #include <chrono>
+#include <cstdint>
 #include <cstdio>
 #include <fstream>
 #include <memory>
@@ -33,6 +35,8 @@ struct BenchCutOptions {
   double voltageV = 200;
   int frames = 0;  // 0: the scenario's duration
   std::string csv;
+  bool stages = false;              // per-stage median / p95 / max under each row
+  std::string structural = "full";  // solvers.structural.method values, comma separated
 };
 
 double quantile(std::vector<double> v, double q) {
@@ -61,36 +65,66 @@ int benchCut(const BenchCutOptions& opt) {
               opt.scenario.c_str(), opt.voltageV);
   std::printf("%-12s %7s %6s %10s %9s %9s %8s %8s %11s %6s\n", "strategy", "nodes", "frames",
               "median_ms", "p95_ms", "max_ms", "removed", "rebuilds", "rebuild_med", "waits");
+  const std::vector<std::string> methods = app::splitList(opt.structural);
+  for (const std::string& m : methods)
+    ESIM_VERIFY(m == "full" || m == "local",
+                "--structural: '" + m + "' is not full or local (solvers.structural.method)");
   for (const int nodes : sizes)
     for (const std::string& strategy : strategies) {
-      const Scenario sc =
-          loadScenario(opt.scenario, {"mesh.slab.nodes=" + std::to_string(nodes),
-                                      "tool.voltage_v=" + std::to_string(opt.voltageV),
-                                      "solvers.rebuild.mode=" + strategy,
-                                      "physics=[electric,thermal,boiling,structural,rupture]"});
-      const SimulationConfig config = app::makeSimulationConfig(sc);
-      Simulation sim(app::buildMesh(sc), config);
-      const int frames = opt.frames > 0
-                             ? opt.frames
-                             : std::max(1, static_cast<int>(sc.time.durationS * sc.time.fps + 0.5));
-      std::vector<double> ms, rebuildMs;
-      int waits = 0;
-      for (int f = 0; f < frames; ++f) {
-        const FrameRecord& r = sim.step();
-        ms.push_back(r.physicsMs());
-        if (r.removedTets > 0) rebuildMs.push_back(r.ms[static_cast<int>(Stage::Rebuild)]);
-        if (r.rebuildWaitMs > 1.0) ++waits;
+      std::vector<std::uint8_t> fullAlive;  // the removed set of the full solve's run
+      for (const std::string& method : methods) {
+        const Scenario sc =
+            loadScenario(opt.scenario,
+                         {"mesh.slab.nodes=" + std::to_string(nodes),
+                          "tool.voltage_v=" + std::to_string(opt.voltageV),
+                          "solvers.rebuild.mode=" + strategy, "solvers.structural.method=" + method,
+                          "physics=[electric,thermal,boiling,structural,rupture]"});
+        const SimulationConfig config = app::makeSimulationConfig(sc);
+        Simulation sim(app::buildMesh(sc), config);
+        const int frames =
+            opt.frames > 0 ? opt.frames
+                           : std::max(1, static_cast<int>(sc.time.durationS * sc.time.fps + 0.5));
+        std::vector<double> ms, rebuildMs;
+        std::array<std::vector<double>, kStageCount> stageMs;
+        int waits = 0;
+        for (int f = 0; f < frames; ++f) {
+          const FrameRecord& r = sim.step();
+          ms.push_back(r.physicsMs());
+          for (int s = 0; s < kStageCount; ++s)
+            if (r.status[s] == StageStatus::Ran) stageMs[s].push_back(r.ms[s]);
+          if (r.removedTets > 0) rebuildMs.push_back(r.ms[static_cast<int>(Stage::Rebuild)]);
+          if (r.rebuildWaitMs > 1.0) ++waits;
+        }
+        const double med = quantile(ms, 0.5), p95 = quantile(ms, 0.95),
+                     mx = *std::max_element(ms.begin(), ms.end()), rmed = quantile(rebuildMs, 0.5);
+        // removed-set difference against the full solve's run: tets removed by one only
+        const std::vector<std::uint8_t>& alive = sim.mesh().alive;
+        int differ = -1;
+        if (method == "full") {
+          fullAlive = alive;
+        } else if (fullAlive.size() == alive.size()) {
+          differ = 0;
+          for (size_t e = 0; e < alive.size(); ++e) differ += (alive[e] != fullAlive[e]);
+        }
+        const std::string label = methods.size() > 1 ? strategy + "/" + method : strategy;
+        std::printf("%-12s %7d %6d %10.2f %9.2f %9.2f %8d %8d %11.2f %6d", label.c_str(),
+                    sim.mesh().numNodes(), frames, med, p95, mx, sim.removedTets(), sim.rebuilds(),
+                    rmed, waits);
+        if (differ >= 0) std::printf("  (%d tets removed by one of full/local only)", differ);
+        std::printf("\n");
+        if (opt.stages)
+          for (int s = 0; s < kStageCount; ++s)
+            if (!stageMs[s].empty())
+              std::printf("  %-14s ran %4zu  median %8.3f  p95 %8.3f  max %8.3f ms\n",
+                          stageName(static_cast<Stage>(s)), stageMs[s].size(),
+                          quantile(stageMs[s], 0.5), quantile(stageMs[s], 0.95),
+                          *std::max_element(stageMs[s].begin(), stageMs[s].end()));
+        std::fflush(stdout);
+        if (csv)
+          *csv << label << ',' << sim.mesh().numNodes() << ',' << frames << ',' << med << ',' << p95
+               << ',' << mx << ',' << sim.removedTets() << ',' << sim.rebuilds() << ',' << rmed
+               << ',' << waits << '\n';
       }
-      const double med = quantile(ms, 0.5), p95 = quantile(ms, 0.95),
-                   mx = *std::max_element(ms.begin(), ms.end()), rmed = quantile(rebuildMs, 0.5);
-      std::printf("%-12s %7d %6d %10.2f %9.2f %9.2f %8d %8d %11.2f %6d\n", strategy.c_str(),
-                  sim.mesh().numNodes(), frames, med, p95, mx, sim.removedTets(), sim.rebuilds(),
-                  rmed, waits);
-      std::fflush(stdout);
-      if (csv)
-        *csv << strategy << ',' << sim.mesh().numNodes() << ',' << frames << ',' << med << ','
-             << p95 << ',' << mx << ',' << sim.removedTets() << ',' << sim.rebuilds() << ',' << rmed
-             << ',' << waits << '\n';
     }
   if (csv) std::printf("wrote %s\n", opt.csv.c_str());
   return cli::kExitOk;
@@ -110,6 +144,11 @@ cli::Registrar registerBenchCut(
       app.add_option("--frames", opt->frames, "frames per run (0: the scene's duration)")
           ->capture_default_str();
       app.add_option("--csv", opt->csv, "write the table to FILE");
+      app.add_option("--structural", opt->structural,
+                     "solvers.structural.method values, comma separated (full,local: the "
+                     "local solve's removed set compared with the full one's)")
+          ->capture_default_str();
+      app.add_flag("--stages", opt->stages, "per-stage median, p95 and max under each row");
       return [opt] { return benchCut(*opt); };
     });
 
