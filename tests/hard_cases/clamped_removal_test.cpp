@@ -15,6 +15,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <string>
 
 #include "hard_case.h"
 
@@ -25,9 +26,13 @@ using hard::FrameChecker;
 using hard::Invariants;
 using hard::MaxPrinciple;
 
+// every case in each way the model follows a removal: rebuilt (synchronous) and edited in
+// place (update)
+class HardRemovalFailing : public ::testing::TestWithParam<RebuildMode> {};
+
 // thermal only: a broad Gaussian source (3e8 W/m^3, 20 mm), critical stress 10 Pa: the slab
 // breaks through to its clamped bottom in frame 3
-TEST(HardRemovalFailing, RemovalOfTheClampedTissueIsARunError) {
+TEST_P(HardRemovalFailing, RemovalOfTheClampedTissueIsARunError) {
   SimulationConfig c;
   c.phases.thermal = c.phases.boiling = c.phases.structural = c.phases.rupture = true;
   c.thermal.integrator = ThermalIntegrator::BackwardEuler;
@@ -36,6 +41,7 @@ TEST(HardRemovalFailing, RemovalOfTheClampedTissueIsARunError) {
   c.heatSource.radiusM = 0.02;
   c.heatSource.powerDensityW_m3 = 3e8;
   c.criticalStressPa = 10.0;
+  c.rebuildMode = GetParam();
   Simulation sim(makeSlab(hard::quarterSlabSpec()), c);
   Invariants inv;
   inv.maxPrinciple = MaxPrinciple::Lower;
@@ -54,6 +60,12 @@ TEST(HardRemovalFailing, RemovalOfTheClampedTissueIsARunError) {
   }
   EXPECT_GT(stoppedAt, 0);
 }
+
+INSTANTIATE_TEST_SUITE_P(Modes, HardRemovalFailing,
+                         ::testing::Values(RebuildMode::Synchronous, RebuildMode::Update),
+                         [](const ::testing::TestParamInfo<RebuildMode>& info) {
+                           return std::string(rebuildModeName(info.param));
+                         });
 
 }  // namespace
 }  // namespace esim

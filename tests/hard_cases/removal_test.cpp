@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <string>
 
 #include "hard_case.h"
 
@@ -56,16 +57,21 @@ std::vector<int> islandNodes(const TetMesh& mesh) {
   return out;
 }
 
+// every case in each way the model follows a removal: rebuilt (synchronous) and edited in
+// place (update)
+class HardRemoval : public ::testing::TestWithParam<RebuildMode> {};
+
 // full physics on a slab with an island cut loose before the run: a ball on the island for
 // 10 frames (its nodes float: no current, no heat, the island stays at 37 C exactly), then on
 // the mainland (current flows, the island still does not warm)
-TEST(HardRemoval, IsolatedIslandCarriesNoCurrentAndNoHeat) {
+TEST_P(HardRemoval, IsolatedIslandCarriesNoCurrentAndNoHeat) {
   SimulationConfig c = hard::toolAt(ElectrodeKind::Sphere, Vec3::Zero(), true);
   c.phases.boiling = c.phases.structural = c.phases.rupture = true;
   c.toolVoltageV = 150;
   const double dt = c.frameDtS;
   hard::moveTool(c, Vec3(-0.015, -0.015, kLz + 0.0005), 9 * dt, Vec3(0.01, 0.01, kLz + 0.0005),
                  10 * dt);
+  c.rebuildMode = GetParam();
   Simulation sim(islandSlab(false), c);
   const std::vector<int> island = islandNodes(sim.mesh());
   ASSERT_EQ(island.size(), 5u * 5u * 3u);
@@ -92,7 +98,7 @@ TEST(HardRemoval, IsolatedIslandCarriesNoCurrentAndNoHeat) {
 // breaks with its surroundings; the island (what is left of it) is then cut loose by rupture:
 // its current drops to zero while the blade still touches it, and nothing breaks in the
 // solvers
-TEST(HardRemoval, RuptureCutsAnIslandLoose) {
+TEST_P(HardRemoval, RuptureCutsAnIslandLoose) {
   SimulationConfig c = hard::toolAt(ElectrodeKind::Blade, Vec3(-0.015, -0.021, kLz + 0.0005), true);
   c.toolPath.keys[0].orientation = eulerXyzDegToQuaternion(Vec3(-90, 0, 0));  // flat, along +y
   c.electrode.widthM = 0.0095;
@@ -100,6 +106,7 @@ TEST(HardRemoval, RuptureCutsAnIslandLoose) {
   c.phases.boiling = c.phases.structural = c.phases.rupture = true;
   c.toolVoltageV = 800;
   c.criticalStressPa = 1e3;
+  c.rebuildMode = GetParam();
   Simulation sim(islandSlab(true), c);
   Invariants inv;
   inv.maxPrinciple = MaxPrinciple::Lower;
@@ -134,7 +141,7 @@ TEST(HardRemoval, RuptureCutsAnIslandLoose) {
 // a one-layer slab (2.5 mm) on a small return pad (5 nodes), a ball on top of it at 300 V, and
 // a critical stress of 1 kPa: the tissue between the ball and the pad boils and breaks, down to
 // the pad. Once no tissue touches the pad the run cannot go on: a Run error that says why
-TEST(HardRemoval, RemovalReachesTheReturnElectrode) {
+TEST_P(HardRemoval, RemovalReachesTheReturnElectrode) {
   SlabSpec spec;
   spec.sizeM = Vec3(0.03, 0.03, 0.0025);
   spec.nodesPerAxis = {13, 13, 2};
@@ -143,6 +150,7 @@ TEST(HardRemoval, RemovalReachesTheReturnElectrode) {
   c.phases.boiling = c.phases.structural = c.phases.rupture = true;
   c.criticalStressPa = 1e3;
   c.toolVoltageV = 300;
+  c.rebuildMode = GetParam();
   Simulation sim(makeSlab(spec), c);
   ASSERT_EQ(sim.groundNodes().size(), 5u);
   Invariants inv;
@@ -168,7 +176,7 @@ TEST(HardRemoval, RemovalReachesTheReturnElectrode) {
 // 100 Pa: frame after frame the tissue that warms breaks, until only the bottom layer (where
 // it is clamped) and the far corners are left: more than three quarters removed, and every
 // frame's invariants (the heat of the removed tissue leaves with it) hold throughout
-TEST(HardRemoval, RemovalOfNearlyEverything) {
+TEST_P(HardRemoval, RemovalOfNearlyEverything) {
   SimulationConfig c;
   c.phases.thermal = c.phases.boiling = c.phases.structural = c.phases.rupture = true;
   c.thermal.integrator = ThermalIntegrator::BackwardEuler;
@@ -177,6 +185,7 @@ TEST(HardRemoval, RemovalOfNearlyEverything) {
   c.heatSource.radiusM = 0.01;
   c.heatSource.powerDensityW_m3 = 1e9;
   c.criticalStressPa = 100.0;
+  c.rebuildMode = GetParam();
   Simulation sim(makeSlab(hard::quarterSlabSpec()), c);
   const int tets = sim.mesh().numTets();
   Invariants inv;
@@ -192,7 +201,7 @@ TEST(HardRemoval, RemovalOfNearlyEverything) {
 
 // a critical stress of 1 Pa: the whole slab breaks in the first frame. A Run error saying that
 // everything was removed, never a crash or an empty matrix
-TEST(HardRemoval, RemovalOfEverythingIsARunError) {
+TEST_P(HardRemoval, RemovalOfEverythingIsARunError) {
   SimulationConfig c;
   c.phases.thermal = c.phases.boiling = c.phases.structural = c.phases.rupture = true;
   c.thermal.integrator = ThermalIntegrator::BackwardEuler;
@@ -201,11 +210,18 @@ TEST(HardRemoval, RemovalOfEverythingIsARunError) {
   c.heatSource.radiusM = 0.01;
   c.heatSource.powerDensityW_m3 = 1e9;
   c.criticalStressPa = 1.0;
+  c.rebuildMode = GetParam();
   Simulation sim(makeSlab(hard::quarterSlabSpec()), c);
   const auto [kind, message] = hard::errorOf([&] { sim.step(); });
   EXPECT_EQ(kind, ErrorKind::Run) << message;
   EXPECT_TRUE(hard::contains(message, "every element")) << message;
 }
+
+INSTANTIATE_TEST_SUITE_P(Modes, HardRemoval,
+                         ::testing::Values(RebuildMode::Synchronous, RebuildMode::Update),
+                         [](const ::testing::TestParamInfo<RebuildMode>& info) {
+                           return std::string(rebuildModeName(info.param));
+                         });
 
 }  // namespace
 }  // namespace esim
