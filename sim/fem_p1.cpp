@@ -2,6 +2,7 @@
 #include "sim/fem_p1.h"
 
 #include <Eigen/Dense>
+#include <algorithm>
 
 namespace esim {
 
@@ -44,6 +45,41 @@ SparseMatrix assembleStiffness(const TetMesh& mesh, const std::vector<TetGeometr
   SparseMatrix k(mesh.numNodes(), mesh.numNodes());
   k.setFromTriplets(trip.begin(), trip.end());
   return k;
+}
+
+int removeFromStiffness(SparseMatrix& k, const TetMesh& mesh, const std::vector<TetGeometry>& geo,
+                        const std::vector<double>& coeff, const Adjacency& nodeTets,
+                        const std::vector<int>& removed) {
+  // the entries (row, column) the removed tets touched, each once
+  std::vector<std::pair<int, int>> entries;
+  for (int e : removed)
+    for (int a : mesh.tets[e])
+      for (int b : mesh.tets[e]) entries.emplace_back(a, b);
+  std::sort(entries.begin(), entries.end());
+  entries.erase(std::unique(entries.begin(), entries.end()), entries.end());
+  for (const auto& [row, col] : entries) {
+    // assembleStiffness's triplets of this entry: alive tets ascending, one per tet; Eigen's
+    // setFromTriplets sums duplicates left to right from the first
+    double sum = 0;
+    bool first = true;
+    for (const int* t = nodeTets.begin(row); t != nodeTets.end(row); ++t) {
+      const int e = *t;
+      if (!mesh.isAlive(e)) continue;
+      const Tet& tet = mesh.tets[e];
+      const auto pos = [&](int v) {
+        return static_cast<int>(std::find(tet.begin(), tet.end(), v) - tet.begin());
+      };
+      const int a = pos(row), b = pos(col);
+      if (b == 4) continue;
+      // the same expression as assembleStiffness (bitwise the same value)
+      const Eigen::Matrix4d ke = coeff[e] * geo[e].volume * geo[e].grad * geo[e].grad.transpose();
+      sum = first ? ke(a, b) : sum + ke(a, b);
+      first = false;
+    }
+    double* value = &k.coeffRef(row, col);  // in the pattern: a removed tet had it
+    *value = sum;
+  }
+  return static_cast<int>(entries.size());
 }
 
 SparseMatrix assembleMass(const TetMesh& mesh, const std::vector<TetGeometry>& geo,

@@ -30,6 +30,16 @@ std::vector<TetGeometry> tetGeometry(const TetMesh& mesh);
 SparseMatrix assembleStiffness(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
                                const std::vector<double>& coeff);
 
+// K from assembleStiffness, after the tets `removed` died (mesh.alive already 0 for them):
+// each entry they touched summed again over the alive tets in assembleStiffness's order,
+// so K is bitwise what a fresh assembly gives, with explicit zeros where no alive tet is
+// left (the pattern is kept). Cost: the removed tets' entries times the tets at a node,
+// not the mesh. nodeTets: node -> tets containing it, sorted (nodeTets of any earlier
+// alive set: a superset of today's). Returns the number of entries summed again.
+int removeFromStiffness(SparseMatrix& k, const TetMesh& mesh, const std::vector<TetGeometry>& geo,
+                        const std::vector<double>& coeff, const Adjacency& nodeTets,
+                        const std::vector<int>& removed);
+
 // consistent mass matrix with coefficient coeff[e] per tet
 SparseMatrix assembleMass(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
                           const std::vector<double>& coeff);

@@ -256,9 +256,11 @@ void Simulation::buildInitialModel(TetMesh mesh) {
     x.maxExpansion = config_.maxVaporExpansion;
     pending_.assign(mesh.numTets(), 0);
   }
-  if (ph.rupture && config_.rebuildMode == RebuildMode::Update)
+  if (ph.rupture && config_.rebuildMode == RebuildMode::Update) {
     m.faceNeighbours =
         std::make_shared<const std::vector<std::array<int, 4>>>(tetFaceNeighbours(mesh));
+    if (ph.electric) m.nodeTets = std::make_shared<const Adjacency>(nodeTets(mesh));
+  }
   m.medianEdgeM = medianEdgeLengthM(mesh);
   for (const Vec3& x : mesh.nodes) m.boundsM.extend(x);
   std::vector<std::uint8_t> alive = mesh.alive;
@@ -381,6 +383,7 @@ std::unique_ptr<SimModel> Simulation::buildModel(std::vector<std::uint8_t> alive
   m.medianEdgeM = base.medianEdgeM;
   m.boundsM = base.boundsM;
   m.faceNeighbours = base.faceNeighbours;
+  m.nodeTets = base.nodeTets;
   m.surface = boundaryFaces(m.mesh);
   m.surfaceNodes = boundaryNodes(m.mesh, m.surface);
   buildSnapshotTopology(m);
@@ -468,10 +471,11 @@ void Simulation::updateModel(const std::vector<int>& broken, FrameRecord& rec) {
                      "rupture: the cut removed all the tissue on the return electrode");
       m.ground = std::move(ground);
       m.contactFinder = ContactFinder(m.mesh, m.surfaceNodes);
-      // assembled again (entries the cut did not touch bitwise as before: what updateMatrix
-      // reads the change from), then the solver's low-rank update, then the new candidates
-      // (the capacitance cache is kept; new surface nodes get their columns on first touch)
-      m.stiffness = assembleStiffness(m.mesh, *m.geo, m.sigmaAssembled);
+      // the entries of the removed tets summed again (bitwise a fresh assembly; the others
+      // untouched: what updateMatrix reads the change from), then the solver's low-rank
+      // update, then the new candidates (the capacitance cache is kept; new surface nodes
+      // get their columns on first touch)
+      removeFromStiffness(m.stiffness, m.mesh, *m.geo, m.sigmaAssembled, *m.nodeTets, broken);
       m.electric->updateMatrix(m.stiffness, m.ground);
       m.electric->setContactCandidates(m.surfaceNodes);
     }

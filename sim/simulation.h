@@ -205,6 +205,8 @@ struct SimModel {
   std::vector<BoundaryFace> surface;  // boundary faces of the alive tets
   // per tet, the tet across each face (tetFaceNeighbours; rebuild mode update only)
   std::shared_ptr<const std::vector<std::array<int, 4>>> faceNeighbours;
+  // node -> tets of the initial alive set (nodeTets; rebuild mode update with electric only)
+  std::shared_ptr<const Adjacency> nodeTets;
   std::vector<int> surfaceNodes;  // sorted
   std::vector<int> ground;        // return-electrode nodes (electric)
   ContactFinder contactFinder;    // over surfaceNodes (electric)
