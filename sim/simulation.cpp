@@ -457,6 +457,7 @@ void Simulation::throwRebuildError(const Error& e, int ruptureFrame) const {
 void Simulation::updateModel(const std::vector<int>& broken, FrameRecord& rec) {
   const auto t0 = std::chrono::steady_clock::now();
   SimModel& m = *model_;
+  joinPrefetch();
   try {
     for (int e : broken) m.mesh.alive[e] = 0;
     ESIM_RUN_CHECK(m.mesh.numAlive() > 0, "rupture: every element of the tissue has been removed");
@@ -478,6 +479,19 @@ void Simulation::updateModel(const std::vector<int>& broken, FrameRecord& rec) {
       removeFromStiffness(m.stiffness, m.mesh, *m.geo, m.sigmaAssembled, *m.nodeTets, broken);
       m.electric->updateMatrix(m.stiffness, m.ground);
       m.electric->setContactCandidates(m.surfaceNodes);
+      // the columns the scripted tool will need on the new surface in the next second, on a
+      // thread while the frame is drawn (the next solve joins it): not solved on first touch
+      if (config_.prefetchUntilS > 0) {
+        const int first = state_.frame + 1;
+        const int last =
+            std::min(static_cast<int>(std::ceil(config_.prefetchUntilS / config_.frameDtS)),
+                     first + static_cast<int>(std::ceil(kRebuildPrefetchS / config_.frameDtS)));
+        std::vector<int> nodes = scriptedContacts(m.contactFinder, m.ground, first, last);
+        if (!nodes.empty())
+          prefetchJob_ = std::async(
+              std::launch::async,
+              [solver = m.electric.get(), nodes = std::move(nodes)] { solver->prefetch(nodes); });
+      }
     }
     if (m.structural) m.structural->removeTets(broken);
   } catch (const Error& e) {
@@ -546,7 +560,16 @@ void Simulation::startRebuild(const std::vector<int>& broken) {
 }
 
 Simulation::~Simulation() {
-  if (job_.valid()) job_.wait();  // the job reads model_
+  if (job_.valid()) job_.wait();                  // the job reads model_
+  if (prefetchJob_.valid()) prefetchJob_.wait();  // and this one the electric solver
+}
+
+// the prefetch job's end (its error, an interruption included, is this caller's)
+void Simulation::joinPrefetch() const {
+  if (!prefetchJob_.valid()) return;
+  while (prefetchJob_.wait_for(std::chrono::milliseconds(20)) != std::future_status::ready)
+    checkInterrupt();  // the job stops at its next check too
+  prefetchJob_.get();
 }
 
 Eigen::VectorXd Simulation::temperatureC() const {
@@ -555,6 +578,7 @@ Eigen::VectorXd Simulation::temperatureC() const {
 }
 
 double Simulation::electricMemoryBytes() const {
+  joinPrefetch();
   return model_->electric ? model_->electric->memoryBytes() : 0.0;
 }
 
@@ -661,6 +685,7 @@ void Simulation::advance(FrameRecord& rec) {
       std::fill(st.joulePowerW_m3.begin(), st.joulePowerW_m3.end(), 0.0);
       timer.skip();
     } else {
+      joinPrefetch();  // the wait for a removal's prefetch, if any, counts here
       if (m.thermal && config_.temperatureDependentConductivity) refreshConductivity();
       m.electric->solve(st.contacts, config_.toolVoltageV, st.potentialV);
       // Joule power density (into the state's buffer, reused) and currents with the

@@ -335,10 +335,14 @@ class Simulation {
   std::vector<std::uint8_t> pending_;          // per tet: broken, waiting for (or in) a rebuild
   std::vector<int> queued_;                    // broken since the rebuild in flight started
   std::future<std::unique_ptr<Rebuilt>> job_;  // the rebuild in flight (background)
-  std::unique_ptr<Rebuilt> ready_;             // synchronous rebuild, or the job's result
-  int swapFrame_ = -1;                         // frame at which the rebuild in flight swaps in
-  std::unique_ptr<SimState> checkpoint_;       // state when the rebuild in flight started
-  int recomputedFrames_ = 0;                   // frames computed again after swaps
+  // update mode: the electric columns of the surface a removal exposed, computed on a thread
+  // between the removal frame and the next solve (joined first by whatever uses the solver)
+  mutable std::future<void> prefetchJob_;
+  void joinPrefetch() const;
+  std::unique_ptr<Rebuilt> ready_;        // synchronous rebuild, or the job's result
+  int swapFrame_ = -1;                    // frame at which the rebuild in flight swaps in
+  std::unique_ptr<SimState> checkpoint_;  // state when the rebuild in flight started
+  int recomputedFrames_ = 0;              // frames computed again after swaps
   int framesContactByTet_ = 0, framesToolSwept_ = 0, framesBoilingUnconverged_ = 0;
   int framesMaxPrinciple_ = 0;     // frames whose temperature left its bounds
   double worstMaxPrincipleK_ = 0;  // by how much at most [K]

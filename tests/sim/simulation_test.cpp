@@ -297,6 +297,7 @@ TEST(Simulation, UpdateModeCutsLikeTheSynchronousRebuild) {
     c.toolVoltageV = 400;
     c.toolPath.keys[1].timeS = 2.0;
     c.rebuildMode = mode;
+    c.prefetchUntilS = 2.0;  // update: the exposed surface's columns on a thread (joined)
     auto sim = std::make_unique<Simulation>(smallSlab(), c);
     std::vector<int> removedPerFrame;
     for (int f = 0; f < 45; ++f) removedPerFrame.push_back(sim->step().removedTets);
