@@ -40,6 +40,7 @@
 #include "sim/io/scenario.h"
 #include "sim/simulation.h"
 #include "tools/app/accuracy_metrics.h"
+#include "tools/app/analytic_disc.h"
 #include "tools/app/plot_script.h"
 #include "tools/app/run_config.h"
 #include "tools/esim/command.h"
@@ -517,6 +518,34 @@ int benchAccuracy(const AccuracyOptions& opt) {
            << order(1 - errors[prev].iou, 1 - errors[i].iou) << " |\n";
       }
       prev = static_cast<int>(i);
+    }
+  }
+  // ---- the analytic case: the disc electrode's resistance, 1 / (4 sigma a) ----
+  {
+    const double a = 0.002, sigma = 0.144, exact = 1 / (4 * sigma * a);
+    md << "\nThe analytic case: a disc electrode (a = 2 mm) on a half-space, R = 1 / (4 sigma a) = "
+       << num(exact)
+       << " ohm (tools/app/analytic_disc.h), h = a / m:\n\n| m | nodes | R ohm | "
+          "error | order | ms (assembly + factorization + solve) |\n|---|---|---|---|---|---|\n";
+    std::ofstream dcsv(fs::path(opt.out) / "analytic_disc.csv");
+    dcsv << "m,h_m,nodes,resistance_ohm,exact_ohm,error,order,ms\n";
+    double prevErr = kNaN;
+    int prevM = 0;
+    for (int m : opt.quick ? std::vector<int>{2, 3, 4} : std::vector<int>{2, 3, 4, 6, 8}) {
+      const app::DiscResult d = app::discResistance(m, a, sigma);
+      const double err = relative(d.resistanceOhm, exact);
+      const double order = prevM > 0 ? app::convergenceOrder(a / prevM, prevErr, a / m, err) : kNaN;
+      md << "| " << m << " | " << d.nodes << " | " << num(d.resistanceOhm, 6) << " | "
+         << num(100 * err, 3) << " % | " << num(order, 3) << " | " << num(d.solveMs, 3) << " |\n";
+      dcsv << m << ',' << num(a / m) << ',' << d.nodes << ',' << num(d.resistanceOhm, 8) << ','
+           << num(exact, 8) << ',' << num(err) << ',' << num(order) << ',' << num(d.solveMs)
+           << '\n';
+      std::printf(
+          "disc electrode h = a/%d: %d nodes, R %.4f ohm (exact %.4f), error %.3f %%, "
+          "order %s, %.0f ms\n",
+          m, d.nodes, d.resistanceOhm, exact, 100 * err, num(order, 3).c_str(), d.solveMs);
+      prevErr = err;
+      prevM = m;
     }
   }
   md << "\nRerun a row: the `rerun` column of accuracy.csv (`esim bench accuracy --only NAME`); "
