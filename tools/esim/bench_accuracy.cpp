@@ -41,6 +41,7 @@
 #include "sim/simulation.h"
 #include "tools/app/accuracy_metrics.h"
 #include "tools/app/analytic_disc.h"
+#include "tools/app/bench_common.h"
 #include "tools/app/plot_script.h"
 #include "tools/app/run_config.h"
 #include "tools/esim/command.h"
@@ -59,7 +60,7 @@ struct AccuracyOptions {
   bool quick = false;
   std::string out = "out/accuracy";
   std::string scenario = "scenarios/slab_cut.yaml";
-  std::string only;     // run the reference and this point only
+  std::string only;     // run the reference and these points only (names or knobs, a,b,c)
   double seconds = 0;   // simulated time (0: 2 s, --quick 0.6 s)
   int renderEvery = 0;  // 0: 5 (--quick 3)
   bool noPlot = false;
@@ -176,6 +177,7 @@ struct RunResult {
   int nodes = 0, tets = 0, frames = 0;
   double fps = 30, setupS = 0;
   double physicsMedianMs = 0, physicsP95Ms = 0, renderMedianMs = 0, renderP95Ms = 0;
+  std::array<double, kStageCount> stageMeanMs{};  // per physics stage, mean over all frames
   double energyJ = 0, vaporM3 = 0, maxTemperatureC = 0;
   std::vector<double> probeC;
   GrooveShape groove;
@@ -253,7 +255,10 @@ RunResult runPoint(const AccuracyOptions& opt, const Sweep& sw, const Point& p, 
     exact.msaaSamples = 4;
     std::vector<double> physicsMs, renderMs;
     for (int f = 0; f < r.frames; ++f) {
-      physicsMs.push_back(sim.step().physicsMs());
+      const FrameRecord& rec = sim.step();
+      physicsMs.push_back(rec.physicsMs());
+      for (int st = 0; st <= static_cast<int>(Stage::Snapshot); ++st)
+        r.stageMeanMs[st] += rec.ms[st] / r.frames;
       if (f % renderEvery == 0 || f == r.frames - 1) {
         const auto t1 = Clock::now();
         const SurfaceSnapshot snap = sim.snapshot(sc.look.displacementScale);
@@ -369,12 +374,16 @@ int benchAccuracy(const AccuracyOptions& opt) {
   ESIM_VERIFY(seconds <= 4.0, "--seconds: the cut lasts 4 s (got " + num(seconds) + ")");
   Sweep sw = makeSweep(opt);
   if (!opt.only.empty()) {
-    std::vector<Point> kept;
-    for (const Point& p : sw.points)
-      if (p.name == opt.only) kept.push_back(p);
     std::string names;
     for (const Point& p : sw.points) names += " " + p.name;
-    ESIM_VERIFY(!kept.empty(), "--only: no point '" + opt.only + "'; the points are:" + names);
+    std::vector<Point> kept;
+    for (const std::string& want : app::splitList(opt.only)) {
+      const size_t before = kept.size();
+      for (const Point& p : sw.points)
+        if (p.name == want || p.knob == want) kept.push_back(p);
+      ESIM_VERIFY(kept.size() > before,
+                  "--only: no point or knob '" + want + "'; the points are:" + names);
+    }
     sw.points = kept;
   }
   fs::create_directories(opt.out);
@@ -437,7 +446,8 @@ int benchAccuracy(const AccuracyOptions& opt) {
          "p95_ms,"
          "render_median_ms,render_p95_ms,frame_ms,energy_j,energy_err,probe_rms_k,probe_err,"
          "vapor_mm3,vapor_err,removed_mm3,removed_err,width_mm,width_err,depth_mm,depth_err,iou,"
-         "psnr_db,psnr_render_db,pareto_depth,pareto_iou,pareto_energy,note,error,rerun,run_"
+         "psnr_db,psnr_render_db,mean_potential_ms,mean_heat_ms,mean_stress_ms,mean_removal_ms,"
+         "pareto_depth,pareto_iou,pareto_energy,note,error,rerun,run_"
          "command\n";
   auto row = [&](const Point& p, const RunResult& r, const Errors& e, bool fd, bool fi, bool fe) {
     csv << quoteCsv(p.name) << ',' << p.knob << ',' << quoteCsv(p.value) << ',' << p.mark << ','
@@ -449,10 +459,15 @@ int benchAccuracy(const AccuracyOptions& opt) {
         << num(r.vaporM3 * 1e9) << ',' << num(e.vapor) << ',' << num(r.groove.removedVolumeM3 * 1e9)
         << ',' << num(e.removedVolume) << ',' << num(r.groove.widthM * 1e3) << ',' << num(e.width)
         << ',' << num(r.groove.depthM * 1e3) << ',' << num(e.depth) << ',' << num(e.iou) << ','
-        << num(e.psnrDb) << ',' << num(e.psnrRenderDb) << ',' << fd << ',' << fi << ',' << fe << ','
-        << quoteCsv(p.tweakNote) << ',' << quoteCsv(r.error) << ','
-        << quoteCsv(rerunCommand(opt, p)) << ',' << quoteCsv(runCommand(opt, sw, p, seconds))
-        << '\n';
+        << num(e.psnrDb) << ',' << num(e.psnrRenderDb) << ','
+        << num(r.stageMeanMs[static_cast<int>(Stage::SolvePotential)]) << ','
+        << num(r.stageMeanMs[static_cast<int>(Stage::Heat)]) << ','
+        << num(r.stageMeanMs[static_cast<int>(Stage::SolveStress)]) << ','
+        << num(r.stageMeanMs[static_cast<int>(Stage::Rupture)] +
+               r.stageMeanMs[static_cast<int>(Stage::Rebuild)])
+        << ',' << fd << ',' << fi << ',' << fe << ',' << quoteCsv(p.tweakNote) << ','
+        << quoteCsv(r.error) << ',' << quoteCsv(rerunCommand(opt, p)) << ','
+        << quoteCsv(runCommand(opt, sw, p, seconds)) << '\n';
   };
   Errors refErr;
   refErr.energy = refErr.probeK = refErr.probe = refErr.vapor = refErr.removedVolume =
@@ -496,6 +511,23 @@ int benchAccuracy(const AccuracyOptions& opt) {
        << pct(e.depth) << " | " << num(e.iou, 3) << " | " << num(e.psnrDb, 3) << " ("
        << num(e.psnrRenderDb, 3) << ") | " << (frontDepth[i] ? "D" : "") << (frontIou[i] ? "I" : "")
        << (frontEnergy[i] ? "E" : "") << " |\n";
+  }
+  md << "\nWhere the physics time goes in the mesh sweeps: mean ms per frame of each stage over "
+        "all "
+        "frames (removal = rupture + rebuild, its frames included):\n\n| point | nodes | "
+        "potential | heat | stress | removal | physics mean |\n|---|---|---|---|---|---|---|\n";
+  for (size_t i = 0; i < results.size(); ++i) {
+    const RunResult& r = results[i];
+    if (!r.error.empty() || sw.points[i].knob.rfind("mesh_", 0) != 0) continue;
+    double total = 0;
+    for (double v : r.stageMeanMs) total += v;
+    auto at = [&](Stage st) { return num(r.stageMeanMs[static_cast<int>(st)], 3); };
+    md << "| " << sw.points[i].name << " | " << r.nodes << " | " << at(Stage::SolvePotential)
+       << " | " << at(Stage::Heat) << " | " << at(Stage::SolveStress) << " | "
+       << num(r.stageMeanMs[static_cast<int>(Stage::Rupture)] +
+                  r.stageMeanMs[static_cast<int>(Stage::Rebuild)],
+              3)
+       << " | " << num(total, 3) << " |\n";
   }
   // convergence orders of the mesh sweeps (h ~ nodes^(-1/3)) between successive sizes
   md << "\nObserved order of the mesh sweeps, log(e1/e2) / log(h1/h2) with h ~ nodes^(-1/3), "
@@ -574,7 +606,9 @@ Registrar reg({"bench", "accuracy"},
                              "the CI sweep: smaller meshes, 0.6 s of the cut (under 2 minutes)");
                 app.add_option("--out", opt->out, "output folder")->capture_default_str();
                 app.add_option("--scenario", opt->scenario, "the cut scene")->capture_default_str();
-                app.add_option("--only", opt->only, "run the reference and this point only");
+                app.add_option("--only", opt->only,
+                               "run the reference and these points only: names or knobs, comma "
+                               "separated (e.g. mesh_graded,electric:pcg_1e-2)");
                 app.add_option("--seconds", opt->seconds,
                                "simulated seconds of the cut (default 2, --quick 0.6)")
                     ->check(CLI::Range(0.0, 4.0));
