@@ -15,6 +15,7 @@
 #include "sim/electric_solver.h"
 #include "sim/electrode.h"
 #include "sim/mesh_slab.h"
+#include "tools/app/analytic_disc.h"
 
 namespace esim {
 namespace {
@@ -77,96 +78,12 @@ TEST(ElectricPhase, PatchTestLinearPotentialBetweenPlatesIsExactForEveryStrategy
   }
 }
 
-// exact potential of a disc electrode (radius a, potential v0) on an insulated
-// half-space, at radius rho and depth d: (2 v0 / pi) asin(2a / (d1 + d2))
-double discPotential(double a, double v0, double rho, double d) {
-  const double d1 = std::sqrt((rho - a) * (rho - a) + d * d);
-  const double d2 = std::sqrt((rho + a) * (rho + a) + d * d);
-  return 2 * v0 / M_PI * std::asin(std::min(1.0, 2 * a / (d1 + d2)));
-}
-
-// Disc electrode, radius a, on the half-space, on a quarter domain [0, 4a]^2 x
-// [0, 4a] (symmetry planes x = 0 and y = 0 are insulated, like the half-space's
-// own surface). The far return is the exact half-space potential imposed on the
-// faces x = 4a, y = 4a and the bottom, so the only error left is the
-// discretization (h = a / m, the electrode = the top nodes with rho <= a, on a grid
-// bent to fit the circle).
+// the disc electrode on the half-space at h = a / m (tools/app/analytic_disc.h: the same
+// case `esim bench accuracy` reports); the current it draws leaves through the far faces
 double discResistance(int m, double a) {
-  const double L = 4 * a, v0 = 1.0;
-  SlabSpec s;
-  s.sizeM = Vec3(L, L, L);
-  s.nodesPerAxis = {4 * m + 1, 4 * m + 1, 4 * m + 1};
-  TetMesh mesh = makeSlab(s);
-  // x, y in [0, L], top z = L; then bend the grid so that the square max(x, y) <= a
-  // becomes the quarter disc rho <= a (its boundary nodes lie on the circle), blended
-  // back to the straight grid at max(x, y) = 2a: the electrode is a polygon whose
-  // area converges smoothly instead of a staircase of grid points
-  for (auto& p : mesh.nodes) {
-    p += Vec3(L / 2, L / 2, 0);
-    const double sq = std::max(p.x(), p.y()), r = std::hypot(p.x(), p.y());
-    if (r == 0 || sq >= 2 * a) continue;
-    const double w = sq <= a ? 1.0 : (2 * a - sq) / a;
-    const double scale = w * sq / r + (1 - w);
-    p.x() *= scale;
-    p.y() *= scale;
-  }
-  validateMesh(mesh, "disc test mesh");
-  const auto geo = tetGeometry(mesh);
-  const SparseMatrix K =
-      assembleElectricStiffness(mesh, geo, std::vector<double>(mesh.numTets(), kSigma));
-  const int n = mesh.numNodes();
-  const double eps = 1e-9 * a;
-  Eigen::VectorXd u = Eigen::VectorXd::Zero(n);
-  std::vector<int> kind(n, 0);  // 0 free, 1 electrode, 2 far boundary
-  std::vector<int> electrode;
-  for (int i = 0; i < n; ++i) {
-    const Vec3& p = mesh.nodes[i];
-    const double rho = std::hypot(p.x(), p.y());
-    if (p.z() > L - eps && rho <= a + eps) {
-      kind[i] = 1;
-      u[i] = v0;
-      electrode.push_back(i);
-    } else if (p.x() > L - eps || p.y() > L - eps || p.z() < eps) {
-      kind[i] = 2;
-      u[i] = discPotential(a, v0, rho, L - p.z());
-    }
-  }
-  // K_ff u_f = -K_fd u_d with the CHOLMOD factorization of the solver module
-  std::vector<int> idx(n, -1), freeIds;
-  for (int i = 0; i < n; ++i)
-    if (kind[i] == 0) {
-      idx[i] = static_cast<int>(freeIds.size());
-      freeIds.push_back(i);
-    }
-  const int nf = static_cast<int>(freeIds.size());
-  std::vector<Eigen::Triplet<double>> t;
-  Eigen::VectorXd b = Eigen::VectorXd::Zero(nf);
-  for (int j = 0; j < n; ++j)
-    for (SparseMatrix::InnerIterator it(K, j); it; ++it) {
-      const int i = static_cast<int>(it.row());
-      if (idx[i] < 0) continue;
-      if (idx[j] >= 0)
-        t.emplace_back(idx[i], idx[j], it.value());
-      else
-        b[idx[i]] -= it.value() * u[j];
-    }
-  SparseMatrix kff(nf, nf);
-  kff.setFromTriplets(t.begin(), t.end());
-  kff.makeCompressed();
-  electric_detail::CholmodFactor factor;
-  factor.analyze(kff);
-  factor.factorize(kff, "disc test");
-  Eigen::VectorXd x(nf);
-  factor.solve(b.data(), x.data());
-  for (int k = 0; k < nf; ++k) u[freeIds[k]] = x[k];
-  // the current through the quarter disc, from the reactions
-  std::vector<int> fixedFar;
-  for (int i = 0; i < n; ++i)
-    if (kind[i] == 2) fixedFar.push_back(i);
-  const ElectricFields f = computeElectricFields(
-      mesh, geo, std::vector<double>(mesh.numTets(), kSigma), K, u, electrode, fixedFar, v0);
-  EXPECT_NEAR(f.toolCurrentA, f.returnCurrentA, 1e-9 * f.toolCurrentA);
-  return v0 / (4 * f.toolCurrentA);
+  const app::DiscResult r = app::discResistance(m, a, kSigma);
+  EXPECT_NEAR(r.toolCurrentA, r.returnCurrentA, 1e-9 * r.toolCurrentA);
+  return r.resistanceOhm;
 }
 
 TEST(ElectricPhase, DiscElectrodeResistanceConvergesToOneOverFourSigmaA) {

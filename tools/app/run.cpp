@@ -33,6 +33,7 @@
 #include "sim/io/vtu.h"
 #include "sim/simulation.h"
 #include "tools/app/exit_codes.h"
+#include "tools/app/plot_script.h"
 #include "tools/app/run_config.h"
 #include "tools/app/run_output.h"
 #include "tools/app/run_report.h"
@@ -292,6 +293,15 @@ nlohmann::json timingExtra(const Setup& s, const FrameOutputs& out, const LoopRe
   nlohmann::json extra;
   extra["scenario"] = sc.name;
   extra["scenario_hash"] = hashToHex(scenarioHash(sc));
+  const PhaseSet& ph = sim.config().phases;
+  nlohmann::json physics = nlohmann::json::array();
+  for (const auto& [on, name] : {std::pair{ph.electric, "electric"},
+                                 {ph.thermal, "thermal"},
+                                 {ph.boiling, "boiling"},
+                                 {ph.structural, "structural"},
+                                 {ph.rupture, "rupture"}})
+    if (on) physics.push_back(name);
+  extra["physics"] = physics;
   extra["interrupted"] = loop.interrupted;
   extra["complete"] = loop.complete();
   if (!loop.failure.empty()) extra["failure"] = loop.failure;
@@ -387,7 +397,7 @@ void summaryStructural(std::ostringstream& sum, const Simulation& sim, const Loo
 }
 
 std::string summaryText(const Setup& s, const FrameOutputs& out, const LoopResult& loop,
-                        const nlohmann::json& timing, const fs::path& dir) {
+                        const nlohmann::json& timing, const fs::path& dir, bool plotted) {
   const Scenario& sc = s.scenario;
   const Simulation& sim = *s.sim;
   std::ostringstream sum;
@@ -414,16 +424,17 @@ std::string summaryText(const Setup& s, const FrameOutputs& out, const LoopResul
       << " W\n";
   if (sim.config().phases.structural) summaryStructural(sum, sim, loop);
   sum << "  outputs       " << dir.string() << "/ {" << (s.video ? "video.mp4, " : "")
-      << "timing.csv, timing.json, trace.json, scenario.yaml"
+      << "timing.csv, timing.json, trace.json, scenario.yaml" << (plotted ? ", timing.png" : "")
       << (s.renderer && sc.output.hashes ? ", hashes.json" : "")
       << (sc.output.pngEvery > 0 ? ", frames/" : "") << (s.fieldsEvery > 0 ? ", fields/" : "")
       << "}\n";
   return sum.str();
 }
 
-// every report of the frames done (complete or not) into dir; returns the summary
+// every report of the frames done (complete or not) into dir; returns the summary. With
+// plots, timing.png too: a missing python3/matplotlib is a warning, never the run's failure
 std::string writeReports(const Setup& s, const FrameOutputs& out, const LoopResult& loop,
-                         const fs::path& dir, const fs::path& finalDir) {
+                         const fs::path& dir, const fs::path& finalDir, bool plots) {
   const nlohmann::json extra = timingExtra(s, out, loop);
   const nlohmann::json timing = timingJson(loop.records, extra);
   writeText(dir / "timing.json", timing.dump(2) + "\n");
@@ -432,7 +443,13 @@ std::string writeReports(const Setup& s, const FrameOutputs& out, const LoopResu
   writeText(dir / "scenario.yaml", scenarioToYaml(s.scenario));
   if (s.renderer && s.scenario.output.hashes)
     writeText(dir / "hashes.json", hashesJson(s, out, extra).dump(2) + "\n");
-  const std::string summary = summaryText(s, out, loop, timing, finalDir);
+  bool plotted = false;
+  if (plots) {
+    const PlotResult p = plotTiming(dir);
+    plotted = p.status == PlotStatus::Written;
+    if (!plotted) std::cerr << "esim: warning: no timing.png: " << p.message << "\n";
+  }
+  const std::string summary = summaryText(s, out, loop, timing, finalDir, plotted);
   writeText(dir / "summary.txt", summary);
   return summary;
 }
@@ -529,7 +546,7 @@ int runScenario(const RunOptions& opt) {
   // ---- 5. close the video, write the reports, rename when complete ----
   out->close();
   const fs::path where = loop.complete() ? output.final() : output.partial();
-  const std::string summary = writeReports(s, *out, loop, output.partial(), where);
+  const std::string summary = writeReports(s, *out, loop, output.partial(), where, opt.plots);
   if (loop.complete()) output.commit();
   std::cout << summary;
   if (!loop.failure.empty()) std::cerr << "esim: error: " << loop.failure << "\n";

@@ -5,7 +5,7 @@
 // 3. Create DIR.partial/; open the video.
 // 4. Frame loop: physics stages -> snapshot -> render -> encoder / PNG / hashes / VTU.
 // 5. Close the video; write timing.csv, timing.json, trace.json, hashes.json,
-//    scenario.yaml, summary.txt; rename DIR.partial/ to DIR/.
+//    scenario.yaml, (--plots) timing.png, summary.txt; rename DIR.partial/ to DIR/.
 // Errors (sim/core_error.h): bad input (steps 1-3) is thrown with nothing left on disk; a
 // run error in the frame loop (a failed solve, all tissue removed) and an interruption
 // (SIGINT, SIGTERM) stop the loop, write the reports of the frames done, marked
@@ -26,6 +26,7 @@ struct RunOptions {
   bool noVideo = false;
   bool quiet = false;
   bool overwrite = false;  // replace an earlier ESim run in outDir
+  bool plots = false;      // also write timing.png (tools/plot_timing.py; a warning if it cannot)
 };
 
 // runs the scenario; returns the exit code (0 complete, 1 failed or interrupted, outputs

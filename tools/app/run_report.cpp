@@ -78,7 +78,7 @@ std::string timingCsv(const std::vector<FrameRecord>& records) {
   for (Stage s : present) os << ',' << stageName(s) << "_ms";
   const bool structural = stagePresent(records, Stage::SolveStress);
   os << ",interactive_ms,over_budget,generator_on,contacts,power_w,max_temperature_c";
-  os << (structural ? ",max_von_mises_pa,removed_tets\n" : "\n");
+  os << (structural ? ",rebuild_wait_ms,max_von_mises_pa,removed_tets\n" : "\n");
   os.setf(std::ios::fixed);
   for (const auto& r : records) {
     os.precision(4);
@@ -97,7 +97,12 @@ std::string timingCsv(const std::vector<FrameRecord>& records) {
        << r.contactNodes << ',';
     os.precision(6);
     os << r.powerW << ',' << r.maxTemperatureC;
-    if (structural) os << ',' << r.maxVonMisesPa << ',' << r.removedTets;
+    if (structural) {
+      os.precision(4);
+      os << ',' << r.rebuildWaitMs;
+      os.precision(6);
+      os << ',' << r.maxVonMisesPa << ',' << r.removedTets;
+    }
     os << '\n';
   }
   return os.str();
@@ -135,8 +140,12 @@ nlohmann::json chromeTrace(const std::vector<FrameRecord>& records,
   for (size_t f = 0; f < records.size(); ++f) {
     double ts = f < frameStartUs.size() ? frameStartUs[f] : 0;
     for (int s = 0; s < kStageCount; ++s) {
-      if (records[f].status[s] != StageStatus::Ran) continue;
+      const StageStatus st = records[f].status[s];
+      if (st == StageStatus::Absent) continue;
+      // a skipped stage's event is the time it took to find it had nothing to do
       const double dur = records[f].ms[s] * 1000.0;
+      nlohmann::json args = {{"frame", records[f].frame}};
+      if (st == StageStatus::Skipped) args["skipped"] = true;
       events.push_back({{"name", stageName(static_cast<Stage>(s))},
                         {"cat", "frame"},
                         {"ph", "X"},
@@ -144,7 +153,7 @@ nlohmann::json chromeTrace(const std::vector<FrameRecord>& records,
                         {"dur", dur},
                         {"pid", 1},
                         {"tid", 1},
-                        {"args", {{"frame", records[f].frame}}}});
+                        {"args", args}});
       ts += dur;
     }
   }

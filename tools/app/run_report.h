@@ -30,14 +30,17 @@ double interactiveMs(const FrameRecord& record);
 
 constexpr double kBudgetMs = 1000.0 / 30.0;
 
-// timing.csv: frame,time_s,<stage columns>,interactive_ms,contacts,power_w,max_temperature_c
+// timing.csv: frame,time_s,<stage columns>,interactive_ms,over_budget,generator_on,contacts,
+// power_w,max_temperature_c[,rebuild_wait_ms,max_von_mises_pa,removed_tets (structural)]
 // a stage the scene did not build has no column; "skipped" where it had nothing to do
 std::string timingCsv(const std::vector<FrameRecord>& records);
 
 // timing.json: per stage and in total mean/p50/p95/p99/max, frames over budget, machine
 nlohmann::json timingJson(const std::vector<FrameRecord>& records, const nlohmann::json& extra);
 
-// trace.json: Chrome trace format (Perfetto), one complete event per stage per frame
+// trace.json: Chrome trace format (Perfetto), one complete event per stage per frame, back
+// to back from the frame's start; a skipped stage's event (args.skipped) is the time it took
+// to find nothing to do, so a frame's events before encode_wait sum to its interactive time
 nlohmann::json chromeTrace(const std::vector<FrameRecord>& records,
                            const std::vector<double>& frameStartUs);
 

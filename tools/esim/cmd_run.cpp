@@ -25,6 +25,9 @@ Registrar reg({"run"}, "Run a scenario: simulate, render, encode, report",
                 app.add_flag("--overwrite", opt->overwrite,
                              "replace an earlier ESim run in the output folder");
                 app.add_flag("-q,--quiet", opt->quiet, "no progress output");
+                app.add_flag("--plots", opt->plots,
+                             "also write timing.png (stage times per frame, power, temperature, "
+                             "removed tets; needs python3-matplotlib, else a warning)");
                 return [opt] { return app::runScenario(*opt); };
               });
 

@@ -1,0 +1,161 @@
+// `esim run --plots` and `esim plot RUN_DIR` end to end: a real run's timing reports are
+// consistent (tests/app/timing_reports_check.h), timing.png is written when matplotlib is
+// there, and a missing python3 or matplotlib is a warning that leaves the run's exit status
+// alone. Uses fixed /tmp/esim_run_test_plot_* folders (run under flock /tmp/esim_cli.lock
+// next to run_cli_test).
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "tests/app/timing_reports_check.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Result {
+  int exitCode = 0;
+  std::string output;  // stdout + stderr
+};
+
+Result shell(const std::string& command) {
+  const std::string cmd = std::string("cd ") + ESIM_SOURCE_DIR + " && " + command + " 2>&1";
+  Result r;
+  FILE* pipe = popen(cmd.c_str(), "r");
+  char buf[4096];
+  while (fgets(buf, sizeof buf, pipe)) r.output += buf;
+  const int status = pclose(pipe);
+  r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+Result esim(const std::string& args, const std::string& env = "") {
+  return shell(env + (env.empty() ? "" : " ") + ESIM_EXE + " " + args);
+}
+
+std::string readFile(const fs::path& p) {
+  std::ifstream is(p, std::ios::binary);
+  std::stringstream ss;
+  ss << is.rdbuf();
+  return ss.str();
+}
+
+fs::path tempOut(const std::string& name) {
+  const fs::path p = fs::temp_directory_path() / ("esim_run_test_plot_" + name);
+  fs::remove_all(p);
+  fs::remove_all(p.string() + ".partial");
+  return p;
+}
+
+// the python the plots use (tools/app/plot_script.h) has matplotlib
+bool haveMatplotlib() {
+  return shell("/usr/bin/python3 -c 'import matplotlib' >/dev/null").exitCode == 0;
+}
+
+bool isPng(const fs::path& p) {
+  const std::string head = readFile(p).substr(0, 8);
+  return head == std::string("\x89PNG\r\n\x1a\n", 8);
+}
+
+void checkReports(const fs::path& dir) {
+  esim::test::checkTimingReports(readFile(dir / "timing.csv"),
+                                 nlohmann::json::parse(readFile(dir / "timing.json")),
+                                 nlohmann::json::parse(readFile(dir / "trace.json")));
+}
+
+// the paper's slab, rendered: every stage of a rendered scene; timing.png next to the reports
+TEST(PlotCli, RunWithPlotsWritesTimingPng) {
+  const fs::path out = tempOut("paper");
+  const Result r = esim(
+      "run scenarios/paper_slab.yaml --frames 12 --no-video --set look.width=160 "
+      "--set look.height=90 -q --plots -o " +
+      out.string());
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  checkReports(out);
+  const auto timing = nlohmann::json::parse(readFile(out / "timing.json"));
+  EXPECT_EQ(timing["physics"], nlohmann::json({"electric", "thermal", "boiling"}));
+  EXPECT_TRUE(timing["stages"].contains("render"));
+  if (!haveMatplotlib()) GTEST_SKIP() << "no matplotlib for /usr/bin/python3";
+  ASSERT_TRUE(fs::exists(out / "timing.png")) << r.output;
+  EXPECT_TRUE(isPng(out / "timing.png"));
+  EXPECT_GT(fs::file_size(out / "timing.png"), 20000u);  // three panels drawn, not a blank
+  EXPECT_NE(r.output.find("timing.png"), std::string::npos) << r.output;  // in the summary
+  fs::remove_all(out);
+}
+
+// the cut with a background rebuild: rebuild waits and removed tets in timing.csv; then
+// `esim plot` redraws the existing folder
+TEST(PlotCli, CutReportsAndEsimPlot) {
+  const fs::path out = tempOut("cut");
+  const Result r = esim(
+      "run scenarios/slab_cut.yaml --set mesh.slab.nodes=1013 --frames 20 --no-video "
+      "--set output.hashes=false -q -o " +
+      out.string());
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  checkReports(out);
+  const std::string csv = readFile(out / "timing.csv");
+  const auto rows = esim::test::parseTimingCsv(csv);
+  int removed = 0;
+  double waited = 0;
+  for (const auto& row : rows) {
+    removed += std::atoi(row.at("removed_tets").c_str());
+    waited += std::atof(row.at("rebuild_wait_ms").c_str());
+  }
+  EXPECT_GT(removed, 0) << "the cut removed nothing in 20 frames";
+  EXPECT_GE(waited, 0);
+  EXPECT_FALSE(fs::exists(out / "timing.png"));  // no --plots
+  if (!haveMatplotlib()) GTEST_SKIP() << "no matplotlib for /usr/bin/python3";
+  const Result p = esim("plot " + out.string());
+  ASSERT_EQ(p.exitCode, 0) << p.output;
+  EXPECT_TRUE(isPng(out / "timing.png"));
+  const fs::path other = out.string() + "_other.png";
+  ASSERT_EQ(esim("plot " + out.string() + " -o " + other.string()).exitCode, 0);
+  EXPECT_TRUE(isPng(other));
+  fs::remove(other);
+  fs::remove_all(out);
+}
+
+// no python3, or a python3 without matplotlib: the run completes (exit 0), says why there is
+// no plot, writes none; `esim plot` fails with the reason (1), a folder that is no run is bad
+// input (2)
+TEST(PlotCli, MissingPythonOrMatplotlibIsAWarning) {
+  const fs::path out = tempOut("nopython");
+  Result r = esim(
+      "run scenarios/electric_only.yaml --frames 2 --no-video --set output.hashes=false"
+      " -q --plots -o " +
+          out.string(),
+      "ESIM_PYTHON=/nonexistent/python3");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_NE(r.output.find("esim: warning: no timing.png: cannot start /nonexistent/python3"),
+            std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(out / "timing.png"));
+  EXPECT_TRUE(fs::exists(out / "timing.json"));  // the run itself is complete
+  // a matplotlib that cannot be imported, first on the module path
+  const fs::path fake = tempOut("fake_matplotlib");
+  fs::create_directories(fake / "matplotlib");
+  std::ofstream(fake / "matplotlib" / "__init__.py") << "raise ImportError('made missing')\n";
+  const std::string noMpl = "PYTHONPATH=" + fake.string();
+  r = esim(
+      "run scenarios/electric_only.yaml --frames 2 --no-video --set output.hashes=false -q "
+      "--plots --overwrite -o " +
+          out.string(),
+      noMpl);
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_NE(r.output.find("no timing.png: matplotlib is missing"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(out / "timing.png"));
+  r = esim("plot " + out.string(), noMpl);
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  EXPECT_NE(r.output.find("matplotlib is missing"), std::string::npos) << r.output;
+  r = esim("plot " + fake.string());
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_NE(r.output.find("holds no timing.csv"), std::string::npos) << r.output;
+  fs::remove_all(fake);
+  fs::remove_all(out);
+}
+
+}  // namespace

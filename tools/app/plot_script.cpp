@@ -1,0 +1,97 @@
+// plot_script.cpp - running the plot scripts of tools/ (plot_script.h).
+#include "tools/app/plot_script.h"
+
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdlib>
+#include <cstring>
+
+extern char** environ;
+
+namespace esim::app {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// exit status of the scripts when matplotlib cannot be imported (tools/plot_*.py)
+constexpr int kScriptNoMatplotlib = 3;
+
+std::string pythonInterpreter() {
+  if (const char* p = std::getenv("ESIM_PYTHON"); p && *p) return p;
+  if (access("/usr/bin/python3", X_OK) == 0) return "/usr/bin/python3";
+  return "python3";
+}
+
+}  // namespace
+
+fs::path findToolScript(const std::string& name) {
+  std::error_code ec;
+  if (const char* d = std::getenv("ESIM_TOOLS_DIR"); d && *d) {
+    const fs::path p = fs::path(d) / name;
+    return fs::is_regular_file(p, ec) ? p : fs::path();
+  }
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec)
+    for (fs::path dir = exe.parent_path(); !dir.empty(); dir = dir.parent_path()) {
+      const fs::path p = dir / "tools" / name;
+      if (fs::is_regular_file(p, ec)) return p;
+      if (dir == dir.root_path()) break;
+    }
+#ifdef ESIM_SOURCE_DIR
+  const fs::path p = fs::path(ESIM_SOURCE_DIR) / "tools" / name;
+  if (fs::is_regular_file(p, ec)) return p;
+#endif
+  return {};
+}
+
+PlotResult runPlotScript(const std::string& script, const std::vector<std::string>& args) {
+  const fs::path path = findToolScript(script);
+  if (path.empty())
+    return {PlotStatus::Unavailable,
+            "tools/" + script +
+                " not found next to the esim executable or in the source tree "
+                "(set ESIM_TOOLS_DIR)"};
+  const std::string python = pythonInterpreter();
+  std::vector<std::string> argv = {python, path.string()};
+  argv.insert(argv.end(), args.begin(), args.end());
+  std::vector<char*> cargv;
+  for (std::string& a : argv) cargv.push_back(a.data());
+  cargv.push_back(nullptr);
+  pid_t pid = 0;
+  const int err = posix_spawnp(&pid, python.c_str(), nullptr, nullptr, cargv.data(), environ);
+  if (err != 0)
+    return {PlotStatus::Unavailable, "cannot start " + python + " (" + std::strerror(err) +
+                                         "): install python3 and python3-matplotlib "
+                                         "(tools/install-deps)"};
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0)
+    if (errno != EINTR) return {PlotStatus::Failed, "waiting for " + python + " failed"};
+  if (WIFEXITED(status) && WEXITSTATUS(status) == 0)
+    return {PlotStatus::Written, "tools/" + script + " done"};
+  if (WIFEXITED(status) && WEXITSTATUS(status) == kScriptNoMatplotlib)
+    return {PlotStatus::Unavailable,
+            "matplotlib is missing for " + python +
+                " (Debian: apt-get install python3-matplotlib, or tools/install-deps)"};
+  if (WIFEXITED(status) && WEXITSTATUS(status) == 127)
+    return {PlotStatus::Unavailable, python + " not found: install python3 (tools/install-deps)"};
+  return {PlotStatus::Failed,
+          "tools/" + script + " failed (" +
+              (WIFEXITED(status) ? "exit status " + std::to_string(WEXITSTATUS(status))
+                                 : "signal " + std::to_string(WTERMSIG(status))) +
+              ")"};
+}
+
+PlotResult plotTiming(const fs::path& runDir, const fs::path& png) {
+  std::vector<std::string> args = {runDir.string()};
+  if (!png.empty()) args.insert(args.end(), {"-o", png.string()});
+  PlotResult r = runPlotScript("plot_timing.py", args);
+  if (r.status == PlotStatus::Written)
+    r.message = "wrote " + (png.empty() ? (runDir / "timing.png").string() : png.string());
+  return r;
+}
+
+}  // namespace esim::app

@@ -1,0 +1,50 @@
+// cmd_plot.cpp - `esim plot RUN_DIR`: timing.png of an existing run folder
+// (tools/plot_timing.py through tools/app/plot_script.h; `esim run --plots` does the same at
+// the end of a run).
+//
+// 1. Check RUN_DIR holds a run's timing.csv (else bad input, exit 2).
+// 2. Run the script; exit 0 when the PNG is written, 1 with the reason when it cannot be
+//    (python3 or matplotlib missing, a failing script).
+#include <filesystem>
+#include <iostream>
+#include <memory>
+
+#include "sim/core_error.h"
+#include "tools/app/plot_script.h"
+#include "tools/esim/command.h"
+
+namespace esim::cli {
+namespace {
+
+struct PlotOptions {
+  std::string runDir;
+  std::string png;  // "" = RUN_DIR/timing.png
+};
+
+int plotRun(const PlotOptions& opt) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  ESIM_VERIFY(fs::is_regular_file(fs::path(opt.runDir) / "timing.csv", ec),
+              "esim plot: '" + opt.runDir +
+                  "' holds no timing.csv (expected the folder of an esim run, e.g. out/demo)");
+  const app::PlotResult r = app::plotTiming(opt.runDir, opt.png);
+  if (r.status == app::PlotStatus::Written) {
+    std::cout << "esim: " << r.message << "\n";
+    return kExitOk;
+  }
+  std::cerr << "esim: error: no timing.png: " << r.message << "\n";
+  return kExitFailure;
+}
+
+Registrar reg({"plot"},
+              "Plot a run's timing: timing.png (stage times per frame against 33.3 ms, "
+              "rebuild waits, power, temperature, removed tets)",
+              [](CLI::App& app) -> Runner {
+                auto opt = std::make_shared<PlotOptions>();
+                app.add_option("run_dir", opt->runDir, "folder of an esim run")->required();
+                app.add_option("-o,--out", opt->png, "PNG to write (default RUN_DIR/timing.png)");
+                return [opt] { return plotRun(*opt); };
+              });
+
+}  // namespace
+}  // namespace esim::cli
