@@ -21,9 +21,9 @@ struct Result {
   std::string output;  // stdout + stderr
 };
 
-Result esim(const std::string& args) {
-  const std::string cmd =
-      std::string("cd ") + ESIM_SOURCE_DIR + " && " + ESIM_EXE + " " + args + " 2>&1";
+// runs a shell command in the source folder
+Result shell(const std::string& command) {
+  const std::string cmd = std::string("cd ") + ESIM_SOURCE_DIR + " && (" + command + ") 2>&1";
   Result r;
   FILE* pipe = popen(cmd.c_str(), "r");
   char buf[4096];
@@ -32,6 +32,8 @@ Result esim(const std::string& args) {
   r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return r;
 }
+
+Result esim(const std::string& args) { return shell(std::string(ESIM_EXE) + " " + args); }
 
 std::string readFile(const fs::path& p) {
   std::ifstream is(p);
@@ -160,6 +162,46 @@ TEST(SweepCli, AFailedVariantIsRecordedAndTheOthersGoOn) {
   const Result v = esim("dataset verify " + dir.string());
   EXPECT_EQ(v.exitCode, 0) << v.output;
   EXPECT_NE(v.output.find("1 not complete (not checked)"), std::string::npos) << v.output;
+  fs::remove_all(dir);
+  fs::remove(spec);
+}
+
+TEST(SweepCli, AnInterruptedSweepStopsItsRunsAndRunsThemAgain) {
+  const fs::path dir = tempDir("interrupted");
+  const fs::path spec = tempDir("interrupted_spec.yaml");
+  // two runs of 3000 frames (minutes), both running when the sweep is interrupted
+  writeFile(spec, std::string("base: ") + ESIM_SOURCE_DIR +
+                      "/scenarios/paper_slab_506.yaml\n"
+                      "set: {time.duration_s: 100, look.width: 160, look.height: 90, "
+                      "output.video: false}\n"
+                      "grid: {tool.voltage_v: [60, 70]}\n");
+  // Ctrl-C (SIGINT) once both runs have their partial folder
+  const std::string partial = dir.string() + "/runs/v000";
+  const Result r = shell(std::string(ESIM_EXE) + " sweep " + spec.string() + " -o " + dir.string() +
+                         " --workers 2 & pid=$!; for i in $(seq 1200); do [ -d " + partial +
+                         "0/run.partial ] && [ -d " + partial +
+                         "1/run.partial ] && break; sleep 0.05; done; sleep 1; kill -INT $pid; "
+                         "wait $pid");
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  EXPECT_NE(r.output.find("stopping: 2 running variants finish their frame"), std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("2 interrupted"), std::string::npos) << r.output;
+  const auto lines = manifest(dir);
+  ASSERT_EQ(lines.size(), 2u);
+  for (const auto& l : lines) {
+    EXPECT_EQ(l["status"], "interrupted") << l.dump();
+    EXPECT_NE(l["message"].get<std::string>().find("interrupted after"), std::string::npos)
+        << l.dump();
+    EXPECT_LT(l["frames"].get<int>(), 3000);
+  }
+  EXPECT_TRUE(fs::exists(dir / "runs/v0000/run.partial/timing.json")) << "the frames are kept";
+  // an interrupted variant is run again (here interrupted again, by SIGTERM)
+  const Result again =
+      shell(std::string(ESIM_EXE) + " sweep " + spec.string() + " -o " + dir.string() +
+            " --workers 2 & pid=$!; sleep 3; kill -TERM $pid; "
+            "wait $pid");
+  EXPECT_EQ(again.exitCode, 1) << again.output;
+  EXPECT_NE(again.output.find("0 complete before, 2 to run"), std::string::npos) << again.output;
   fs::remove_all(dir);
   fs::remove(spec);
 }

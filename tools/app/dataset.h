@@ -11,7 +11,8 @@
 //   DIR/runs/<id>/result.json      how the run ended, with the hash of every file it wrote
 //   DIR/slurm/                     the job-array script and the tasks' logs (--slurm)
 // A manifest line: id, index, values (the grid and random keys), status (complete, failed,
-// interrupted, pending), exit_code, message, wall_s, frames, peak_rss_mb, host, slurm_job,
+// interrupted, pending), exit_code, message, wall_s, cpu_s (the run's user + system CPU time),
+// frames, peak_rss_mb, host, slurm_job,
 // video (its path), video_xxh3, frames_xxh3 (hashes.json's hash over all frames),
 // labels_xxh3 (over the files under labels/, null when the run wrote none) and files: every
 // file of runs/<id>/ the run made, recursively (scenario.yaml and everything in run/),

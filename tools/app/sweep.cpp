@@ -10,6 +10,7 @@
 
 #include <fcntl.h>
 #include <spawn.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 #include <xxhash.h>
@@ -109,10 +110,15 @@ pid_t spawnLogged(const std::vector<std::string>& argv, const fs::path& log, boo
   return pid;
 }
 
-int waitFor(pid_t pid) {
+// waits for the child; cpuS (if given): the CPU time it used, user + system [s]
+int waitFor(pid_t pid, double* cpuS = nullptr) {
   int status = 0;
-  while (::waitpid(pid, &status, 0) < 0)
+  rusage ru{};
+  while (::wait4(pid, &status, 0, &ru) < 0)
     if (errno != EINTR) return -1;
+  if (cpuS)
+    *cpuS = static_cast<double>(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
+            1e-6 * static_cast<double>(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
   return status;
 }
 
@@ -337,10 +343,12 @@ json runVariant(const VariantJob& job, const std::function<void(pid_t)>& started
                              "cannot start " + job.exe + ": " + std::strerror(errno));
     } else {
       if (started) started(pid);
-      const int status = waitFor(pid);
+      double cpuS = 0;
+      const int status = waitFor(pid, &cpuS);
       if (ended) ended(pid);
       result =
           variantResult(job.dir, job.id, job.index, status, secondsSince(t0), gSignals > 0, "");
+      result["cpu_s"] = std::round(cpuS * 1000.0) / 1000.0;
     }
   }
   writeResult(job.dir, job.id, result);
@@ -460,10 +468,40 @@ Tally tally(const fs::path& dir) {
   return t;
 }
 
+// this process's sweep: when it started and the variants it set out to run (the
+// throughput line of the final report)
+struct Session {
+  Clock::time_point start = Clock::now();
+  std::set<std::string> ids;
+};
+Session gSession;
+
+// "this run: 8 videos in 4:05 (117.6 videos/hour), 54.2 CPU s a video (15.1 core-hours per
+// 1000 videos)"
+void throughputLine(const fs::path& dir) {
+  int n = 0;
+  double cpu = 0;
+  for (const auto& line : manifestLines(dir))
+    if (gSession.ids.count(line.value("id", "")) && line.value("status", "") == "complete") {
+      ++n;
+      cpu += line.value("cpu_s", 0.0);
+    }
+  if (n == 0) return;
+  const double wall = secondsSince(gSession.start);
+  char buf[300];
+  std::snprintf(buf, sizeof buf,
+                "this run: %d video%s in %s (%.1f videos/hour), %.1f CPU s a video (%.2f "
+                "core-hours per 1000 videos)\n",
+                n, n == 1 ? "" : "s", clockText(wall).c_str(), n * 3600.0 / std::max(wall, 1e-3),
+                cpu / n, cpu / n * 1000.0 / 3600.0);
+  std::cout << buf;
+}
+
 int finalReport(const fs::path& dir, std::size_t total, bool quiet) {
   writeManifest(dir);
   const Tally t = tally(dir);
   if (!quiet) {
+    throughputLine(dir);
     std::cout << "sweep: " << total << " variants: " << t.complete << " complete";
     if (t.failed) std::cout << ", " << t.failed << " failed";
     if (t.interrupted) std::cout << ", " << t.interrupted << " interrupted";
@@ -482,8 +520,12 @@ int finalReport(const fs::path& dir, std::size_t total, bool quiet) {
 
 class ProgressLine {
  public:
-  ProgressLine(std::string name, std::size_t total, bool quiet)
-      : name_(std::move(name)), total_(total), quiet_(quiet), tty_(isatty(2) != 0) {}
+  ProgressLine(std::string name, std::size_t total, bool quiet, std::string running = "running")
+      : name_(std::move(name)),
+        running_(std::move(running)),
+        total_(total),
+        quiet_(quiet),
+        tty_(isatty(2) != 0) {}
 
   // done: complete this session, failed, earlier: complete before, meanS: of this session
   void show(int complete, int failed, int running, int earlier, double meanS, int workers,
@@ -494,10 +536,10 @@ class ProgressLine {
     const int left = static_cast<int>(total_) - earlier - doneNow;
     const double eta = doneNow > 0 ? meanS * std::ceil(static_cast<double>(left) / workers) : -1;
     char line[300];
-    std::snprintf(line, sizeof line,
-                  "sweep %s: %d/%zu complete, %d failed, %d running, %s elapsed%s%s", name_.c_str(),
-                  earlier + complete, total_, failed, running, clockText(wall).c_str(),
-                  eta >= 0 ? ", ETA " : "", eta >= 0 ? clockText(eta).c_str() : "");
+    std::snprintf(line, sizeof line, "sweep %s: %d/%zu complete, %d failed, %d %s, %s elapsed%s%s",
+                  name_.c_str(), earlier + complete, total_, failed, running, running_.c_str(),
+                  clockText(wall).c_str(), eta >= 0 ? ", ETA " : "",
+                  eta >= 0 ? clockText(eta).c_str() : "");
     if (tty_) {
       std::fprintf(stderr, "\r%-100s", line);
       if (final) std::fprintf(stderr, "\n");
@@ -511,7 +553,7 @@ class ProgressLine {
   }
 
  private:
-  std::string name_;
+  std::string name_, running_;
   std::size_t total_;
   bool quiet_, tty_;
   Clock::time_point start_ = Clock::now();
@@ -548,6 +590,8 @@ void runLocal(const fs::path& dir, const std::string& name,
             [&](pid_t pid) {
               std::lock_guard<std::mutex> lock(mu);
               running.insert(pid);
+              // started just as a stop came: it stops too
+              if (gSignals > 0) ::kill(pid, gLastSignal.load());
             },
             [&](pid_t pid) {
               std::lock_guard<std::mutex> lock(mu);
@@ -677,17 +721,31 @@ bool submitAndWait(const fs::path& dir, const fs::path& script,
   if (!quiet)
     std::cout << "sweep: submitted job " << jobId << " (" << jobs.size() << " task"
               << (jobs.size() == 1 ? "" : "s") << "); waiting (Ctrl-C cancels it)" << std::endl;
-  ProgressLine progress(name, total, quiet);
+  ProgressLine progress(name, total, quiet, "queued or running");
   const int earlier = tally(dir).complete;
-  bool cancelled = false;
+  bool cancelled = false, gaveUp = false;
+  int squeueFailures = 0;
   for (;;) {
     if (gSignals > 0 && !cancelled) {
       capture({"scancel", jobId});
       cancelled = true;
       if (!quiet) std::cerr << "\nsweep: cancelled job " << jobId << "\n";
     }
+    // done when the job has left the queue; a controller that does not answer for a
+    // minute ends the wait too (the tasks still record themselves)
     const Captured q = capture({"squeue", "-h", "-j", jobId, "-o", "%i"});
-    if (q.exitCode != 0 || trim(q.output).empty()) break;
+    if (q.exitCode == 0 && trim(q.output).empty()) break;
+    if (q.exitCode != 0) {
+      if (q.output.find("Invalid job id") != std::string::npos) break;
+      if (++squeueFailures >= 30) {
+        std::cerr << "\nsweep: squeue keeps failing (" << trim(q.output)
+                  << "); not waiting for job " << jobId << " any longer\n";
+        gaveUp = true;
+        break;
+      }
+    } else {
+      squeueFailures = 0;
+    }
     int done = 0, failed = 0;
     for (const auto* v : jobs) {
       const json r = readResult(dir, v->id);
@@ -701,7 +759,7 @@ bool submitAndWait(const fs::path& dir, const fs::path& script,
   // a task that left no result was killed before it could write one
   const fs::path absDir = fs::absolute(dir).lexically_normal();
   for (const auto* v : jobs) {
-    if (readResult(dir, v->id).is_object()) continue;
+    if (gaveUp || readResult(dir, v->id).is_object()) continue;
     const std::string task = jobId + "_" + std::to_string(v->index);
     const json r = {
         {"id", v->id},
@@ -838,6 +896,8 @@ int runSweep(const SweepOptions& opt, const RunOptionsCheck& checkRunOptions) {
   writeFolder(dir, spec, vs, runOptions, exe);
   writeManifest(dir);
   const std::vector<const SweepVariant*> jobs = toRun(dir, vs, opt.retryFailed);
+  gSession.start = Clock::now();
+  for (const auto* v : jobs) gSession.ids.insert(v->id);
   const int earlier = tally(dir).complete;
   if (!opt.quiet)
     std::cout << "sweep " << spec.name << ": " << vs.size() << " variants -> " << dir.string()

@@ -14,9 +14,10 @@
 //    new one starts; a second signal is passed on too (the children end at once).
 //    Slurm (--slurm): DIR/slurm/sweep.sbatch, a job array of the variants to run, one per
 //    task (`esim dataset run DIR <index>`), --mem and --time from a measured run of the
-//    scene (a complete variant's peak memory and wall time; when none is complete, the
-//    first variant to run is run here first to measure it), --cpus-per-task from the
-//    scene's threads; with --submit it is submitted and waited for (Ctrl-C cancels it).
+//    scene (the largest peak memory and wall time of the complete variants; when none is
+//    complete, the first variant to run is run first to measure it: with --submit as its own
+//    job at the partition's default limits, without it here), --cpus-per-task from the
+//    scene's threads; with --submit it is submitted and waited for (Ctrl-C: scancel).
 // 4. After each variant its result.json and the manifest are written (dataset.h).
 // Exit: 0 every variant complete, 1 some failed or interrupted (or not run), 2 bad input.
 #pragma once
