@@ -79,6 +79,8 @@ TEST(SweepCli, LocalSweepRecordsResumesAndVerifies) {
     EXPECT_TRUE(l["values"].contains("tool.voltage_v"));
     EXPECT_TRUE(l["values"].contains("camera.eye_m"));
     EXPECT_TRUE(l["labels_xxh3"].is_null()) << "no run option asked for labels";
+    EXPECT_TRUE(l["warnings"].is_array());
+    EXPECT_GT(l["cpu_s"].get<double>(), 0.0);
     const std::string video = "runs/" + id + "/run/video.mp4";
     EXPECT_EQ(l["video"], video);
     EXPECT_EQ(l["video_xxh3"], l["files"][video]);

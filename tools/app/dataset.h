@@ -11,12 +11,12 @@
 //   DIR/runs/<id>/result.json      how the run ended, with the hash of every file it wrote
 //   DIR/slurm/                     the job-array script and the tasks' logs (--slurm)
 // A manifest line: id, index, values (the grid and random keys), status (complete, failed,
-// interrupted, pending), exit_code, message, wall_s, cpu_s (the run's user + system CPU time),
-// frames, peak_rss_mb, host, slurm_job,
+// interrupted, pending), exit_code, message, wall_s, cpu_s (the run's user + system CPU
+// time), frames, peak_rss_mb, warnings (timing.json's), host, slurm_job, finished (UTC),
 // video (its path), video_xxh3, frames_xxh3 (hashes.json's hash over all frames),
 // labels_xxh3 (over the files under labels/, null when the run wrote none) and files: every
-// file of runs/<id>/ the run made, recursively (scenario.yaml and everything in run/),
-// path relative to DIR -> xxh3-64 of its bytes (16 hex digits).
+// file of runs/<id>/ the run made, recursively (scenario.yaml and everything in run/), path
+// relative to DIR -> xxh3-64 of its bytes (16 hex digits).
 // The manifest is rewritten whole (a new file renamed over the old, under an flock on
 // DIR/.lock) from sweep.json and the result.json files each time a variant ends, by
 // whichever process ran it: the local sweep, or a Slurm task.

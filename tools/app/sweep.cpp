@@ -265,6 +265,8 @@ json variantResult(const fs::path& dir, const std::string& id, int index, int st
   r["frames"] = timing.is_object() ? timing.value("frames", json(nullptr)) : json(nullptr);
   r["peak_rss_mb"] =
       timing.is_object() ? timing.value("peak_rss_mb", json(nullptr)) : json(nullptr);
+  // the run's own warnings (e.g. tissue past 300 C): a dataset may want to leave them out
+  r["warnings"] = timing.is_object() ? timing.value("warnings", json::array()) : json::array();
   if (complete) {
     r["status"] = "complete";
     r["message"] = "";
