@@ -177,13 +177,16 @@ TEST(SweepCli, AnInterruptedSweepStopsItsRunsAndRunsThemAgain) {
                       "set: {time.duration_s: 100, look.width: 160, look.height: 90, "
                       "output.video: false}\n"
                       "grid: {tool.voltage_v: [60, 70]}\n");
-  // Ctrl-C (SIGINT) once both runs have their partial folder
+  // the sweep in the background, a signal once both runs have their partial folder
   const std::string partial = dir.string() + "/runs/v000";
-  const Result r = shell(std::string(ESIM_EXE) + " sweep " + spec.string() + " -o " + dir.string() +
-                         " --workers 2 & pid=$!; for i in $(seq 1200); do [ -d " + partial +
-                         "0/run.partial ] && [ -d " + partial +
-                         "1/run.partial ] && break; sleep 0.05; done; sleep 1; kill -INT $pid; "
-                         "wait $pid");
+  const auto sweepThenSignal = [&](const std::string& signal) {
+    return shell(std::string(ESIM_EXE) + " sweep " + spec.string() + " -o " + dir.string() +
+                 " --workers 2 & pid=$!; for i in $(seq 1200); do [ -d " + partial +
+                 "0/run.partial ] && [ -d " + partial +
+                 "1/run.partial ] && break; sleep 0.05; done; sleep 1; kill -" + signal +
+                 " $pid; wait $pid");
+  };
+  const Result r = sweepThenSignal("INT");  // Ctrl-C
   EXPECT_EQ(r.exitCode, 1) << r.output;
   EXPECT_NE(r.output.find("stopping: 2 running variants finish their frame"), std::string::npos)
       << r.output;
@@ -198,10 +201,9 @@ TEST(SweepCli, AnInterruptedSweepStopsItsRunsAndRunsThemAgain) {
   }
   EXPECT_TRUE(fs::exists(dir / "runs/v0000/run.partial/timing.json")) << "the frames are kept";
   // an interrupted variant is run again (here interrupted again, by SIGTERM)
-  const Result again =
-      shell(std::string(ESIM_EXE) + " sweep " + spec.string() + " -o " + dir.string() +
-            " --workers 2 & pid=$!; sleep 3; kill -TERM $pid; "
-            "wait $pid");
+  fs::remove_all(dir / "runs/v0000/run.partial");
+  fs::remove_all(dir / "runs/v0001/run.partial");
+  const Result again = sweepThenSignal("TERM");
   EXPECT_EQ(again.exitCode, 1) << again.output;
   EXPECT_NE(again.output.find("0 complete before, 2 to run"), std::string::npos) << again.output;
   fs::remove_all(dir);
