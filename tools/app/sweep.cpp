@@ -533,6 +533,7 @@ class ProgressLine {
   void show(int complete, int failed, int running, int earlier, double meanS, int workers,
             bool final = false) {
     if (quiet_) return;
+    std::cout.flush();  // what was said before comes first
     const double wall = secondsSince(start_);
     const int doneNow = complete + failed;
     const int left = static_cast<int>(total_) - earlier - doneNow;
@@ -904,8 +905,8 @@ int runSweep(const SweepOptions& opt, const RunOptionsCheck& checkRunOptions) {
   if (!opt.quiet)
     std::cout << "sweep " << spec.name << ": " << vs.size() << " variants -> " << dir.string()
               << " (" << earlier << " complete before, " << jobs.size() << " to run"
-              << (opt.slurm ? ", on Slurm" : ", " + std::to_string(opt.workers) + " at once")
-              << ")\n";
+              << (opt.slurm ? ", on Slurm" : ", " + std::to_string(opt.workers) + " at once") << ")"
+              << std::endl;  // before the progress line (stderr)
   catchSignals();
   // ---- 3-4. run ----
   if (opt.slurm) return runSlurm(dir, spec, vs, jobs, runOptions, exe, opt);

@@ -19,7 +19,8 @@
 //    job at the partition's default limits, without it here), --cpus-per-task from the
 //    scene's threads; with --submit it is submitted and waited for (Ctrl-C: scancel).
 // 4. After each variant its result.json and the manifest are written (dataset.h).
-// Exit: 0 every variant complete, 1 some failed or interrupted (or not run), 2 bad input.
+// Exit: 0 every variant complete (--slurm without --submit: the script written), 1 some
+// failed or interrupted (or not run), 2 bad input.
 #pragma once
 
 #include <functional>
