@@ -68,6 +68,7 @@ int main(int argc, char** argv) {
       "  esim run scenarios/paper_slab.yaml -o out/demo\n"
       "  esim run scenarios/paper_slab.yaml --frames 30 --set tool.voltage_v=60\n"
       "  esim validate scenarios/*.yaml\n"
+      "  esim sweep scenarios/sweeps/slab_cut_8.yaml -o out/slab_cut_8 --workers 2\n"
       "  esim mesh-info assets/liver.obj\n"
       "  esim bench electric --sizes 1013,50000 --csv electric.csv\n"
       "Exit codes: 0 ok, 1 run failed (outputs so far kept, marked partial), 2 bad input "
@@ -85,7 +86,10 @@ int main(int argc, char** argv) {
       key += spec.path[i] + "/";
       auto it = groups.find(key);
       if (it == groups.end()) {
-        CLI::App* g = parent->add_subcommand(spec.path[i], "Benchmarks (tables, never pass/fail)");
+        CLI::App* g = parent->add_subcommand(
+            spec.path[i], spec.path[i] == "dataset"
+                              ? "Sweep folders (esim sweep -o DIR): verify, run one variant"
+                              : "Benchmarks (tables, never pass/fail)");
         g->require_subcommand(1);
         it = groups.emplace(key, g).first;
       }

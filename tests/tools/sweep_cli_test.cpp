@@ -1,0 +1,291 @@
+// `esim sweep` and `esim dataset` end to end on this machine: a 4-variant sweep with 2
+// workers writes its manifest, resumes without running anything again, `esim dataset
+// verify` passes and then catches a changed, a missing and an added file; a failed variant
+// is recorded and the others go on; bad sweeps exit 2 with nothing written; --slurm
+// without --submit writes the job-array script (no Slurm needed).
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+struct Result {
+  int exitCode = 0;
+  std::string output;  // stdout + stderr
+};
+
+// runs a shell command in the source folder
+Result shell(const std::string& command) {
+  const std::string cmd = std::string("cd ") + ESIM_SOURCE_DIR + " && (" + command + ") 2>&1";
+  Result r;
+  FILE* pipe = popen(cmd.c_str(), "r");
+  char buf[4096];
+  while (fgets(buf, sizeof buf, pipe)) r.output += buf;
+  const int status = pclose(pipe);
+  r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+Result esim(const std::string& args) { return shell(std::string(ESIM_EXE) + " " + args); }
+
+std::string readFile(const fs::path& p) {
+  std::ifstream is(p);
+  std::stringstream ss;
+  ss << is.rdbuf();
+  return ss.str();
+}
+
+void writeFile(const fs::path& p, const std::string& text) {
+  std::ofstream os(p);
+  os << text;
+}
+
+std::vector<json> manifest(const fs::path& dir) {
+  std::vector<json> lines;
+  std::istringstream in(readFile(dir / "manifest.jsonl"));
+  for (std::string line; std::getline(in, line);) lines.push_back(json::parse(line));
+  return lines;
+}
+
+fs::path tempDir(const std::string& name) {
+  const fs::path p = fs::temp_directory_path() / ("esim_sweep_test_" + name);
+  fs::remove_all(p);
+  return p;
+}
+
+const std::string kTiny = "scenarios/sweeps/paper_slab_tiny_4.yaml";
+
+TEST(SweepCli, LocalSweepRecordsResumesAndVerifies) {
+  const fs::path dir = tempDir("local");
+  const Result r = esim("sweep " + kTiny + " -o " + dir.string() + " --workers 2");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_NE(r.output.find("4 variants: 4 complete"), std::string::npos) << r.output;
+  const auto lines = manifest(dir);
+  ASSERT_EQ(lines.size(), 4u);
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    const json& l = lines[i];
+    const std::string id = l["id"];
+    EXPECT_EQ(l["index"], i);
+    EXPECT_EQ(l["status"], "complete") << l.dump();
+    EXPECT_EQ(l["frames"], 15);
+    EXPECT_GT(l["wall_s"].get<double>(), 0.0);
+    EXPECT_TRUE(l["values"].contains("tool.voltage_v"));
+    EXPECT_TRUE(l["values"].contains("camera.eye_m"));
+    EXPECT_TRUE(l["labels_xxh3"].is_null()) << "no run option asked for labels";
+    EXPECT_TRUE(l["warnings"].is_array());
+    EXPECT_GT(l["cpu_s"].get<double>(), 0.0);
+    const std::string video = "runs/" + id + "/run/video.mp4";
+    EXPECT_EQ(l["video"], video);
+    EXPECT_EQ(l["video_xxh3"], l["files"][video]);
+    EXPECT_TRUE(l["files"].contains("runs/" + id + "/scenario.yaml"));
+    EXPECT_TRUE(l["files"].contains("runs/" + id + "/run/hashes.json"));
+    EXPECT_EQ(l["frames_xxh3"],
+              json::parse(readFile(dir / "runs" / id / "run" / "hashes.json"))["all_frames_xxh3"]);
+    EXPECT_TRUE(fs::exists(dir / "runs" / id / "log.txt"));
+  }
+  EXPECT_EQ(lines[0]["values"]["tool.voltage_v"], 60);
+  EXPECT_EQ(lines[3]["values"]["tool.voltage_v"], 80);
+  EXPECT_NE(lines[0]["video_xxh3"], lines[1]["video_xxh3"]) << "the draws differ";
+  EXPECT_EQ(readFile(dir / "sweep.yaml"), readFile(fs::path(ESIM_SOURCE_DIR) / kTiny));
+
+  // resumed: nothing runs again, the manifest is the same
+  const std::string before = readFile(dir / "manifest.jsonl");
+  const Result again = esim("sweep " + kTiny + " -o " + dir.string() + " --workers 2");
+  ASSERT_EQ(again.exitCode, 0) << again.output;
+  EXPECT_NE(again.output.find("4 complete before, 0 to run"), std::string::npos) << again.output;
+  EXPECT_EQ(readFile(dir / "manifest.jsonl"), before);
+
+  // verify: all match; then a changed, a missing and an added file are each caught
+  const Result ok = esim("dataset verify " + dir.string());
+  EXPECT_EQ(ok.exitCode, 0) << ok.output;
+  EXPECT_NE(ok.output.find("all match the manifest"), std::string::npos) << ok.output;
+  {
+    std::ofstream os(dir / "runs/v0002/run/video.mp4", std::ios::binary | std::ios::in);
+    os.seekp(100);
+    os.put('\x5a');
+  }
+  const Result changed = esim("dataset verify " + dir.string());
+  EXPECT_EQ(changed.exitCode, 3) << changed.output;
+  EXPECT_NE(changed.output.find("runs/v0002/run/video.mp4: changed"), std::string::npos)
+      << changed.output;
+  fs::remove(dir / "runs/v0001/run/timing.csv");
+  writeFile(dir / "runs/v0003/run/notes.txt", "added\n");
+  const Result more = esim("dataset verify " + dir.string());
+  EXPECT_EQ(more.exitCode, 3) << more.output;
+  EXPECT_NE(more.output.find("runs/v0001/run/timing.csv: missing"), std::string::npos)
+      << more.output;
+  EXPECT_NE(more.output.find("runs/v0003/run/notes.txt: not in the manifest"), std::string::npos)
+      << more.output;
+  EXPECT_NE(more.output.find("3 problems"), std::string::npos) << more.output;
+  fs::remove_all(dir);
+}
+
+TEST(SweepCli, AFailedVariantIsRecordedAndTheOthersGoOn) {
+  const fs::path dir = tempDir("failed");
+  const fs::path spec = tempDir("failed_spec.yaml");
+  // pcg capped at 2 iterations cannot reach 1e-12: that variant's first solve fails
+  writeFile(spec, std::string("base: ") + ESIM_SOURCE_DIR +
+                      "/scenarios/paper_slab_506.yaml\n"
+                      "set:\n"
+                      "  time.duration_s: 0.1\n"
+                      "  look.width: 160\n"
+                      "  look.height: 90\n"
+                      "  solvers.electric.strategy: pcg\n"
+                      "  solvers.electric.tolerance: 1.0e-12\n"
+                      "grid:\n"
+                      "  solvers.electric.max_iterations: [2, 1000]\n");
+  const std::string cmd = "sweep " + spec.string() + " -o " + dir.string() + " --workers 2";
+  const Result r = esim(cmd);
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  EXPECT_NE(r.output.find("1 complete, 1 failed"), std::string::npos) << r.output;
+  auto lines = manifest(dir);
+  ASSERT_EQ(lines.size(), 2u);
+  EXPECT_EQ(lines[0]["status"], "failed");
+  EXPECT_EQ(lines[0]["exit_code"], 1);
+  EXPECT_NE(lines[0]["message"].get<std::string>().find("pcg did not converge"), std::string::npos)
+      << lines[0].dump();
+  EXPECT_FALSE(lines[0].contains("files"));
+  EXPECT_EQ(lines[1]["status"], "complete");
+  // a failed variant is not run again unless asked
+  const Result again = esim(cmd);
+  EXPECT_EQ(again.exitCode, 1);
+  EXPECT_NE(again.output.find("1 complete before, 0 to run"), std::string::npos) << again.output;
+  const Result retry = esim(cmd + " --retry-failed");
+  EXPECT_EQ(retry.exitCode, 1);
+  EXPECT_NE(retry.output.find("1 complete before, 1 to run"), std::string::npos) << retry.output;
+  // verify checks the complete one and says the other was not checked
+  const Result v = esim("dataset verify " + dir.string());
+  EXPECT_EQ(v.exitCode, 0) << v.output;
+  EXPECT_NE(v.output.find("1 not complete (not checked)"), std::string::npos) << v.output;
+  fs::remove_all(dir);
+  fs::remove(spec);
+}
+
+TEST(SweepCli, AnInterruptedSweepStopsItsRunsAndRunsThemAgain) {
+  const fs::path dir = tempDir("interrupted");
+  const fs::path spec = tempDir("interrupted_spec.yaml");
+  // two runs of 3000 frames (minutes), both running when the sweep is interrupted
+  writeFile(spec, std::string("base: ") + ESIM_SOURCE_DIR +
+                      "/scenarios/paper_slab_506.yaml\n"
+                      "set: {time.duration_s: 100, look.width: 160, look.height: 90, "
+                      "output.video: false}\n"
+                      "grid: {tool.voltage_v: [60, 70]}\n");
+  // the sweep in the background, a signal once both runs have their partial folder
+  const std::string partial = dir.string() + "/runs/v000";
+  const auto sweepThenSignal = [&](const std::string& signal) {
+    return shell(std::string(ESIM_EXE) + " sweep " + spec.string() + " -o " + dir.string() +
+                 " --workers 2 & pid=$!; for i in $(seq 1200); do [ -d " + partial +
+                 "0/run.partial ] && [ -d " + partial +
+                 "1/run.partial ] && break; sleep 0.05; done; sleep 1; kill -" + signal +
+                 " $pid; wait $pid");
+  };
+  const Result r = sweepThenSignal("INT");  // Ctrl-C
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  EXPECT_NE(r.output.find("stopping: 2 running variants finish their frame"), std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("2 interrupted"), std::string::npos) << r.output;
+  const auto lines = manifest(dir);
+  ASSERT_EQ(lines.size(), 2u);
+  for (const auto& l : lines) {
+    EXPECT_EQ(l["status"], "interrupted") << l.dump();
+    EXPECT_NE(l["message"].get<std::string>().find("interrupted after"), std::string::npos)
+        << l.dump();
+    EXPECT_LT(l["frames"].get<int>(), 3000);
+  }
+  EXPECT_TRUE(fs::exists(dir / "runs/v0000/run.partial/timing.json")) << "the frames are kept";
+  // an interrupted variant is run again (here interrupted again, by SIGTERM)
+  fs::remove_all(dir / "runs/v0000/run.partial");
+  fs::remove_all(dir / "runs/v0001/run.partial");
+  const Result again = sweepThenSignal("TERM");
+  EXPECT_EQ(again.exitCode, 1) << again.output;
+  EXPECT_NE(again.output.find("0 complete before, 2 to run"), std::string::npos) << again.output;
+  fs::remove_all(dir);
+  fs::remove(spec);
+}
+
+TEST(SweepCli, BadSweepsExitTwoWithNothingWritten) {
+  const fs::path dir = tempDir("bad");
+  const fs::path spec = tempDir("bad_spec.yaml");
+  writeFile(spec, std::string("base: ") + ESIM_SOURCE_DIR +
+                      "/scenarios/paper_slab_506.yaml\n"
+                      "grid:\n"
+                      "  tool.voltage_v: [60, 20000]\n");
+  const Result r = esim("sweep " + spec.string() + " -o " + dir.string());
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_NE(r.output.find(spec.string() + ":3:24: tool.voltage_v: variant v0001"),
+            std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(dir));
+  // run options are checked with esim run's own definition
+  const Result opt = esim("sweep " + kTiny + " -o " + dir.string() + " --run-args=--bogus");
+  EXPECT_EQ(opt.exitCode, 2) << opt.output;
+  EXPECT_NE(opt.output.find("--run-args: run_options: esim run does not take them"),
+            std::string::npos)
+      << opt.output;
+  EXPECT_FALSE(fs::exists(dir));
+  // a folder of other files is refused
+  fs::create_directories(dir);
+  writeFile(dir / "mine.txt", "x");
+  const Result other = esim("sweep " + kTiny + " -o " + dir.string());
+  EXPECT_EQ(other.exitCode, 2) << other.output;
+  EXPECT_NE(other.output.find("holds other files"), std::string::npos) << other.output;
+  EXPECT_EQ(readFile(dir / "mine.txt"), "x");
+  fs::remove_all(dir);
+  fs::remove(spec);
+}
+
+TEST(SweepCli, AFolderOfAnotherSweepIsNotResumed) {
+  const fs::path dir = tempDir("changed");
+  const fs::path spec = tempDir("changed_spec.yaml");
+  const std::string head = std::string("base: ") + ESIM_SOURCE_DIR +
+                           "/scenarios/paper_slab_506.yaml\nset: {time.duration_s: 0.1, "
+                           "look.width: 160, look.height: 90}\n";
+  writeFile(spec, head + "grid: {tool.voltage_v: [60]}\n");
+  ASSERT_EQ(esim("sweep " + spec.string() + " -o " + dir.string() + " -q").exitCode, 0);
+  writeFile(spec, head + "grid: {tool.voltage_v: [61]}\n");
+  const Result r = esim("sweep " + spec.string() + " -o " + dir.string());
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_NE(r.output.find("differs from the variant"), std::string::npos) << r.output;
+  fs::remove_all(dir);
+  fs::remove(spec);
+}
+
+TEST(SweepCli, DryRunListsTheVariants) {
+  const Result r = esim("sweep scenarios/sweeps/slab_cut_8.yaml --dry-run");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_NE(r.output.find("8 variants"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("v0007"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("path.angle_deg"), std::string::npos) << r.output;
+}
+
+TEST(SweepCli, SlurmWithoutSubmitWritesTheJobArrayScript) {
+  const fs::path dir = tempDir("slurm_script");
+  const Result r = esim("sweep " + kTiny + " -o " + dir.string() +
+                        " --slurm --mem-mb 900 --time-min 7 --max-parallel 2 "
+                        "--sbatch-arg=--partition=short");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  const std::string script = readFile(dir / "slurm" / "sweep.sbatch");
+  for (const char* line :
+       {"#SBATCH --array=0-3%2\n", "#SBATCH --mem=900M\n", "#SBATCH --time=7\n",
+        "#SBATCH --cpus-per-task=1\n", "#SBATCH --partition=short\n", " dataset run '"})
+    EXPECT_NE(script.find(line), std::string::npos) << line << " in\n" << script;
+  const auto lines = manifest(dir);
+  ASSERT_EQ(lines.size(), 4u);
+  for (const auto& l : lines) EXPECT_EQ(l["status"], "pending");
+  // a task runs one variant by its index and records it
+  const Result one = esim("dataset run " + dir.string() + " 2");
+  EXPECT_EQ(one.exitCode, 0) << one.output;
+  EXPECT_EQ(manifest(dir)[2]["status"], "complete");
+  EXPECT_EQ(manifest(dir)[1]["status"], "pending");
+  EXPECT_EQ(esim("dataset run " + dir.string() + " v0002").output, "v0002: already complete\n");
+  fs::remove_all(dir);
+}
+
+}  // namespace

@@ -1,0 +1,224 @@
+// dataset.cpp - the records of a sweep folder: file hashes, results, the manifest and its
+// verification (see dataset.h).
+#include "tools/app/dataset.h"
+
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+#include <xxhash.h>
+
+#include <algorithm>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "render/image_hash.h"
+#include "sim/core_error.h"
+
+namespace esim::app {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string readText(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  if (!in) throw Error(p.string() + ": cannot be read", ErrorKind::Run);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+nlohmann::json readJson(const fs::path& p) {
+  try {
+    return nlohmann::json::parse(readText(p));
+  } catch (const nlohmann::json::exception& e) {
+    throw Error(p.string() + ": not valid JSON (" + e.what() + ")");
+  }
+}
+
+// holds an exclusive flock on DIR/.lock while alive (flock works on NFS since Linux 2.6.12)
+class FolderLock {
+ public:
+  explicit FolderLock(const fs::path& dir) {
+    fd_ = ::open((dir / ".lock").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (fd_ >= 0)
+      while (::flock(fd_, LOCK_EX) != 0 && errno == EINTR) {
+      }
+  }
+  ~FolderLock() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  FolderLock(const FolderLock&) = delete;
+  FolderLock& operator=(const FolderLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
+
+}  // namespace
+
+std::string hashFile(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(path.string() + ": cannot be read", ErrorKind::Run);
+  XXH3_state_t* state = XXH3_createState();
+  XXH3_64bits_reset(state);
+  std::vector<char> buf(1 << 20);
+  while (in) {
+    in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
+    if (in.gcount() > 0) XXH3_64bits_update(state, buf.data(), static_cast<size_t>(in.gcount()));
+  }
+  const bool ok = in.eof();
+  const std::uint64_t h = XXH3_64bits_digest(state);
+  XXH3_freeState(state);
+  if (!ok) throw Error(path.string() + ": read failed", ErrorKind::Run);
+  return hashToHex(h);
+}
+
+nlohmann::json hashTree(const fs::path& root, const fs::path& base) {
+  std::vector<fs::path> files;
+  std::error_code ec;
+  if (fs::is_directory(root, ec))
+    for (auto it = fs::recursive_directory_iterator(root); it != fs::recursive_directory_iterator();
+         ++it)
+      if (it->is_regular_file()) files.push_back(it->path());
+  std::sort(files.begin(), files.end());
+  nlohmann::json out = nlohmann::json::object();
+  for (const auto& f : files) out[f.lexically_relative(base).generic_string()] = hashFile(f);
+  return out;
+}
+
+void writeFileAtomic(const fs::path& path, const std::string& text) {
+  const fs::path tmp = path.string() + ".tmp" + std::to_string(::getpid());
+  {
+    std::ofstream os(tmp, std::ios::binary);
+    os << text;
+    os.flush();
+    if (!os.good()) {
+      std::error_code ec;
+      fs::remove(tmp, ec);
+      throw Error(path.string() + ": write failed (disk full?)", ErrorKind::Run);
+    }
+  }
+  fs::rename(tmp, path);
+}
+
+nlohmann::json readSweepJson(const fs::path& dir) {
+  const fs::path p = dir / "sweep.json";
+  std::error_code ec;
+  if (!fs::is_regular_file(p, ec))
+    throw Error(dir.string() + ": not a sweep folder (no sweep.json; esim sweep SPEC -o " +
+                dir.string() + " makes one)");
+  return readJson(p);
+}
+
+nlohmann::json readResult(const fs::path& dir, const std::string& id) {
+  const fs::path p = dataset::variantDir(dir, id) / "result.json";
+  std::error_code ec;
+  if (!fs::is_regular_file(p, ec)) return nullptr;
+  try {
+    return nlohmann::json::parse(readText(p));
+  } catch (const std::exception&) {
+    return nullptr;  // a torn or foreign file: the variant counts as not run
+  }
+}
+
+void writeResult(const fs::path& dir, const std::string& id, const nlohmann::json& result) {
+  writeFileAtomic(dataset::variantDir(dir, id) / "result.json", result.dump(2) + "\n");
+}
+
+std::vector<nlohmann::json> manifestLines(const fs::path& dir) {
+  const nlohmann::json sweep = readSweepJson(dir);
+  std::vector<nlohmann::json> lines;
+  for (const auto& v : sweep.at("variants")) {
+    const std::string id = v.at("id");
+    nlohmann::json line = {{"id", id}, {"index", v.at("index")}, {"values", v.at("values")}};
+    const nlohmann::json r = readResult(dir, id);
+    if (r.is_object()) {
+      for (auto it = r.begin(); it != r.end(); ++it)
+        if (!line.contains(it.key())) line[it.key()] = it.value();
+    } else {
+      line["status"] = "pending";
+    }
+    lines.push_back(std::move(line));
+  }
+  return lines;
+}
+
+void writeManifest(const fs::path& dir) {
+  FolderLock lock(dir);
+  std::string text;
+  for (const auto& line : manifestLines(dir)) text += line.dump() + "\n";
+  writeFileAtomic(dir / "manifest.jsonl", text);
+}
+
+VerifyReport verifyDataset(const fs::path& dir) {
+  const fs::path manifest = dir / "manifest.jsonl";
+  std::error_code ec;
+  if (!fs::is_regular_file(manifest, ec))
+    throw Error(dir.string() + ": no manifest.jsonl (not a sweep folder made by esim sweep)");
+  VerifyReport rep;
+  std::istringstream in(readText(manifest));
+  int lineNo = 0;
+  for (std::string text; std::getline(in, text);) {
+    ++lineNo;
+    if (text.empty()) continue;
+    nlohmann::json line;
+    try {
+      line = nlohmann::json::parse(text);
+    } catch (const nlohmann::json::exception&) {
+      rep.problems.push_back("manifest.jsonl:" + std::to_string(lineNo) + ": not valid JSON");
+      continue;
+    }
+    ++rep.variants;
+    if (line.value("status", "") != "complete") {
+      ++rep.notComplete;
+      continue;
+    }
+    ++rep.complete;
+    const std::string id = line.value("id", "");
+    if (id.empty() || id.find('/') != std::string::npos || id.find("..") != std::string::npos) {
+      rep.problems.push_back("manifest.jsonl:" + std::to_string(lineNo) + ": bad id");
+      continue;
+    }
+    const nlohmann::json files = line.value("files", nlohmann::json::object());
+    // what is on disk now: scenario.yaml and everything under run/
+    std::map<std::string, fs::path> onDisk;
+    const fs::path vdir = dataset::variantDir(dir, id);
+    if (fs::is_regular_file(vdir / "scenario.yaml", ec))
+      onDisk[(vdir / "scenario.yaml").lexically_relative(dir).generic_string()] =
+          vdir / "scenario.yaml";
+    const fs::path run = dataset::runDir(dir, id);
+    if (fs::is_directory(run, ec))
+      for (auto it = fs::recursive_directory_iterator(run);
+           it != fs::recursive_directory_iterator(); ++it)
+        if (it->is_regular_file())
+          onDisk[it->path().lexically_relative(dir).generic_string()] = it->path();
+    for (auto it = files.begin(); it != files.end(); ++it) {
+      const std::string rel = it.key();
+      const std::string want = it.value().is_string() ? it.value().get<std::string>() : "";
+      auto found = onDisk.find(rel);
+      if (found == onDisk.end()) {
+        rep.problems.push_back(rel + ": missing (the manifest lists it)");
+        continue;
+      }
+      ++rep.filesChecked;
+      std::string got;
+      try {
+        got = hashFile(found->second);
+      } catch (const Error& e) {
+        rep.problems.push_back(rel + ": " + e.what());
+        onDisk.erase(found);
+        continue;
+      }
+      if (got != want)
+        rep.problems.push_back(rel + ": changed (xxh3 " + got + ", the manifest has " + want + ")");
+      onDisk.erase(found);
+    }
+    for (const auto& [rel, path] : onDisk)
+      rep.problems.push_back(rel + ": not in the manifest (added after the run)");
+  }
+  return rep;
+}
+
+}  // namespace esim::app

@@ -1,0 +1,74 @@
+// dataset.h - the folder of a sweep (`esim sweep SPEC -o DIR`) and its records.
+//
+//   DIR/sweep.yaml                 the sweep file as given (a copy)
+//   DIR/sweep.json                 what the sweep is: name, base, seed, run options, and
+//                                  every variant's id and values (what a Slurm task reads)
+//   DIR/manifest.jsonl             one line per variant, in order (below)
+//   DIR/runs/<id>/scenario.yaml    the variant, fully resolved (esim run's input)
+//   DIR/runs/<id>/run/             the run's folder (run.partial/ while it runs or after a
+//                                  failure), as `esim run -o` writes it
+//   DIR/runs/<id>/log.txt          the run's output (summary, errors)
+//   DIR/runs/<id>/result.json      how the run ended, with the hash of every file it wrote
+//   DIR/slurm/                     the job-array script and the tasks' logs (--slurm)
+// A manifest line: id, index, values (the grid and random keys), status (complete, failed,
+// interrupted, pending), exit_code, message, wall_s, cpu_s (the run's user + system CPU
+// time), frames, peak_rss_mb, warnings (timing.json's), host, slurm_job, finished (UTC),
+// video (its path), video_xxh3, frames_xxh3 (hashes.json's hash over all frames),
+// labels_xxh3 (over the files under labels/, null when the run wrote none) and files: every
+// file of runs/<id>/ the run made, recursively (scenario.yaml and everything in run/), path
+// relative to DIR -> xxh3-64 of its bytes (16 hex digits).
+// The manifest is rewritten whole (a new file renamed over the old, under an flock on
+// DIR/.lock) from sweep.json and the result.json files each time a variant ends, by
+// whichever process ran it: the local sweep, or a Slurm task.
+#pragma once
+
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+namespace esim::app {
+
+namespace dataset {
+inline std::filesystem::path variantDir(const std::filesystem::path& dir, const std::string& id) {
+  return dir / "runs" / id;
+}
+inline std::filesystem::path runDir(const std::filesystem::path& dir, const std::string& id) {
+  return variantDir(dir, id) / "run";
+}
+}  // namespace dataset
+
+// xxh3-64 (seed 0) of a file's bytes as 16 hex digits; throws Error if it cannot be read
+std::string hashFile(const std::filesystem::path& path);
+
+// every regular file under root, recursively, as path relative to base -> hashFile;
+// sorted by path
+nlohmann::json hashTree(const std::filesystem::path& root, const std::filesystem::path& base);
+
+// DIR/sweep.json (throws Error, input kind, when DIR holds none)
+nlohmann::json readSweepJson(const std::filesystem::path& dir);
+
+// runs/<id>/result.json, or null when there is none
+nlohmann::json readResult(const std::filesystem::path& dir, const std::string& id);
+// writes runs/<id>/result.json (a new file renamed into place)
+void writeResult(const std::filesystem::path& dir, const std::string& id,
+                 const nlohmann::json& result);
+
+// the manifest's lines as of now (sweep.json's variants with their results)
+std::vector<nlohmann::json> manifestLines(const std::filesystem::path& dir);
+// rewrites DIR/manifest.jsonl from sweep.json and the results (under DIR/.lock)
+void writeManifest(const std::filesystem::path& dir);
+
+// writes text to path through a temporary file renamed into place
+void writeFileAtomic(const std::filesystem::path& path, const std::string& text);
+
+// `esim dataset verify DIR`: every file of every complete variant re-hashed against the
+// manifest; a file changed, missing, or not in the manifest is a problem
+struct VerifyReport {
+  int variants = 0, complete = 0, notComplete = 0;
+  int filesChecked = 0;
+  std::vector<std::string> problems;  // "runs/v0003/run/video.mp4: ..." one per file
+};
+VerifyReport verifyDataset(const std::filesystem::path& dir);
+
+}  // namespace esim::app
