@@ -20,6 +20,7 @@ namespace esim {
   X(PFNGLVIEWPORTPROC, Viewport)                                             \
   X(PFNGLCLEARCOLORPROC, ClearColor)                                         \
   X(PFNGLCLEARPROC, Clear)                                                   \
+  X(PFNGLCLEARBUFFERUIVPROC, ClearBufferuiv)                                 \
   X(PFNGLENABLEPROC, Enable)                                                 \
   X(PFNGLDISABLEPROC, Disable)                                               \
   X(PFNGLDEPTHFUNCPROC, DepthFunc)                                           \

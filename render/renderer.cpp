@@ -14,6 +14,7 @@
 
 #include "render/colormap.h"
 #include "render/gl_context.h"
+#include "render/label_pass.h"
 #include "render/overlay.h"
 #include "render/shaders.h"
 #include "render/surface_buffers.h"
@@ -122,6 +123,7 @@ struct FrameView {
   M4 viewProj;                  // projection * view
   V3 keyDir, fillDir, halfDir;  // towards the key and fill lights; Blinn-Phong half vector
   M4 toolPose;                  // electrode frame -> world
+  V3 eye, forward;              // camera centre [m], unit viewing direction
   V3 toolAxis;                  // electrode axis, tip to handle, in world
   V3 toolSizes;                 // toolShadowSizes(): the shadow's capsules
 };
@@ -140,6 +142,8 @@ FrameView frameView(const RenderOptions& o, const SurfaceSnapshot& snap) {
   const M4 proj = perspective(o.fovDeg, static_cast<float>(o.width) / o.height, 0.02f * dist, farM);
   f.viewProj = matMul(proj, view);
   const V3 fwd = normalized(sub(o.targetM, o.eyeM));
+  f.eye = o.eyeM;
+  f.forward = fwd;
   const V3 right = normalized(cross(fwd, o.up));
   const V3 camUp = cross(right, fwd);
   f.keyDir = normalized(add(add(mul(right, -0.45f), mul(camUp, 0.65f)), mul(fwd, -0.60f)));
@@ -214,11 +218,20 @@ struct Renderer::Impl {
   GLuint surfIbo = 0;
   std::vector<std::uint8_t> readBuf, frame;
   RenderTimings timings;
+  // labels (renderLabels): made on first use, drawing what the last render() drew
+  std::unique_ptr<LabelPass> labelPass;
+  LabelFrame labelFrame;
+  bool rendered = false;       // render() has run
+  LabelGeometry lastGeometry;  // the last render()'s buffers and matrices
+  double lastTimeS = 0;
 
   // set-up: init() runs the create* steps and drawBackgroundColumn in this order
   void init();
-  // links the surface program of a look (kLook*), with or without the electrode's shadow
+  // the variant of the surface program of a look (kLook*), with or without the
+  // electrode's shadow, and its linked program
+  SurfaceVariant surfaceVariant(int look, bool shadow) const;
   SurfaceProgram makeSurfaceProgram(int look, bool shadow);
+  int lookId() const;            // kLook* of opt.look
   void createPrograms();         // background and surface programs
   void createVertexArrays();     // background (empty), surface (with its index buffer), tool
   void createColormapTexture();  // the colour map as a 1D texture, unit 0
@@ -247,23 +260,30 @@ void Renderer::Impl::init() {
   drawBackgroundColumn();
 }
 
-SurfaceProgram Renderer::Impl::makeSurfaceProgram(int look, bool shadow) {
+SurfaceVariant Renderer::Impl::surfaceVariant(int look, bool shadow) const {
   SurfaceVariant v;
   v.look = look;
   v.lit = opt.lighting;
   v.shadow = shadow;
   v.logScale = opt.potentialLogScale;
   v.vertexLit = look != kLookTool && opt.shading == "vertex";
-  return linkSurfaceProgram(ctx->gl(), v);
+  return v;
+}
+
+SurfaceProgram Renderer::Impl::makeSurfaceProgram(int look, bool shadow) {
+  return linkSurfaceProgram(ctx->gl(), surfaceVariant(look, shadow));
+}
+
+int Renderer::Impl::lookId() const {
+  return opt.look == "temperature" ? kLookTemperature
+                                   : (opt.look == "tissue" ? kLookTissue : kLookPotential);
 }
 
 void Renderer::Impl::createPrograms() {
   const GlFunctions& gl = ctx->gl();
   bgProgram = linkProgram(gl, kFullScreenVs, kBackgroundFs, "background");
   uSize = gl.GetUniformLocation(bgProgram, "uSize");
-  const int look = opt.look == "temperature"
-                       ? kLookTemperature
-                       : (opt.look == "tissue" ? kLookTissue : kLookPotential);
+  const int look = lookId();
   lookProgram[0] = makeSurfaceProgram(look, false);
   lookProgram[1] = makeSurfaceProgram(look, opt.lighting);
   toolProgram = makeSurfaceProgram(kLookTool, false);
@@ -438,6 +458,7 @@ void Renderer::Impl::destroy() {
   gl.DeleteFramebuffers(3, fbos);
   GLuint rbs[] = {color, depth, msDepth};
   gl.DeleteRenderbuffers(3, rbs);
+  if (labelPass) labelPass->destroy(gl);
 }
 
 void Renderer::Impl::clearTarget() {
@@ -587,6 +608,20 @@ const std::vector<std::uint8_t>& Renderer::render(const SurfaceSnapshot& snap) {
   // 4. electrode
   if (snap.tool.present) m.drawTool(view, snap.tool);
   gl.BindVertexArray(0);
+  // what a label pass of this frame draws again
+  LabelGeometry& lg = m.lastGeometry;
+  lg.surfaceVao = m.surfVao;
+  lg.surfaceIndices = snap.numTriangles() > 0 ? static_cast<GLsizei>(m.surface.indices.size()) : 0;
+  lg.surfaceVariant = snap.tool.present ? 1 : 0;
+  lg.cullBackFaces = o.cullBackFaces;
+  lg.toolVao = m.toolVao;
+  lg.toolVertices = snap.tool.present ? m.toolVertexCount : 0;
+  lg.viewProj = view.viewProj;
+  lg.toolPose = view.toolPose;
+  lg.eyeM = view.eye;
+  lg.forward = view.forward;
+  m.lastTimeS = snap.timeS;
+  m.rendered = true;
 
   // 5. resolve, read back and composite the background
   gl.Finish();
@@ -603,6 +638,25 @@ const std::vector<std::uint8_t>& Renderer::render(const SurfaceSnapshot& snap) {
   m.timings.prepareMs = prepareMs;
   m.timings.totalMs = msSince(tStart);
   return m.frame;
+}
+
+const LabelFrame& Renderer::renderLabels() {
+  Impl& m = *impl_;
+  ESIM_VERIFY(m.rendered, "Renderer::renderLabels: no frame drawn yet (call render() first)");
+  const auto tStart = Clock::now();
+  m.ctx->makeCurrent();
+  const GlFunctions& gl = m.ctx->gl();
+  if (!m.labelPass) {
+    // the vertex shaders of the frame's programs: lookProgram[0], [1] and toolProgram
+    const SurfaceVariant surfaceVs[2] = {m.surfaceVariant(m.lookId(), false),
+                                         m.surfaceVariant(m.lookId(), m.opt.lighting)};
+    m.labelPass =
+        std::make_unique<LabelPass>(gl, m.opt, surfaceVs, m.surfaceVariant(kLookTool, false));
+  }
+  m.labelPass->draw(gl, m.lastGeometry, m.labelFrame);
+  m.labelPass->markOverlay(m.opt, m.lastTimeS, m.labelFrame);
+  m.timings.labelsMs = msSince(tStart);
+  return m.labelFrame;
 }
 
 }  // namespace esim

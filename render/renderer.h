@@ -13,7 +13,8 @@
 // into its own framebuffer object (multisampled when msaaSamples > 0, resolved
 // by a full-screen pass into a plain one) and reads it back; then 4. the overlay
 // (colour bar with ticks in deg C or V, simulated time) is drawn on the CPU with the
-// built-in 5x7 font (bitmap_font.h).
+// built-in 5x7 font (bitmap_font.h). On request, renderLabels() then draws the same
+// buffers again for per-pixel labels (class, tissue state, depth: labels.h).
 // Looks: "temperature" colours T with a perceptual map (colormap.h) between
 // tMinC and tMaxC (clamped); "tissue" shows pink liver-like tissue, whitening with
 // coagulation, browning then charring with desiccation, darker on cut walls, with
@@ -40,6 +41,7 @@
 #include <string>
 #include <vector>
 
+#include "render/labels.h"
 #include "sim/snapshot.h"
 
 namespace esim {
@@ -76,6 +78,7 @@ struct RenderTimings {
   double readbackMs = 0;  // MSAA resolve, glReadPixels, row flip
   double overlayMs = 0;   // colour bar and text on the CPU
   double totalMs = 0;
+  double labelsMs = 0;  // the last renderLabels() call (not in totalMs)
 };
 
 // background colour (RGB24) at the given image row, top row 0 (the gradient)
@@ -93,6 +96,12 @@ class Renderer {
   // draws the snapshot; returns RGB24, top row first (valid until the next call);
   // throws esim::Error naming the field when the snapshot is inconsistent
   const std::vector<std::uint8_t>& render(const SurfaceSnapshot& snapshot);
+
+  // the labels of the last render()'s frame (labels.h): its vertex buffers drawn again
+  // with the same camera, culling and depth test through a flat-class shader, single
+  // sample; the overlay's pixels marked; valid until the next call. The label programs
+  // and framebuffer are made on the first call. Throws esim::Error before any render().
+  const LabelFrame& renderLabels();
 
   std::string glRenderer() const;  // GL_RENDERER, e.g. "llvmpipe (LLVM 15.0.6, 256 bits)"
   std::string glVersion() const;   // GL_VERSION, e.g. "4.5 (Core Profile) Mesa 22.3.6"

@@ -17,8 +17,8 @@ constexpr double kRebuildPrefetchS = 1.0;         // scripted path prefetched af
 constexpr double kMaxPrincipleToleranceK = 1e-3;  // round-off and obtuse-mesh margin [K]
 
 constexpr const char* kStageNames[kStageCount] = {
-    "move_tool", "find_contacts", "solve_potential", "heat",   "solve_stress",
-    "rupture",   "rebuild",       "snapshot",        "render", "encode_wait"};
+    "move_tool", "find_contacts", "solve_potential", "heat",        "solve_stress", "rupture",
+    "rebuild",   "snapshot",      "render",          "encode_wait", "write_labels"};
 
 }  // namespace
 

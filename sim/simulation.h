@@ -52,6 +52,7 @@ enum class Stage : int {
   Snapshot,
   Render,
   Encode,  // time the frame loop waited on the encoder queue (encoding itself is offline)
+  Labels,  // esim run --labels: writing the label files (the label pass is in Render)
   kCount
 };
 constexpr int kStageCount = static_cast<int>(Stage::kCount);

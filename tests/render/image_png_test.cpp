@@ -33,6 +33,35 @@ TEST(ImagePng, RoundTripIsLosslessAndBytesAreStable) {
   EXPECT_EQ(sa.substr(1, 3), "PNG");
 }
 
+// one-channel images (label masks, depth) keep their values and bit depth
+TEST(ImagePng, GrayRoundTripsKeepValuesAndBitDepth) {
+  const int w = 29, h = 13;
+  std::vector<std::uint8_t> g8(w * h);
+  std::vector<std::uint16_t> g16(w * h);
+  for (size_t i = 0; i < g8.size(); ++i) {
+    g8[i] = static_cast<std::uint8_t>((i * 31) % 256);
+    g16[i] = static_cast<std::uint16_t>((i * 40503) % 65536);  // high and low bytes differ
+  }
+  const auto dir = std::filesystem::temp_directory_path() / "esim_png_test";
+  std::filesystem::create_directories(dir);
+  const std::string a = (dir / "g8.png").string(), b = (dir / "g16.png").string();
+  writePngGray8(a, g8, w, h);
+  writePngGray16(b, g16, w, h);
+  const GrayImage back8 = readPngGray(a), back16 = readPngGray(b);
+  EXPECT_EQ(back8.bitDepth, 8);
+  EXPECT_EQ(back16.bitDepth, 16);
+  ASSERT_EQ(back8.width, w);
+  ASSERT_EQ(back16.height, h);
+  for (size_t i = 0; i < g8.size(); ++i) {
+    ASSERT_EQ(back8.values[i], g8[i]) << i;
+    ASSERT_EQ(back16.values[i], g16[i]) << i;
+  }
+  EXPECT_THROW(writePngGray8(a, g8, w + 1, h), Error);
+  // an RGB PNG is not grey
+  writePng((dir / "rgb.png").string(), std::vector<std::uint8_t>(w * h * 3, 7), w, h);
+  EXPECT_THROW(readPngGray((dir / "rgb.png").string()), Error);
+}
+
 TEST(ImagePng, ErrorsNameThePath) {
   std::vector<std::uint8_t> img(4 * 4 * 3, 0);
   try {

@@ -7,9 +7,13 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "render/image_hash.h"
+#include "render/image_png.h"
+#include "render/labels.h"
 #include "sim/io/vtu.h"
 
 namespace {
@@ -493,6 +497,135 @@ TEST(RunCli, ExitCodesOfEachKind) {
                                " validate scenarios/paper_slab.yaml" + rule + " >/dev/null 2>&1";
   const int status = std::system(validate.c_str());
   EXPECT_EQ(WEXITSTATUS(status), 2);
+}
+
+// ---- labels (esim run --labels) ----
+
+// the acceptance run, shortened: every label file, one per frame of the video, pixel-aligned
+// with it, consistent with each other; the same masks on a second run with one llvmpipe thread
+TEST(RunCli, LabelsArePixelAlignedWithTheVideo) {
+  const fs::path out = tempOut("labels");
+  const int w = 160, h = 90, frames = 3;
+  Result r = esimRun("scenarios/paper_slab.yaml --frames 3 --labels preview" + std::string(kSmall) +
+                     " -o " + out.string());
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_NE(r.output.find("labels/"), std::string::npos) << r.output;
+  const fs::path dir = out / "labels";
+  for (const char* f : {"classes.json", "camera.json", "frames.jsonl", "coco.json", "preview.mp4"})
+    EXPECT_TRUE(fs::exists(dir / f)) << f;
+  EXPECT_FALSE(fs::exists(dir / "mask_00003.png"));
+  // the video has as many frames as there are masks; the preview is frame | mask
+  const std::string count =
+      probe("-count_frames -select_streams v:0 -show_entries stream=nb_read_frames -of csv=p=0 " +
+            (out / "video.mp4").string());
+  EXPECT_EQ(std::atoi(count.c_str()), frames) << count;
+  EXPECT_EQ(probe("-select_streams v:0 -show_entries stream=width,height -of csv=p=0 " +
+                  (dir / "preview.mp4").string()),
+            "320,90\n");
+  // camera.json: the frame's size, OpenCV principal point, depth unit
+  const auto camera = nlohmann::json::parse(readFile(dir / "camera.json"));
+  EXPECT_EQ(camera["width"], w);
+  EXPECT_EQ(camera["height"], h);
+  EXPECT_DOUBLE_EQ(camera["cx"].get<double>(), (w - 1) / 2.0);
+  EXPECT_DOUBLE_EQ(camera["cy"].get<double>(), (h - 1) / 2.0);
+  // the scenario's camera is 0.166 m from its target: 4 x that needs 20 um units
+  EXPECT_DOUBLE_EQ(camera["depth"]["unit_m"].get<double>(), 2e-5);
+  const auto classes = nlohmann::json::parse(readFile(dir / "classes.json"));
+  ASSERT_EQ(classes["classes"].size(), static_cast<size_t>(esim::kLabelClassCount));
+  EXPECT_EQ(classes["classes"][2]["name"], "tool_tip");
+  // frames.jsonl: one line per frame
+  std::istringstream jsonl(readFile(dir / "frames.jsonl"));
+  std::vector<nlohmann::json> lines;
+  for (std::string line; std::getline(jsonl, line);) lines.push_back(nlohmann::json::parse(line));
+  ASSERT_EQ(lines.size(), static_cast<size_t>(frames));
+  const auto hashes = nlohmann::json::parse(readFile(out / "hashes.json"));
+  ASSERT_EQ(hashes["frames"].size(), static_cast<size_t>(frames));
+  const auto coco = nlohmann::json::parse(readFile(dir / "coco.json"));
+  EXPECT_EQ(coco["images"].size(), static_cast<size_t>(frames));
+  for (int f = 0; f < frames; ++f) {
+    char name[32];
+    std::snprintf(name, sizeof name, "%05d.png", f);
+    const esim::GrayImage mask = esim::readPngGray((dir / ("mask_" + std::string(name))).string());
+    const esim::GrayImage depth =
+        esim::readPngGray((dir / ("depth_" + std::string(name))).string());
+    ASSERT_EQ(mask.bitDepth, 8);
+    ASSERT_EQ(depth.bitDepth, 16);
+    ASSERT_EQ(mask.width, w);
+    ASSERT_EQ(mask.height, h);
+    ASSERT_EQ(depth.width, w);
+    ASSERT_EQ(depth.height, h);
+    // counts per class as frames.jsonl says; depth exactly where something is drawn
+    std::map<int, long> counted;
+    std::vector<std::uint8_t> bytes(mask.values.size()), tool(mask.values.size());
+    for (size_t i = 0; i < mask.values.size(); ++i) {
+      const int c = mask.values[i];
+      ASSERT_LT(c, esim::kLabelClassCount);
+      ++counted[c];
+      bytes[i] = static_cast<std::uint8_t>(c);
+      tool[i] = c == 1 || c == 2;
+      const bool drawn = c != 0 && c != 7;
+      if (c != 7) {
+        EXPECT_EQ(depth.values[i] != 0, drawn) << "frame " << f << " pixel " << i;
+      }
+    }
+    const nlohmann::json& line = lines[f];
+    EXPECT_EQ(line["frame"], f);
+    long total = 0;
+    for (const auto& c : classes["classes"]) {
+      const long n = line["class_pixels"][c["name"].get<std::string>()];
+      EXPECT_EQ(n, counted[c["id"].get<int>()]) << c["name"];
+      total += n;
+    }
+    EXPECT_EQ(total, w * h);
+    EXPECT_GT(counted[3], w * h / 4) << "the slab should fill much of the view";
+    EXPECT_GT(counted[1] + counted[2], 20) << "the electrode should show";
+    EXPECT_EQ(line["generator_on"], true);
+    EXPECT_GT(line["power_w"].get<double>(), 0);
+    EXPECT_GT(line["contact_nodes"].get<int>(), 0);
+    EXPECT_EQ(line["tool"]["position_m"].size(), 3u);
+    EXPECT_EQ(line["tool"]["orientation_wxyz"].size(), 4u);
+    EXPECT_EQ(line["tool"]["tip_in_image"], true);
+    EXPECT_NEAR(line["time_s"].get<double>(), (f + 1) / 30.0, 1e-9);
+    // hashes.json holds the mask's hash; coco.json's tool instance decodes to the tool pixels
+    EXPECT_EQ(hashes["frames"][f]["mask_xxh3"],
+              esim::hashToHex(esim::hashBytes(bytes.data(), bytes.size())));
+    int toolInstances = 0;
+    for (const auto& a : coco["annotations"]) {
+      if (a["image_id"] != f || a["category_id"] != 1) continue;
+      ++toolInstances;
+      EXPECT_EQ(a["segmentation"]["size"], nlohmann::json({h, w}));
+      EXPECT_EQ(
+          esim::cocoRleDecode(a["segmentation"]["counts"].get<std::vector<std::uint32_t>>(), w, h),
+          tool);
+      EXPECT_EQ(a["area"], counted[1] + counted[2]);
+    }
+    EXPECT_EQ(toolInstances, 1);
+  }
+  // the labels' writing is a stage of its own
+  EXPECT_NE(readFile(out / "timing.csv").find("write_labels_ms"), std::string::npos);
+  // the same masks from a second run on one llvmpipe thread, and --labels before the scenario
+  const fs::path again = tempOut("labels_again");
+  const std::string cmd = std::string("cd ") + ESIM_SOURCE_DIR + " && LP_NUM_THREADS=1 " +
+                          ESIM_EXE + " run --labels scenarios/paper_slab.yaml --frames 3 " +
+                          kSmall + " -o " + again.string() + " 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  const auto hashesAgain = nlohmann::json::parse(readFile(again / "hashes.json"));
+  EXPECT_EQ(hashesAgain["all_masks_xxh3"], hashes["all_masks_xxh3"]);
+  for (int f = 0; f < frames; ++f)
+    EXPECT_EQ(hashesAgain["frames"][f]["depth_xxh3"], hashes["frames"][f]["depth_xxh3"]);
+  EXPECT_FALSE(fs::exists(again / "labels" / "preview.mp4"));
+  fs::remove_all(out);
+  fs::remove_all(again);
+}
+
+TEST(RunCli, LabelsWithAnUnknownModeExitTwo) {
+  const fs::path out = tempOut("labels_bad");
+  const Result r =
+      esimRun("scenarios/paper_slab.yaml --frames 2 --labels colour -q -o " + out.string());
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_NE(r.output.find("--labels: 'colour' is unknown"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_FALSE(fs::exists(out.string() + ".partial"));
 }
 
 }  // namespace

@@ -35,6 +35,7 @@
 #include "tools/app/exit_codes.h"
 #include "tools/app/plot_script.h"
 #include "tools/app/run_config.h"
+#include "tools/app/run_labels.h"
 #include "tools/app/run_output.h"
 #include "tools/app/run_report.h"
 
@@ -91,6 +92,7 @@ struct Setup {
   int frames = 0;
   int fieldsEvery = 0;
   bool video = false;
+  LabelOutputOptions labels;
   int nodes = 0, tets = 0;
   double meshS = 0, setupS = 0, rssAfterSetupMb = 0;
   std::unique_ptr<Simulation> sim;
@@ -105,7 +107,11 @@ Setup setUp(const RunOptions& opt, Scenario scenario) {
   s.frames = opt.frames > 0 ? opt.frames : frameCount(sc);
   s.fieldsEvery = opt.fieldsEvery >= 0 ? opt.fieldsEvery : sc.output.fieldsEvery;
   s.video = sc.output.video && !opt.noVideo;
+  s.labels.enabled = opt.labels || opt.labelsPreview;
+  s.labels.preview = opt.labelsPreview;
   checkRunnable(sc, false, opt.noVideo);  // before the mesh, which can take seconds
+  if (s.labels.enabled) validateRenderOptions(makeRenderOptions(sc));
+  if (s.labels.preview) validateVideoRate(sc.time.fps);
   const SimulationConfig config = makeSimulationConfig(sc);
   const auto t0 = Clock::now();
   TetMesh mesh = buildMesh(sc);
@@ -116,7 +122,7 @@ Setup setUp(const RunOptions& opt, Scenario scenario) {
   s.sim = std::make_unique<Simulation>(std::move(mesh), config);
   s.setupS = secondsSince(t1);
   s.rssAfterSetupMb = peakRssMb();
-  if (s.video || sc.output.pngEvery > 0 || sc.output.hashes)
+  if (s.video || sc.output.pngEvery > 0 || sc.output.hashes || s.labels.enabled)
     s.renderer = std::make_unique<Renderer>(makeRenderOptions(sc));
   return s;
 }
@@ -127,18 +133,20 @@ class FrameOutputs {
  public:
   FrameOutputs(const Setup& s, const fs::path& dir) : s_(s), dir_(dir) {
     const Scenario& sc = s.scenario;
+    VideoEncoder::Options vo;
+    vo.path = (dir / "video.mp4").string();
+    vo.width = sc.look.width;
+    vo.height = sc.look.height;
+    vo.fps = sc.time.fps;
+    vo.crf = sc.output.crf;
+    vo.preset = sc.output.preset;
+    vo.reproducible = sc.output.reproducible;
     if (s.video) {
-      VideoEncoder::Options vo;
-      vo.path = (dir / "video.mp4").string();
-      vo.width = sc.look.width;
-      vo.height = sc.look.height;
-      vo.fps = sc.time.fps;
-      vo.crf = sc.output.crf;
-      vo.preset = sc.output.preset;
-      vo.reproducible = sc.output.reproducible;
       encoder_ = std::make_unique<VideoEncoder>();
       encoder_->open(vo);
     }
+    if (s.labels.enabled)
+      labels_ = std::make_unique<LabelWriter>(s.renderer->options(), dir, s.labels.preview, vo);
     if (sc.output.pngEvery > 0) fs::create_directories(dir / "frames");
     if (s.fieldsEvery > 0) fs::create_directories(dir / "fields");
   }
@@ -151,9 +159,12 @@ class FrameOutputs {
       const SurfaceSnapshot snap = sim.snapshot(sc.look.displacementScale);
       rec = sim.lastRecord();
       const std::vector<std::uint8_t>* rgb = nullptr;
+      const LabelFrame* labels = nullptr;
       {
+        // the label pass draws the frame's buffers again: a part of rendering
         StageTimer timer(rec, Stage::Render);
         rgb = &s_.renderer->render(snap);
+        if (labels_) labels = &s_.renderer->renderLabels();
       }
       const std::uint64_t h = hashFrame(*rgb);
       allHash_.add(h);
@@ -161,6 +172,14 @@ class FrameOutputs {
           {{"frame", f},
            {"xxh3", hashToHex(h)},
            {"dhash", hashToHex(perceptualHash(*rgb, sc.look.width, sc.look.height))}});
+      if (labels) {
+        const std::uint64_t mh = hashBytes(labels->classes.data(), labels->classes.size());
+        allMaskHash_.add(mh);
+        hashes_.back()["mask_xxh3"] = hashToHex(mh);
+        hashes_.back()["depth_xxh3"] = hashToHex(depthHash(*labels));
+        StageTimer timer(rec, Stage::Labels);
+        labels_->add(f, snap, rec, *rgb, *labels);
+      }
       if (sc.output.pngEvery > 0 && f % sc.output.pngEvery == 0)
         writePng((dir_ / "frames" / numbered("frame_", f, ".png")).string(), *rgb, sc.look.width,
                  sc.look.height);
@@ -173,8 +192,9 @@ class FrameOutputs {
       writeFields((dir_ / "fields" / numbered("frame_", f, ".vtu")).string(), sim);
   }
 
-  // closes the video (playable however many frames it has)
+  // closes the video (playable however many frames it has) and the label files
   void close() {
+    if (labels_) labels_->close();
     if (!encoder_) return;
     encoder_->close();
     encodeS_ = encoder_->encodeSeconds();
@@ -186,6 +206,8 @@ class FrameOutputs {
   const std::string& codec() const { return codec_; }
   const nlohmann::json& frameHashes() const { return hashes_; }
   std::uint64_t allFramesHash() const { return allHash_.combined(); }
+  bool hasLabels() const { return labels_ != nullptr; }
+  std::uint64_t allMasksHash() const { return allMaskHash_.combined(); }
 
  private:
   // fields of the phases the scene has, as VTU (README: fields for inspection)
@@ -215,11 +237,23 @@ class FrameOutputs {
     writeVtu(path, m, point, cell);
   }
 
+  // xxh3-64 of the depth values as little-endian 16-bit words
+  std::uint64_t depthHash(const LabelFrame& labels) {
+    depthBytes_.resize(labels.depth.size() * 2);
+    for (size_t i = 0; i < labels.depth.size(); ++i) {
+      depthBytes_[2 * i] = static_cast<std::uint8_t>(labels.depth[i] & 0xff);
+      depthBytes_[2 * i + 1] = static_cast<std::uint8_t>(labels.depth[i] >> 8);
+    }
+    return hashBytes(depthBytes_.data(), depthBytes_.size());
+  }
+
   const Setup& s_;
   fs::path dir_;
   std::unique_ptr<VideoEncoder> encoder_;
+  std::unique_ptr<LabelWriter> labels_;
   nlohmann::json hashes_ = nlohmann::json::array();
-  FrameHashSequence allHash_;
+  FrameHashSequence allHash_, allMaskHash_;
+  std::vector<std::uint8_t> depthBytes_;  // scratch of depthHash
   double encodeS_ = 0;
   std::string codec_;
 };
@@ -346,6 +380,13 @@ nlohmann::json hashesJson(const Setup& s, const FrameOutputs& out, const nlohman
   hj["hash_definition"] =
       "xxh3-64 (seed 0) of the raw RGB24 bytes, top row first; all_frames: xxh3-64 of the "
       "frame hashes as little-endian uint64; dhash: 64-bit difference hash (render/image_hash.h)";
+  if (out.hasLabels()) {
+    hj["all_masks_xxh3"] = hashToHex(out.allMasksHash());
+    hj["labels_hash_definition"] =
+        "mask_xxh3: xxh3-64 of the class bytes (labels/mask_NNNNN.png's pixels, top row "
+        "first); depth_xxh3: of the depth values as little-endian uint16; all_masks: xxh3-64 "
+        "of the mask hashes as little-endian uint64";
+  }
   hj["width"] = sc.look.width;
   hj["height"] = sc.look.height;
   hj["renderer"] = extra["renderer"];
@@ -427,7 +468,7 @@ std::string summaryText(const Setup& s, const FrameOutputs& out, const LoopResul
       << "timing.csv, timing.json, trace.json, scenario.yaml" << (plotted ? ", timing.png" : "")
       << (s.renderer && sc.output.hashes ? ", hashes.json" : "")
       << (sc.output.pngEvery > 0 ? ", frames/" : "") << (s.fieldsEvery > 0 ? ", fields/" : "")
-      << "}\n";
+      << (s.labels.enabled ? ", labels/" : "") << "}\n";
   return sum.str();
 }
 

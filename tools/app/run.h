@@ -3,7 +3,8 @@
 // 1. Load and check the scenario (+ --set overrides); check the output folder.
 // 2. Build the mesh and the phases the scene lists; open the renderer.
 // 3. Create DIR.partial/; open the video.
-// 4. Frame loop: physics stages -> snapshot -> render -> encoder / PNG / hashes / VTU.
+// 4. Frame loop: physics stages -> snapshot -> render (+ label pass) -> encoder / PNG /
+//    hashes / VTU / label files.
 // 5. Close the video; write timing.csv, timing.json, trace.json, hashes.json,
 //    scenario.yaml, (--plots) timing.png, summary.txt; rename DIR.partial/ to DIR/.
 // Errors (sim/core_error.h): bad input (steps 1-3) is thrown with nothing left on disk; a
@@ -25,8 +26,10 @@ struct RunOptions {
   std::vector<std::string> sets;  // key.path=value overrides
   bool noVideo = false;
   bool quiet = false;
-  bool overwrite = false;  // replace an earlier ESim run in outDir
-  bool plots = false;      // also write timing.png (tools/plot_timing.py; a warning if it cannot)
+  bool overwrite = false;      // replace an earlier ESim run in outDir
+  bool labels = false;         // per-frame labels in DIR/labels/ (run_labels.h)
+  bool labelsPreview = false;  // and labels/preview.mp4
+  bool plots = false;  // also write timing.png (tools/plot_timing.py; a warning if it cannot)
 };
 
 // runs the scenario; returns the exit code (0 complete, 1 failed or interrupted, outputs

@@ -14,6 +14,8 @@
 //    render() into CPU preparation, drawing, resolve + read-back and overlay, and gives
 //    the process CPU time per frame (all llvmpipe threads): on a shared machine the
 //    wall time of a 2-thread rasteriser depends on the load, the CPU time much less.
+// --labels: after each render(), Renderer::renderLabels() (the label pass, labels.h) is timed
+// apart: labels_ms (median wall) and labels_cpu (process CPU per frame) end each line.
 // A benchmark, never a pass/fail test. Target: render + read-back < 10 ms at
 // 1280x720 for ~20k triangles.
 #include <algorithm>
@@ -53,6 +55,7 @@ struct BenchRenderOptions {
   int crf = 20;
   std::string liver = "assets/liver.obj";
   std::string csv;
+  bool labels = false;  // also time the label pass
 };
 
 SurfaceSnapshot makeSurface(const std::string& name, const std::string& liverPath,
@@ -122,8 +125,10 @@ std::vector<Variant> parseVariants(const BenchRenderOptions& opt) {
 struct RenderedFrames {
   std::vector<std::vector<std::uint8_t>> frames;
   std::vector<double> renderMs;
-  RenderTimings split;  // means over the timed frames
-  double cpuMs = 0;     // process CPU time in render() per timed frame
+  RenderTimings split;           // means over the timed frames
+  double cpuMs = 0;              // process CPU time in render() per timed frame
+  std::vector<double> labelsMs;  // renderLabels() per timed frame (--labels)
+  double labelsCpuMs = 0;        // its process CPU time per timed frame
 };
 
 RenderedFrames renderFrames(Renderer& renderer, const SurfaceSnapshot& base, const AnalyticCut& cut,
@@ -148,6 +153,13 @@ RenderedFrames renderFrames(Renderer& renderer, const SurfaceSnapshot& base, con
     out.split.overlayMs += t.overlayMs / opt.frames;
     out.renderMs.push_back(ms);
     out.frames.push_back(rgb);
+    if (opt.labels) {
+      const auto t1 = Clock::now();
+      const double cpu1 = processCpuMs();
+      renderer.renderLabels();
+      out.labelsMs.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t1).count());
+      out.labelsCpuMs += (processCpuMs() - cpu1) / opt.frames;
+    }
   }
   return out;
 }
@@ -207,7 +219,8 @@ int benchRender(const BenchRenderOptions& opt) {
   if (!opt.csv.empty()) {
     csv = std::make_unique<std::ofstream>(opt.csv);
     ESIM_VERIFY(csv->good(), "--csv: cannot write '" + opt.csv + "'");
-    *csv << "surface,width,height,triangles,render_ms,convert_ms,encode_ms,shading,msaa,psnr_db\n";
+    *csv << "surface,width,height,triangles,render_ms,convert_ms,encode_ms,shading,msaa,psnr_db"
+         << (opt.labels ? ",labels_ms" : "") << "\n";
   }
   const char* lpThreads = std::getenv("LP_NUM_THREADS");
   bool header = false;
@@ -246,10 +259,10 @@ int benchRender(const BenchRenderOptions& opt) {
                 variants[0].shading.c_str(), variants[0].msaa, kPixelDiffThreshold);
           std::printf(
               "%-10s %6s %6s %9s %7s %4s %10s %10s %10s %7s %6s %10s %10s | means: %7s %7s "
-              "%7s %7s %7s\n",
+              "%7s %7s %7s%s\n",
               "surface", "width", "height", "triangles", "shading", "msaa", "render_ms",
               "render_p95", "render_max", "psnr_db", "off_%", "convert_ms", "encode_ms", "prep",
-              "draw", "read", "overlay", "cpu_ms");
+              "draw", "read", "overlay", "cpu_ms", opt.labels ? " | labels_ms labels_cpu" : "");
           header = true;
         }
         // 2. render; 3. image quality against the first variant's frames; 4. encode
@@ -271,15 +284,19 @@ int benchRender(const BenchRenderOptions& opt) {
             sorted[std::min(sorted.size() - 1, static_cast<size_t>(0.95 * sorted.size()))];
         std::printf(
             "%-10s %6d %6d %9d %7s %4d %10.2f %10.2f %10.2f %7.2f %6.2f %10.2f %10.2f | "
-            "%14.2f %7.2f %7.2f %7.2f %7.2f\n",
+            "%14.2f %7.2f %7.2f %7.2f %7.2f",
             name.c_str(), w, h, base.numTriangles(), variant.shading.c_str(), variant.msaa,
             median(renderMs), p95, sorted.back(), psnrDb, 100 * offShare, convertMs, encodeMs,
             split.prepareMs, split.drawMs, split.readbackMs, split.overlayMs, cpuMs);
+        if (opt.labels) std::printf(" | %9.2f %10.2f", median(r.labelsMs), r.labelsCpuMs);
+        std::printf("\n");
         std::fflush(stdout);
         if (csv)
           *csv << name << "," << w << "," << h << "," << base.numTriangles() << ","
                << median(renderMs) << "," << convertMs << "," << encodeMs << "," << variant.shading
-               << "," << variant.msaa << "," << psnrDb << "\n";
+               << "," << variant.msaa << "," << psnrDb;
+        if (csv && opt.labels) *csv << "," << median(r.labelsMs);
+        if (csv) *csv << "\n";
       }
     }
   }
@@ -307,6 +324,8 @@ Registrar registerBenchRender(
       app.add_option("--crf", opt->crf, "x264 CRF")->capture_default_str();
       app.add_option("--liver", opt->liver, "surface file of the 'liver' case")
           ->capture_default_str();
+      app.add_flag("--labels", opt->labels,
+                   "also time the label pass (Renderer::renderLabels) after each frame");
       app.add_option("--csv", opt->csv,
                      "write surface,width,height,triangles,render_ms,convert_ms,encode_ms,"
                      "shading,msaa,psnr_db");
