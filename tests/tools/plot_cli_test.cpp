@@ -12,36 +12,17 @@
 #include <sstream>
 
 #include "tests/app/timing_reports_check.h"
+#include "tests/tools/cli_test_util.h"
 
 namespace {
 
 namespace fs = std::filesystem;
-
-struct Result {
-  int exitCode = 0;
-  std::string output;  // stdout + stderr
-};
-
-Result shell(const std::string& command) {
-  const std::string cmd = std::string("cd ") + ESIM_SOURCE_DIR + " && " + command + " 2>&1";
-  Result r;
-  FILE* pipe = popen(cmd.c_str(), "r");
-  char buf[4096];
-  while (fgets(buf, sizeof buf, pipe)) r.output += buf;
-  const int status = pclose(pipe);
-  r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+using esim::cli_test::readFile;
+using esim::cli_test::Result;
+using esim::cli_test::shell;
 
 Result esim(const std::string& args, const std::string& env = "") {
   return shell(env + (env.empty() ? "" : " ") + ESIM_EXE + " " + args);
-}
-
-std::string readFile(const fs::path& p) {
-  std::ifstream is(p, std::ios::binary);
-  std::stringstream ss;
-  ss << is.rdbuf();
-  return ss.str();
 }
 
 fs::path tempOut(const std::string& name) {

@@ -15,34 +15,16 @@
 #include "render/image_png.h"
 #include "render/labels.h"
 #include "sim/io/vtu.h"
+#include "tests/tools/cli_test_util.h"
 
 namespace {
 
 namespace fs = std::filesystem;
+using esim::cli_test::readFile;
+using esim::cli_test::Result;
+using esim::cli_test::shell;
 
-struct Result {
-  int exitCode = 0;
-  std::string output;  // stdout + stderr
-};
-
-Result esimRun(const std::string& args) {
-  const std::string cmd =
-      std::string("cd ") + ESIM_SOURCE_DIR + " && " + ESIM_EXE + " run " + args + " 2>&1";
-  Result r;
-  FILE* pipe = popen(cmd.c_str(), "r");
-  char buf[4096];
-  while (fgets(buf, sizeof buf, pipe)) r.output += buf;
-  const int status = pclose(pipe);
-  r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
-
-std::string readFile(const fs::path& p) {
-  std::ifstream is(p);
-  std::stringstream ss;
-  ss << is.rdbuf();
-  return ss.str();
-}
+Result esimRun(const std::string& args) { return shell(std::string(ESIM_EXE) + " run " + args); }
 
 fs::path tempOut(const std::string& name) {
   const fs::path p = fs::temp_directory_path() / ("esim_run_test_" + name);
@@ -356,18 +338,6 @@ TEST(RunCli, AStopInsideALongFrameIsHonouredWithinIt) {
   EXPECT_NE(summary.find("energy        0.000 J delivered"), std::string::npos) << summary;
   EXPECT_NE(summary.find("(now 37.0 C)"), std::string::npos) << summary;
   fs::remove_all(partial);
-}
-
-// a shell command in the source folder: exit code and stdout + stderr
-Result shell(const std::string& command) {
-  Result r;
-  FILE* pipe =
-      popen((std::string("cd ") + ESIM_SOURCE_DIR + " && (" + command + ") 2>&1").c_str(), "r");
-  char buf[4096];
-  while (fgets(buf, sizeof buf, pipe)) r.output += buf;
-  const int status = pclose(pipe);
-  r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
 }
 
 // memory that runs out during set-up: exit 1 with the remedy, nothing written (a dense

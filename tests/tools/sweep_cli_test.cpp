@@ -11,36 +11,17 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "tests/tools/cli_test_util.h"
+
 namespace {
 
 namespace fs = std::filesystem;
+using esim::cli_test::readFile;
+using esim::cli_test::Result;
+using esim::cli_test::shell;
 using nlohmann::json;
 
-struct Result {
-  int exitCode = 0;
-  std::string output;  // stdout + stderr
-};
-
-// runs a shell command in the source folder
-Result shell(const std::string& command) {
-  const std::string cmd = std::string("cd ") + ESIM_SOURCE_DIR + " && (" + command + ") 2>&1";
-  Result r;
-  FILE* pipe = popen(cmd.c_str(), "r");
-  char buf[4096];
-  while (fgets(buf, sizeof buf, pipe)) r.output += buf;
-  const int status = pclose(pipe);
-  r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
-
 Result esim(const std::string& args) { return shell(std::string(ESIM_EXE) + " " + args); }
-
-std::string readFile(const fs::path& p) {
-  std::ifstream is(p);
-  std::stringstream ss;
-  ss << is.rdbuf();
-  return ss.str();
-}
 
 void writeFile(const fs::path& p, const std::string& text) {
   std::ofstream os(p);

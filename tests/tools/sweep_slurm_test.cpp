@@ -12,32 +12,15 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "tests/tools/cli_test_util.h"
+
 namespace {
 
 namespace fs = std::filesystem;
+using esim::cli_test::readFile;
+using esim::cli_test::Result;
+using esim::cli_test::shell;
 using nlohmann::json;
-
-struct Result {
-  int exitCode = 0;
-  std::string output;
-};
-
-Result shell(const std::string& cmd) {
-  Result r;
-  FILE* pipe = popen((std::string("cd ") + ESIM_SOURCE_DIR + " && " + cmd + " 2>&1").c_str(), "r");
-  char buf[4096];
-  while (fgets(buf, sizeof buf, pipe)) r.output += buf;
-  const int status = pclose(pipe);
-  r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
-
-std::string readFile(const fs::path& p) {
-  std::ifstream is(p);
-  std::stringstream ss;
-  ss << is.rdbuf();
-  return ss.str();
-}
 
 // starts the cluster (or finds it running); stops it at the end if it started it
 class LocalSlurm {
