@@ -17,6 +17,7 @@
 #include "render/image_hash.h"
 #include "render/renderer.h"
 #include "sim/core_error.h"
+#include "tests/render/llvmpipe_threads_util.h"
 
 namespace esim {
 namespace {
@@ -381,39 +382,10 @@ TEST(Labels, DISABLED_WriteHashForThreadTest) {
 }
 
 TEST(Labels, SameLabelsWithOneAndTwoLlvmpipeThreads) {
-  // llvmpipe reads LP_NUM_THREADS when its screen is created: one process per count
-  const std::string self = std::filesystem::read_symlink("/proc/self/exe").string();
-  const auto dir = std::filesystem::temp_directory_path() / "esim_labels_test";
-  std::filesystem::create_directories(dir);
   std::vector<std::uint64_t> hashes;
-  for (const char* threads : {"1", "2"}) {
-    const std::string out = (dir / (std::string("hash_") + threads)).string();
-    std::filesystem::remove(out);
-    std::vector<std::string> env;
-    for (char** e = environ; *e; ++e) {
-      const std::string kv = *e;
-      if (kv.rfind("LP_NUM_THREADS=", 0) != 0 && kv.rfind("ESIM_LABELS_HASH_OUT=", 0) != 0)
-        env.push_back(kv);
-    }
-    env.push_back(std::string("LP_NUM_THREADS=") + threads);
-    env.push_back("ESIM_LABELS_HASH_OUT=" + out);
-    std::vector<char*> envp;
-    for (auto& kv : env) envp.push_back(kv.data());
-    envp.push_back(nullptr);
-    std::string a0 = self, a1 = "--gtest_filter=Labels.DISABLED_WriteHashForThreadTest",
-                a2 = "--gtest_also_run_disabled_tests";
-    char* argv[] = {a0.data(), a1.data(), a2.data(), nullptr};
-    pid_t pid = 0;
-    ASSERT_EQ(posix_spawn(&pid, self.c_str(), nullptr, nullptr, argv, envp.data()), 0);
-    int status = 0;
-    ASSERT_EQ(waitpid(pid, &status, 0), pid);
-    ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
-        << "child with LP_NUM_THREADS=" << threads << " failed";
-    std::uint64_t h = 0;
-    std::ifstream(out) >> h;
-    ASSERT_NE(h, 0u) << "no hash from the child with LP_NUM_THREADS=" << threads;
-    hashes.push_back(h);
-  }
+  ASSERT_NO_FATAL_FAILURE(
+      render_test::hashesPerLlvmpipeThreads("Labels.DISABLED_WriteHashForThreadTest",
+                                            "ESIM_LABELS_HASH_OUT", "esim_labels_test", &hashes));
   EXPECT_EQ(hashes[0], hashes[1]) << "LP_NUM_THREADS=1 and 2 gave different labels";
   EXPECT_EQ(hashes[0], labelHash(threadTestLabels()));
 }

@@ -16,6 +16,7 @@
 #include "render/gl_context.h"
 #include "render/image_hash.h"
 #include "sim/core_error.h"
+#include "tests/render/llvmpipe_threads_util.h"
 
 namespace esim {
 namespace {
@@ -407,40 +408,10 @@ TEST(Renderer, DISABLED_WriteHashForThreadTest) {
 }
 
 TEST(Renderer, SameHashWithOneAndTwoLlvmpipeThreads) {
-  // llvmpipe reads LP_NUM_THREADS when its screen is created, so each count needs
-  // its own process: re-run this binary's child test with the variable set
-  const std::string self = std::filesystem::read_symlink("/proc/self/exe").string();
-  const auto dir = std::filesystem::temp_directory_path() / "esim_renderer_test";
-  std::filesystem::create_directories(dir);
   std::vector<std::uint64_t> hashes;
-  for (const char* threads : {"1", "2"}) {
-    const std::string out = (dir / (std::string("hash_") + threads)).string();
-    std::filesystem::remove(out);
-    std::vector<std::string> env;
-    for (char** e = environ; *e; ++e) {
-      const std::string kv = *e;
-      if (kv.rfind("LP_NUM_THREADS=", 0) != 0 && kv.rfind("ESIM_RENDER_HASH_OUT=", 0) != 0)
-        env.push_back(kv);
-    }
-    env.push_back(std::string("LP_NUM_THREADS=") + threads);
-    env.push_back("ESIM_RENDER_HASH_OUT=" + out);
-    std::vector<char*> envp;
-    for (auto& kv : env) envp.push_back(kv.data());
-    envp.push_back(nullptr);
-    std::string a0 = self, a1 = "--gtest_filter=Renderer.DISABLED_WriteHashForThreadTest",
-                a2 = "--gtest_also_run_disabled_tests";
-    char* argv[] = {a0.data(), a1.data(), a2.data(), nullptr};
-    pid_t pid = 0;
-    ASSERT_EQ(posix_spawn(&pid, self.c_str(), nullptr, nullptr, argv, envp.data()), 0);
-    int status = 0;
-    ASSERT_EQ(waitpid(pid, &status, 0), pid);
-    ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
-        << "child with LP_NUM_THREADS=" << threads << " failed";
-    std::uint64_t h = 0;
-    std::ifstream(out) >> h;
-    ASSERT_NE(h, 0u) << "no hash from the child with LP_NUM_THREADS=" << threads;
-    hashes.push_back(h);
-  }
+  ASSERT_NO_FATAL_FAILURE(
+      render_test::hashesPerLlvmpipeThreads("Renderer.DISABLED_WriteHashForThreadTest",
+                                            "ESIM_RENDER_HASH_OUT", "esim_renderer_test", &hashes));
   EXPECT_EQ(hashes[0], hashes[1]) << "LP_NUM_THREADS=1 and 2 rendered different pixels";
   EXPECT_EQ(hashes[0], threadTestHash()) << "differs from this process's default thread count";
 }
