@@ -5,6 +5,7 @@
 #include <cmath>
 #include <future>
 #include <iterator>
+#include <limits>
 
 #include "sim/core_error.h"
 #include "sim/electric_phase.h"
@@ -21,6 +22,18 @@ constexpr const char* kStageNames[kStageCount] = {
     "rebuild",   "snapshot",      "render",          "encode_wait", "write_labels"};
 
 }  // namespace
+
+// this frame's contact as the sub-grid model sees it (solve stage -> heat stage)
+struct Simulation::SubgridFrame {
+  bool active = false;
+  double innerM = 0, zoneM = 0, patchM = 0;  // a, r_z, a_p
+  std::vector<int> nodes;                    // contact nodes
+  std::vector<double> weights;               // their shares of the current
+  std::vector<double> shellW;                // Joule power per zone shell
+  double directW = 0;                        // power of r_z < r < a_p, to the nodes
+  double residenceS = 0;                     // zone residence time (inf at rest)
+  int vaporTet = -1;                         // alive tet holding the deepest point (-1: vent)
+};
 
 const char* rebuildModeName(RebuildMode mode) {
   switch (mode) {
@@ -84,6 +97,14 @@ void validateSimulationConfig(const SimulationConfig& config) {
     ThermalParams tp = config.thermal;
     tp.boiling = ph.boiling;
     validateThermalParams(tp);
+  }
+  if (config.subgrid.mode != SubgridMode::Off) {
+    ESIM_VERIFY(ph.electric && ph.thermal,
+                std::string("subgrid_contact.mode = ") + subgridModeName(config.subgrid.mode) +
+                    ": the sub-grid contact model needs the electric and thermal phases; add "
+                    "them or set it off");
+    ESIM_VERIFY(config.subgrid.areaFactor > 0 && std::isfinite(config.subgrid.areaFactor),
+                "subgrid_contact.area_factor must be a positive finite number");
   }
   if (ph.structural) {
     ESIM_VERIFY(config.clampBandM >= 0 && std::isfinite(config.clampBandM),
@@ -261,6 +282,22 @@ void Simulation::buildInitialModel(TetMesh mesh) {
         std::make_shared<const std::vector<std::array<int, 4>>>(tetFaceNeighbours(mesh));
     if (ph.electric) m.nodeTets = std::make_shared<const Adjacency>(nodeTets(mesh));
   }
+  if (config_.subgrid.mode != SubgridMode::Off) {
+    auto faces = std::make_shared<std::vector<SimModel::SurfaceFace>>();
+    for (const auto& f : surface) {
+      SimModel::SurfaceFace sf{
+          mesh.nodes[f.nodes[0]], mesh.nodes[f.nodes[1]], mesh.nodes[f.nodes[2]], Vec3::Zero(), {}};
+      const Vec3 n = (sf.b - sf.a).cross(sf.c - sf.a);
+      if (!(n.norm() > 0)) continue;  // a degenerate face has no plane
+      sf.normal = n.normalized();
+      sf.box.extend(sf.a);
+      sf.box.extend(sf.b);
+      sf.box.extend(sf.c);
+      faces->push_back(sf);
+    }
+    m.initialSurface = std::move(faces);
+    electrodeSamples_ = electrodeSurfaceSamples(config_.electrode);
+  }
   m.medianEdgeM = medianEdgeLengthM(mesh);
   for (const Vec3& x : mesh.nodes) m.boundsM.extend(x);
   std::vector<std::uint8_t> alive = mesh.alive;
@@ -305,6 +342,10 @@ void Simulation::initState() {
     s.maxTemperatureC = s.thermal.temperatureC.maxCoeff();
     lowestC_ = s.thermal.temperatureC.minCoeff();
   }
+  if (config_.subgrid.mode != SubgridMode::Off) {
+    s.trappedVaporKg.assign(nt, 0.0);
+    s.pocketStressPa.assign(nt, 0.0);
+  }
   if (model_->structural) {
     s.eigenstrain.assign(nt, 0.0);
     s.vonMisesPa.assign(nt, 0.0);
@@ -323,7 +364,13 @@ void Simulation::computeEigenstrain() {
     }
     const Tet& tet = mesh.tets[e];
     const double te = 0.25 * (t[tet[0]] + t[tet[1]] + t[tet[2]] + t[tet[3]]);
-    const double x = th.vaporFractionTet.empty() ? 0.0 : th.vaporFractionTet[e];
+    double x = th.vaporFractionTet.empty() ? 0.0 : th.vaporFractionTet[e];
+    // the sub-grid contact zone's vapour, trapped in this tet: a fraction of its water
+    if (!state_.trappedVaporKg.empty() && state_.trappedVaporKg[e] > 0) {
+      const double waterKg =
+          config_.thermal.waterFraction * config_.thermal.densityKg_m3 * (*model_->geo)[e].volume;
+      x = waterKg > 0 ? std::min(1.0, x + state_.trappedVaporKg[e] / waterKg) : 1.0;
+    }
     state_.eigenstrain[e] = volumetricExpansion(model_->expansion, te, x);
   }
 }
@@ -384,6 +431,7 @@ std::unique_ptr<SimModel> Simulation::buildModel(std::vector<std::uint8_t> alive
   m.boundsM = base.boundsM;
   m.faceNeighbours = base.faceNeighbours;
   m.nodeTets = base.nodeTets;
+  m.initialSurface = base.initialSurface;
   m.surface = boundaryFaces(m.mesh);
   m.surfaceNodes = boundaryNodes(m.mesh, m.surface);
   buildSnapshotTopology(m);
@@ -641,6 +689,7 @@ const FrameRecord& Simulation::step() {
   advance(rec);
   if (rec.contactByTet) ++framesContactByTet_;
   if (rec.toolSwept) ++framesToolSwept_;
+  if (rec.subgridActive) ++framesSubgrid_;
   if (config_.phases.rupture) ruptureAndRebuild(rec);
   ++state_.frame;
   state_.timeS = state_.frame * config_.frameDtS;
@@ -654,6 +703,7 @@ void Simulation::advance(FrameRecord& rec) {
   rec.frame = st.frame;
   rec.timeS = st.timeS;
   const double dt = config_.frameDtS;
+  if (subgridFrame_) subgridFrame_->active = false;
 
   // ---- 1. move the tool ----
   if (m.electric) {
@@ -698,6 +748,8 @@ void Simulation::advance(FrameRecord& rec) {
       power_w = totals.powerW;
       rec.toolCurrentA = totals.toolCurrentA;
       rec.returnCurrentA = totals.returnCurrentA;
+      if (config_.subgrid.mode != SubgridMode::Off && m.thermal)
+        subgridContact(totals.toolCurrentA, power_w, rec);
     }
   }
   rec.powerW = power_w;
@@ -710,8 +762,10 @@ void Simulation::advance(FrameRecord& rec) {
     const double sourceBeforeJ = st.thermal.sourceJ;
 
     const double highBeforeC = st.thermal.temperatureC.maxCoeff();
+    std::vector<ThermalPhase::NodalSource> nodal;
+    if (config_.subgrid.mode != SubgridMode::Off) subgridHeat(nodal, rec);
     const auto stats =
-        m.thermal->step(dt, m.electric ? st.joulePowerW_m3 : m.prescribedSource, st.thermal);
+        m.thermal->step(dt, m.electric ? st.joulePowerW_m3 : m.prescribedSource, st.thermal, nodal);
     if (stats.skipped) timer.skip();
     if (!stats.converged) {
       rec.boilingUnconverged = true;
@@ -755,8 +809,11 @@ void Simulation::detectRupture(FrameRecord& rec) {
   StageTimer timer(rec, Stage::Rupture);
   const TetMesh& mesh = model_->mesh;
   const std::vector<double>& vm = state_.vonMisesPa;
+  const std::vector<double>& pocket = state_.pocketStressPa;  // sub-grid vapour pockets
   for (int e = 0; e < mesh.numTets(); ++e)
-    if (mesh.isAlive(e) && !pending_[e] && vm[e] > config_.criticalStressPa) {
+    if (mesh.isAlive(e) && !pending_[e] &&
+        (vm[e] > config_.criticalStressPa ||
+         (!pocket.empty() && pocket[e] > config_.criticalStressPa))) {
       queued_.push_back(e);
       pending_[e] = 1;
     }
@@ -836,6 +893,11 @@ void Simulation::recomputeSinceCheckpoint(FrameRecord& rec) {
   rec.powerW = redo.powerW;
   rec.maxTemperatureC = redo.maxTemperatureC;
   rec.maxVonMisesPa = redo.maxVonMisesPa;
+  rec.subgridActive = redo.subgridActive;
+  rec.subgridPowerW = redo.subgridPowerW;
+  rec.subgridZoneTemperatureC = redo.subgridZoneTemperatureC;
+  rec.subgridVaporKg = redo.subgridVaporKg;
+  rec.subgridPocketStressPa = redo.subgridPocketStressPa;
   recomputedFrames_ += now - first + 1;
 }
 
@@ -945,11 +1007,255 @@ std::vector<std::string> Simulation::warnings() const {
                 " K (an undershoot or overshoot of the time integrator: use "
                 "solvers.thermal.integrator backward-euler with solvers.thermal.mass lumped, or "
                 "a higher time.fps)");
+  if (framesSubgrid_ > 0)
+    w.push_back(frames(framesSubgrid_) +
+                ": the mesh was coarser than the tool's contact; the sub-grid contact model "
+                "(subgrid_contact.mode) added the contact's spreading resistance and heated its "
+                "calibrated contact zone (sim/subgrid_contact.h; resolve the contact to do "
+                "without it)");
   if (framesBoilingUnconverged_ > 0)
     w.push_back(frames(framesBoilingUnconverged_) +
                 ": the boiling iteration stopped at its iteration cap before its tolerance "
                 "(use a smaller frame step: a higher time.fps)");
   return w;
+}
+
+// ---- the sub-grid contact (sim/subgrid_contact.h) ----
+
+namespace {
+
+// closest point of triangle abc to p (Ericson, Real-Time Collision Detection 5.1.5)
+Vec3 closestOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return a;
+  const Vec3 bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return b;
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + d1 / (d1 - d3) * ab;
+  const Vec3 cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return c;
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + d2 / (d2 - d6) * ac;
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0)
+    return b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b);
+  const double den = 1.0 / (va + vb + vc);
+  return a + ab * (vb * den) + ac * (vc * den);
+}
+
+}  // namespace
+
+SubgridZoneParams Simulation::subgridZoneParams() const {
+  const ThermalParams& t = config_.thermal;
+  SubgridZoneParams p;
+  p.heatCapacityJ_m3K = t.heatCapacityJ_m3K;
+  p.conductivityW_mK = t.conductivityW_mK;
+  p.initialTemperatureC = t.initialTemperatureC;
+  p.boiling = config_.phases.boiling;
+  p.boilingTemperatureC = t.boilingTemperatureC;
+  p.waterKg_m3 = t.waterFraction * t.densityKg_m3;
+  p.latentJ_m3 = p.waterKg_m3 * t.latentHeatJ_kg;
+  return p;
+}
+
+double Simulation::subgridStoredEnergyJ() const {
+  double e = zoneEnergyJ(state_.subgridZone);
+  const std::vector<double>& trapped = state_.trappedVaporKg;
+  double kg = 0;
+  for (size_t t = 0; t < trapped.size(); ++t)
+    if (trapped[t] > 0 && model_->mesh.isAlive(static_cast<int>(t))) kg += trapped[t];
+  return e + kg * config_.thermal.latentHeatJ_kg;
+}
+
+// Solve stage, after the mesh's solve with the contact nodes at V (current I_1): the true
+// contact (immersion in the intact tissue, wetted area, radius a), the mesh's contact patch
+// (a_p), and when the model applies this frame the series resistance R(a, a_p): potential,
+// currents and Joule power scaled (s, s, s^2), powerW the power delivered V I.
+void Simulation::subgridContact(double toolCurrentA, double& powerW, FrameRecord& rec) {
+  SimModel& m = *model_;
+  SimState& st = state_;
+  if (!subgridFrame_) subgridFrame_ = std::make_unique<SubgridFrame>();
+  SubgridFrame& f = *subgridFrame_;
+  f.active = false;
+  const double v = config_.toolVoltageV;
+  if (!(toolCurrentA > 0) || v == 0 || st.contacts.empty()) return;
+  // the intact tissue's surface at the tool: the nearest initial boundary face to the tip
+  const Vec3 tip = st.pose.tipM;
+  double best = std::numeric_limits<double>::infinity();
+  Vec3 planePoint = Vec3::Zero(), planeNormal = Vec3::UnitZ();
+  for (const SimModel::SurfaceFace& sf : *m.initialSurface) {
+    if (sf.box.squaredExteriorDistance(tip) >= best) continue;
+    const Vec3 q = closestOnTriangle(tip, sf.a, sf.b, sf.c);
+    const double d2 = (q - tip).squaredNorm();
+    if (d2 < best) best = d2, planePoint = q, planeNormal = sf.normal;
+  }
+  if (!std::isfinite(best)) return;
+  const double dt = config_.frameDtS;
+  const Vec3 motion =
+      st.frame > 0 ? Vec3(tip - config_.toolPath.poseAt(st.timeS - dt).tipM) : Vec3::Zero();
+  const WettedContact wet =
+      wettedContact(electrodeSamples_, st.pose, planePoint, planeNormal, motion);
+  if (!(wet.areaM2 > 0)) return;  // touching by the contact distance only: not immersed
+  constexpr double kTwoPi = 2 * 3.14159265358979323846;
+  const double a = std::sqrt(config_.subgrid.areaFactor * wet.areaM2 / kTwoPi);
+  // the patch: the contact nodes' share of the current surface
+  const int n = m.mesh.numNodes();
+  if (static_cast<int>(contactMark_.size()) != n) contactMark_.assign(n, 0);
+  for (int c : st.contacts) contactMark_[c] = 1;
+  double patchArea = 0;
+  for (const BoundaryFace& face : m.surface) {
+    int k = 0;
+    for (int v3 : face.nodes) k += contactMark_[v3];
+    if (k == 0) continue;
+    const Vec3& p0 = m.mesh.nodes[face.nodes[0]];
+    patchArea += k / 3.0 * 0.5 *
+                 (m.mesh.nodes[face.nodes[1]] - p0).cross(m.mesh.nodes[face.nodes[2]] - p0).norm();
+  }
+  const double ap = std::sqrt(patchArea / kTwoPi);
+  const SubgridMode mode = config_.subgrid.mode;
+  const bool applies = ap > a && (mode == SubgridMode::On ||
+                                  (mode == SubgridMode::Auto && ap >= kAutoPatchRatio * a));
+  if (!applies) {
+    for (int c : st.contacts) contactMark_[c] = 0;
+    return;
+  }
+  // the tets at the contact: their conductivity, and the one holding the deepest point
+  double sigmaSum = 0;
+  int sigmaCount = 0;
+  f.vaporTet = -1;
+  const auto& geo = *m.geo;
+  for (int e = 0; e < m.mesh.numTets(); ++e) {
+    if (!m.mesh.isAlive(e)) continue;
+    const Tet& t = m.mesh.tets[e];
+    if (!(contactMark_[t[0]] | contactMark_[t[1]] | contactMark_[t[2]] | contactMark_[t[3]]))
+      continue;
+    sigmaSum += m.sigmaAssembled[e];
+    ++sigmaCount;
+    if (f.vaporTet >= 0) continue;
+    const Vec3 c =
+        0.25 * (m.mesh.nodes[t[0]] + m.mesh.nodes[t[1]] + m.mesh.nodes[t[2]] + m.mesh.nodes[t[3]]);
+    bool inside = true;
+    for (int k = 0; k < 4 && inside; ++k)
+      inside = 0.25 + geo[e].grad.row(k).dot(wet.deepestM - c) >= -1e-9;
+    if (inside) f.vaporTet = e;
+  }
+  for (int c : st.contacts) contactMark_[c] = 0;
+  const double sigma = sigmaCount > 0 ? sigmaSum / sigmaCount : config_.conductivityS_m;
+  // the contact nodes' shares of the current: their reactions (K u)_i
+  f.nodes = st.contacts;
+  f.weights.assign(f.nodes.size(), 0.0);
+  double wsum = 0;
+  for (size_t i = 0; i < f.nodes.size(); ++i) {
+    const double r = m.stiffness.col(f.nodes[i]).dot(st.potentialV);
+    f.weights[i] = std::max(r, 0.0);
+    wsum += f.weights[i];
+  }
+  for (double& w : f.weights) w = wsum > 0 ? w / wsum : 1.0 / f.nodes.size();
+  // the series resistance, and the mesh's solution scaled to it
+  const double rMesh = v / toolCurrentA;
+  const double rSub = shellResistanceOhm(sigma, a, ap);
+  const double scale = rMesh / (rMesh + rSub);
+  st.potentialV *= scale;
+  for (double& q : st.joulePowerW_m3) q *= scale * scale;
+  rec.toolCurrentA *= scale;
+  rec.returnCurrentA *= scale;
+  const double current = scale * toolCurrentA;
+  f.innerM = a;
+  f.patchM = ap;
+  f.zoneM = std::min(ap, kZoneRadiusFactor * a);
+  const std::vector<double> radii = zoneRadii(f.innerM, f.zoneM);
+  f.shellW.resize(kSubgridShells);
+  double subW = 0;
+  for (int k = 0; k < kSubgridShells; ++k) {
+    f.shellW[k] = current * current * shellResistanceOhm(sigma, radii[k], radii[k + 1]);
+    subW += f.shellW[k];
+  }
+  f.directW = f.zoneM < ap ? current * current * shellResistanceOhm(sigma, f.zoneM, ap) : 0.0;
+  subW += f.directW;
+  // (a tool at rest may move by round-off between keyframes: below 1 nm per frame it rests)
+  const double speed = motion.norm() > 1e-9 ? motion.norm() / dt : 0.0;
+  f.residenceS = speed > 0 && wet.lengthAlongM > 0 ? wet.lengthAlongM / speed
+                                                   : std::numeric_limits<double>::infinity();
+  powerW = scale * scale * powerW + subW;
+  f.active = true;
+  rec.subgridActive = true;
+  rec.subgridPowerW = subW;
+}
+
+// Heat stage, before the mesh's step: the zone formed, resized, advanced or released; its
+// exchanges with the mesh and the direct share of the sub-grid power as nodal sources; its
+// vapour trapped in the tet at the deepest point or vented.
+void Simulation::subgridHeat(std::vector<ThermalPhase::NodalSource>& sources, FrameRecord& rec) {
+  SimState& st = state_;
+  const ThermalPhase& thermal = *model_->thermal;
+  const double dt = config_.frameDtS;
+  const SubgridZoneParams p = subgridZoneParams();
+  SubgridZone& zone = st.subgridZone;
+  SubgridEnergy& acc = st.subgridEnergy;
+  std::vector<double> toNodes;  // [J], per zone node
+  std::vector<int> nodes;
+  if (subgridFrame_ && subgridFrame_->active) {
+    const SubgridFrame& f = *subgridFrame_;
+    nodes = f.nodes;
+    ZoneCoupling c;
+    c.weights = f.weights;
+    for (int v : nodes) {
+      c.temperatureC.push_back(st.thermal.temperatureC[v]);
+      c.enthalpyJ_m3.push_back(st.thermal.enthalpyJ_m3[v]);
+    }
+    toNodes = resizeZone(p, zone, f.innerM, f.zoneM, c);
+    const ZoneStepResult r = stepZone(p, zone, f.shellW, c, f.residenceS, dt);
+    for (size_t i = 0; i < nodes.size(); ++i)
+      toNodes[i] += r.toNodesJ[i] + f.weights[i] * f.directW * dt;
+    zone.nodes = nodes;
+    zone.weights = f.weights;
+    acc.inputJ += r.inputJ + f.directW * dt;
+    const double latentJ = r.vaporKg * config_.thermal.latentHeatJ_kg;
+    if (f.vaporTet >= 0) {
+      st.trappedVaporKg[f.vaporTet] += r.vaporKg;
+      // the pocket it forms: an inclusion expanding by the boiling tissue's e_v (the
+      // structural phase's water expansion, capped) whose wall stress breaks the tissue
+      if (model_->structural && r.vaporKg > 0) {
+        const double ev = volumetricExpansion(
+            model_->expansion, config_.thermal.boilingTemperatureC, r.maxVaporFraction);
+        double& pocket = st.pocketStressPa[f.vaporTet];
+        pocket = std::max(pocket, pocketVonMisesPa(config_.structural.youngsModulusPa,
+                                                   config_.structural.poissonRatio, ev));
+        rec.subgridPocketStressPa = pocket;
+      }
+    } else {
+      acc.ventedJ += latentJ;
+    }
+    rec.subgridVaporKg = r.vaporKg;
+    rec.subgridZoneTemperatureC = zoneTemperatureC(p, zone);
+  } else if (zone.present) {
+    // the zone goes (the tool left, or the mesh resolves the contact): its heat to the nodes
+    // it last exchanged with, those that still belong to the tissue
+    nodes = zone.nodes;
+    std::vector<double> weights = zone.weights;
+    double kept = 0;
+    for (size_t i = 0; i < nodes.size(); ++i) {
+      if (!thermal.nodeActive(nodes[i])) weights[i] = 0;
+      kept += weights[i];
+    }
+    const double heatJ = zoneEnergyJ(zone);
+    releaseZone(zone);
+    toNodes.assign(nodes.size(), 0.0);
+    if (kept > 0) {
+      for (size_t i = 0; i < nodes.size(); ++i) toNodes[i] = heatJ * weights[i] / kept;
+    } else {
+      acc.ventedJ += heatJ;  // its tissue was removed: the heat left with it
+    }
+  }
+  for (size_t i = 0; i < nodes.size(); ++i) {
+    if (toNodes[i] == 0) continue;
+    sources.push_back({nodes[i], toNodes[i] / dt});
+    acc.toMeshJ += toNodes[i];
+  }
+  acc.storedJ = subgridStoredEnergyJ();
 }
 
 // ---- the snapshot ----

@@ -35,6 +35,7 @@
 #include "sim/mesh_tet.h"
 #include "sim/snapshot.h"
 #include "sim/structural.h"
+#include "sim/subgrid_contact.h"
 #include "sim/thermal_step.h"
 #include "sim/tool_path.h"
 
@@ -81,9 +82,13 @@ struct FrameRecord {
                                     // node of the tet holding the tip carried the current
   bool toolSwept = false;           // the tool moved more than an element: contacts along its path
   bool boilingUnconverged = false;  // the boiling iteration stopped at its iteration cap
-  double maxPrincipleViolationK = 0;  // heat: how far T left its maximum-principle bounds  // the
-                                      // boiling iteration stopped at its iteration cap
-  double physicsMs() const;           // sum of the simulation stages [ms]
+  double maxPrincipleViolationK = 0;   // heat: how far T left its maximum-principle bounds
+  bool subgridActive = false;          // the sub-grid contact model carried the contact
+  double subgridPowerW = 0;            // ... Joule power of the sub-grid shell a < r < a_p [W]
+  double subgridZoneTemperatureC = 0;  // ... its innermost shell at the end of the frame [C]
+  double subgridVaporKg = 0;           // ... water its zone vaporised this frame [kg]
+  double subgridPocketStressPa = 0;    // ... wall stress of the vapour pocket it fed [Pa]
+  double physicsMs() const;            // sum of the simulation stages [ms]
 };
 
 // times one stage into a record (monotonic clock)
@@ -166,6 +171,9 @@ struct SimulationConfig {
   RebuildMode rebuildMode = RebuildMode::Synchronous;  // or on a thread ...
   int rebuildLagFrames = 3;        // ... swapped in this many frames after rupture
   bool recomputeLagFrames = true;  // ... then the lag frames again on the new model
+
+  // the contact below the mesh's resolution (sim/subgrid_contact.h)
+  SubgridContactOptions subgrid;
 };
 
 // The phases' dependencies, the one rule the scenario loader and the constructor both use:
@@ -228,9 +236,26 @@ struct SimModel {
   std::unique_ptr<StructuralPhase> structural;
   std::vector<Support> supports;
   ExpansionParams expansion;
+  // sub-grid contact: the initial boundary faces (the intact tissue's surface), as planes
+  struct SurfaceFace {
+    Vec3 a, b, c, normal;  // corners [m] and outward unit normal
+    Eigen::AlignedBox3d box;
+  };
+  std::shared_ptr<const std::vector<SurfaceFace>> initialSurface;
   double medianEdgeM = 0;       // median edge length of the initial mesh [m] (a fast tool's scale)
   Eigen::AlignedBox3d boundsM;  // box of the initial mesh's nodes [m]
   double buildMs = 0;           // wall time of the build [ms]
+};
+
+// The sub-grid contact model's energy account (all [J], since the start): with the thermal
+// state's, delivered = mesh source - toMesh + input, and mesh stored + sub-grid stored =
+// initial + delivered - convected - removed (with tets) - vented.
+struct SubgridEnergy {
+  double inputJ = 0;   // Joule heat of the sub-grid shell (in the energy delivered)
+  double toMeshJ = 0;  // heat the model gave the mesh as nodal sources (in its sourceJ)
+  double ventedJ = 0;  // latent heat of vapour formed where the tissue had parted, and heat
+                       // of a zone whose nodes were all removed
+  double storedJ = 0;  // zone + trapped vapour of alive tets, after the heat stage
 };
 
 // The state: everything a frame changes. A checkpoint is a copy of it.
@@ -249,6 +274,11 @@ struct SimState {
   Eigen::VectorXd displacementM;        // 3 per node: of the last structural solve [m]
   double energyJ = 0;                   // Joule energy delivered so far [J]
   double maxTemperatureC = 0;           // highest temperature seen so far [C]
+  // sub-grid contact (sim/subgrid_contact.h)
+  SubgridZone subgridZone;
+  std::vector<double> trappedVaporKg;  // per tet: water the zone vaporised in it [kg]
+  std::vector<double> pocketStressPa;  // per tet: von Mises at the wall of that vapour pocket
+  SubgridEnergy subgridEnergy;
 };
 
 // ---- the simulation ----
@@ -286,6 +316,12 @@ class Simulation {
   Eigen::VectorXd temperatureC() const;  // per node (initial value without thermal)
   double energyDeliveredJ() const { return state_.energyJ; }  // integral of Joule power [J]
   double maxTemperatureSeenC() const { return state_.maxTemperatureC; }
+  // sub-grid contact: its energy account, and what it stores now (zone + trapped vapour of
+  // the alive tets) [J]
+  const SubgridEnergy& subgridEnergy() const { return state_.subgridEnergy; }
+  double subgridStoredEnergyJ() const;
+  const SubgridZone& subgridZone() const { return state_.subgridZone; }
+  SubgridZoneParams subgridZoneParams() const;
   double electricMemoryBytes() const;
   std::string electricSolverName() const;
   bool hasElectric() const { return model_->electric != nullptr; }
@@ -316,6 +352,9 @@ class Simulation {
   void checkMaximumPrinciple(double highBeforeC, bool heated, FrameRecord& record);
   void refreshConductivity();
   void computeEigenstrain();
+  struct SubgridFrame;
+  void subgridContact(double toolCurrentA, double& powerW, FrameRecord& record);
+  void subgridHeat(std::vector<ThermalPhase::NodalSource>& sources, FrameRecord& record);
   std::vector<int> scriptedContacts(const ContactFinder& finder, const std::vector<int>& ground,
                                     int fromFrame, int toFrame) const;
   void startRebuild(const std::vector<int>& broken);
@@ -345,9 +384,13 @@ class Simulation {
   std::unique_ptr<SimState> checkpoint_;  // state when the rebuild in flight started
   int recomputedFrames_ = 0;              // frames computed again after swaps
   int framesContactByTet_ = 0, framesToolSwept_ = 0, framesBoilingUnconverged_ = 0;
-  int framesMaxPrinciple_ = 0;     // frames whose temperature left its bounds
-  double worstMaxPrincipleK_ = 0;  // by how much at most [K]
-  double lowestC_ = 0;             // the initial minimum temperature: the lower bound [C]
+  int framesMaxPrinciple_ = 0;  // frames whose temperature left its bounds
+  int framesSubgrid_ = 0;       // frames the sub-grid contact model carried the contact
+  std::vector<SurfaceSample> electrodeSamples_;  // sub-grid contact: the electrode's surface
+  std::unique_ptr<SubgridFrame> subgridFrame_;   // ... this frame's contact (solve -> heat)
+  std::vector<std::uint8_t> contactMark_;        // ... scratch: per node, in contact
+  double worstMaxPrincipleK_ = 0;                // by how much at most [K]
+  double lowestC_ = 0;  // the initial minimum temperature: the lower bound [C]
   int removedTets_ = 0;
   int rebuilds_ = 0, rebuildsLate_ = 0;  // swapped in; of which had to wait > 1 ms
   double rebuildBuildMs_ = 0;            // sum of the rebuilds' build times

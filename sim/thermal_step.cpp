@@ -950,8 +950,13 @@ struct ThermalPhase::Impl::Stepper {
   void markDesiccated();
 };
 
+bool ThermalPhase::nodeActive(int node) const {
+  return node >= 0 && node < numNodes_ && impl_->active[node] != 0;
+}
+
 ThermalPhase::StepStats ThermalPhase::step(double dtS, const std::vector<double>& sourceW_m3,
-                                           ThermalState& s) {
+                                           ThermalState& s,
+                                           const std::vector<NodalSource>& nodalSources) {
   const int n = numNodes_;
   ESIM_VERIFY(std::isfinite(dtS) && dtS > 0,
               "thermal step: dt = " + fmt(dtS) + " s: must be > 0 and finite");
@@ -976,6 +981,15 @@ ThermalPhase::StepStats ThermalPhase::step(double dtS, const std::vector<double>
 
   if (impl_->massFactorStale) impl_->factorMass();  // removeTets could not modify it
   st.assembleSource(sourceW_m3);
+  for (const NodalSource& ns : nodalSources) {
+    ESIM_VERIFY(nodeActive(ns.node) && std::isfinite(ns.powerW),
+                "thermal step: nodal source on node " + std::to_string(ns.node) + " of " +
+                    fmt(ns.powerW) + " W: the node must belong to an alive tet, the power finite");
+    if (ns.powerW == 0) continue;
+    impl_->load[ns.node] += ns.powerW;
+    st.sourcePowerW += ns.powerW;
+    st.anySource = true;
+  }
   st.updateTemperature();  // from the primary unknown
 
   // skip: nothing can change but time and damage

@@ -161,10 +161,22 @@ class ThermalPhase {
     int cgIterations = 0;   // total CG iterations (0 with a direct solver)
   };
 
+  // a heat source on one node [W] (constant over the step), added to the load of the tets'
+  // source; it counts in sourceJ like them
+  struct NodalSource {
+    int node = 0;
+    double powerW = 0;
+  };
+
   // Advances the state by dtS [s] with the per-tet source sourceW_m3 [W/m^3] (size
-  // numTets; removed tets ignored). Throws Error on bad input or, for the explicit
-  // integrator without sub-stepping, on a dt above the stability limit.
-  StepStats step(double dtS, const std::vector<double>& sourceW_m3, ThermalState& state);
+  // numTets; removed tets ignored) and the nodal sources (on nodes of alive tets: see
+  // nodeActive; any sign). Throws Error on bad input or, for the explicit integrator without
+  // sub-stepping, on a dt above the stability limit.
+  StepStats step(double dtS, const std::vector<double>& sourceW_m3, ThermalState& state,
+                 const std::vector<NodalSource>& nodalSources = {});
+
+  // the node belongs to an alive tet (it has heat capacity and exchanges heat)
+  bool nodeActive(int node) const;
 
   // What removeTets did (for the caller's timing row and logs).
   struct RemovalStats {

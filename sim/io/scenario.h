@@ -191,6 +191,14 @@ struct ScenarioEffects {
   bool operator==(const ScenarioEffects&) const = default;
 };
 
+// the contact below the mesh's resolution (sim/subgrid_contact.h)
+struct ScenarioSubgridContact {
+  SubgridMode mode = scenario_detail::core().subgrid.mode;  // off | auto | on
+  // kappa: effective / wetted contact area (calibrated)
+  double areaFactor = scenario_detail::core().subgrid.areaFactor;
+  bool operator==(const ScenarioSubgridContact&) const = default;
+};
+
 struct ScenarioSolvers {
   // refactor|dense-inverse|capacitance|pcg
   ElectricStrategy electricStrategy = scenario_detail::core().electricSolver.strategy;
@@ -280,6 +288,7 @@ struct Scenario {
   ScenarioHeatSource heatSource;
   ScenarioHotSpot initialHotSpot;
   ScenarioEffects effects;
+  ScenarioSubgridContact subgridContact;
   ScenarioSolvers solvers;
   ScenarioTime time;
   ScenarioCamera camera;

@@ -96,6 +96,10 @@ void checkEffects(const Scenario& s, const Reader& r) {
   if (s.effects.surfaceCoolingHWPerM2K > 0 && !thermal)
     r.fail("effects.surface_cooling.h_w_per_m2k",
            "effects.surface_cooling.h_w_per_m2k > 0 needs thermal (physics " + phaseList(s) + ")");
+  if (s.subgridContact.mode != SubgridMode::Off && !(electric && thermal))
+    r.fail("subgrid_contact.mode",
+           std::string("subgrid_contact.mode: ") + subgridModeName(s.subgridContact.mode) +
+               " needs electric and thermal (physics " + phaseList(s) + "); set it off");
 }
 
 // grid sizes, the planned cut, refinement and the mesh file (resolved into

@@ -243,6 +243,20 @@ const std::vector<Field>& schema() {
                        "m", closed(0.0, 10.0),
                        "structural: the surface nodes within this height of the lowest node "
                        "are clamped (the tissue rests on the table)"));
+    // sub-grid contact
+    f.push_back(choice("subgrid_contact.mode", ESIM_ENUM_REF(subgridContact.mode),
+                       {"off", "auto", "on"},
+                       "sub-grid model of a tool contact smaller than the mesh resolves "
+                       "(sim/subgrid_contact.h): its spreading resistance in series with the "
+                       "mesh, a contact zone that heats and boils, its vapour trapped in the "
+                       "tet at the tool (whose pocket's wall stress can break it); auto = only "
+                       "in frames where the contact nodes' patch is at least twice the true "
+                       "contact's radius (needs electric and thermal)"));
+    f.push_back(number("subgrid_contact.area_factor", ESIM_REF(subgridContact.areaFactor), "",
+                       positive(10.0),
+                       "kappa: the share of the electrode's wetted area that carries the "
+                       "current (the model's one calibrated parameter; README, 'A coarse mesh "
+                       "that cuts')"));
     // solvers
     f.push_back(choice("solvers.electric.strategy", ESIM_ENUM_REF(solvers.electricStrategy),
                        {"refactor", "dense-inverse", "capacitance", "pcg"},

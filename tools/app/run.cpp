@@ -10,8 +10,10 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -463,6 +465,27 @@ std::string summaryText(const Setup& s, const FrameOutputs& out, const LoopResul
   sum.precision(3);
   sum << "  energy        " << loop.energyJ << " J delivered, peak power " << loop.peakPowerW
       << " W\n";
+  if (sim.config().subgrid.mode != SubgridMode::Off) {
+    // the sub-grid contact model (sim/subgrid_contact.h): where it carried the contact
+    int active = 0;
+    double zoneMaxC = -INFINITY, vaporKg = 0, subJ = 0, pocketPa = 0;
+    for (const FrameRecord& r : loop.records) {
+      if (!r.subgridActive) continue;
+      ++active;
+      zoneMaxC = std::max(zoneMaxC, r.subgridZoneTemperatureC);
+      pocketPa = std::max(pocketPa, r.subgridPocketStressPa);
+      vaporKg += r.subgridVaporKg;
+      subJ += r.subgridPowerW * sim.config().frameDtS;
+    }
+    sum << "  sub-grid      contact model (" << subgridModeName(sim.config().subgrid.mode)
+        << ") on in " << active << " of " << loop.records.size() << " frames";
+    if (active > 0)
+      sum << "; zone peak " << zoneMaxC << " C, " << subJ << " J in its shell, " << vaporKg * 1e6
+          << " mg of water vaporised"
+          << (pocketPa > 0 ? ", vapour pockets' wall stress up to " : "")
+          << (pocketPa > 0 ? std::to_string(static_cast<int>(pocketPa)) + " Pa" : "");
+    sum << "\n";
+  }
   if (sim.config().phases.structural) summaryStructural(sum, sim, loop);
   sum << "  outputs       " << dir.string() << "/ {" << (s.video ? "video.mp4, " : "")
       << "timing.csv, timing.json, trace.json, scenario.yaml" << (plotted ? ", timing.png" : "")

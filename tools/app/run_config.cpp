@@ -36,6 +36,8 @@ void mapElectric(const Scenario& s, SimulationConfig& c) {
   c.temperatureDependentConductivity = s.effects.temperatureDependentConductivity;
   c.conductivityTempCoeffPerK = m.conductivityTempCoeffPerK;
   c.desiccatedConductivityFactor = m.desiccatedConductivityFactor;
+  c.subgrid.mode = s.subgridContact.mode;
+  c.subgrid.areaFactor = s.subgridContact.areaFactor;
 }
 
 void mapThermal(const Scenario& s, SimulationConfig& c) {
