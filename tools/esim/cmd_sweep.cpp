@@ -16,7 +16,8 @@ void checkRunOptions(const std::vector<std::string>& options) {
   for (const auto& spec : commandRegistry()) {
     if (spec.path != std::vector<std::string>{"run"}) continue;
     CLI::App app{"esim run"};
-    spec.setup(app);
+    // the runner holds the options the parse writes into: it lives until the parse is done
+    const Runner keep = spec.setup(app);
     std::vector<std::string> args{"esim", "scenario.yaml"};
     args.insert(args.end(), options.begin(), options.end());
     std::vector<char*> argv;
