@@ -49,9 +49,15 @@
 //   2. cached columns: z = K^-1 e_j gives K' z = e_j + E z, so
 //        z' = K'^-1 e_j = z - K'^-1 (E z) = z - Y (E z)_S,   Y = K'^-1 I_:S
 //      (S: the rows of E staying free; rows leaving the free set give z'_D = 0). Y from
-//      step 1, then all cached columns at once in chunks: R = (E Z)_S,
-//      Z -= Y R (BLAS-3 dgemm), 2 n_f s flops per column, against about 4 nnz(L) flops to
-//      solve a column again: above kCorrectionShare of that the cache is dropped instead.
+//      step 1 (when a refactorization left none, only if its s solves cost less than
+//      kCorrectionShare of solving the cache again; else the cache is dropped). The
+//      update logs (S, Y, E_S) and each cached column is corrected on its next use, by
+//      the corrections it has not seen (2 n_f s flops each, against 4 nnz(L) to solve it
+//      again): a cut corrects the few columns the tool comes back to, not the whole cache
+//      (measured: the path's prefetched columns made the eager correction of every
+//      column the electric update's largest part). The log is trimmed of corrections
+//      every column has seen; above a quarter of the cache's memory the columns still
+//      behind go instead (solved again if the tool returns).
 //   3. patches: kept; setContactCandidates with the new surface adds patches for the new
 //      candidates and keeps the cache; prefetch their columns outside the frame loop.
 // After an update, a column corrected in place and one solved with the updated factor
@@ -64,6 +70,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <deque>
 #include <limits>
 
 #include "sim/core_error.h"
@@ -106,6 +113,8 @@ class CapacitanceSolver final : public ElectricSolver {
     columns_.clear();
     slotNode_.clear();
     lastUsed_.clear();
+    slotVersion_.clear();
+    clearLog();
     slotOf_.assign(nf, -1);
     patchOf_.assign(nf, -1);
     patches_.clear();
@@ -182,7 +191,7 @@ class CapacitanceSolver final : public ElectricSolver {
       if (e.kind() == ErrorKind::Internal) throw;
       return fallBack(std::string("the factor update failed: ") + e.what());
     }
-    correctColumns(change, rows, y, stats);
+    correctColumns(change, rows, std::move(y), stats);
     return stats;
   }
 
@@ -216,8 +225,10 @@ class CapacitanceSolver final : public ElectricSolver {
     stats.newColumns = computeColumns(missing);
     std::vector<const double*> z(c);
     for (int k = 0; k < c; ++k) {
-      lastUsed_[slotOf_[cf[k]]] = frame_;
-      z[k] = columns_[slotOf_[cf[k]]].data();
+      const int slot = slotOf_[cf[k]];
+      lastUsed_[slot] = frame_;
+      if (slotVersion_[slot] < version_) bringUpToDate(slot);
+      z[k] = columns_[slot].data();
     }
     // 2. the capacitance system Z_cc f = u_c
     Eigen::MatrixXd zcc(c, c);
@@ -252,6 +263,7 @@ class CapacitanceSolver final : public ElectricSolver {
     double bytes = factor_.memoryBytes() + 20.0 * static_cast<double>(free_.matrix.nonZeros()) +
                    8.0 * static_cast<double>(y0_.size() + m_.size());
     for (const auto& col : columns_) bytes += 8.0 * static_cast<double>(col.size());
+    for (const Correction& c : log_) bytes += 8.0 * static_cast<double>(c.y.size());
     return bytes;
   }
   const char* name() const override { return "capacitance"; }
@@ -481,11 +493,12 @@ class CapacitanceSolver final : public ElectricSolver {
     return r.norm() / std::sqrt(static_cast<double>(rows.size()));
   }
 
-  // z' = z - Y (E z)_S for every cached column still free (see the file comment), or
-  // drops the cache when solving the columns again is cheaper or y is not given;
-  // rows: S, y: K'^-1 I_:S
-  void correctColumns(const BaseChange& change, const std::vector<int>& rows,
-                      const Eigen::MatrixXd& y, ElectricUpdateStats& stats) {
+  // z' = z - Y (E z)_S for every cached column still free (see the file comment), on
+  // each column's next use (bringUpToDate): the update logs (S, Y, E_S) and the columns
+  // the tool never comes back to cost nothing. Drops the cache when y is not given (a
+  // refactorization where Y did not pay); rows: S, y: K'^-1 I_:S
+  void correctColumns(const BaseChange& change, const std::vector<int>& rows, Eigen::MatrixXd&& y,
+                      ElectricUpdateStats& stats) {
     const int nf = free_.size();
     // columns of nodes leaving the free set go
     for (int d : change.dropped) {
@@ -494,53 +507,79 @@ class CapacitanceSolver final : public ElectricSolver {
       slotOf_[d] = -1;
       ++stats.columnsDropped;
     }
-    std::vector<int> slots;
-    for (size_t slot = 0; slot < slotNode_.size(); ++slot)
-      if (slotNode_[slot] >= 0) slots.push_back(static_cast<int>(slot));
-    if (slots.empty()) return;
-    const int s = static_cast<int>(rows.size());
-    std::vector<int> where(nf, -1);
-    for (int k = 0; k < s; ++k) where[rows[k]] = k;
-    const double correctFlops = 2.0 * nf * s * slots.size();
-    const double solveFlops = 4.0 * factor_.factorEntries() * slots.size();
-    if (y.cols() != s || correctFlops > kCorrectionShare * solveFlops) {
-      for (int slot : slots) {
-        slotOf_[slotNode_[slot]] = -1;
-        slotNode_[slot] = -1;
-      }
-      stats.columnsDropped += static_cast<int>(slots.size());
+    const int cached = cachedColumns();
+    if (cached == 0) {
+      clearLog();
       return;
     }
-    // the entries of E in the rows S: (position in S, column, value)
-    struct Entry {
-      int row, col;
-      double value;
-    };
-    std::vector<Entry> entries;
+    const int s = static_cast<int>(rows.size());
+    if (y.cols() != s) {
+      for (size_t slot = 0; slot < slotNode_.size(); ++slot)
+        if (slotNode_[slot] >= 0) {
+          slotOf_[slotNode_[slot]] = -1;
+          slotNode_[slot] = -1;
+        }
+      stats.columnsDropped += cached;
+      clearLog();
+      return;
+    }
+    std::vector<int> where(nf, -1);
+    for (int k = 0; k < s; ++k) where[rows[k]] = k;
+    Correction c;
+    c.y = std::move(y);
+    c.dropped = change.dropped;
     for (int j = 0; j < nf; ++j)
       for (SparseMatrix::InnerIterator it(change.delta, j); it; ++it)
-        if (where[it.row()] >= 0) entries.push_back({where[it.row()], j, it.value()});
-    // chunks of columns: R = (E Z)_S, Z -= Y R, then z_D = 0 for every index not free
-    const int chunk = 64;
-    Eigen::MatrixXd z, r;
-    for (size_t k0 = 0; k0 < slots.size(); k0 += chunk) {
-      const int cols = static_cast<int>(std::min<size_t>(chunk, slots.size() - k0));
-      z.resize(nf, cols);
-      r.setZero(s, cols);
-      for (int k = 0; k < cols; ++k) {
-        const Eigen::VectorXd& col = columns_[slots[k0 + k]];
-        z.col(k) = col;
-        for (const Entry& en : entries) r(en.row, k) += en.value * col[en.col];
-      }
-      cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, nf, cols, s, -1.0, y.data(), nf,
-                  r.data(), s, 1.0, z.data(), nf);
-      for (int k = 0; k < cols; ++k) {
-        Eigen::VectorXd& col = columns_[slots[k0 + k]];
-        col = z.col(k);
-        for (int d : change.dropped) col[d] = 0.0;
-      }
+        if (where[it.row()] >= 0) c.entries.push_back({where[it.row()], j, it.value()});
+    log_.push_back(std::move(c));
+    ++version_;
+    stats.columnsCorrected = cached;
+    trimLog();
+  }
+
+  // applies the logged corrections a cached column has not seen yet (its slot's version)
+  void bringUpToDate(int slot) {
+    Eigen::VectorXd& col = columns_[slot];
+    Eigen::VectorXd r;
+    for (long v = slotVersion_[slot]; v < version_; ++v) {
+      const Correction& c = log_[static_cast<size_t>(v - logBase_)];
+      r.setZero(c.y.cols());
+      for (const CorrectionEntry& en : c.entries) r[en.row] += en.value * col[en.col];
+      cblas_dgemv(CblasColMajor, CblasNoTrans, static_cast<int>(c.y.rows()),
+                  static_cast<int>(c.y.cols()), -1.0, c.y.data(), static_cast<int>(c.y.rows()),
+                  r.data(), 1, 1.0, col.data(), 1);
+      for (int d : c.dropped) col[d] = 0.0;
     }
-    stats.columnsCorrected = static_cast<int>(slots.size());
+    slotVersion_[slot] = version_;
+  }
+
+  // drops the logged corrections every cached column has seen; above the log's memory
+  // budget (a quarter of the cache's), a cached column still behind is dropped (solved
+  // again if the tool comes back) rather than corrected, oldest versions first
+  void trimLog() {
+    double bytes = 0;
+    for (const Correction& c : log_) bytes += 8.0 * static_cast<double>(c.y.size());
+    const double budget = 0.25 * options_.cacheMemoryLimitBytes;
+    long oldest = version_;
+    for (size_t slot = 0; slot < slotNode_.size(); ++slot)
+      if (slotNode_[slot] >= 0) oldest = std::min(oldest, slotVersion_[slot]);
+    while (!log_.empty() && (logBase_ < oldest || bytes > budget)) {
+      if (logBase_ >= oldest)  // over budget: the columns still behind the oldest go
+        for (size_t slot = 0; slot < slotNode_.size(); ++slot)
+          if (slotNode_[slot] >= 0 && slotVersion_[slot] <= logBase_) {
+            slotOf_[slotNode_[slot]] = -1;
+            slotNode_[slot] = -1;
+          }
+      bytes -= 8.0 * static_cast<double>(log_.front().y.size());
+      log_.pop_front();
+      ++logBase_;
+      oldest = std::max(oldest, logBase_);
+    }
+  }
+
+  void clearLog() {
+    log_.clear();
+    logBase_ = version_;
   }
 
   // a free slot, or the least recently used one not used by the current frame (ties:
@@ -566,6 +605,7 @@ class CapacitanceSolver final : public ElectricSolver {
     columns_.emplace_back(free_.size());
     slotNode_.push_back(-1);
     lastUsed_.push_back(0);
+    slotVersion_.push_back(version_);
     return static_cast<int>(columns_.size()) - 1;
   }
 
@@ -594,6 +634,7 @@ class CapacitanceSolver final : public ElectricSolver {
         int slot = slotOf_[i];
         if (slot < 0) slot = acquireSlot();
         columns_[slot] = block_.col(k);
+        slotVersion_[slot] = version_;  // solved with the current factor
         slotNode_[slot] = i;
         slotOf_[i] = slot;
         lastUsed_[slot] = frame_;
@@ -620,6 +661,20 @@ class CapacitanceSolver final : public ElectricSolver {
   Eigen::MatrixXd y0_;                  // K0^-1 I_:S0 (n_f x s0)
   Eigen::MatrixXd m_;                   // E0 (I + Y0_S0 E0)^-1 (s0 x s0)
   long frame_ = 0;
+  // the corrections of the cached columns since setMatrix, applied on each column's next
+  // use (see correctColumns): version_ counts them, log_ holds those from logBase_ on
+  struct CorrectionEntry {
+    int row, col;  // position in S, base index
+    double value;  // of E
+  };
+  struct Correction {
+    Eigen::MatrixXd y;                     // K'^-1 I_:S at the update (n_f x s)
+    std::vector<CorrectionEntry> entries;  // E on the rows S
+    std::vector<int> dropped;              // base indices that left the free set
+  };
+  std::deque<Correction> log_;
+  long version_ = 0, logBase_ = 0;
+  std::vector<long> slotVersion_;  // slot -> corrections its column has seen
 };
 
 }  // namespace

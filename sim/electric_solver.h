@@ -154,7 +154,7 @@ struct ElectricUpdateStats {
   bool refactored = false;     // capacitance: the factor was recomputed numerically (same
                                // ordering): the change or the Woodbury term was too large
                                // to pay, or the accuracy check after the update failed
-  int columnsCorrected = 0;    // capacitance: cached columns corrected in place
+  int columnsCorrected = 0;    // capacitance: cached columns kept, corrected on next use
   int columnsDropped = 0;      // capacitance: cached columns dropped (node left the free
                                // set, or correcting them would cost more than solving again)
 };

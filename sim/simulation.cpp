@@ -6,6 +6,7 @@
 #include <future>
 #include <iterator>
 #include <limits>
+#include <utility>
 
 #include "sim/core_error.h"
 #include "sim/electric_phase.h"
@@ -506,13 +507,27 @@ void Simulation::updateModel(const std::vector<int>& broken, FrameRecord& rec) {
   const auto t0 = std::chrono::steady_clock::now();
   SimModel& m = *model_;
   joinPrefetch();
+  joinStructural();
+  auto part = [&rec, tp = t0](int k) mutable {  // closes part k of rec.updatePartMs
+    const auto now = std::chrono::steady_clock::now();
+    rec.updatePartMs[k] = std::chrono::duration<double, std::milli>(now - tp).count();
+    tp = now;
+  };
   try {
     for (int e : broken) m.mesh.alive[e] = 0;
     ESIM_RUN_CHECK(m.mesh.numAlive() > 0, "rupture: every element of the tissue has been removed");
+    if (m.structural) {  // on a thread, joined by the next structural solve (see the header)
+      structuralJobFrame_ = state_.frame;
+      structuralJob_ = std::async(std::launch::async, [phase = m.structural.get(), broken] {
+        return phase->removeTets(broken).seconds * 1e3;
+      });
+    }
     removeFromBoundary(m.mesh, *m.faceNeighbours, broken, m.surface);
     m.surfaceNodes = boundaryNodes(m.mesh, m.surface);
     buildSnapshotTopology(m);
+    part(0);
     if (m.thermal) m.thermal->removeTets(broken);
+    part(1);
     if (m.electric) {
       std::vector<int> ground =
           returnElectrodeNodes(m.mesh, m.surfaceNodes, config_.returnElectrode);
@@ -541,7 +556,7 @@ void Simulation::updateModel(const std::vector<int>& broken, FrameRecord& rec) {
               [solver = m.electric.get(), nodes = std::move(nodes)] { solver->prefetch(nodes); });
       }
     }
-    if (m.structural) m.structural->removeTets(broken);
+    part(2);
   } catch (const Error& e) {
     throwRebuildError(e, state_.frame);
   }
@@ -608,8 +623,35 @@ void Simulation::startRebuild(const std::vector<int>& broken) {
 }
 
 Simulation::~Simulation() {
-  if (job_.valid()) job_.wait();                  // the job reads model_
-  if (prefetchJob_.valid()) prefetchJob_.wait();  // and this one the electric solver
+  if (job_.valid()) job_.wait();                      // the job reads model_
+  if (prefetchJob_.valid()) prefetchJob_.wait();      // and this one the electric solver
+  if (structuralJob_.valid()) structuralJob_.wait();  // and this one the structural phase
+}
+
+void Simulation::waitStructural() const {
+  if (!structuralJob_.valid()) return;
+  try {
+    structuralJobMs_ = structuralJob_.get();
+  } catch (...) {
+    structuralError_ = std::current_exception();
+  }
+}
+
+// the structural update in flight joined; its error is the rupture's (throwRebuildError)
+void Simulation::joinStructural() {
+  if (structuralJob_.valid()) {
+    while (structuralJob_.wait_for(std::chrono::milliseconds(20)) != std::future_status::ready)
+      checkInterrupt();  // (the update checks the flag too, between its parts)
+    waitStructural();
+    record_.structuralUpdateMs = structuralJobMs_;
+  }
+  if (!structuralError_) return;
+  const std::exception_ptr error = std::exchange(structuralError_, nullptr);
+  try {
+    std::rethrow_exception(error);
+  } catch (const Error& e) {
+    throwRebuildError(e, structuralJobFrame_);
+  }
 }
 
 // the prefetch job's end (its error, an interruption included, is this caller's)
@@ -788,6 +830,7 @@ void Simulation::advance(FrameRecord& rec) {
   checkInterrupt();
   if (m.structural) {
     StageTimer timer(rec, Stage::SolveStress);
+    joinStructural();  // a removal's update in flight (update mode): its wait counts here
     computeEigenstrain();
     if (std::all_of(st.eigenstrain.begin(), st.eigenstrain.end(),
                     [](double v) { return v == 0; })) {

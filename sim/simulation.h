@@ -75,9 +75,13 @@ struct FrameRecord {
   double returnCurrentA = 0;  // out at the return electrode [A]
   double powerW = 0;          // Joule power this frame [W]
   double maxTemperatureC = 0;
-  double maxVonMisesPa = 0;         // structural phase, over alive tets
-  int removedTets = 0;              // by the rebuild swapped in this frame
-  double rebuildWaitMs = 0;         // background rebuild: the frame loop waited for it
+  double maxVonMisesPa = 0;  // structural phase, over alive tets
+  int removedTets = 0;       // by the rebuild swapped in this frame
+  double rebuildWaitMs = 0;  // background rebuild: the frame loop waited for it
+  // update mode, a removal frame: wall time of each part of the update [ms]
+  std::array<double, 4> updatePartMs{};  // surface (and contacts), thermal, electric, structural
+  double structuralUpdateMs = 0;         // update mode: the structural update joined in this frame,
+                                  // run on a thread since the removal (its own wall time) [ms]
   bool contactByTet = false;        // tool inside the tissue, no node within reach: the nearest
                                     // node of the tet holding the tip carried the current
   bool toolSwept = false;           // the tool moved more than an element: contacts along its path
@@ -300,7 +304,10 @@ class Simulation {
   SurfaceSnapshot snapshot(double displacementScale = 1.0);
 
   // ---- read access ----
-  const SimModel& model() const { return *model_; }
+  const SimModel& model() const {  // (after the structural update in flight, if any)
+    waitStructural();
+    return *model_;
+  }
   const SimState& state() const { return state_; }
   const FrameRecord& lastRecord() const { return record_; }  // of the last step (+ snapshot)
   const TetMesh& mesh() const { return model_->mesh; }
@@ -379,6 +386,16 @@ class Simulation {
   // between the removal frame and the next solve (joined first by whatever uses the solver)
   mutable std::future<void> prefetchJob_;
   void joinPrefetch() const;
+  // update mode: the structural phase's removal update (its factor's rowdel / updown /
+  // rowadd), on a thread from the removal frame's rupture to the next structural solve,
+  // while the other phases' updates and the next frame's contacts, potential and heat run
+  // (the same arithmetic as in the frame loop: the result does not depend on the timing)
+  mutable std::future<double> structuralJob_;  // its wall time [ms]
+  mutable std::exception_ptr structuralError_;
+  mutable double structuralJobMs_ = 0;
+  int structuralJobFrame_ = -1;           // the removal frame (its errors are that rupture's)
+  void waitStructural() const;            // joins; keeps its error for joinStructural
+  void joinStructural();                  // joins, and throws its error as the rupture's
   std::unique_ptr<Rebuilt> ready_;        // synchronous rebuild, or the job's result
   int swapFrame_ = -1;                    // frame at which the rebuild in flight swaps in
   std::unique_ptr<SimState> checkpoint_;  // state when the rebuild in flight started

@@ -563,6 +563,49 @@ TEST(ElectricSolverUpdate, ThreeCutsMatchAFreshSolverForEveryStrategy) {
   }
 }
 
+// The capacitance cache's columns are corrected on their next use, by every cut they
+// have not seen: columns cached before three cuts and not used in between give the
+// potential of a fresh solver to 1e-9 after the third. With a log budget too small for
+// one correction (cacheMemoryLimitBytes: a quarter of it), the columns behind are dropped
+// instead and solved again on use: the same potential, new columns counted.
+TEST(ElectricSolverUpdate, ColumnsUnusedOverSeveralCutsAreCorrectedOnTheirNextUse) {
+  const CutSlab initial(1013);
+  const Problem p = paperSlab(1013);
+  const std::vector<std::vector<int>> sets = sampleContacts(p);
+  const int orphan = initial.nearestNode(Vec3(0.0, 0.0, 0.01));
+  const std::vector<std::vector<int>> cuts = {initial.aliveTetsWith(orphan),
+                                              initial.tetsAcross(initial.cornerIsland())};
+  for (const double cacheBytes : {256.0 * 1024 * 1024, 64.0 * 1024}) {
+    SCOPED_TRACE("cache " + std::to_string(cacheBytes) + " bytes");
+    CutSlab cut = initial;
+    auto solver = makeElectricSolver(
+        {.strategy = ElectricStrategy::Capacitance, .cacheMemoryLimitBytes = cacheBytes});
+    solver->setContactCandidates(cut.surface);
+    solver->setMatrix(cut.K, cut.grounded);
+    Eigen::VectorXd u, uf;
+    for (const auto& contact : sets) solver->solve(contact, kVolt, u);  // cached, then
+    int corrected = 0;                                                  // left alone
+    for (const auto& tets : cuts) {
+      cut.remove(tets);
+      const ElectricUpdateStats st = solver->updateMatrix(cut.K, cut.grounded);
+      ASSERT_FALSE(st.fellBack) << st.fallbackReason;
+      corrected += st.columnsCorrected;
+      solver->setContactCandidates(cut.surface);
+    }
+    auto fresh = makeElectricSolver({.strategy = ElectricStrategy::Refactor});
+    fresh->setMatrix(cut.K, cut.grounded);
+    const ElectricSolveStats st = solver->solve(sets[1], kVolt, u);
+    fresh->solve(sets[1], kVolt, uf);
+    EXPECT_LT(relError(u, uf), 1e-9);
+    if (cacheBytes > 1e6) {
+      EXPECT_GT(corrected, 0);      // kept over the cuts ...
+      EXPECT_EQ(st.newColumns, 0);  // ... and corrected, not solved again
+    } else {
+      EXPECT_GT(st.newColumns, 0);  // the log could not hold a cut: solved again
+    }
+  }
+}
+
 // the grounded set shrinks by a node that keeps its elements: it joins the free set,
 // which an in-place update cannot do: setMatrix, said in the stats, same answer
 TEST(ElectricSolverUpdate, ANodeJoiningTheFreeSetFallsBackToSetMatrix) {

@@ -86,6 +86,7 @@ int benchCut(const BenchCutOptions& opt) {
                            : std::max(1, static_cast<int>(sc.time.durationS * sc.time.fps + 0.5));
         std::vector<double> ms, rebuildMs;
         std::array<std::vector<double>, kStageCount> stageMs;
+        std::array<std::vector<double>, 4> partMs;  // update mode: the parts of a removal
         int waits = 0;
         for (int f = 0; f < frames; ++f) {
           const FrameRecord& r = sim.step();
@@ -93,6 +94,9 @@ int benchCut(const BenchCutOptions& opt) {
           for (int s = 0; s < kStageCount; ++s)
             if (r.status[s] == StageStatus::Ran) stageMs[s].push_back(r.ms[s]);
           if (r.removedTets > 0) rebuildMs.push_back(r.ms[static_cast<int>(Stage::Rebuild)]);
+          if (r.removedTets > 0 && strategy == "update")
+            for (int k = 0; k < 3; ++k) partMs[k].push_back(r.updatePartMs[k]);
+          if (r.structuralUpdateMs > 0) partMs[3].push_back(r.structuralUpdateMs);
           if (r.rebuildWaitMs > 1.0) ++waits;
         }
         const double med = quantile(ms, 0.5), p95 = quantile(ms, 0.95),
@@ -119,6 +123,16 @@ int benchCut(const BenchCutOptions& opt) {
                           stageName(static_cast<Stage>(s)), stageMs[s].size(),
                           quantile(stageMs[s], 0.5), quantile(stageMs[s], 0.95),
                           *std::max_element(stageMs[s].begin(), stageMs[s].end()));
+        if (opt.stages && !partMs[0].empty()) {
+          static const char* const kParts[4] = {"surface", "thermal", "electric", "structural*"};
+          for (int k = 0; k < 4; ++k)
+            if (!partMs[k].empty())
+              std::printf("    update %-10s %4zu  median %8.3f  p95 %8.3f  max %8.3f ms\n",
+                          kParts[k], partMs[k].size(), quantile(partMs[k], 0.5),
+                          quantile(partMs[k], 0.95),
+                          *std::max_element(partMs[k].begin(), partMs[k].end()));
+          std::printf("    (* on a thread from the removal to the next structural solve)\n");
+        }
         std::fflush(stdout);
         if (csv)
           *csv << label << ',' << sim.mesh().numNodes() << ',' << frames << ',' << med << ',' << p95
