@@ -516,11 +516,12 @@ void Simulation::updateModel(const std::vector<int>& broken, FrameRecord& rec) {
   try {
     for (int e : broken) m.mesh.alive[e] = 0;
     ESIM_RUN_CHECK(m.mesh.numAlive() > 0, "rupture: every element of the tissue has been removed");
-    if (m.structural) {  // on a thread, joined by the next structural solve (see the header)
-      structuralJobFrame_ = state_.frame;
-      structuralJob_ = std::async(std::launch::async, [phase = m.structural.get(), broken] {
-        return phase->removeTets(broken).seconds * 1e3;
-      });
+    if (m.structural) {  // the factor's update on a thread, joined by the next structural
+      structuralJobFrame_ = state_.frame;  // solve (see the header); its pieces here
+      structuralJob_ =
+          std::async(std::launch::async, [update = m.structural->beginRemoval(broken)]() mutable {
+            return update().seconds * 1e3;
+          });
     }
     removeFromBoundary(m.mesh, *m.faceNeighbours, broken, m.surface);
     m.surfaceNodes = boundaryNodes(m.mesh, m.surface);

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdint>
 #include <exception>
+#include <functional>
 #include <string>
 #include <thread>
 
@@ -358,6 +359,11 @@ struct StructuralPhase::Impl {
   void outputs(const std::vector<double>& ev, From from);
   std::vector<int> rowPattern(int dof);
   StructuralUpdateStats removeTets(const std::vector<int>& ids);
+  std::function<StructuralUpdateStats()> beginRemoval(const std::vector<int>& ids);
+  StructuralUpdateStats updateFactor(std::chrono::steady_clock::time_point t0,
+                                     StructuralUpdateStats stats, const std::vector<int>& removed,
+                                     const std::vector<int>& newlyHeld,
+                                     const std::vector<int>& newlyFreed);
 };
 
 // rigid pieces of the alive tets (union-find over the face neighbours, one pass over the
@@ -884,6 +890,11 @@ void StructuralPhase::Impl::outputs(const std::vector<double>& ev, From from) {
 constexpr double kUpdownCostPerEntry = 5;
 
 StructuralUpdateStats StructuralPhase::Impl::removeTets(const std::vector<int>& ids) {
+  return beginRemoval(ids)();
+}
+
+std::function<StructuralUpdateStats()> StructuralPhase::Impl::beginRemoval(
+    const std::vector<int>& ids) {
   const auto t0 = std::chrono::steady_clock::now();
   StructuralUpdateStats stats;
   const int nt = static_cast<int>(tets.size());
@@ -898,10 +909,13 @@ StructuralUpdateStats StructuralPhase::Impl::removeTets(const std::vector<int>& 
   std::sort(removed.begin(), removed.end());
   removed.erase(std::unique(removed.begin(), removed.end()), removed.end());
   stats.tetsRemoved = static_cast<int>(removed.size());
-  if (removed.empty()) {
-    stats.seconds = secondsSince(t0);
-    return stats;
-  }
+  const auto done = [t0](StructuralUpdateStats st) {  // nothing left for the factor
+    return [t0, st]() mutable {
+      st.seconds = secondsSince(t0);
+      return st;
+    };
+  };
+  if (removed.empty()) return done(stats);
 
   // 1. alive flags; nodes left without an alive tet are held
   std::vector<int> newlyHeld;
@@ -1021,11 +1035,19 @@ StructuralUpdateStats StructuralPhase::Impl::removeTets(const std::vector<int>& 
     changedNodes.insert(changedNodes.end(), heldNodes.begin(), heldNodes.end());
   }
   dropRegion();
-  if (numDofs() == 0) {
-    stats.seconds = secondsSince(t0);
-    return stats;
-  }
+  if (numDofs() == 0) return done(stats);
+  return [this, t0, stats, removed = std::move(removed), newlyHeld = std::move(newlyHeld),
+          newlyFreed = std::move(newlyFreed)]() mutable {
+    return updateFactor(t0, stats, removed, newlyHeld, newlyFreed);
+  };
+}
 
+// steps 4-7 of a removal: the factor of the new A (see beginRemoval)
+StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_clock::time_point t0,
+                                                          StructuralUpdateStats stats,
+                                                          const std::vector<int>& removed,
+                                                          const std::vector<int>& newlyHeld,
+                                                          const std::vector<int>& newlyFreed) {
   // 4. C C' = the removed tets' stiffness on the dofs free before and after. Tets that share
   // a node are summed first (one group per connected cluster, up to kMaxGroupDofs free dofs):
   // the eigenpairs (lambda, v) of the group's matrix give columns sqrt(lambda) v in L's rows.
@@ -1349,6 +1371,10 @@ StructuralPhase::~StructuralPhase() = default;
 
 StructuralUpdateStats StructuralPhase::removeTets(const std::vector<int>& tets) {
   return impl_->removeTets(tets);
+}
+
+std::function<StructuralUpdateStats()> StructuralPhase::beginRemoval(const std::vector<int>& tets) {
+  return impl_->beginRemoval(tets);
 }
 
 void StructuralPhase::solve(const std::vector<double>& ev) {

@@ -54,6 +54,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -236,6 +237,12 @@ class StructuralPhase {
   // and the phase is dead: every later solve or removeTets throws it again; esim::RunError
   // if CHOLMOD runs out of memory or a refactorization fails.
   StructuralUpdateStats removeTets(const std::vector<int>& tets);
+  // removeTets in two parts: this call does the bookkeeping (alive set, pieces, held and
+  // freed dofs) and throws what removeTets throws for it; the function returned updates
+  // the factor (CHOLMOD's work, and its RunErrors) and returns the stats. It may run on
+  // another thread; until it has returned, no other call may be made on the phase.
+  // removeTets(t) is beginRemoval(t)().
+  std::function<StructuralUpdateStats()> beginRemoval(const std::vector<int>& tets);
 
   const Eigen::VectorXd& displacementM() const;      // 3 per node [m]
   const std::vector<VoigtStress>& stressPa() const;  // per tet (0 for removed tets)
