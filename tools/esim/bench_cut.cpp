@@ -17,6 +17,7 @@
 #include <cstdio>
 #include <fstream>
 #include <memory>
+#include <string>
 
 #include "sim/core_error.h"
 #include "sim/io/scenario.h"
@@ -85,6 +86,7 @@ int benchCut(const BenchCutOptions& opt) {
             opt.frames > 0 ? opt.frames
                            : std::max(1, static_cast<int>(sc.time.durationS * sc.time.fps + 0.5));
         std::vector<double> ms, rebuildMs;
+        std::vector<std::string> frameLines;  // --stages: what each frame spent, for the slowest
         std::array<std::vector<double>, kStageCount> stageMs;
         std::array<std::vector<double>, 4> partMs;  // update mode: the parts of a removal
         int waits = 0;
@@ -98,6 +100,16 @@ int benchCut(const BenchCutOptions& opt) {
             for (int k = 0; k < 3; ++k) partMs[k].push_back(r.updatePartMs[k]);
           if (r.structuralUpdateMs > 0) partMs[3].push_back(r.structuralUpdateMs);
           if (r.rebuildWaitMs > 1.0) ++waits;
+          if (opt.stages) {
+            char line[256];
+            int len = std::snprintf(line, sizeof line, "frame %4d %8.3f ms, %3d tets removed:", f,
+                                    r.physicsMs(), r.removedTets);
+            for (int s = 0; s < kStageCount; ++s)
+              if (r.status[s] == StageStatus::Ran && r.ms[s] >= 0.1 * r.physicsMs() && len < 200)
+                len += std::snprintf(line + len, sizeof line - len, " %s %.3f",
+                                     stageName(static_cast<Stage>(s)), r.ms[s]);
+            frameLines.push_back(line);
+          }
         }
         const double med = quantile(ms, 0.5), p95 = quantile(ms, 0.95),
                      mx = *std::max_element(ms.begin(), ms.end()), rmed = quantile(rebuildMs, 0.5);
@@ -132,6 +144,14 @@ int benchCut(const BenchCutOptions& opt) {
                           quantile(partMs[k], 0.95),
                           *std::max_element(partMs[k].begin(), partMs[k].end()));
           std::printf("    (* on a thread from the removal to the next structural solve)\n");
+        }
+        if (opt.stages) {  // the slowest frames (what lies above the p95)
+          std::vector<int> order(frames);
+          for (int f = 0; f < frames; ++f) order[f] = f;
+          std::sort(order.begin(), order.end(), [&](int a, int b) { return ms[a] > ms[b]; });
+          const int shown = std::min(frames, std::max(3, frames / 20 + 1));
+          std::printf("  the %d slowest frames (stages over 10 %% of the frame):\n", shown);
+          for (int k = 0; k < shown; ++k) std::printf("    %s\n", frameLines[order[k]].c_str());
         }
         std::fflush(stdout);
         if (csv)
