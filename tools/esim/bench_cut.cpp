@@ -18,6 +18,7 @@
 #include <fstream>
 #include <memory>
 #include <string>
+#include <thread>
 
 #include "sim/core_error.h"
 #include "sim/io/scenario.h"
@@ -38,6 +39,8 @@ struct BenchCutOptions {
   std::string csv;
   bool stages = false;              // per-stage median / p95 / max under each row
   std::string structural = "full";  // solvers.structural.method values, comma separated
+  double paceHz = 0;  // > 0: each frame starts on its tick of a loop at this rate (as a
+                      // haptic or display loop runs), not right after the last one
 };
 
 double quantile(std::vector<double> v, double q) {
@@ -55,6 +58,7 @@ int benchCut(const BenchCutOptions& opt) {
     ESIM_VERIFY(s == "synchronous" || s == "background" || s == "update",
                 "--strategy: '" + s + "' is not synchronous, background, update or all");
   ESIM_VERIFY(opt.frames >= 0, "--frames must be >= 0");
+  ESIM_VERIFY(opt.paceHz >= 0 && opt.paceHz <= 1e4, "--pace must be in 0..10000 Hz");
   std::unique_ptr<std::ofstream> csv;
   if (!opt.csv.empty()) {
     csv = std::make_unique<std::ofstream>(opt.csv);
@@ -90,8 +94,22 @@ int benchCut(const BenchCutOptions& opt) {
         std::array<std::vector<double>, kStageCount> stageMs;
         std::array<std::vector<double>, 4> partMs;  // update mode: the parts of a removal
         int waits = 0;
+        // --pace: frame f starts at its tick; a frame that overruns its tick makes the loop
+        // skip the ticks it covered (a real-time loop drops them), and counts as late
+        int late = 0;
+        const auto period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+            std::chrono::duration<double>(opt.paceHz > 0 ? 1.0 / opt.paceHz : 0.0));
+        auto next = std::chrono::steady_clock::now();
         for (int f = 0; f < frames; ++f) {
+          if (opt.paceHz > 0) {
+            std::this_thread::sleep_until(next);
+            next += period;
+          }
           const FrameRecord& r = sim.step();
+          if (opt.paceHz > 0 && std::chrono::steady_clock::now() > next) {
+            ++late;
+            while (next < std::chrono::steady_clock::now()) next += period;
+          }
           ms.push_back(r.physicsMs());
           for (int s = 0; s < kStageCount; ++s)
             if (r.status[s] == StageStatus::Ran) stageMs[s].push_back(r.ms[s]);
@@ -122,11 +140,13 @@ int benchCut(const BenchCutOptions& opt) {
           differ = 0;
           for (size_t e = 0; e < alive.size(); ++e) differ += (alive[e] != fullAlive[e]);
         }
-        const std::string label = methods.size() > 1 ? strategy + "/" + method : strategy;
+        std::string label = methods.size() > 1 ? strategy + "/" + method : strategy;
+        if (opt.paceHz > 0) label += "@" + messageNumber(opt.paceHz) + "Hz";
         std::printf("%-12s %7d %6d %10.2f %9.2f %9.2f %8d %8d %11.2f %6d", label.c_str(),
                     sim.mesh().numNodes(), frames, med, p95, mx, sim.removedTets(), sim.rebuilds(),
                     rmed, waits);
         if (differ >= 0) std::printf("  (%d tets removed by one of full/local only)", differ);
+        if (opt.paceHz > 0) std::printf("  (%d frames ended after their tick)", late);
         std::printf("\n");
         if (opt.stages)
           for (int s = 0; s < kStageCount; ++s)
@@ -178,6 +198,11 @@ cli::Registrar registerBenchCut(
       app.add_option("--frames", opt->frames, "frames per run (0: the scene's duration)")
           ->capture_default_str();
       app.add_option("--csv", opt->csv, "write the table to FILE");
+      app.add_option("--pace", opt->paceHz,
+                     "HZ: start each frame on its tick of a loop at this rate, as a haptic "
+                     "(300) or display (30) loop does (a removal's structural update then "
+                     "also runs in the idle rest of its frame); 0: back to back")
+          ->capture_default_str();
       app.add_option("--structural", opt->structural,
                      "solvers.structural.method values, comma separated (full,local: the "
                      "local solve's removed set compared with the full one's)")
