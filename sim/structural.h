@@ -35,6 +35,11 @@
 // 587 ms; a simplicial factorization from the start would cost 2x (5k) to 5.7x (20k) the
 // supernodal one, so the phase keeps the supernodal and converts at the first removal;
 // solves with the LDL' factor then take ~1.3x as long (105 vs 83 ms at 20k nodes).
+// A factor prepared for updates is ordered by METIS's nested dissection, whose shallower
+// elimination tree shortens each update's paths (CHOLMOD's default takes AMD alone on small
+// meshes). beginRemoval splits a removal into its bookkeeping (now, with its errors) and the
+// factor's update (a function the caller may run on another thread: update mode runs it
+// from the removal frame to the next structural solve).
 // Pieces: per tet its piece; a removal searches only from the removed tets' neighbours
 // (see splitPiece in structural.cpp), the pieces it cuts off and the supports they take.
 // Per tet after solve(): Cauchy stress in Voigt order (xx, yy, zz, yz, xz, xy) [Pa]
