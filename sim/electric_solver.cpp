@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <utility>
 
 #include "sim/cholmod_view.h"
 #include "sim/core_error.h"
@@ -423,6 +424,12 @@ double CholmodFactor::factorEntries() const {
   double entries = 0;
   for (size_t j = 0; j < f->n; ++j) entries += nz[j];
   return entries;
+}
+
+void CholmodFactor::swap(CholmodFactor& other) {
+  std::swap(impl_, other.impl_);
+  std::swap(factorized_, other.factorized_);
+  std::swap(factorizeFlops_, other.factorizeFlops_);
 }
 
 int CholmodFactor::size() const { return impl_->factor ? static_cast<int>(impl_->factor->n) : 0; }

@@ -151,6 +151,8 @@ struct ElectricUpdateStats {
   int changedNodes = 0;        // free nodes whose row of K_ff changed (still free)
   int droppedNodes = 0;        // free nodes that left the free set (floating or grounded)
   int rank = 0;                // capacitance, dense-inverse: rank of the change applied
+  bool adoptedFactor = false;  // capacitance: took the factor computed on a thread since the
+                               // last update (of the matrix then; see electric_capacitance.cpp)
   bool refactored = false;     // capacitance: the factor was recomputed numerically (same
                                // ordering): the change or the Woodbury term was too large
                                // to pay, or the accuracy check after the update failed
@@ -310,6 +312,7 @@ class CholmodFactor {
   double factorEntries() const;
   // flops of one numeric factorization (from the symbolic analysis)
   double factorizeFlops() const { return factorizeFlops_; }
+  void swap(CholmodFactor& other);  // exchanges the two factors (and their workspaces)
 
  private:
   struct Impl;
