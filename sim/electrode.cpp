@@ -87,12 +87,6 @@ ContactFinder::ContactFinder(const TetMesh& mesh, const std::vector<int>& surfac
       break;
     cellM_ *= 1.5;
   }
-  const auto cellOf = [&](const Vec3& p) {
-    Eigen::Array3i c;
-    for (int a = 0; a < 3; ++a)
-      c[a] = std::clamp(static_cast<int>((p[a] - bounds_.min()[a]) / cellM_), 0, dims_[a] - 1);
-    return (c[2] * dims_[1] + c[1]) * dims_[0] + c[0];
-  };
   const int ncell = dims_.prod();
   cellStart_.assign(ncell + 1, 0);
   std::vector<int> sorted(surfaceNodes);
@@ -107,6 +101,53 @@ ContactFinder::ContactFinder(const TetMesh& mesh, const std::vector<int>& surfac
     const int slot = fill[cellOf(mesh.nodes[id])]++;
     ids_[slot] = id;
     points_[slot] = mesh.nodes[id];
+  }
+}
+
+int ContactFinder::cellOf(const Vec3& p) const {
+  Eigen::Array3i c;
+  for (int a = 0; a < 3; ++a)
+    c[a] = std::clamp(static_cast<int>((p[a] - bounds_.min()[a]) / cellM_), 0, dims_[a] - 1);
+  return (c[2] * dims_[1] + c[1]) * dims_[0] + c[0];
+}
+
+void ContactFinder::update(const TetMesh& mesh, const std::vector<int>& left,
+                           const std::vector<int>& joined) {
+  if (left.empty() && joined.empty()) return;
+  ESIM_VERIFY(!cellStart_.empty(), "ContactFinder::update: built on no surface");
+  if (gone_.empty()) {
+    gone_.assign(ids_.size(), 0);
+    extra_.resize(cellStart_.size() - 1);
+  }
+  for (int id : left) {
+    ESIM_VERIFY(id >= 0 && id < mesh.numNodes(), "ContactFinder: surface node id out of range");
+    const int c = cellOf(mesh.nodes[id]);
+    for (int s = cellStart_[c]; s < cellStart_[c + 1]; ++s)
+      if (ids_[s] == id && !gone_[s]) {
+        gone_[s] = 1;
+        ++numGone_;
+      }
+    auto& more = extra_[c];
+    for (size_t k = 0; k < more.size(); ++k)
+      if (more[k].first == id) {
+        more.erase(more.begin() + static_cast<long>(k));
+        --numExtra_;
+        break;
+      }
+  }
+  for (int id : joined) {
+    ESIM_VERIFY(id >= 0 && id < mesh.numNodes(), "ContactFinder: surface node id out of range");
+    const int c = cellOf(mesh.nodes[id]);
+    bool back = false;  // a node of the first surface that had left
+    for (int s = cellStart_[c]; s < cellStart_[c + 1]; ++s)
+      if (ids_[s] == id && gone_[s]) {
+        gone_[s] = 0;
+        --numGone_;
+        back = true;
+      }
+    if (back) continue;
+    extra_[c].emplace_back(id, mesh.nodes[id]);
+    ++numExtra_;
   }
 }
 
@@ -129,10 +170,14 @@ std::vector<int> ContactFinder::find(const ElectrodeShape& shape, const ToolPose
       for (int i = lo[0]; i <= hi[0]; ++i) {
         const int c = (k * dims_[1] + j) * dims_[0] + i;
         for (int s = cellStart_[c]; s < cellStart_[c + 1]; ++s) {
-          if (!box.contains(points_[s])) continue;
+          if (!box.contains(points_[s]) || (!gone_.empty() && gone_[s])) continue;
           if (electrodeDistance(shape, pose, points_[s]) <= contactDistanceM)
             out.push_back(ids_[s]);
         }
+        if (extra_.empty()) continue;
+        for (const auto& [id, p] : extra_[c])
+          if (box.contains(p) && electrodeDistance(shape, pose, p) <= contactDistanceM)
+            out.push_back(id);
       }
   std::sort(out.begin(), out.end());
   return out;

@@ -18,6 +18,8 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "sim/mesh_tet.h"
@@ -60,15 +62,25 @@ class ContactFinder {
   // same result as findContacts(mesh, surfaceNodes, ...) for the mesh given at build
   std::vector<int> find(const ElectrodeShape& shape, const ToolPose& pose,
                         double contactDistanceM) const;
-  int numNodes() const { return static_cast<int>(ids_.size()); }
+  // the surface's nodes edited in place after a cut (updateBoundaryNodes' change): the
+  // nodes that left go, those that joined (inside the first surface's bounds, as every node
+  // of the mesh is) come; afterwards find() is that of a finder built on the new nodes.
+  // Cost: the changed nodes (each looked up in its cell), not the surface
+  void update(const TetMesh& mesh, const std::vector<int>& left, const std::vector<int>& joined);
+  int numNodes() const { return static_cast<int>(ids_.size()) - numGone_ + numExtra_; }
 
  private:
+  int cellOf(const Vec3& p) const;
   Eigen::AlignedBox3d bounds_;
   Eigen::Array3i dims_{0, 0, 0};
   double cellM_ = 1;
   std::vector<int> cellStart_;  // CSR over cells
   std::vector<int> ids_;        // node ids sorted by cell
   std::vector<Vec3> points_;    // positions in the same order
+  // update(): the slots whose node left, and per cell the nodes that joined
+  std::vector<std::uint8_t> gone_;
+  std::vector<std::vector<std::pair<int, Vec3>>> extra_;
+  int numGone_ = 0, numExtra_ = 0;
 };
 
 struct ReturnElectrode {

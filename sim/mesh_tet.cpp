@@ -4,6 +4,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <sstream>
 
 #include "sim/core_error.h"
@@ -117,6 +118,42 @@ std::vector<std::array<int, 4>> tetFaceNeighbours(const TetMesh& mesh) {
       out[b / 4][b % 4] = a / 4;
     }
   return out;
+}
+
+BoundaryNodeChange updateBoundaryNodes(const TetMesh& mesh,
+                                       const std::vector<std::array<int, 4>>& neighbours,
+                                       const Adjacency& nodeTets, const std::vector<int>& removed,
+                                       std::vector<int>& nodes) {
+  std::vector<int> candidates;
+  for (int e : removed)
+    for (int v : mesh.tets[e]) candidates.push_back(v);
+  std::sort(candidates.begin(), candidates.end());
+  candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+  BoundaryNodeChange change;
+  for (int v : candidates) {
+    bool onBoundary = false;
+    for (const int* t = nodeTets.begin(v); t != nodeTets.end(v) && !onBoundary; ++t) {
+      if (!mesh.isAlive(*t)) continue;
+      for (int f = 0; f < 4 && !onBoundary; ++f) {
+        if (mesh.tets[*t][f] == v) continue;  // the face opposite v does not hold it
+        const int across = neighbours[*t][f];
+        onBoundary = across < 0 || !mesh.isAlive(across);
+      }
+    }
+    const bool was = std::binary_search(nodes.begin(), nodes.end(), v);
+    if (was && !onBoundary) change.left.push_back(v);
+    if (!was && onBoundary) change.joined.push_back(v);
+  }
+  if (change.left.empty() && change.joined.empty()) return change;
+  std::vector<int> kept, merged;
+  kept.reserve(nodes.size());
+  std::set_difference(nodes.begin(), nodes.end(), change.left.begin(), change.left.end(),
+                      std::back_inserter(kept));
+  merged.reserve(kept.size() + change.joined.size());
+  std::merge(kept.begin(), kept.end(), change.joined.begin(), change.joined.end(),
+             std::back_inserter(merged));
+  nodes.swap(merged);
+  return change;
 }
 
 void removeFromBoundary(const TetMesh& mesh, const std::vector<std::array<int, 4>>& neighbours,

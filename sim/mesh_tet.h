@@ -82,6 +82,21 @@ std::vector<std::array<int, 4>> tetFaceNeighbours(const TetMesh& mesh);
 void removeFromBoundary(const TetMesh& mesh, const std::vector<std::array<int, 4>>& neighbours,
                         const std::vector<int>& removed, std::vector<BoundaryFace>& faces);
 
+// Edits boundaryNodes(mesh, faces) of the alive set before the tets `removed` died (mesh.alive
+// already without them) into that of the alive set now, in place (`nodes`, sorted): only the
+// nodes of the removed tets can change, a node being on the boundary when a face of an alive
+// tet at it has no alive tet across (`neighbours`: tetFaceNeighbours). nodeTets: the tets at
+// each node of an alive set holding the current one (the mesh's first, as nodeTets(mesh)).
+// Returns the nodes that left the boundary and those that joined it (sorted). Cost: the
+// removed tets' nodes and their tets, and one pass to merge (no pass over the tets).
+struct BoundaryNodeChange {
+  std::vector<int> left, joined;
+};
+BoundaryNodeChange updateBoundaryNodes(const TetMesh& mesh,
+                                       const std::vector<std::array<int, 4>>& neighbours,
+                                       const Adjacency& nodeTets, const std::vector<int>& removed,
+                                       std::vector<int>& nodes);
+
 // total area of the given faces [m^2]
 double surfaceArea(const TetMesh& mesh, const std::vector<BoundaryFace>& faces);
 

@@ -281,7 +281,7 @@ void Simulation::buildInitialModel(TetMesh mesh) {
   if (ph.rupture && config_.rebuildMode == RebuildMode::Update) {
     m.faceNeighbours =
         std::make_shared<const std::vector<std::array<int, 4>>>(tetFaceNeighbours(mesh));
-    if (ph.electric) m.nodeTets = std::make_shared<const Adjacency>(nodeTets(mesh));
+    m.nodeTets = std::make_shared<const Adjacency>(nodeTets(mesh));
   }
   if (config_.subgrid.mode != SubgridMode::Off) {
     auto faces = std::make_shared<std::vector<SimModel::SurfaceFace>>();
@@ -524,18 +524,25 @@ void Simulation::updateModel(const std::vector<int>& broken, FrameRecord& rec) {
           });
     }
     removeFromBoundary(m.mesh, *m.faceNeighbours, broken, m.surface);
-    m.surfaceNodes = boundaryNodes(m.mesh, m.surface);
+    const BoundaryNodeChange moved =
+        updateBoundaryNodes(m.mesh, *m.faceNeighbours, *m.nodeTets, broken, m.surfaceNodes);
     buildSnapshotTopology(m);
     part(0);
     if (m.thermal) m.thermal->removeTets(broken);
     part(1);
     if (m.electric) {
-      std::vector<int> ground =
-          returnElectrodeNodes(m.mesh, m.surfaceNodes, config_.returnElectrode);
+      // the return electrode and the contact finder edited by the nodes that left or joined
+      // the surface (returnElectrodeNodes of the new surface, the finder of the new surface)
+      std::vector<int> ground,
+          onPad = returnElectrodeNodes(m.mesh, moved.joined, config_.returnElectrode);
+      std::set_difference(m.ground.begin(), m.ground.end(), moved.left.begin(), moved.left.end(),
+                          std::back_inserter(ground));
+      ground.insert(ground.end(), onPad.begin(), onPad.end());
+      std::sort(ground.begin(), ground.end());
       ESIM_RUN_CHECK(!ground.empty(),
                      "rupture: the cut removed all the tissue on the return electrode");
       m.ground = std::move(ground);
-      m.contactFinder = ContactFinder(m.mesh, m.surfaceNodes);
+      m.contactFinder.update(m.mesh, moved.left, moved.joined);
       // the entries of the removed tets summed again (bitwise a fresh assembly; the others
       // untouched: what updateMatrix reads the change from), then the solver's low-rank
       // update, then the new candidates (the capacitance cache is kept; new surface nodes

@@ -218,7 +218,7 @@ struct SimModel {
   std::vector<BoundaryFace> surface;  // boundary faces of the alive tets
   // per tet, the tet across each face (tetFaceNeighbours; rebuild mode update only)
   std::shared_ptr<const std::vector<std::array<int, 4>>> faceNeighbours;
-  // node -> tets of the initial alive set (nodeTets; rebuild mode update with electric only)
+  // node -> tets of the initial alive set (nodeTets; rebuild mode update only)
   std::shared_ptr<const Adjacency> nodeTets;
   std::vector<int> surfaceNodes;  // sorted
   std::vector<int> ground;        // return-electrode nodes (electric)

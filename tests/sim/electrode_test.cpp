@@ -108,6 +108,53 @@ TEST(Electrode, GridFinderMatchesBruteForceForRandomPoses) {
   EXPECT_GT(nonEmpty, 30);
 }
 
+// a finder edited by the surface's changes after cuts finds what a finder built on the new
+// surface finds (random poses, spheres and blades), node counts included
+TEST(Electrode, UpdatedFinderMatchesAFreshOneAfterCuts) {
+  SlabSpec s;
+  s.targetNodes = 3000;
+  TetMesh m = makeSlab(s);
+  m.alive.assign(m.tets.size(), 1);
+  const auto neighbours = tetFaceNeighbours(m);
+  const Adjacency tetsAt = nodeTets(m);
+  std::vector<int> surface = surfaceOf(m);
+  ContactFinder finder(m, surface);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> px(-0.05, 0.05), pz(0.0, 0.012), ang(-M_PI, M_PI);
+  std::uniform_int_distribution<int> pick(0, m.numTets() - 1);
+  int nonEmpty = 0;
+  for (int cut = 0; cut < 6; ++cut) {
+    // a groove: every tet with a node within 3 mm of a point on the top, plus random tets
+    const Vec3 at(px(rng), 0.3 * px(rng), 0.01);
+    std::vector<int> removed;
+    for (int e = 0; e < m.numTets(); ++e) {
+      if (!m.alive[e]) continue;
+      bool near = pick(rng) < 20;
+      for (int v : m.tets[e]) near = near || (m.nodes[v] - at).norm() < 0.003 * (1 + cut % 3);
+      if (near) removed.push_back(e);
+    }
+    for (int e : removed) m.alive[e] = 0;
+    const BoundaryNodeChange change = updateBoundaryNodes(m, neighbours, tetsAt, removed, surface);
+    ASSERT_FALSE(change.joined.empty());
+    finder.update(m, change.left, change.joined);
+    const ContactFinder fresh(m, surface);
+    ASSERT_EQ(finder.numNodes(), fresh.numNodes());
+    for (int trial = 0; trial < 60; ++trial) {
+      ElectrodeShape shape;
+      shape.kind = trial % 3 == 0 ? ElectrodeKind::Sphere : ElectrodeKind::Blade;
+      shape.radiusM = 0.0005 + 0.002 * (trial % 5);
+      const ToolPose pose{Vec3(at.x() + 0.2 * px(rng), at.y() + 0.2 * px(rng), pz(rng)),
+                          Eigen::Quaterniond(Eigen::AngleAxisd(
+                              ang(rng), Vec3(px(rng), px(rng), 0.03).normalized()))};
+      const double dist = 0.001 * (trial % 4);
+      const std::vector<int> expected = fresh.find(shape, pose, dist);
+      EXPECT_EQ(finder.find(shape, pose, dist), expected) << "cut " << cut << " trial " << trial;
+      nonEmpty += !expected.empty();
+    }
+  }
+  EXPECT_GT(nonEmpty, 50);
+}
+
 TEST(Electrode, ReturnPadIsTheBottomDisc) {
   SlabSpec s;
   s.targetNodes = 1013;

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <iterator>
 
 #include "sim/core_error.h"
 #include "sim/mesh_slab.h"
@@ -152,6 +153,48 @@ TEST(MeshTet, RemoveFromBoundaryIsTheBoundaryOfTheAliveSet) {
       ASSERT_EQ(faces[i].nodes, fresh[i].nodes) << i;
     }
   }
+}
+
+// updateBoundaryNodes after each batch of random removals (orphaned nodes, holes, pieces
+// cut loose) is boundaryNodes of the fresh boundary, and what it says left or joined is
+// exactly the difference
+TEST(MeshTet, UpdateBoundaryNodesIsTheBoundaryNodesOfTheAliveSet) {
+  SlabSpec spec;
+  spec.sizeM = Vec3(0.02, 0.02, 0.01);
+  spec.nodesPerAxis = {6, 6, 4};
+  TetMesh mesh = makeSlab(spec);
+  mesh.alive.assign(mesh.tets.size(), 1);
+  const auto neighbours = tetFaceNeighbours(mesh);
+  const Adjacency tetsAt = nodeTets(mesh);
+  std::vector<int> nodes = boundaryNodes(mesh, boundaryFaces(mesh));
+  unsigned seed = 777;
+  int alive = mesh.numTets(), joinedAny = 0, leftAny = 0;
+  while (alive > 5) {
+    std::vector<int> removed;
+    for (int k = 0; k < 9; ++k) {
+      seed = seed * 1103515245u + 12345u;
+      const int e = static_cast<int>((seed >> 8) % mesh.tets.size());
+      if (mesh.alive[e] && std::find(removed.begin(), removed.end(), e) == removed.end())
+        removed.push_back(e);
+    }
+    for (int e : removed) mesh.alive[e] = 0;
+    alive -= static_cast<int>(removed.size());
+    const std::vector<int> before = nodes;
+    const BoundaryNodeChange change = updateBoundaryNodes(mesh, neighbours, tetsAt, removed, nodes);
+    const std::vector<int> fresh = boundaryNodes(mesh, boundaryFaces(mesh));
+    ASSERT_EQ(nodes, fresh) << alive << " tets alive";
+    std::vector<int> left, joined;
+    std::set_difference(before.begin(), before.end(), fresh.begin(), fresh.end(),
+                        std::back_inserter(left));
+    std::set_difference(fresh.begin(), fresh.end(), before.begin(), before.end(),
+                        std::back_inserter(joined));
+    EXPECT_EQ(change.left, left);
+    EXPECT_EQ(change.joined, joined);
+    joinedAny += !joined.empty();
+    leftAny += !left.empty();
+  }
+  EXPECT_GT(joinedAny, 0);  // interior nodes exposed
+  EXPECT_GT(leftAny, 0);    // nodes orphaned
 }
 
 }  // namespace
