@@ -123,27 +123,39 @@ TEST(MeshTet, ValidateNamesTheProblem) {
             "id.vtu: tetrahedron 0 refers to node 9 but the mesh has 5 nodes");
 }
 
-// the surface edited by removeFromBoundary is boundaryFaces of the new alive set: the same
-// faces in the same order, batch after batch (a slab, tets removed in a pseudo-random order)
-TEST(MeshTet, RemoveFromBoundaryIsTheBoundaryOfTheAliveSet) {
+// a 6 x 6 x 4-node slab (20 x 20 x 10 mm), every tet alive
+TetMesh removalSlab() {
   SlabSpec spec;
   spec.sizeM = Vec3(0.02, 0.02, 0.01);
   spec.nodesPerAxis = {6, 6, 4};
   TetMesh mesh = makeSlab(spec);
   mesh.alive.assign(mesh.tets.size(), 1);
+  return mesh;
+}
+
+// up to `tries` pseudo-random alive tets (distinct), marked dead in the mesh
+std::vector<int> removeRandomBatch(TetMesh& mesh, unsigned& seed, int tries) {
+  std::vector<int> removed;
+  for (int k = 0; k < tries; ++k) {
+    seed = seed * 1103515245u + 12345u;
+    const int e = static_cast<int>((seed >> 8) % mesh.tets.size());
+    if (mesh.alive[e] && std::find(removed.begin(), removed.end(), e) == removed.end())
+      removed.push_back(e);
+  }
+  for (int e : removed) mesh.alive[e] = 0;
+  return removed;
+}
+
+// the surface edited by removeFromBoundary is boundaryFaces of the new alive set: the same
+// faces in the same order, batch after batch (a slab, tets removed in a pseudo-random order)
+TEST(MeshTet, RemoveFromBoundaryIsTheBoundaryOfTheAliveSet) {
+  TetMesh mesh = removalSlab();
   const auto neighbours = tetFaceNeighbours(mesh);
   std::vector<BoundaryFace> faces = boundaryFaces(mesh);
   unsigned seed = 12345;
   int alive = mesh.numTets();
   while (alive > 10) {
-    std::vector<int> removed;
-    for (int k = 0; k < 7; ++k) {
-      seed = seed * 1103515245u + 12345u;
-      const int e = static_cast<int>((seed >> 8) % mesh.tets.size());
-      if (mesh.alive[e] && std::find(removed.begin(), removed.end(), e) == removed.end())
-        removed.push_back(e);
-    }
-    for (int e : removed) mesh.alive[e] = 0;
+    const std::vector<int> removed = removeRandomBatch(mesh, seed, 7);
     alive -= static_cast<int>(removed.size());
     removeFromBoundary(mesh, neighbours, removed, faces);
     const std::vector<BoundaryFace> fresh = boundaryFaces(mesh);
@@ -159,25 +171,14 @@ TEST(MeshTet, RemoveFromBoundaryIsTheBoundaryOfTheAliveSet) {
 // cut loose) is boundaryNodes of the fresh boundary, and what it says left or joined is
 // exactly the difference
 TEST(MeshTet, UpdateBoundaryNodesIsTheBoundaryNodesOfTheAliveSet) {
-  SlabSpec spec;
-  spec.sizeM = Vec3(0.02, 0.02, 0.01);
-  spec.nodesPerAxis = {6, 6, 4};
-  TetMesh mesh = makeSlab(spec);
-  mesh.alive.assign(mesh.tets.size(), 1);
+  TetMesh mesh = removalSlab();
   const auto neighbours = tetFaceNeighbours(mesh);
   const Adjacency tetsAt = nodeTets(mesh);
   std::vector<int> nodes = boundaryNodes(mesh, boundaryFaces(mesh));
   unsigned seed = 777;
   int alive = mesh.numTets(), joinedAny = 0, leftAny = 0;
   while (alive > 5) {
-    std::vector<int> removed;
-    for (int k = 0; k < 9; ++k) {
-      seed = seed * 1103515245u + 12345u;
-      const int e = static_cast<int>((seed >> 8) % mesh.tets.size());
-      if (mesh.alive[e] && std::find(removed.begin(), removed.end(), e) == removed.end())
-        removed.push_back(e);
-    }
-    for (int e : removed) mesh.alive[e] = 0;
+    const std::vector<int> removed = removeRandomBatch(mesh, seed, 9);
     alive -= static_cast<int>(removed.size());
     const std::vector<int> before = nodes;
     const BoundaryNodeChange change = updateBoundaryNodes(mesh, neighbours, tetsAt, removed, nodes);
