@@ -649,7 +649,8 @@ void Simulation::waitStructural() const {
 void Simulation::joinStructural() {
   if (structuralJob_.valid()) {
     while (structuralJob_.wait_for(std::chrono::milliseconds(20)) != std::future_status::ready)
-      checkInterrupt();  // (the update checks the flag too, between its parts)
+      checkInterrupt();  // (the update runs on to its end, as a CHOLMOD call cannot be
+                         // stopped; whoever destroys the simulation waits for it)
     waitStructural();
     record_.structuralUpdateMs = structuralJobMs_;
   }
