@@ -365,6 +365,7 @@ class CapacitanceSolver final : public ElectricSolver {
     nextValues_.assign(free_.matrix.valuePtr(), free_.matrix.valuePtr() + free_.matrix.nonZeros());
     nextFactor_ = std::async(std::launch::async,
                              [k = SparseMatrix(free_.matrix), threads = options_.threads] {
+                               deprioritizeThisThread();
                                setBlasThreads(threads);
                                auto f = std::make_unique<CholmodFactor>();
                                f->analyze(k);

@@ -2,6 +2,12 @@
 // (node classes, reduced matrices, the CHOLMOD factorization). See electric_solver.h.
 #include "sim/electric_solver.h"
 
+#ifdef __linux__
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+#endif
+
 #include <cblas.h>
 
 #include <algorithm>
@@ -75,6 +81,12 @@ std::unique_ptr<ElectricSolver> makeElectricSolver(const ElectricSolverOptions& 
 }
 
 void setBlasThreads(int threads) { openblas_set_num_threads(std::max(1, threads)); }
+
+void deprioritizeThisThread() {
+#ifdef __linux__
+  setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), 10);
+#endif
+}
 
 namespace electric_detail {
 

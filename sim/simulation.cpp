@@ -559,9 +559,11 @@ void Simulation::updateModel(const std::vector<int>& broken, FrameRecord& rec) {
                      first + static_cast<int>(std::ceil(kRebuildPrefetchS / config_.frameDtS)));
         std::vector<int> nodes = scriptedContacts(m.contactFinder, m.ground, first, last);
         if (!nodes.empty())
-          prefetchJob_ = std::async(
-              std::launch::async,
-              [solver = m.electric.get(), nodes = std::move(nodes)] { solver->prefetch(nodes); });
+          prefetchJob_ =
+              std::async(std::launch::async, [solver = m.electric.get(), nodes = std::move(nodes)] {
+                deprioritizeThisThread();
+                solver->prefetch(nodes);
+              });
       }
     }
     part(2);
