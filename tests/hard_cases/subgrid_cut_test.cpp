@@ -12,6 +12,7 @@
 
 #include "sim/io/scenario.h"
 #include "tests/hard_cases/hard_case.h"
+#include "tools/app/accuracy_metrics.h"
 #include "tools/app/run_config.h"
 
 namespace esim {
@@ -19,30 +20,11 @@ namespace {
 
 const std::string kScene = std::string(ESIM_SOURCE_DIR) + "/scenarios/paper_slab_cut.yaml";
 
-struct Groove {
-  int tets = 0;
-  double volumeM3 = 0, xMin = INFINITY, xMax = -INFINITY, maxOffLineM = 0, maxDepthM = 0;
-};
-
-Groove grooveOf(const Simulation& sim) {
-  Groove g;
-  const TetMesh& m = sim.mesh();
-  for (int e = 0; e < m.numTets(); ++e) {
-    if (m.isAlive(e)) continue;
-    Vec3 c = Vec3::Zero();
-    double zLow = INFINITY;
-    for (int v : m.tets[e]) {
-      c += 0.25 * m.nodes[v];
-      zLow = std::min(zLow, m.nodes[v].z());
-    }
-    ++g.tets;
-    g.volumeM3 += (*sim.model().geo)[e].volume;
-    g.xMin = std::min(g.xMin, c.x());
-    g.xMax = std::max(g.xMax, c.x());
-    g.maxOffLineM = std::max(g.maxOffLineM, std::abs(c.y()));
-    g.maxDepthM = std::max(g.maxDepthM, 0.01 - zLow);
-  }
-  return g;
+// the removed tets against the blade's path, the x axis on the top face (z = 10 mm):
+// along = centroid x, off the path = |centroid y|
+app::RemovedExtents grooveOf(const Simulation& sim) {
+  return app::removedTetExtents(sim.mesh(), *sim.model().geo, Vec3(0, 0, 0.01), Vec3(1, 0, 0.01),
+                                0.01);
 }
 
 TEST(HardSubgridCut, PaperSlabCutRemovesTetsAlongThePath) {
@@ -64,20 +46,20 @@ TEST(HardSubgridCut, PaperSlabCutRemovesTetsAlongThePath) {
   }
   ASSERT_TRUE(check.ok());
   EXPECT_EQ(active, withContact);  // 5-6 mm cells against a ~1 mm contact: on throughout
-  const Groove g = grooveOf(sim);
+  const app::RemovedExtents g = grooveOf(sim);
   std::printf(
       "paper_slab_cut: %d tets removed (%.0f mm^3), x %.1f .. %.1f mm, off the line <= "
       "%.2f mm, depth <= %.1f mm; %.2f J delivered, energy balance %.2g\n",
-      g.tets, g.volumeM3 * 1e9, g.xMin * 1e3, g.xMax * 1e3, g.maxOffLineM * 1e3, g.maxDepthM * 1e3,
-      sim.energyDeliveredJ(), check.worstEnergyRel());
+      g.tets, g.volumeM3 * 1e9, g.alongMinM * 1e3, g.alongMaxM * 1e3, g.maxOffPathM * 1e3,
+      g.maxDepthM * 1e3, sim.energyDeliveredJ(), check.worstEnergyRel());
   // a groove along the path (-35 .. 35 mm at y = 0) ...
   EXPECT_GE(g.tets, 20);
-  EXPECT_LT(g.xMin, -25e-3);
-  EXPECT_GT(g.xMax, 25e-3);
+  EXPECT_LT(g.alongMinM, -25e-3);
+  EXPECT_GT(g.alongMaxM, 25e-3);
   // ... of elements the path crosses, and nothing else
-  EXPECT_LE(g.maxOffLineM, 3e-3);
-  EXPECT_GE(g.xMin, -35e-3 - 6e-3);
-  EXPECT_LE(g.xMax, 35e-3 + 6e-3);
+  EXPECT_LE(g.maxOffPathM, 3e-3);
+  EXPECT_GE(g.alongMinM, -35e-3 - 6e-3);
+  EXPECT_LE(g.alongMaxM, 35e-3 + 6e-3);
   EXPECT_LE(g.maxDepthM, 5e-3 + 1e-9);  // the top layer of elements only
   EXPECT_LT(check.worstEnergyRel(), 1e-9);
 }

@@ -83,6 +83,30 @@ double intersectionOverUnion(const std::vector<std::uint8_t>& a,
   return either == 0 ? 1.0 : static_cast<double>(both) / either;
 }
 
+RemovedExtents removedTetExtents(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
+                                 const Vec3& p0M, const Vec3& p1M, double topZM) {
+  RemovedExtents out;
+  const Vec3 d = p1M - p0M;
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    if (mesh.isAlive(e)) continue;
+    Vec3 c = Vec3::Zero();
+    double zLow = INFINITY;
+    for (int v : mesh.tets[e]) {
+      c += 0.25 * mesh.nodes[v];
+      zLow = std::min(zLow, mesh.nodes[v].z());
+    }
+    ++out.tets;
+    out.volumeM3 += geo[e].volume;
+    out.maxDepthM = std::max(out.maxDepthM, topZM - zLow);
+    const double t = d.squaredNorm() > 0 ? (c - p0M).dot(d) / d.norm() : 0.0;
+    const Vec3 q = d.squaredNorm() > 0 ? Vec3(p0M + d.normalized() * t) : p0M;
+    out.maxOffPathM = std::max(out.maxOffPathM, std::hypot(c.x() - q.x(), c.y() - q.y()));
+    out.alongMinM = std::min(out.alongMinM, t);
+    out.alongMaxM = std::max(out.alongMaxM, t);
+  }
+  return out;
+}
+
 GrooveShape grooveShape(const TetMesh& mesh, const VoxelGrid& grid,
                         const std::vector<std::uint8_t>& removed, double topZM) {
   GrooveShape g;

@@ -11,9 +11,11 @@
 
 #include <Eigen/Geometry>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
+#include "sim/fem_p1.h"
 #include "sim/mesh_tet.h"
 
 namespace esim::app {
@@ -47,6 +49,17 @@ struct GrooveShape {
 };
 GrooveShape grooveShape(const TetMesh& mesh, const VoxelGrid& grid,
                         const std::vector<std::uint8_t>& removed, double topZM);
+
+// the removed tets against a straight blade path p0 -> p1, each by its centroid
+struct RemovedExtents {
+  int tets = 0;
+  double volumeM3 = 0;
+  double alongMinM = INFINITY, alongMaxM = -INFINITY;  // centroid along the path, from p0
+  double maxOffPathM = 0;  // largest horizontal (xy) distance of a centroid from the path
+  double maxDepthM = 0;    // topZM - the lowest node of a removed tet
+};
+RemovedExtents removedTetExtents(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
+                                 const Vec3& p0M, const Vec3& p1M, double topZM);
 
 // a point located in a tet: the tet and the point's barycentric coordinates
 struct ProbeLocation {

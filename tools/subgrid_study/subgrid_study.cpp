@@ -16,6 +16,7 @@
 
 #include "sim/core_error.h"
 #include "sim/io/scenario.h"
+#include "tools/app/accuracy_metrics.h"
 #include "tools/app/run_config.h"
 
 using namespace esim;
@@ -68,26 +69,10 @@ int run(int argc, char** argv) {
   // the groove: the removed tets
   const TetMesh& m = sim.mesh();
   const auto& geo = *sim.model().geo;
-  const Vec3 d = p1 - p0;
-  int n = 0;
-  double vol = 0, depth = 0, off = 0, along0 = INFINITY, along1 = -INFINITY;
-  for (int e = 0; e < m.numTets(); ++e) {
-    if (m.isAlive(e)) continue;
-    Vec3 c = Vec3::Zero();
-    double zLow = INFINITY;
-    for (int v : m.tets[e]) {
-      c += 0.25 * m.nodes[v];
-      zLow = std::min(zLow, m.nodes[v].z());
-    }
-    ++n;
-    vol += geo[e].volume;
-    depth = std::max(depth, top - zLow);
-    const double t = d.squaredNorm() > 0 ? (c - p0).dot(d) / d.norm() : 0.0;  // along the path
-    const Vec3 q = d.squaredNorm() > 0 ? Vec3(p0 + d.normalized() * t) : p0;
-    off = std::max(off, std::hypot(c.x() - q.x(), c.y() - q.y()));
-    along0 = std::min(along0, t);
-    along1 = std::max(along1, t);
-  }
+  const app::RemovedExtents groove = app::removedTetExtents(m, geo, p0, p1, top);
+  const int n = groove.tets;
+  const double vol = groove.volumeM3, depth = groove.maxDepthM, off = groove.maxOffPathM,
+               along0 = groove.alongMinM, along1 = groove.alongMaxM;
   // probes at the end: beside the middle of the path on the surface, beside its start, below it
   const Vec3 mid = 0.5 * (p0 + p1);
   const Vec3 probes[] = {Vec3(mid.x(), 0.003, top - 1e-5), Vec3(mid.x(), 0.005, top - 1e-5),
