@@ -192,9 +192,23 @@ struct StructuralPhase::Impl {
   bool prepareForUpdates = false;      // StructuralOptions::prepareForUpdates
   cholmod_dense *x = nullptr, *y = nullptr, *e = nullptr;  // solve workspaces
   Eigen::VectorXd rhs, u;
-  std::vector<int> mark;  // per row of L (etree walks), per tet (piece searches)
-  std::vector<int> tetMark;
+  std::vector<int> rowMark;  // per row of L: etree walks (by the factor's updates, rowStamp)
+  int rowStamp = 0;
+  std::vector<int> tetMark;  // per tet: piece searches (in the frame, stamp)
   int stamp = 0;
+  // what a factor operation reads of the state: the phase's own, or the copy a refresh took
+  struct StateView {
+    const std::uint8_t* alive;
+    const std::uint8_t* held;
+    int numFree;
+  };
+  StateView current() const { return {alive.data(), held.data(), numFree}; }
+  // removals not yet applied to the factor (the local method: the next refresh on the
+  // thread, or the next full solve, applies them in one update; see LocalSolveOptions)
+  struct Pending {
+    std::vector<int> removed, held;  // tets, and dofs held since the factor's A
+    bool freed = false;              // a dof was freed too: the update refactorizes
+  } pending;
   // ---- the local solve (see LocalSolveOptions) ----
   StructuralSolveMethod method = StructuralSolveMethod::full;
   LocalSolveOptions local;
@@ -204,7 +218,8 @@ struct StructuralPhase::Impl {
   std::vector<Voigt> refElastic;           // per tet: D B_e u_ref [Pa]
   std::vector<int> changedNodes;           // of removed tets, or held since the reference
   int localSinceFull = 0;                  // local solves since the last full one
-  bool regionValid = false;                // the region below fits the current A
+  bool regionValid = false;                // the region below fits the current A ...
+  bool regionStale = false;                // ... but for its values: removals since its factor
   Eigen::AlignedBox3d regionBox;           // the box grown by slackM it was built around
   std::vector<int> regionDofs;             // U: its free dofs, ascending
   std::vector<int> localOfDof;             // per dof: index in regionDofs, -1 outside
@@ -218,6 +233,12 @@ struct StructuralPhase::Impl {
     bool running = false;
     int solvesSinceStart = 0;
     std::vector<double> ev;  // the load it solves
+    std::vector<std::uint8_t> alive, held;  // the state it solves on (copied at its start)
+    int numFree = 0;
+    Pending job;                      // the removals it applies to the factor first
+    std::vector<int> heldSince;       // dofs held since its start ...
+    std::vector<int> changedSince;    // ... and the nodes removals changed since
+    StateView view() const { return {alive.data(), held.data(), numFree}; }
     Eigen::VectorXd rhs, u;
     std::vector<Voigt> elastic;
     std::exception_ptr error;
@@ -342,18 +363,22 @@ struct StructuralPhase::Impl {
 
   void classifyPieces(std::vector<int>& newlyHeld);
   std::vector<std::vector<int>> splitPiece(const std::vector<int>& seeds);
-  SparseMatrix assemble() const;
-  void factorize();
-  void toSimplicial();
+  SparseMatrix assemble(const StateView& s) const;
+  void factorize(cholmod_common& c, const StateView& s);
+  void toSimplicial(cholmod_common& c);
   Voigt elasticStress(int t, const Eigen::VectorXd& disp) const;
   void fullSolve(const std::vector<double>& ev);
-  void fullDisplacement(const std::vector<double>& ev, Eigen::VectorXd& f, Eigen::VectorXd& out,
-                        cholmod_common& c, cholmod_dense*& wx, cholmod_dense*& wy,
-                        cholmod_dense*& we) const;
+  void fullDisplacement(const std::vector<double>& ev, const StateView& s, Eigen::VectorXd& f,
+                        Eigen::VectorXd& out, cholmod_common& c, cholmod_dense*& wx,
+                        cholmod_dense*& wy, cholmod_dense*& we) const;
+  StructuralUpdateStats applyPending(Pending job, const StateView& s, cholmod_common& c);
+  void bringFactorUpToDate();
   void startRefresh(const std::vector<double>& ev);
   void finishRefresh(bool adopt);
   bool localSolve(const std::vector<double>& ev);
   bool buildRegion(const Eigen::AlignedBox3d& box);
+  SparseMatrix regionMatrix() const;
+  void refactorizeRegion();
   void dropRegion();
   enum class From { solution, region, reference };  // where outputs() takes D B u from
   void outputs(const std::vector<double>& ev, From from);
@@ -363,7 +388,8 @@ struct StructuralPhase::Impl {
   StructuralUpdateStats updateFactor(std::chrono::steady_clock::time_point t0,
                                      StructuralUpdateStats stats, const std::vector<int>& removed,
                                      const std::vector<int>& newlyHeld,
-                                     const std::vector<int>& newlyFreed);
+                                     const std::vector<int>& newlyFreed, const StateView& s,
+                                     cholmod_common& c);
 };
 
 // rigid pieces of the alive tets (union-find over the face neighbours, one pass over the
@@ -507,24 +533,24 @@ std::vector<std::vector<int>> StructuralPhase::Impl::splitPiece(const std::vecto
 
 // A over all 3n dofs, lower triangle: K from the alive tets on the free dofs, 1 on the
 // diagonal of the held ones
-SparseMatrix StructuralPhase::Impl::assemble() const {
+SparseMatrix StructuralPhase::Impl::assemble(const StateView& s) const {
   const int n = numDofs();
   std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(tets.size() * 78 + (n - numFree));
+  triplets.reserve(tets.size() * 78 + (n - s.numFree));
   for (size_t t = 0; t < tets.size(); ++t) {
-    if (!alive[t]) continue;
+    if (!s.alive[t]) continue;
     const Mat12 ke = elementStiffness(static_cast<int>(t));
     for (int i = 0; i < 12; ++i) {
       const int di = 3 * tets[t][i / 3] + i % 3;
-      if (held[di]) continue;
+      if (s.held[di]) continue;
       for (int j = 0; j < 12; ++j) {
         const int dj = 3 * tets[t][j / 3] + j % 3;
-        if (!held[dj] && dj <= di) triplets.emplace_back(di, dj, ke(i, j));
+        if (!s.held[dj] && dj <= di) triplets.emplace_back(di, dj, ke(i, j));
       }
     }
   }
   for (int dof = 0; dof < n; ++dof)
-    if (held[dof]) triplets.emplace_back(dof, dof, 1.0);
+    if (s.held[dof]) triplets.emplace_back(dof, dof, 1.0);
   SparseMatrix a(n, n);
   a.setFromTriplets(triplets.begin(), triplets.end());
   a.makeCompressed();
@@ -532,8 +558,8 @@ SparseMatrix StructuralPhase::Impl::assemble() const {
 }
 
 // a fresh supernodal factorization of A within the first analysis (A only loses entries)
-void StructuralPhase::Impl::factorize() {
-  const SparseMatrix a = assemble();
+void StructuralPhase::Impl::factorize(cholmod_common& c, const StateView& s) {
+  const SparseMatrix a = assemble(s);
   cholmod_sparse view = cholmodViewLower(a);
   if (!symbolic) {
     // a factor to be updated: METIS's nested dissection. CHOLMOD's default takes AMD alone
@@ -542,36 +568,36 @@ void StructuralPhase::Impl::factorize() {
     // --stages, three alternating runs): the first removal's estimate no longer exceeds
     // a refactorization, the slowest frame 8-16 ms against 25-34 ms, update median about
     // the same; at 8000 nodes the default picks METIS already (lnz 7.4M against AMD's 9.4M)
-    const int methods = common.nmethods, ordering = common.method[0].ordering;
+    const int methods = c.nmethods, ordering = c.method[0].ordering;
     if (prepareForUpdates) {
-      common.nmethods = 1;
-      common.method[0].ordering = CHOLMOD_METIS;
-      symbolic = cholmod_analyze(&view, &common);
-      common.nmethods = methods;
-      common.method[0].ordering = ordering;
+      c.nmethods = 1;
+      c.method[0].ordering = CHOLMOD_METIS;
+      symbolic = cholmod_analyze(&view, &c);
+      c.nmethods = methods;
+      c.method[0].ordering = ordering;
     }
-    if (!symbolic) symbolic = cholmod_analyze(&view, &common);  // (or METIS unavailable)
+    if (!symbolic) symbolic = cholmod_analyze(&view, &c);  // (or METIS unavailable)
     ESIM_RUN_CHECK(symbolic != nullptr, "structural: CHOLMOD analysis failed (out of memory?)");
-    refactorFlops = common.fl;
+    refactorFlops = c.fl;
     const int* perm = static_cast<const int*>(symbolic->Perm);
     rowOfDof.assign(numDofs(), 0);
     for (int k = 0; k < numDofs(); ++k) rowOfDof[perm[k]] = k;
   }
-  if (factor) cholmod_free_factor(&factor, &common);
-  factor = cholmod_copy_factor(symbolic, &common);
+  if (factor) cholmod_free_factor(&factor, &c);
+  factor = cholmod_copy_factor(symbolic, &c);
   ESIM_RUN_CHECK(factor != nullptr, "structural: out of memory copying the analysis");
   openblas_set_num_threads(1);  // see the header: BLAS threads only spin here
-  const int ok = cholmod_factorize(&view, factor, &common);
-  ESIM_RUN_CHECK(ok && common.status == CHOLMOD_OK && factor->minor == factor->n,
+  const int ok = cholmod_factorize(&view, factor, &c);
+  ESIM_RUN_CHECK(ok && c.status == CHOLMOD_OK && factor->minor == factor->n,
                  "structural: the stiffness matrix is not positive definite (degenerate tets, or "
                  "supports that leave part of the body free)");
-  if (prepareForUpdates) toSimplicial();
+  if (prepareForUpdates) toSimplicial(c);
 }
 
 // L as simplicial LDL' (what cholmod_updown, rowdel and rowadd take); O(nnz(L))
-void StructuralPhase::Impl::toSimplicial() {
+void StructuralPhase::Impl::toSimplicial(cholmod_common& c) {
   if (!factor->is_super && !factor->is_ll) return;
-  const int ok = cholmod_change_factor(CHOLMOD_REAL, false, false, false, false, factor, &common);
+  const int ok = cholmod_change_factor(CHOLMOD_REAL, false, false, false, false, factor, &c);
   ESIM_RUN_CHECK(ok, "structural: CHOLMOD could not convert the factor (out of memory?)");
 }
 
@@ -584,18 +610,18 @@ std::vector<int> StructuralPhase::Impl::rowPattern(int dof) {
   const int k = rowOfDof[dof];
   const int v = dof / 3;
   std::vector<int> out, path;
-  ++stamp;
+  ++rowStamp;
   for (const int* t = tetsOfNode.begin(v); t != tetsOfNode.end(v); ++t)
     for (int w : tets[*t])
       for (int a = 0; a < 3; ++a) {
         int j = rowOfDof[3 * w + a];
         path.clear();
-        while (j >= 0 && j < k && mark[j] != stamp) {
+        while (j >= 0 && j < k && rowMark[j] != rowStamp) {
           path.push_back(j);
           j = l.parent(j);
         }
         if (j != k && (j < 0 || j > k)) continue;  // not below k in the tree: L(k, .) = 0
-        for (int p : path) mark[p] = stamp;
+        for (int p : path) rowMark[p] = rowStamp;
         out.insert(out.end(), path.begin(), path.end());
       }
   std::sort(out.begin(), out.end());
@@ -625,25 +651,25 @@ Voigt StructuralPhase::Impl::elasticStress(int t, const Eigen::VectorXd& disp) c
 }
 
 // u solving K u = f(ev) over the whole body, with the given CHOLMOD workspace
-void StructuralPhase::Impl::fullDisplacement(const std::vector<double>& ev, Eigen::VectorXd& f,
-                                             Eigen::VectorXd& out, cholmod_common& c,
-                                             cholmod_dense*& wx, cholmod_dense*& wy,
-                                             cholmod_dense*& we) const {
+void StructuralPhase::Impl::fullDisplacement(const std::vector<double>& ev, const StateView& s,
+                                             Eigen::VectorXd& f, Eigen::VectorXd& out,
+                                             cholmod_common& c, cholmod_dense*& wx,
+                                             cholmod_dense*& wy, cholmod_dense*& we) const {
   const int nt = static_cast<int>(tets.size());
   // f = sum_e V_e B_e^T D eps*_e; D eps* = K_b e_v (1,1,1,0,0,0), so node i of the tet
   // gets V_e K_b e_v grad N_i; 0 on the held dofs (their rows of A are the identity)
   f.setZero(numDofs());
   for (int t = 0; t < nt; ++t) {
-    if (!alive[t] || ev[t] == 0) continue;
-    const double s = geo[t].volume * bulkModulusPa * ev[t];
+    if (!s.alive[t] || ev[t] == 0) continue;
+    const double load = geo[t].volume * bulkModulusPa * ev[t];
     for (int i = 0; i < 4; ++i)
       for (int a = 0; a < 3; ++a) {
         const int dof = 3 * tets[t][i] + a;
-        if (!held[dof]) f(dof) += s * geo[t].grad(i, a);
+        if (!s.held[dof]) f(dof) += load * geo[t].grad(i, a);
       }
   }
   out.setZero(numDofs());
-  if (numFree == 0) return;
+  if (s.numFree == 0) return;
   cholmod_dense b{};
   b.nrow = numDofs();
   b.ncol = 1;
@@ -656,14 +682,42 @@ void StructuralPhase::Impl::fullDisplacement(const std::vector<double>& ev, Eige
   ESIM_RUN_CHECK(ok, "structural: CHOLMOD solve failed (out of memory?)");
   const double* xs = static_cast<const double*>(wx->x);
   for (int dof = 0; dof < numDofs(); ++dof)
-    if (!held[dof]) out(dof) = xs[dof];
+    if (!s.held[dof]) out(dof) = xs[dof];
+}
+
+// the pending removals applied to the factor in one update (see Pending), reading the
+// state s (the phase's own, or a refresh's copy) with the CHOLMOD workspace c
+StructuralUpdateStats StructuralPhase::Impl::applyPending(Pending job, const StateView& s,
+                                                          cholmod_common& c) {
+  const auto t0 = std::chrono::steady_clock::now();
+  StructuralUpdateStats stats;
+  std::sort(job.removed.begin(), job.removed.end());
+  std::sort(job.held.begin(), job.held.end());
+  stats.tetsRemoved = static_cast<int>(job.removed.size());
+  stats.dofsHeld = static_cast<int>(job.held.size());
+  if (job.freed) {  // rows to add, against the A of their own removal: refactorize
+    factorize(c, s);
+    stats.refactorized = true;
+    stats.seconds = secondsSince(t0);
+    return stats;
+  }
+  return updateFactor(t0, stats, job.removed, job.held, {}, s, c);
+}
+
+// a full solve in the frame needs the factor of the current A: joins a refresh (its
+// removals applied, its solve dropped) and applies what is pending
+void StructuralPhase::Impl::bringFactorUpToDate() {
+  finishRefresh(false);
+  if (pending.removed.empty()) return;
+  applyPending(std::move(pending), current(), common);
+  pending = Pending{};
 }
 
 // K u = f over the whole body; with the local method, the new reference
 void StructuralPhase::Impl::fullSolve(const std::vector<double>& ev) {
-  finishRefresh(false);  // older than this one
+  bringFactorUpToDate();  // a refresh running is older than this solve
   openblas_set_num_threads(1);
-  fullDisplacement(ev, rhs, u, common, x, y, e);
+  fullDisplacement(ev, current(), rhs, u, common, x, y, e);
   appliedDofs.clear();
   if (method == StructuralSolveMethod::local) {
     hasReference = true;
@@ -679,16 +733,25 @@ void StructuralPhase::Impl::fullSolve(const std::vector<double>& ev) {
 // a full solve of ev on the thread, with its elastic stresses (the next reference)
 void StructuralPhase::Impl::startRefresh(const std::vector<double>& ev) {
   refresh.ev = ev;
+  refresh.alive = alive;  // the frame goes on removing tets while the thread runs
+  refresh.held = held;
+  refresh.numFree = numFree;
+  refresh.job = std::move(pending);
+  pending = Pending{};
+  refresh.heldSince.clear();
+  refresh.changedSince.clear();
   refresh.running = true;
   refresh.solvesSinceStart = 0;
   refresh.error = nullptr;
   refresh.worker = std::thread([this] {
     try {
-      fullDisplacement(refresh.ev, refresh.rhs, refresh.u, refresh.common, refresh.x, refresh.y,
-                       refresh.e);
+      const StateView s = refresh.view();
+      if (!refresh.job.removed.empty()) applyPending(std::move(refresh.job), s, refresh.common);
+      fullDisplacement(refresh.ev, s, refresh.rhs, refresh.u, refresh.common, refresh.x,
+                       refresh.y, refresh.e);
       refresh.elastic.resize(tets.size());
       for (size_t t = 0; t < tets.size(); ++t)
-        if (alive[t]) refresh.elastic[t] = elasticStress(static_cast<int>(t), refresh.u);
+        if (s.alive[t]) refresh.elastic[t] = elasticStress(static_cast<int>(t), refresh.u);
     } catch (...) {
       refresh.error = std::current_exception();
     }
@@ -705,9 +768,21 @@ void StructuralPhase::Impl::finishRefresh(bool adopt) {
   refEv.swap(refresh.ev);
   refU.swap(refresh.u);
   refElastic.swap(refresh.elastic);
+  // removals since the refresh started: the dofs they held are 0 in the reference, and the
+  // tets at those nodes change stress; what they changed is the next region's box
+  std::vector<int> heldNodes;
+  for (int dof : refresh.heldSince) {
+    refU(dof) = 0;
+    heldNodes.push_back(dof / 3);
+  }
+  std::sort(heldNodes.begin(), heldNodes.end());
+  heldNodes.erase(std::unique(heldNodes.begin(), heldNodes.end()), heldNodes.end());
+  for (int v : heldNodes)
+    for (const int* t = tetsOfNode.begin(v); t != tetsOfNode.end(v); ++t)
+      if (alive[*t]) refElastic[*t] = elasticStress(*t, refU);
   u = refU;  // outside the region too
   appliedDofs.clear();
-  changedNodes.clear();  // removeTets joins first: the refresh saw the current A
+  changedNodes = refresh.changedSince;
   localSinceFull = 0;
 }
 
@@ -764,6 +839,11 @@ bool StructuralPhase::Impl::localSolve(const std::vector<double>& ev) {
     }
     lastSolve.regionBuilt = true;
     lastSolve.regionFactorSeconds = secondsSince(t0);
+  } else if (regionStale) {
+    const auto t0 = std::chrono::steady_clock::now();
+    refactorizeRegion();
+    lastSolve.regionRefactorized = true;
+    lastSolve.regionFactorSeconds = secondsSince(t0);
   }
   lastSolve.regionDofs = static_cast<int>(regionDofs.size());
   lastSolve.regionTets = static_cast<int>(regionTets.size());
@@ -779,8 +859,9 @@ bool StructuralPhase::Impl::localSolve(const std::vector<double>& ev) {
       const double force[3] = {gx * sxx + gy * sxy + gz * sxz, gx * sxy + gy * syy + gz * syz,
                                gx * sxz + gy * syz + gz * szz};
       for (int a = 0; a < 3; ++a) {
-        const int k = localOfDof[3 * tets[t][i] + a];
-        if (k >= 0) r(k) -= vol * force[a];
+        const int dof = 3 * tets[t][i] + a;
+        const int k = localOfDof[dof];
+        if (k >= 0 && !held[dof]) r(k) -= vol * force[a];  // held since the build: d = 0
       }
     }
   }
@@ -809,6 +890,7 @@ bool StructuralPhase::Impl::localSolve(const std::vector<double>& ev) {
 
 void StructuralPhase::Impl::dropRegion() {
   regionValid = false;
+  regionStale = false;
   for (int t : regionTets) inRegion[t] = 0;
   for (int dof : regionDofs) localOfDof[dof] = -1;
   regionTets.clear();
@@ -842,24 +924,8 @@ bool StructuralPhase::Impl::buildRegion(const Eigen::AlignedBox3d& box) {
       }
   }
   std::sort(regionTets.begin(), regionTets.end());
-  // K_UU, lower triangle, in the order of regionDofs
-  std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(regionTets.size() * 78);
-  for (int t : regionTets) {
-    const Mat12 ke = elementStiffness(t);
-    for (int i = 0; i < 12; ++i) {
-      const int li = localOfDof[3 * tets[t][i / 3] + i % 3];
-      if (li < 0) continue;
-      for (int j = 0; j < 12; ++j) {
-        const int lj = localOfDof[3 * tets[t][j / 3] + j % 3];
-        if (lj >= 0 && lj <= li) triplets.emplace_back(li, lj, ke(i, j));
-      }
-    }
-  }
   const int m = static_cast<int>(regionDofs.size());
-  SparseMatrix kuu(m, m);
-  kuu.setFromTriplets(triplets.begin(), triplets.end());
-  kuu.makeCompressed();
+  const SparseMatrix kuu = regionMatrix();
   cholmod_sparse view = cholmodViewLower(kuu);
   openblas_set_num_threads(1);
   // the ordering: the whole factor's, restricted to U (no ordering cost; measured at 50k
@@ -881,6 +947,44 @@ bool StructuralPhase::Impl::buildRegion(const Eigen::AlignedBox3d& box) {
   regionBox = box;
   regionValid = true;
   return true;
+}
+
+// A_UU, lower triangle, in the order of regionDofs: K_UU over the region's alive tets, the
+// identity on the dofs held since the region was built (a subset of its first pattern)
+SparseMatrix StructuralPhase::Impl::regionMatrix() const {
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(regionTets.size() * 78);
+  const auto local = [&](int dof) { return held[dof] ? -1 : localOfDof[dof]; };
+  for (int t : regionTets) {
+    const Mat12 ke = elementStiffness(t);
+    for (int i = 0; i < 12; ++i) {
+      const int li = local(3 * tets[t][i / 3] + i % 3);
+      if (li < 0) continue;
+      for (int j = 0; j < 12; ++j) {
+        const int lj = local(3 * tets[t][j / 3] + j % 3);
+        if (lj >= 0 && lj <= li) triplets.emplace_back(li, lj, ke(i, j));
+      }
+    }
+  }
+  for (int dof : regionDofs)
+    if (held[dof]) triplets.emplace_back(localOfDof[dof], localOfDof[dof], 1.0);
+  const int m = static_cast<int>(regionDofs.size());
+  SparseMatrix kuu(m, m);
+  kuu.setFromTriplets(triplets.begin(), triplets.end());
+  kuu.makeCompressed();
+  return kuu;
+}
+
+// the region's factor after removals inside it: a numeric factorization in its analysis
+// (the removals only take entries out of A_UU)
+void StructuralPhase::Impl::refactorizeRegion() {
+  const SparseMatrix kuu = regionMatrix();
+  cholmod_sparse view = cholmodViewLower(kuu);
+  openblas_set_num_threads(1);
+  const int ok = cholmod_factorize(&view, regionFactor, &common);
+  ESIM_RUN_CHECK(ok && common.status == CHOLMOD_OK && regionFactor->minor == regionFactor->n,
+                 "structural: the region's stiffness matrix is not positive definite");
+  regionStale = false;
 }
 
 // stress and von Mises per tet: D B u from u (solution: every tet, stored as the reference
@@ -927,7 +1031,10 @@ std::function<StructuralUpdateStats()> StructuralPhase::Impl::beginRemoval(
     ESIM_VERIFY(t >= 0 && t < nt, "structural: removeTets: tet " + std::to_string(t) +
                                       " is out of range (" + std::to_string(nt) + " tets)");
   if (!failure.empty()) throw Error(failure);
-  finishRefresh(true);  // the thread reads A; its refresh is of the A before the removal
+  // the local method defers the factor's update (to the next refresh or full solve); the
+  // full one updates it now, and so first applies what an earlier local method deferred
+  const bool deferred = method == StructuralSolveMethod::local;
+  if (!deferred) bringFactorUpToDate();
   std::vector<int> removed;
   for (int t : ids)
     if (alive[t]) removed.push_back(t);
@@ -1041,8 +1148,16 @@ std::function<StructuralUpdateStats()> StructuralPhase::Impl::beginRemoval(
   stats.dofsFreed = static_cast<int>(newlyFreed.size());
 
   // the local solve's reference: u_ref is 0 on the dofs now held (the tets at their nodes
-  // change stress); these nodes and the removed tets' widen the next region's box; the
-  // region no longer fits A
+  // change stress); these nodes and the removed tets' widen the next region's box; a
+  // refresh running learns the same at its adoption
+  const std::vector<int> removedNodes = nodesOf(removed);
+  if (refresh.running) {
+    refresh.heldSince.insert(refresh.heldSince.end(), newlyHeld.begin(), newlyHeld.end());
+    refresh.changedSince.insert(refresh.changedSince.end(), removedNodes.begin(),
+                                removedNodes.end());
+    for (int dof : newlyHeld) refresh.changedSince.push_back(dof / 3);
+    for (int dof : newlyFreed) refresh.changedSince.push_back(dof / 3);
+  }
   if (hasReference) {
     std::vector<int> heldNodes;
     for (int dof : newlyHeld)
@@ -1055,15 +1170,37 @@ std::function<StructuralUpdateStats()> StructuralPhase::Impl::beginRemoval(
     for (int v : heldNodes)
       for (const int* t = tetsOfNode.begin(v); t != tetsOfNode.end(v); ++t)
         if (alive[*t]) refElastic[*t] = elasticStress(*t, refU);
-    const std::vector<int> removedNodes = nodesOf(removed);
     changedNodes.insert(changedNodes.end(), removedNodes.begin(), removedNodes.end());
     changedNodes.insert(changedNodes.end(), heldNodes.begin(), heldNodes.end());
+    for (int dof : newlyFreed) changedNodes.push_back(dof / 3);
   }
-  dropRegion();
+  // the region: its factor is refactorized at the next local solve when the removal touched
+  // it; a freed dof (not one of its unknowns) rebuilds it
+  if (deferred && regionValid && newlyFreed.empty()) {
+    for (int t : removed)
+      if (inRegion[t]) {
+        inRegion[t] = 0;
+        regionStale = true;
+      }
+    if (regionStale)
+      regionTets.erase(std::remove_if(regionTets.begin(), regionTets.end(),
+                                      [&](int t) { return !alive[t]; }),
+                       regionTets.end());
+    for (int dof : newlyHeld) regionStale = regionStale || localOfDof[dof] >= 0;
+  } else {
+    dropRegion();
+  }
   if (numDofs() == 0) return done(stats);
+  if (deferred) {
+    pending.removed.insert(pending.removed.end(), removed.begin(), removed.end());
+    pending.held.insert(pending.held.end(), newlyHeld.begin(), newlyHeld.end());
+    pending.freed = pending.freed || !newlyFreed.empty();
+    stats.deferred = true;
+    return done(stats);
+  }
   return [this, t0, stats, removed = std::move(removed), newlyHeld = std::move(newlyHeld),
           newlyFreed = std::move(newlyFreed)]() mutable {
-    return updateFactor(t0, stats, removed, newlyHeld, newlyFreed);
+    return updateFactor(t0, stats, removed, newlyHeld, newlyFreed, current(), common);
   };
 }
 
@@ -1072,7 +1209,8 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
                                                           StructuralUpdateStats stats,
                                                           const std::vector<int>& removed,
                                                           const std::vector<int>& newlyHeld,
-                                                          const std::vector<int>& newlyFreed) {
+                                                          const std::vector<int>& newlyFreed,
+                                                          const StateView& s, cholmod_common& cm) {
   // 4. C C' = the removed tets' stiffness on the dofs free before and after. Tets that share
   // a node are summed first (one group per connected cluster, up to kMaxGroupDofs free dofs):
   // the eigenpairs (lambda, v) of the group's matrix give columns sqrt(lambda) v in L's rows.
@@ -1110,7 +1248,7 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
     }
   }
   auto isFree = [&](int dof) {
-    return !held[dof] && !std::binary_search(newlyFreed.begin(), newlyFreed.end(), dof);
+    return !s.held[dof] && !std::binary_search(newlyFreed.begin(), newlyFreed.end(), dof);
   };
   // the free dofs of some tets, as (row of L, dof), ascending rows
   auto freeDofs = [&](const std::vector<int>& some) {
@@ -1168,7 +1306,7 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
   // 5. L becomes simplicial LDL' (once after each factorization: only those can be updated)
   if (factor->is_super || factor->is_ll) {
     const auto tc = std::chrono::steady_clock::now();
-    toSimplicial();
+    toSimplicial(cm);
     stats.convertSeconds = secondsSince(tc);
   }
 
@@ -1183,11 +1321,11 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
     for (int dof : newlyHeld) starts.push_back(rowOfDof[dof]);
     for (int dof : newlyFreed) starts.push_back(rowOfDof[dof]);
     for (int c = 0; c + 1 < static_cast<int>(cp.size()); ++c) starts.push_back(ci[cp[c]]);
-    ++stamp;
-    const int first = stamp;
+    ++rowStamp;
+    const int first = rowStamp;
     for (int s : starts)
-      for (int j = s; j >= 0 && mark[j] < first; j = l.parent(j)) {
-        mark[j] = first;
+      for (int j = s; j >= 0 && rowMark[j] < first; j = l.parent(j)) {
+        rowMark[j] = first;
         walked.push_back(j);
       }
     std::sort(walked.begin(), walked.end());
@@ -1224,7 +1362,7 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
       r.dtype = CHOLMOD_DOUBLE;
       r.sorted = 1;
       r.packed = 1;
-      ok = ok && cholmod_rowdel(rowOfDof[dof], &r, factor, &common);
+      ok = ok && cholmod_rowdel(rowOfDof[dof], &r, factor, &cm);
     }
     if (ok && stats.rank > 0) {
       cholmod_sparse c{};
@@ -1239,7 +1377,7 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
       c.dtype = CHOLMOD_DOUBLE;
       c.sorted = 1;
       c.packed = 1;
-      ok = cholmod_updown(false, &c, factor, &common);
+      ok = cholmod_updown(false, &c, factor, &cm);
     }
     for (size_t k = 0; ok && k < newlyFreed.size(); ++k) {
       // column of A at the dof: K over the alive tets, on the dofs free so far
@@ -1247,7 +1385,7 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
       std::vector<std::pair<int, double>> entries;
       const int v = dof / 3;
       for (const int* t = tetsOfNode.begin(v); t != tetsOfNode.end(v); ++t) {
-        if (!alive[*t]) continue;
+        if (!s.alive[*t]) continue;
         const Mat12 ke = elementStiffness(*t);
         const int i = 3 * static_cast<int>(std::find(tets[*t].begin(), tets[*t].end(), v) -
                                            tets[*t].begin()) +
@@ -1255,7 +1393,7 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
         for (int j = 0; j < 12; ++j) {
           const int other = 3 * tets[*t][j / 3] + j % 3;
           const auto later = std::lower_bound(newlyFreed.begin(), newlyFreed.end(), other);
-          if (held[other] || (later != newlyFreed.end() && *later == other &&
+          if (s.held[other] || (later != newlyFreed.end() && *later == other &&
                               later - newlyFreed.begin() > static_cast<long>(k)))
             continue;  // held, or added after this one
           entries.emplace_back(rowOfDof[other], ke(i, j));
@@ -1286,16 +1424,16 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
       r.dtype = CHOLMOD_DOUBLE;
       r.sorted = 1;
       r.packed = 1;
-      ok = cholmod_rowadd(rowOfDof[dof], &r, factor, &common);
+      ok = cholmod_rowadd(rowOfDof[dof], &r, factor, &cm);
     }
     // a downdate that lost positive definiteness shows as D(j) <= 0 on the walked columns
     const SimplicialView l(factor);
     for (int j : walked) ok = ok && l.diagonal(j) > 0 && std::isfinite(l.diagonal(j));
-    updated = ok && common.status == CHOLMOD_OK;
+    updated = ok && cm.status == CHOLMOD_OK;
     stats.downdateFailed = !updated;
   }
   if (!updated) {
-    factorize();
+    factorize(cm, s);
     stats.refactorized = true;
   }
   stats.seconds = secondsSince(t0);
@@ -1376,7 +1514,7 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   m.tetsOfNode = nodeTets(whole);
   m.faceNeighbours = tetNeighbours(whole);
   m.supportsOfNode = compressedRows(n, std::move(supportPairs));
-  m.mark.assign(3 * static_cast<size_t>(n), 0);
+  m.rowMark.assign(3 * static_cast<size_t>(n), 0);
   m.tetMark.assign(nt, 0);
   std::vector<int> newlyHeld;
   m.classifyPieces(newlyHeld);
@@ -1388,7 +1526,7 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   m.vonMisesPa.assign(nt, 0.0);
   if (n == 0) return;
   const auto t0 = std::chrono::steady_clock::now();
-  m.factorize();
+  m.factorize(m.common, m.current());
   m.factorSeconds = secondsSince(t0);
 }
 

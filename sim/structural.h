@@ -51,7 +51,8 @@
 // Threads: a phase is not thread-safe: solve() and removeTets() on one phase must not
 // overlap; distinct phases are independent (each owns its CHOLMOD workspace). With
 // LocalSolveOptions::refreshOnThread the phase runs full solves on a thread of its own (its
-// own CHOLMOD workspace, reading the factor, which only removeTets changes after joining it).
+// own CHOLMOD workspace and copy of the state; it alone changes the whole factor while it
+// runs: removeTets under the local method defers the factor's update to it).
 // CHOLMOD runs with one OpenBLAS thread (set before each factorization and solve): on 2 shared
 // cores more threads only spin (measured: simulation_test's background rebuild test went from 6.1 s
 // to 0.7 s), and results do not depend on the thread count.
@@ -121,8 +122,17 @@ enum class StructuralSolveMethod {
 // change, the removed tets and the nodes held (u_ref set to 0) since the reference. The
 // region (U, the alive tets touching it, CHOLMOD's factor of K_UU, ordered as the whole
 // factor) is built around that box grown by slackM, and reused while the box stays inside
-// it (a moving load pays a region factorization every slackM or so of travel); removeTets
-// drops it (K changed). A full solve (the new reference) is done instead at the first
+// it (a moving load pays a region factorization every slackM or so of travel).
+// Removals under the local method: removeTets does the bookkeeping and leaves the whole
+// factor as it is; the next local solve refactorizes the region's factor in its analysis
+// (A_UU only loses entries; the dofs held since its build become identity rows), and a
+// removal outside the region's box, or one that frees a dof, rebuilds the region. The whole
+// factor catches up in one update over every removal since its last one (a batched
+// cholmod_updown, or a refactorization if a dof was freed): at the next refresh, on its
+// thread (it starts from a copy of the alive set and the held dofs, so the frame goes on
+// removing tets meanwhile; at its adoption the reference is set to 0 on the dofs held since
+// and those removals widen the next box), or at the next full solve, in the frame.
+// A full solve (the new reference) is done instead at the first
 // solve, after setSolveMethod(full, ...), every refreshEvery solves (unless
 // refreshOnThread), and when U would hold more than maxRegionFraction of the free
 // components. The stress of a tet outside U's tets is D B_e u_ref - K_b e_v: its elastic
@@ -148,11 +158,12 @@ struct LocalSolveOptions {
                                    // but the first, and regions too large)
   double maxRegionFraction = 0.5;  // more of the free components than this: a full solve
   // the refresh on a thread of the phase instead of in the frame: a local solve starts a
-  // full solve of its load on the thread, adopted as the reference (joined, waiting if
-  // unfinished) at the refreshEvery-th solve after it, which starts the next one; so the
-  // reference is at most 2 refreshEvery - 1 solves old, and the results do not depend on
-  // the thread's timing. removeTets joins and adopts it first; setSolveMethod and a full
-  // solve in the frame join and drop it (refreshEvery 0: no refresh)
+  // full solve of its load on the thread (first applying the removals since the last one
+  // to the whole factor), adopted as the reference (joined, waiting if unfinished) at the
+  // refreshEvery-th solve after it, which starts the next one; so the reference is at most
+  // 2 refreshEvery - 1 solves old, and the results do not depend on the thread's timing.
+  // removeTets does not wait for it; setSolveMethod and a full solve in the frame join it
+  // and drop its solve (refreshEvery 0: no refresh)
   bool refreshOnThread = false;
 };
 
@@ -160,9 +171,10 @@ struct LocalSolveOptions {
 struct StructuralSolveStats {
   bool local = false;              // a local solve (else a full one, the new reference)
   bool regionBuilt = false;        // ... that built and factorized a region
+  bool regionRefactorized = false;  // ... that refactorized its region after a removal in it
   int regionDofs = 0;              // unknowns of the local solve (0: no load change)
   int regionTets = 0;              // tets whose stress the correction changes
-  double regionFactorSeconds = 0;  // assembly and factorization of K_UU
+  double regionFactorSeconds = 0;  // assembly and factorization of K_UU (built or refactorized)
   bool refreshAdopted = false;     // refreshOnThread: a refresh became the reference ...
   bool refreshStarted = false;     // ... a refresh of this load started
   double seconds = 0;              // wall time of the call (waits for the thread included)
@@ -195,6 +207,8 @@ struct StructuralUpdateStats {
   double updateWork = 0;        // entries of L the update walks, times the columns passing
   double updateCost = 0;        // estimated cost of the update / a refactorization's
   bool refactorized = false;    // fell back to a full refactorization
+  bool deferred = false;        // the local method: the factor's update waits for the next
+                                // refresh (on its thread) or full solve (see LocalSolveOptions)
   bool downdateFailed = false;  // ... because the update lost positive definiteness
   double convertSeconds = 0;    // supernodal LL' to simplicial LDL' (first update after a
                                 // factorization; 0 with StructuralOptions::prepareForUpdates)
@@ -235,7 +249,8 @@ class StructuralPhase {
 
   // Removes tets (mesh tet ids; ids already removed and repeats are skipped) and updates
   // the factor (see the header comment): afterwards the phase is the one a constructor
-  // would build on the mesh with these tets removed too. Throws esim::Error (Input kind)
+  // would build on the mesh with these tets removed too (under the local method the
+  // factor's update is deferred: see LocalSolveOptions). Throws esim::Error (Input kind)
   // on an id out of range (nothing changed); when no piece is held by the supports any
   // more, it throws the constructor's esim::Error, "structural: no piece of the body is
   // held by the supports" (Input kind, as the constructor: the caller names the cause),

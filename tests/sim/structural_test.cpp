@@ -4,7 +4,8 @@
 // tets, linearity and bad input; removeTets against a phase built afresh on the same alive
 // set (updates, orphaned nodes, pieces cut loose or hanging by an edge, the fallback);
 // the local solve against the full one (exact on the whole mesh, an energy error that
-// does not grow with the region, after removals, the refresh schedule).
+// does not grow with the region, after removals, the refresh schedule, removals that update
+// the region and defer the whole factor's update).
 #include "sim/structural.h"
 
 #include <gtest/gtest.h>
@@ -786,6 +787,76 @@ TEST(StructuralLocal, RefreshOnThreadIsScheduledAndDeterministic) {
   removeBoth(a, mesh, top);
   expectSameAsFresh(a, mesh, clamp, "after a removal during a refresh");
   EXPECT_TRUE(a.lastSolveStats().local);
+}
+
+// The local method across removals: the removal's bookkeeping in the frame, the region's
+// factor refactorized at the next solve, the whole factor's update deferred to the refresh
+// on the thread (which applies every removal since its last start in one update) or to the
+// next full solve. Each is checked against a phase built afresh: the region's solve on the
+// whole mesh (exact), the refresh adopted with the load unchanged (its solution is the
+// output, so it shows the deferred update), and a switch to the full method.
+TEST(StructuralLocal, RemovalsUpdateTheRegionAndDeferTheWholeFactor) {
+  TetMesh mesh = biggerSlab(), twin = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  LocalSolveOptions o = wholeMesh();
+  o.slackM = 1;  // the box the region is built around holds every removal too
+  o.refreshEvery = 3;
+  o.refreshOnThread = true;
+  StructuralPhase a(mesh, localPaper(o), clamp), b(twin, localPaper(o), clamp);
+  std::vector<int> top;  // top tets, spread over the slab
+  for (int t = 0; t < mesh.numTets(); ++t)
+    if (centroidZ(mesh, t) > 0.6 * kLz && t % 5 == 2) top.push_back(t);
+  ASSERT_GE(top.size(), 24u);
+  const std::vector<double> load = unevenLoad(mesh);
+  a.solve(load);  // the reference
+  b.solve(load);
+  int removals = 0, refactorized = 0, adopted = 0, started = 0;
+  for (int step = 0; step < 12; ++step) {
+    SCOPED_TRACE("step " + std::to_string(step));
+    if (step % 2 == 0 && removals < 6) {  // three tets, every other solve
+      const std::vector<int> batch(top.begin() + 3 * removals, top.begin() + 3 * removals + 3);
+      const StructuralUpdateStats st = removeBoth(a, mesh, batch);
+      removeBoth(b, twin, batch);
+      EXPECT_TRUE(st.deferred);
+      EXPECT_FALSE(st.refactorized);
+      ++removals;
+    }
+    a.solve(load);
+    b.solve(load);
+    const StructuralSolveStats& st = a.lastSolveStats();
+    EXPECT_TRUE(st.local);
+    EXPECT_FALSE(st.regionBuilt && step > 0);  // refactorized in place, never rebuilt
+    refactorized += st.regionRefactorized;
+    adopted += st.refreshAdopted;
+    started += st.refreshStarted;
+    EXPECT_EQ(asVector(a.vonMisesPa()), asVector(b.vonMisesPa()));  // timing-independent
+    StructuralPhase fresh(mesh, paper(), clamp);
+    fresh.solve(load);
+    EXPECT_LT(relativeDifference(a.displacementM(), fresh.displacementM()), 1e-9);
+    EXPECT_LT(relativeDifference(asVector(a.vonMisesPa()), asVector(fresh.vonMisesPa())), 1e-9);
+  }
+  EXPECT_EQ(removals, 6);
+  EXPECT_EQ(refactorized, 5);  // the first removal came before the region was built
+  EXPECT_GE(adopted, 3);
+  // with no removal since the last refresh started, its adoption is the output: the
+  // whole factor after the deferred updates, solved on the thread
+  for (int k = 0; k < 2 * o.refreshEvery && !a.lastSolveStats().refreshAdopted; ++k)
+    a.solve(load);
+  for (int k = 0; k < 2 * o.refreshEvery; ++k) {
+    a.solve(load);
+    if (a.lastSolveStats().refreshAdopted) break;
+  }
+  ASSERT_TRUE(a.lastSolveStats().refreshAdopted);
+  EXPECT_EQ(a.lastSolveStats().regionDofs, 0);  // nothing changed since that refresh
+  StructuralPhase fresh(mesh, paper(), clamp);
+  fresh.solve(load);
+  EXPECT_LT(relativeDifference(a.displacementM(), fresh.displacementM()), 1e-9);
+  // removals pending when the method becomes full: the full solve applies them first
+  removeBoth(a, mesh, {top[18], top[19], top[20]});
+  removeBoth(a, mesh, {top[21], top[22], top[23]});
+  a.setSolveMethod(StructuralSolveMethod::full, o);
+  expectSameAsFresh(a, mesh, clamp, "pending removals, then the full method");
+  EXPECT_FALSE(a.lastSolveStats().local);
 }
 
 TEST(StructuralLocal, RefreshScheduleAndUnchangedLoad) {

@@ -41,6 +41,7 @@ struct BenchCutOptions {
   std::string structural = "full";  // solvers.structural.method values, comma separated
   double paceHz = 0;  // > 0: each frame starts on its tick of a loop at this rate (as a
                       // haptic or display loop runs), not right after the last one
+  std::vector<std::string> overrides;  // --set KEY=VALUE, after the bench's own
 };
 
 double quantile(std::vector<double> v, double q) {
@@ -78,12 +79,13 @@ int benchCut(const BenchCutOptions& opt) {
     for (const std::string& strategy : strategies) {
       std::vector<std::uint8_t> fullAlive;  // the removed set of the full solve's run
       for (const std::string& method : methods) {
-        const Scenario sc =
-            loadScenario(opt.scenario,
-                         {"mesh.slab.nodes=" + std::to_string(nodes),
-                          "tool.voltage_v=" + std::to_string(opt.voltageV),
-                          "solvers.rebuild.mode=" + strategy, "solvers.structural.method=" + method,
-                          "physics=[electric,thermal,boiling,structural,rupture]"});
+        std::vector<std::string> sets = {
+            "mesh.slab.nodes=" + std::to_string(nodes),
+            "tool.voltage_v=" + std::to_string(opt.voltageV), "solvers.rebuild.mode=" + strategy,
+            "solvers.structural.method=" + method,
+            "physics=[electric,thermal,boiling,structural,rupture]"};
+        sets.insert(sets.end(), opt.overrides.begin(), opt.overrides.end());
+        const Scenario sc = loadScenario(opt.scenario, sets);
         const SimulationConfig config = app::makeSimulationConfig(sc);
         Simulation sim(app::buildMesh(sc), config);
         const int frames =
@@ -208,6 +210,9 @@ cli::Registrar registerBenchCut(
                      "local solve's removed set compared with the full one's)")
           ->capture_default_str();
       app.add_flag("--stages", opt->stages, "per-stage median, p95 and max under each row");
+      app.add_option("--set", opt->overrides,
+                     "KEY=VALUE: a scenario value for every run, as esim run's --set (e.g. "
+                     "solvers.structural.local_margin_m=0.004)");
       return [opt] { return benchCut(*opt); };
     });
 
