@@ -232,12 +232,12 @@ struct StructuralPhase::Impl {
     std::thread worker;
     bool running = false;
     int solvesSinceStart = 0;
-    std::vector<double> ev;  // the load it solves
+    std::vector<double> ev;                 // the load it solves
     std::vector<std::uint8_t> alive, held;  // the state it solves on (copied at its start)
     int numFree = 0;
-    Pending job;                      // the removals it applies to the factor first
-    std::vector<int> heldSince;       // dofs held since its start ...
-    std::vector<int> changedSince;    // ... and the nodes removals changed since
+    Pending job;                    // the removals it applies to the factor first
+    std::vector<int> heldSince;     // dofs held since its start ...
+    std::vector<int> changedSince;  // ... and the nodes removals changed since
     StateView view() const { return {alive.data(), held.data(), numFree}; }
     Eigen::VectorXd rhs, u;
     std::vector<Voigt> elastic;
@@ -747,8 +747,8 @@ void StructuralPhase::Impl::startRefresh(const std::vector<double>& ev) {
     try {
       const StateView s = refresh.view();
       if (!refresh.job.removed.empty()) applyPending(std::move(refresh.job), s, refresh.common);
-      fullDisplacement(refresh.ev, s, refresh.rhs, refresh.u, refresh.common, refresh.x,
-                       refresh.y, refresh.e);
+      fullDisplacement(refresh.ev, s, refresh.rhs, refresh.u, refresh.common, refresh.x, refresh.y,
+                       refresh.e);
       refresh.elastic.resize(tets.size());
       for (size_t t = 0; t < tets.size(); ++t)
         if (s.alive[t]) refresh.elastic[t] = elasticStress(static_cast<int>(t), refresh.u);
@@ -1183,9 +1183,9 @@ std::function<StructuralUpdateStats()> StructuralPhase::Impl::beginRemoval(
         regionStale = true;
       }
     if (regionStale)
-      regionTets.erase(std::remove_if(regionTets.begin(), regionTets.end(),
-                                      [&](int t) { return !alive[t]; }),
-                       regionTets.end());
+      regionTets.erase(
+          std::remove_if(regionTets.begin(), regionTets.end(), [&](int t) { return !alive[t]; }),
+          regionTets.end());
     for (int dof : newlyHeld) regionStale = regionStale || localOfDof[dof] >= 0;
   } else {
     dropRegion();
@@ -1394,7 +1394,7 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
           const int other = 3 * tets[*t][j / 3] + j % 3;
           const auto later = std::lower_bound(newlyFreed.begin(), newlyFreed.end(), other);
           if (s.held[other] || (later != newlyFreed.end() && *later == other &&
-                              later - newlyFreed.begin() > static_cast<long>(k)))
+                                later - newlyFreed.begin() > static_cast<long>(k)))
             continue;  // held, or added after this one
           entries.emplace_back(rowOfDof[other], ke(i, j));
         }

@@ -169,15 +169,15 @@ struct LocalSolveOptions {
 
 // what the last solve() did
 struct StructuralSolveStats {
-  bool local = false;              // a local solve (else a full one, the new reference)
-  bool regionBuilt = false;        // ... that built and factorized a region
+  bool local = false;               // a local solve (else a full one, the new reference)
+  bool regionBuilt = false;         // ... that built and factorized a region
   bool regionRefactorized = false;  // ... that refactorized its region after a removal in it
-  int regionDofs = 0;              // unknowns of the local solve (0: no load change)
-  int regionTets = 0;              // tets whose stress the correction changes
-  double regionFactorSeconds = 0;  // assembly and factorization of K_UU (built or refactorized)
-  bool refreshAdopted = false;     // refreshOnThread: a refresh became the reference ...
-  bool refreshStarted = false;     // ... a refresh of this load started
-  double seconds = 0;              // wall time of the call (waits for the thread included)
+  int regionDofs = 0;               // unknowns of the local solve (0: no load change)
+  int regionTets = 0;               // tets whose stress the correction changes
+  double regionFactorSeconds = 0;   // assembly and factorization of K_UU (built or refactorized)
+  bool refreshAdopted = false;      // refreshOnThread: a refresh became the reference ...
+  bool refreshStarted = false;      // ... a refresh of this load started
+  double seconds = 0;               // wall time of the call (waits for the thread included)
 };
 
 // ---- the phase ----

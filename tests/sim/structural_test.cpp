@@ -840,8 +840,7 @@ TEST(StructuralLocal, RemovalsUpdateTheRegionAndDeferTheWholeFactor) {
   EXPECT_GE(adopted, 3);
   // with no removal since the last refresh started, its adoption is the output: the
   // whole factor after the deferred updates, solved on the thread
-  for (int k = 0; k < 2 * o.refreshEvery && !a.lastSolveStats().refreshAdopted; ++k)
-    a.solve(load);
+  for (int k = 0; k < 2 * o.refreshEvery && !a.lastSolveStats().refreshAdopted; ++k) a.solve(load);
   for (int k = 0; k < 2 * o.refreshEvery; ++k) {
     a.solve(load);
     if (a.lastSolveStats().refreshAdopted) break;

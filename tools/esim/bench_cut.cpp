@@ -79,11 +79,11 @@ int benchCut(const BenchCutOptions& opt) {
     for (const std::string& strategy : strategies) {
       std::vector<std::uint8_t> fullAlive;  // the removed set of the full solve's run
       for (const std::string& method : methods) {
-        std::vector<std::string> sets = {
-            "mesh.slab.nodes=" + std::to_string(nodes),
-            "tool.voltage_v=" + std::to_string(opt.voltageV), "solvers.rebuild.mode=" + strategy,
-            "solvers.structural.method=" + method,
-            "physics=[electric,thermal,boiling,structural,rupture]"};
+        std::vector<std::string> sets = {"mesh.slab.nodes=" + std::to_string(nodes),
+                                         "tool.voltage_v=" + std::to_string(opt.voltageV),
+                                         "solvers.rebuild.mode=" + strategy,
+                                         "solvers.structural.method=" + method,
+                                         "physics=[electric,thermal,boiling,structural,rupture]"};
         sets.insert(sets.end(), opt.overrides.begin(), opt.overrides.end());
         const Scenario sc = loadScenario(opt.scenario, sets);
         const SimulationConfig config = app::makeSimulationConfig(sc);
