@@ -123,15 +123,15 @@ enum class StructuralSolveMethod {
 // region (U, the alive tets touching it, CHOLMOD's factor of K_UU, ordered as the whole
 // factor) is built around that box grown by slackM, and reused while the box stays inside
 // it (a moving load pays a region factorization every slackM or so of travel).
-// Removals under the local method: removeTets does the bookkeeping and leaves the whole
-// factor as it is; the next local solve refactorizes the region's factor in its analysis
-// (A_UU only loses entries; the dofs held since its build become identity rows), and a
-// removal outside the region's box, or one that frees a dof, rebuilds the region. The whole
-// factor catches up in one update over every removal since its last one (a batched
-// cholmod_updown, or a refactorization if a dof was freed): at the next refresh, on its
-// thread (it starts from a copy of the alive set and the held dofs, so the frame goes on
-// removing tets meanwhile; at its adoption the reference is set to 0 on the dofs held since
-// and those removals widen the next box), or at the next full solve, in the frame.
+// Removals under the local method: the next local solve refactorizes the region's factor in
+// its analysis (A_UU only loses entries; the dofs held since its build become identity
+// rows); a removal outside the region's box, or one that frees a dof, rebuilds the region.
+// With refreshOnThread, removeTets also leaves the whole factor as it is: it catches up in
+// one update over every removal since its last one (a batched cholmod_updown, or a
+// refactorization if a dof was freed) at the next refresh, on its thread (which starts from
+// a copy of the alive set and the held dofs, so the frame goes on removing tets meanwhile;
+// at its adoption the reference is set to 0 on the dofs held since and those removals widen
+// the next box), or at the next full solve, in the frame.
 // A full solve (the new reference) is done instead at the first
 // solve, after setSolveMethod(full, ...), every refreshEvery solves (unless
 // refreshOnThread), and when U would hold more than maxRegionFraction of the free
@@ -249,8 +249,9 @@ class StructuralPhase {
 
   // Removes tets (mesh tet ids; ids already removed and repeats are skipped) and updates
   // the factor (see the header comment): afterwards the phase is the one a constructor
-  // would build on the mesh with these tets removed too (under the local method the
-  // factor's update is deferred: see LocalSolveOptions). Throws esim::Error (Input kind)
+  // would build on the mesh with these tets removed too (under the local method with its
+  // refresh on a thread the factor's update is deferred: see LocalSolveOptions). Throws
+  // esim::Error (Input kind)
   // on an id out of range (nothing changed); when no piece is held by the supports any
   // more, it throws the constructor's esim::Error, "structural: no piece of the body is
   // held by the supports" (Input kind, as the constructor: the caller names the cause),
