@@ -171,7 +171,8 @@ struct LocalSolveOptions {
 struct StructuralSolveStats {
   bool local = false;               // a local solve (else a full one, the new reference)
   bool regionBuilt = false;         // ... that built and factorized a region
-  bool regionRefactorized = false;  // ... that refactorized its region after a removal in it
+  bool regionUpdated = false;       // ... that updated its region's factor for removals in it
+  bool regionRefactorized = false;  // ... by a refactorization (the update would cost more)
   int regionDofs = 0;               // unknowns of the local solve (0: no load change)
   int regionTets = 0;               // tets whose stress the correction changes
   double regionFactorSeconds = 0;   // assembly and factorization of K_UU (built or refactorized)
