@@ -221,6 +221,11 @@ struct ScenarioSolvers {
   StructuralSolveMethod structuralMethod = scenario_detail::core().structural.solveMethod;
   // local: the region is the nodes within this of the load change's box
   double structuralLocalMarginM = scenario_detail::core().structural.local.marginM;
+  // local: the box grown by this when a region is built [m]
+  double structuralLocalSlackM = scenario_detail::core().structural.local.slackM;
+  // local: a larger region (fraction of the unknowns) is a full solve instead
+  double structuralLocalMaxRegionFraction =
+      scenario_detail::core().structural.local.maxRegionFraction;
   // local: a full solve (the new reference) at least every this many solves
   int structuralLocalRefreshEvery = scenario_detail::core().structural.local.refreshEvery;
   // local: that full solve on a thread of the phase, adopted refresh_every solves later

@@ -297,6 +297,15 @@ const std::vector<Field>& schema() {
                        ESIM_REF(solvers.structuralLocalMarginM), "m", positive(10.0),
                        "local: the region is every node within this of the box around the "
                        "changed load"));
+    f.push_back(number("solvers.structural.local_slack_m",
+                       ESIM_REF(solvers.structuralLocalSlackM), "m", closed(0, 10.0),
+                       "local: the box is grown by this when a region is built, which is kept "
+                       "while the changed load stays inside (a region built every this much of "
+                       "travel)"));
+    f.push_back(number("solvers.structural.local_max_region_fraction",
+                       ESIM_REF(solvers.structuralLocalMaxRegionFraction), "", positive(1.0),
+                       "local: a region holding more than this fraction of the unknowns is a "
+                       "full solve instead"));
     f.push_back(integer("solvers.structural.local_refresh_every",
                         ESIM_REF(solvers.structuralLocalRefreshEvery), "solves", closed(0, 1e6),
                         "local: a full solve at least every this many solves (0: only the "

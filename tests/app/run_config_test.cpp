@@ -88,6 +88,8 @@ TEST(RunConfig, EveryDefaultComesFromTheCore) {
   EXPECT_EQ(c.recomputeLagFrames, d.recomputeLagFrames);
   EXPECT_EQ(c.structural.solveMethod, d.structural.solveMethod);
   EXPECT_EQ(c.structural.local.marginM, d.structural.local.marginM);
+  EXPECT_EQ(c.structural.local.slackM, d.structural.local.slackM);
+  EXPECT_EQ(c.structural.local.maxRegionFraction, d.structural.local.maxRegionFraction);
   EXPECT_EQ(c.structural.local.refreshEvery, d.structural.local.refreshEvery);
   EXPECT_EQ(c.structural.local.refreshOnThread, d.structural.local.refreshOnThread);
 }
@@ -96,13 +98,16 @@ TEST(RunConfig, EveryDefaultComesFromTheCore) {
 TEST(RunConfig, StructuralLocalSolveKeysReachThePhase) {
   const Scenario s = parseScenario(
       "name: local\nsolvers:\n  structural:\n    method: local\n    local_margin_m: 0.004\n"
-      "    local_refresh_every: 7\n    local_refresh_on_thread: true\n",
+      "    local_refresh_every: 7\n    local_refresh_on_thread: true\n"
+      "    local_slack_m: 0.002\n    local_max_region_fraction: 0.8\n",
       "local.yaml");
   const SimulationConfig c = makeSimulationConfig(s);
   EXPECT_EQ(c.structural.solveMethod, StructuralSolveMethod::local);
   EXPECT_EQ(c.structural.local.marginM, 0.004);
   EXPECT_EQ(c.structural.local.refreshEvery, 7);
   EXPECT_TRUE(c.structural.local.refreshOnThread);
+  EXPECT_EQ(c.structural.local.slackM, 0.002);
+  EXPECT_EQ(c.structural.local.maxRegionFraction, 0.8);
   try {
     parseScenario("name: bad\nsolvers:\n  structural:\n    method: nearby\n", "bad.yaml");
     ADD_FAILURE() << "accepted method: nearby";
@@ -112,6 +117,17 @@ TEST(RunConfig, StructuralLocalSolveKeysReachThePhase) {
     EXPECT_NE(what.find("bad.yaml:4"), std::string::npos) << what;
     EXPECT_NE(what.find("solvers.structural.method"), std::string::npos) << what;
     EXPECT_NE(what.find("full"), std::string::npos) << what;
+  }
+  try {
+    parseScenario("name: bad\nsolvers:\n  structural:\n    local_max_region_fraction: 0\n",
+                  "bad.yaml");
+    ADD_FAILURE() << "accepted local_max_region_fraction: 0";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Input);
+    const std::string what = e.what();
+    EXPECT_NE(what.find("bad.yaml:4"), std::string::npos) << what;
+    EXPECT_NE(what.find("solvers.structural.local_max_region_fraction"), std::string::npos)
+        << what;
   }
 }
 

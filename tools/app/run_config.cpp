@@ -81,6 +81,8 @@ void mapStructural(const Scenario& s, SimulationConfig& c) {
   c.clampBandM = s.effects.structuralClampBandM;
   c.structural.solveMethod = s.solvers.structuralMethod;
   c.structural.local.marginM = s.solvers.structuralLocalMarginM;
+  c.structural.local.slackM = s.solvers.structuralLocalSlackM;
+  c.structural.local.maxRegionFraction = s.solvers.structuralLocalMaxRegionFraction;
   c.structural.local.refreshEvery = s.solvers.structuralLocalRefreshEvery;
   c.structural.local.refreshOnThread = s.solvers.structuralLocalRefreshOnThread;
   c.rebuildMode = s.solvers.rebuildMode;
