@@ -297,8 +297,8 @@ const std::vector<Field>& schema() {
                        ESIM_REF(solvers.structuralLocalMarginM), "m", positive(10.0),
                        "local: the region is every node within this of the box around the "
                        "changed load"));
-    f.push_back(number("solvers.structural.local_slack_m",
-                       ESIM_REF(solvers.structuralLocalSlackM), "m", closed(0, 10.0),
+    f.push_back(number("solvers.structural.local_slack_m", ESIM_REF(solvers.structuralLocalSlackM),
+                       "m", closed(0, 10.0),
                        "local: the box is grown by this when a region is built, which is kept "
                        "while the changed load stays inside (a region built every this much of "
                        "travel)"));

@@ -126,8 +126,7 @@ TEST(RunConfig, StructuralLocalSolveKeysReachThePhase) {
     EXPECT_EQ(e.kind(), ErrorKind::Input);
     const std::string what = e.what();
     EXPECT_NE(what.find("bad.yaml:4"), std::string::npos) << what;
-    EXPECT_NE(what.find("solvers.structural.local_max_region_fraction"), std::string::npos)
-        << what;
+    EXPECT_NE(what.find("solvers.structural.local_max_region_fraction"), std::string::npos) << what;
   }
 }
 
