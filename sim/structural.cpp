@@ -390,6 +390,7 @@ struct StructuralPhase::Impl {
   void bringFactorUpToDate();
   void startRefresh(const std::vector<double>& ev);
   void finishRefresh(bool adopt);
+  std::vector<int> holdInReference(const std::vector<int>& dofs);
   bool localSolve(const std::vector<double>& ev);
   bool buildRegion(const Eigen::AlignedBox3d& box);
   SparseMatrix regionMatrix() const;
@@ -774,6 +775,23 @@ void StructuralPhase::Impl::startRefresh(const std::vector<double>& ev) {
   });
 }
 
+// u_ref set to 0 on dofs now held, and the elastic stress of the alive tets at their nodes;
+// returns those nodes (of the dofs whose u_ref changed), ascending
+std::vector<int> StructuralPhase::Impl::holdInReference(const std::vector<int>& dofs) {
+  std::vector<int> heldNodes;
+  for (int dof : dofs)
+    if (refU(dof) != 0) {
+      refU(dof) = 0;
+      heldNodes.push_back(dof / 3);
+    }
+  std::sort(heldNodes.begin(), heldNodes.end());
+  heldNodes.erase(std::unique(heldNodes.begin(), heldNodes.end()), heldNodes.end());
+  for (int v : heldNodes)
+    for (const int* t = tetsOfNode.begin(v); t != tetsOfNode.end(v); ++t)
+      if (alive[*t]) refElastic[*t] = elasticStress(*t, refU);
+  return heldNodes;
+}
+
 // joins the thread's refresh (if any); adopt: it becomes the reference
 void StructuralPhase::Impl::finishRefresh(bool adopt) {
   if (!refresh.running) return;
@@ -786,16 +804,7 @@ void StructuralPhase::Impl::finishRefresh(bool adopt) {
   refElastic.swap(refresh.elastic);
   // removals since the refresh started: the dofs they held are 0 in the reference, and the
   // tets at those nodes change stress; what they changed is the next region's box
-  std::vector<int> heldNodes;
-  for (int dof : refresh.heldSince) {
-    refU(dof) = 0;
-    heldNodes.push_back(dof / 3);
-  }
-  std::sort(heldNodes.begin(), heldNodes.end());
-  heldNodes.erase(std::unique(heldNodes.begin(), heldNodes.end()), heldNodes.end());
-  for (int v : heldNodes)
-    for (const int* t = tetsOfNode.begin(v); t != tetsOfNode.end(v); ++t)
-      if (alive[*t]) refElastic[*t] = elasticStress(*t, refU);
+  holdInReference(refresh.heldSince);
   u = refU;  // outside the region too
   appliedDofs.clear();
   changedNodes = refresh.changedSince;
@@ -1191,17 +1200,7 @@ std::function<StructuralUpdateStats()> StructuralPhase::Impl::beginRemoval(
     for (int dof : newlyFreed) refresh.changedSince.push_back(dof / 3);
   }
   if (hasReference) {
-    std::vector<int> heldNodes;
-    for (int dof : newlyHeld)
-      if (refU(dof) != 0) {
-        refU(dof) = 0;
-        heldNodes.push_back(dof / 3);
-      }
-    std::sort(heldNodes.begin(), heldNodes.end());
-    heldNodes.erase(std::unique(heldNodes.begin(), heldNodes.end()), heldNodes.end());
-    for (int v : heldNodes)
-      for (const int* t = tetsOfNode.begin(v); t != tetsOfNode.end(v); ++t)
-        if (alive[*t]) refElastic[*t] = elasticStress(*t, refU);
+    const std::vector<int> heldNodes = holdInReference(newlyHeld);
     changedNodes.insert(changedNodes.end(), removedNodes.begin(), removedNodes.end());
     changedNodes.insert(changedNodes.end(), heldNodes.begin(), heldNodes.end());
     for (int dof : newlyFreed) changedNodes.push_back(dof / 3);
