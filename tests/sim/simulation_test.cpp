@@ -327,8 +327,11 @@ TEST(Simulation, UpdateModeCutsLikeTheSynchronousRebuild) {
 // solvers.structural.method: local through the whole cut (update mode): the removed set
 // and the stress stay close to the full solve's (the local solve holds the far field of
 // its last full solve; see LocalSolveOptions)
-TEST(Simulation, LocalStructuralSolveCutsLikeTheFullOne) {
-  auto make = [](StructuralSolveMethod method) {
+// the local method on the cut in update mode, its refresh in the frame or on its thread
+// (where removals defer the whole factor's update to that thread: the run is then also
+// compared with a twin, bit for bit)
+void expectLocalCutsLikeTheFullOne(bool refreshOnThread) {
+  auto make = [&](StructuralSolveMethod method) {
     SimulationConfig c = cutConfig(true);
     c.phases.structural = c.phases.rupture = true;
     c.toolVoltageV = 400;
@@ -337,15 +340,21 @@ TEST(Simulation, LocalStructuralSolveCutsLikeTheFullOne) {
     c.structural.solveMethod = method;
     c.structural.local.marginM = 0.006;
     c.structural.local.refreshEvery = 10;
+    c.structural.local.refreshOnThread = refreshOnThread;
     return std::make_unique<Simulation>(smallSlab(), c);
   };
   auto full = make(StructuralSolveMethod::full), local = make(StructuralSolveMethod::local);
+  auto twin = refreshOnThread ? make(StructuralSolveMethod::local) : nullptr;
   // the two side by side: the stress error of each local solve while the alive sets agree
   int localSolves = 0;
   double worst = 0;
   for (int f = 0; f < 45; ++f) {
     full->step();
     local->step();
+    if (twin) {
+      twin->step();
+      ASSERT_EQ(*twin->vonMisesPa(), *local->vonMisesPa()) << "frame " << f;
+    }
     if (!local->model().structural->lastSolveStats().local) continue;
     ++localSolves;
     if (full->mesh().alive != local->mesh().alive) continue;
@@ -370,6 +379,13 @@ TEST(Simulation, LocalStructuralSolveCutsLikeTheFullOne) {
   EXPECT_GT(worst, 0.0) << "no local solve was compared";
   EXPECT_LT(worst, 0.05);
   EXPECT_LE(differ, full->removedTets() / 10);
+}
+
+TEST(Simulation, LocalStructuralSolveCutsLikeTheFullOne) { expectLocalCutsLikeTheFullOne(false); }
+
+// ThreadSanitizer runs this one (ctest --preset tsan: UpdateMode)
+TEST(Simulation, UpdateModeLocalSolveWithItsRefreshOnAThreadCutsLikeTheFullOne) {
+  expectLocalCutsLikeTheFullOne(true);
 }
 
 // background rebuild: the new structures are built on a thread and swapped in exactly
