@@ -1257,7 +1257,12 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
   // work is proportional to the columns
   std::vector<int> cp{0}, ci;
   std::vector<double> cx;
-  constexpr int kMaxGroupDofs = 96;
+  // 192 (was 96): the eigenpairs of a 192 x 192 group take 9 ms (132: 4.7 ms; Eigen, -O2,
+  // this machine), far less than the columns they save on large removals. esim bench cut
+  // --sizes 8000 --frames 60 --strategy update --stages: the 78- and 88-tet removals of
+  // frames 5 and 7 took 432 and 402 columns (per tet) with 96, 126 and 104 (summed) with 192;
+  // slowest frame 590 -> 442 ms, the structural update's p95 466 -> 377 ms
+  constexpr int kMaxGroupDofs = 192;
   std::vector<std::vector<int>> groups;
   {
     // clusters of removed tets through shared nodes (union-find over the removed list)
