@@ -205,8 +205,8 @@ struct StructuralPhase::Impl {
     int numFree;
   };
   StateView current() const { return {alive.data(), held.data(), numFree}; }
-  // removals not yet applied to the factor (the local method: the next refresh on the
-  // thread, or the next full solve, applies them in one update; see LocalSolveOptions)
+  // removals not yet applied to the factor (local method with its refresh on a thread: the
+  // next refresh, or the next full solve, applies them in one update; see LocalSolveOptions)
   struct Pending {
     std::vector<int> removed, held;  // tets, and dofs held since the factor's A
     bool freed = false;              // a dof was freed too: the update refactorizes
@@ -230,8 +230,7 @@ struct StructuralPhase::Impl {
   std::vector<Voigt> refElastic;           // per tet: D B_e u_ref [Pa]
   std::vector<int> changedNodes;           // of removed tets, or held since the reference
   int localSinceFull = 0;                  // local solves since the last full one
-  bool regionValid = false;                // the region below fits the current A ...
-  bool regionStale = false;                // ... but for its values: removals since its factor
+  bool regionValid = false;                // the region below fits the current A
   Eigen::AlignedBox3d regionBox;           // the box grown by slackM it was built around
   std::vector<int> regionDofs;             // U: its free dofs, ascending
   std::vector<int> localOfDof;             // per dof: index in regionDofs, -1 outside
@@ -242,7 +241,7 @@ struct StructuralPhase::Impl {
   std::vector<int> appliedDofs;                               // dofs where u holds u_ref + d
   std::vector<int> regionRowOf;  // per dof: its row of the region's L (-1 outside U)
   double regionFlops = 0;        // CHOLMOD's flop count of the region's factorization
-  Pending regionPending;         // removals in the region since its factor (no dof freed)
+  Pending regionPending;         // removals in the region its factor has not seen (none freed)
   struct Refresh {               // LocalSolveOptions::refreshOnThread
     std::thread worker;
     bool running = false;
@@ -393,7 +392,6 @@ struct StructuralPhase::Impl {
   std::vector<int> holdInReference(const std::vector<int>& dofs);
   bool localSolve(const std::vector<double>& ev);
   bool buildRegion(const Eigen::AlignedBox3d& box);
-  SparseMatrix regionMatrix() const;
   void dropRegion();
   enum class From { solution, region, reference };  // where outputs() takes D B u from
   void outputs(const std::vector<double>& ev, From from);
@@ -864,7 +862,8 @@ bool StructuralPhase::Impl::localSolve(const std::vector<double>& ev) {
     }
     lastSolve.regionBuilt = true;
     lastSolve.regionFactorSeconds = secondsSince(t0);
-  } else if (regionStale) {  // removals in it: its factor updated (or refactorized)
+  } else if (!regionPending.removed.empty() || !regionPending.held.empty()) {
+    // removals in it: its factor updated, or the region built again
     const auto t0 = std::chrono::steady_clock::now();
     Pending job = std::move(regionPending);
     regionPending = Pending{};
@@ -873,7 +872,6 @@ bool StructuralPhase::Impl::localSolve(const std::vector<double>& ev) {
     const StructuralUpdateStats st =
         updateFactor(t0, StructuralUpdateStats{}, job.removed, job.held, {}, current(), common,
                      {&regionFactor, &regionRowOf, regionFlops, false, &regionMarks});
-    regionStale = false;
     lastSolve.regionUpdated = true;
     lastSolve.regionRefactorized = st.refactorized;
     // an update that would cost more than a factorization (or failed): the region built
@@ -931,7 +929,6 @@ bool StructuralPhase::Impl::localSolve(const std::vector<double>& ev) {
 
 void StructuralPhase::Impl::dropRegion() {
   regionValid = false;
-  regionStale = false;
   regionPending = Pending{};
   for (int dof : regionDofs) regionRowOf[dof] = -1;
   for (int t : regionTets) inRegion[t] = 0;
@@ -967,8 +964,24 @@ bool StructuralPhase::Impl::buildRegion(const Eigen::AlignedBox3d& box) {
       }
   }
   std::sort(regionTets.begin(), regionTets.end());
+  // K_UU, lower triangle, in the order of regionDofs
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(regionTets.size() * 78);
+  for (int t : regionTets) {
+    const Mat12 ke = elementStiffness(t);
+    for (int i = 0; i < 12; ++i) {
+      const int li = localOfDof[3 * tets[t][i / 3] + i % 3];
+      if (li < 0) continue;
+      for (int j = 0; j < 12; ++j) {
+        const int lj = localOfDof[3 * tets[t][j / 3] + j % 3];
+        if (lj >= 0 && lj <= li) triplets.emplace_back(li, lj, ke(i, j));
+      }
+    }
+  }
   const int m = static_cast<int>(regionDofs.size());
-  const SparseMatrix kuu = regionMatrix();
+  SparseMatrix kuu(m, m);
+  kuu.setFromTriplets(triplets.begin(), triplets.end());
+  kuu.makeCompressed();
   cholmod_sparse view = cholmodViewLower(kuu);
   openblas_set_num_threads(1);
   // the ordering: the whole factor's, restricted to U (no ordering cost; measured at 50k
@@ -996,32 +1009,6 @@ bool StructuralPhase::Impl::buildRegion(const Eigen::AlignedBox3d& box) {
   regionBox = box;
   regionValid = true;
   return true;
-}
-
-// A_UU, lower triangle, in the order of regionDofs: K_UU over the region's alive tets, the
-// identity on the dofs held since the region was built (a subset of its first pattern)
-SparseMatrix StructuralPhase::Impl::regionMatrix() const {
-  std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(regionTets.size() * 78);
-  const auto local = [&](int dof) { return held[dof] ? -1 : localOfDof[dof]; };
-  for (int t : regionTets) {
-    const Mat12 ke = elementStiffness(t);
-    for (int i = 0; i < 12; ++i) {
-      const int li = local(3 * tets[t][i / 3] + i % 3);
-      if (li < 0) continue;
-      for (int j = 0; j < 12; ++j) {
-        const int lj = local(3 * tets[t][j / 3] + j % 3);
-        if (lj >= 0 && lj <= li) triplets.emplace_back(li, lj, ke(i, j));
-      }
-    }
-  }
-  for (int dof : regionDofs)
-    if (held[dof]) triplets.emplace_back(localOfDof[dof], localOfDof[dof], 1.0);
-  const int m = static_cast<int>(regionDofs.size());
-  SparseMatrix kuu(m, m);
-  kuu.setFromTriplets(triplets.begin(), triplets.end());
-  kuu.makeCompressed();
-  return kuu;
 }
 
 // stress and von Mises per tet: D B u from u (solution: every tet, stored as the reference
@@ -1205,8 +1192,8 @@ std::function<StructuralUpdateStats()> StructuralPhase::Impl::beginRemoval(
     changedNodes.insert(changedNodes.end(), heldNodes.begin(), heldNodes.end());
     for (int dof : newlyFreed) changedNodes.push_back(dof / 3);
   }
-  // the region: its factor is refactorized at the next local solve when the removal touched
-  // it; a freed dof (not one of its unknowns) rebuilds it
+  // the region: the next local solve updates its factor when the removal touched it; a
+  // freed dof (not one of its unknowns) drops it
   if (method == StructuralSolveMethod::local && regionValid && newlyFreed.empty()) {
     for (int t : removed)
       if (inRegion[t]) {
@@ -1219,7 +1206,6 @@ std::function<StructuralUpdateStats()> StructuralPhase::Impl::beginRemoval(
           regionTets.end());
     for (int dof : newlyHeld)
       if (localOfDof[dof] >= 0) regionPending.held.push_back(dof);
-    regionStale = !regionPending.removed.empty() || !regionPending.held.empty();
   } else {
     dropRegion();
   }

@@ -123,9 +123,11 @@ enum class StructuralSolveMethod {
 // region (U, the alive tets touching it, CHOLMOD's factor of K_UU, ordered as the whole
 // factor) is built around that box grown by slackM, and reused while the box stays inside
 // it (a moving load pays a region factorization every slackM or so of travel).
-// Removals under the local method: the next local solve refactorizes the region's factor in
-// its analysis (A_UU only loses entries; the dofs held since its build become identity
-// rows); a removal outside the region's box, or one that frees a dof, rebuilds the region.
+// Removals under the local method: the next local solve updates the region's factor (kept
+// simplicial LDL': cholmod_rowdel for the dofs held since, which become identity rows, and a
+// downdate by the removed tets' stiffness on U, as the whole factor's update), or builds the
+// region again when that update would cost more than a factorization; a removal outside the
+// region's box, or one that frees a dof, rebuilds the region.
 // With refreshOnThread, removeTets also leaves the whole factor as it is: it catches up in
 // one update over every removal since its last one (a batched cholmod_updown, or a
 // refactorization if a dof was freed) at the next refresh, on its thread (which starts from
@@ -172,10 +174,10 @@ struct StructuralSolveStats {
   bool local = false;               // a local solve (else a full one, the new reference)
   bool regionBuilt = false;         // ... that built and factorized a region
   bool regionUpdated = false;       // ... that updated its region's factor for removals in it
-  bool regionRefactorized = false;  // ... by a refactorization (the update would cost more)
+  bool regionRefactorized = false;  // ... by building it again (the update would cost more)
   int regionDofs = 0;               // unknowns of the local solve (0: no load change)
   int regionTets = 0;               // tets whose stress the correction changes
-  double regionFactorSeconds = 0;   // assembly and factorization of K_UU (built or refactorized)
+  double regionFactorSeconds = 0;   // assembly and factorization of K_UU, or its update
   bool refreshAdopted = false;      // refreshOnThread: a refresh became the reference ...
   bool refreshStarted = false;      // ... a refresh of this load started
   double seconds = 0;               // wall time of the call (waits for the thread included)
@@ -208,8 +210,8 @@ struct StructuralUpdateStats {
   double updateWork = 0;        // entries of L the update walks, times the columns passing
   double updateCost = 0;        // estimated cost of the update / a refactorization's
   bool refactorized = false;    // fell back to a full refactorization
-  bool deferred = false;        // the local method: the factor's update waits for the next
-                                // refresh (on its thread) or full solve (see LocalSolveOptions)
+  bool deferred = false;        // local method, refresh on a thread: the factor's update waits
+                                // for the next refresh or full solve (see LocalSolveOptions)
   bool downdateFailed = false;  // ... because the update lost positive definiteness
   double convertSeconds = 0;    // supernodal LL' to simplicial LDL' (first update after a
                                 // factorization; 0 with StructuralOptions::prepareForUpdates)
