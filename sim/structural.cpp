@@ -1236,19 +1236,38 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
   cholmod_factor*& factor = *target.factor;
   const std::vector<int>& rowOfDof = *target.rowOf;
   // 4. C C' = the removed tets' stiffness on the dofs free before and after. Tets that share
-  // a node are summed first (one group per connected cluster, up to kMaxGroupDofs free dofs):
-  // the eigenpairs (lambda, v) of the group's matrix give columns sqrt(lambda) v in L's rows.
-  // A cluster's rank is at most its free dofs less its rigid motions, far below 6 per tet
-  // (a 13-tet cluster under the blade: 78 columns per tet, ~40 summed), and the update's
-  // work is proportional to the columns
+  // a node are summed first (one group per connected cluster, up to kMaxGroupDofs free dofs),
+  // and the group's matrix G (positive semidefinite), its dofs in ascending rows of L, is
+  // factored G = sum_c g_c g_c' / d_c by an LDL' that takes as pivot the first dof (lowest
+  // row of L) whose remaining diagonal is at least kPivotShare of the largest remaining one,
+  // and stops when that is at round-off (1e-12 of G's largest diagonal: the rigid modes).
+  // C gets the columns g_c / sqrt(d_c). A cluster's rank is at most its free dofs less its
+  // rigid motions, far below 6 per tet (a 13-tet cluster under the blade: 78 columns per
+  // tet, ~40 summed), and the update's work is proportional to the columns.
+  // Why this order: column c is zero on the rows pivoted before it, so its path up the
+  // elimination tree starts at the lowest row not yet pivoted, not at the group's lowest row
+  // as an eigenvector's does (the columns were G's eigenpairs before). Why the threshold:
+  // without it (every pivot in row order) a pivot tiny against the other diagonals loses
+  // its digits, and C C' missed G by up to 2e-4 in structural_test; with it, the error of
+  // each rank-1 term stays below rounding of G's largest entry / kPivotShare (for a
+  // semidefinite G, g_a^2 / d <= G_aa), and C C' matched G to 3e-14 (Frobenius, relative) with
+  // the same rank as the eigenpairs on all 2364 groups of structural_test, simulation_test
+  // and hard_removal_test (a temporary check). CHOLMOD's
+  // summed work estimate over esim bench cut --strategy update (units of a
+  // refactorization): 1013 nodes 6.0 with kPivotShare 1 (diagonal pivoting), 4.5 at 0.1, 3.1
+  // at 0.01 and below; 8000 nodes (--frames 60) 5.9 at 1, 3.2 at 0.01. Timed, each against
+  // the eigenpairs in alternating runs: --sizes 1013 --stages (five pairs) the update's
+  // median 1.3-1.8 against 2.7-3.0 ms, the frame p95 2.0-2.7 against 4.6-5.8 ms; --sizes 8000
+  // --frames 60 --stages (two pairs) the update's median 81-85 against 142-160 ms, its p95
+  // 181-205 against 399-420 ms, the frame p95 184-195 against 377-393 ms. Above
+  // kMaxGroupDofs the tets of a cluster go one by one (the dense LDL' is m^3 flops at most
+  // on m^2 doubles). 192 (was 96, measured with the eigenpairs): the 78- and 88-tet removals
+  // of esim bench cut --sizes 8000 frames 5 and 7 took 432 and 402 columns (per tet) with
+  // 96, 126 and 104 (summed) with 192; slowest frame 590 -> 442 ms
+  constexpr int kMaxGroupDofs = 192;
+  constexpr double kPivotShare = 0.01;
   std::vector<int> cp{0}, ci;
   std::vector<double> cx;
-  // 192 (was 96): the eigenpairs of a 192 x 192 group take 9 ms (132: 4.7 ms; Eigen, -O2,
-  // this machine), far less than the columns they save on large removals. esim bench cut
-  // --sizes 8000 --frames 60 --strategy update --stages: the 78- and 88-tet removals of
-  // frames 5 and 7 took 432 and 402 columns (per tet) with 96, 126 and 104 (summed) with 192;
-  // slowest frame 590 -> 442 ms, the structural update's p95 466 -> 377 ms
-  constexpr int kMaxGroupDofs = 192;
   std::vector<std::vector<int>> groups;
   {
     // clusters of removed tets through shared nodes (union-find over the removed list)
@@ -1311,16 +1330,27 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
         for (int j = 0; j < 12; ++j)
           if (at[i] >= 0 && at[j] >= 0) sum(at[i], at[j]) += ke(i, j);
     }
-    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(sum);
-    const double largest = eig.eigenvalues()(m - 1);
-    for (int c = 0; c < m; ++c) {
-      const double lambda = eig.eigenvalues()(c);
-      if (!(lambda > 1e-12 * largest)) continue;  // the rigid modes (round-off, either sign)
-      for (int a = 0; a < m; ++a) {
-        ci.push_back(free[a].first);
-        cx.push_back(std::sqrt(lambda) * eig.eigenvectors()(a, c));
-      }
+    const double largest = sum.diagonal().maxCoeff();
+    std::vector<std::uint8_t> done(m, 0);
+    Eigen::VectorXd g(m);
+    for (;;) {
+      double most = 0;
+      for (int a = 0; a < m; ++a)
+        if (!done[a]) most = std::max(most, sum(a, a));
+      if (!(most > 1e-12 * largest)) break;  // the rest: rigid modes (round-off)
+      int p = 0;
+      while (done[p] || sum(p, p) < kPivotShare * most) ++p;
+      const double d = sum(p, p);
+      for (int a = 0; a < m; ++a) g[a] = done[a] ? 0.0 : (a >= p ? sum(a, p) : sum(p, a));
+      const double scale = 1 / std::sqrt(d);
+      for (int a = 0; a < m; ++a)
+        if (g[a] != 0.0) {
+          ci.push_back(free[a].first);
+          cx.push_back(g[a] * scale);
+        }
       cp.push_back(static_cast<int>(ci.size()));
+      sum.selfadjointView<Eigen::Lower>().rankUpdate(g, -1 / d);
+      done[p] = 1;
     }
   };
   for (const std::vector<int>& group : groups) {

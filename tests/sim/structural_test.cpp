@@ -391,6 +391,36 @@ TEST(StructuralRemoval, OneFiveThenManyTetsEqualAFreshBuild) {
   expectSameAsFresh(phase, mesh, clamp, "many tets");
 }
 
+// The star of an interior node (every tet at it): the node is held, and the star's summed
+// stiffness on its N - 1 other nodes is the downdate. Its rank is 3 (N - 1) less the 3
+// rotations about the held centre (the only rigid motions that vanish there): the columns'
+// factorization keeps every direction with stiffness and drops exactly the rigid ones.
+TEST(StructuralRemoval, StarOfAnInteriorNodeDowndatesItsRankExactly) {
+  TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralPhase phase(mesh, alwaysUpdate(), clamp);
+  const Vec3 middle(0, 0, kLz / 2);
+  int centre = 0;  // the node nearest the middle of the slab
+  for (int v = 0; v < mesh.numNodes(); ++v)
+    if ((mesh.nodes[v] - middle).norm() < (mesh.nodes[centre] - middle).norm()) centre = v;
+  std::vector<int> star, ring;
+  for (int t = 0; t < mesh.numTets(); ++t)
+    if (std::count(mesh.tets[t].begin(), mesh.tets[t].end(), centre)) {
+      star.push_back(t);
+      for (int v : mesh.tets[t])
+        if (v != centre) ring.push_back(v);
+    }
+  std::sort(ring.begin(), ring.end());
+  ring.erase(std::unique(ring.begin(), ring.end()), ring.end());
+  for (int v : ring) ASSERT_GT(mesh.nodes[v].z(), 0.0);  // no clamped node: all dofs free
+  ASSERT_GE(star.size(), 12u);
+  const StructuralUpdateStats st = removeBoth(phase, mesh, star);
+  EXPECT_EQ(st.dofsHeld, 3);
+  EXPECT_EQ(st.rank, 3 * static_cast<int>(ring.size()) - 3);
+  EXPECT_FALSE(st.refactorized);
+  expectSameAsFresh(phase, mesh, clamp, "the star of the centre");
+}
+
 TEST(StructuralRemoval, OrphanedNodeIsHeld) {
   TetMesh mesh = distortedSlab();
   const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
