@@ -61,6 +61,9 @@ void validateElectricSolverOptions(const ElectricSolverOptions& options) {
   ESIM_VERIFY(options.pcgTolerance > 0 && std::isfinite(options.pcgTolerance),
               "solvers.electric.tolerance must be a positive number");
   ESIM_VERIFY(options.pcgMaxIterations >= 1, "solvers.electric.max_iterations must be >= 1");
+  ESIM_VERIFY(
+      options.capacitanceUpdateResidual > 0 && std::isfinite(options.capacitanceUpdateResidual),
+      "electric solver: capacitanceUpdateResidual must be a positive number");
   ESIM_VERIFY(options.denseMemoryLimitBytes > 0,
               "solvers.electric.dense_memory_limit_mb must be > 0");
 }

@@ -131,6 +131,9 @@ struct ElectricSolverOptions {
   double cacheMemoryLimitBytes = 1e9;                 // capacitance column cache cap (LRU eviction)
   int capacitancePatchNodes = 16;                     // capacitance: candidates solved together
   CapacitanceUpdate capacitanceUpdate = CapacitanceUpdate::Woodbury;  // capacitance updateMatrix
+  // capacitance updateMatrix: ||K' Y - I||_F / sqrt(s) the modified factor must reach on the
+  // s rows it changed (Y = K'^-1 I_:S); Woodbury refines once, then refactorizes, above it
+  double capacitanceUpdateResidual = 1e-10;
   int threads = 1;  // BLAS threads (CHOLMOD supernodal uses BLAS)
 };
 
@@ -156,6 +159,8 @@ struct ElectricUpdateStats {
   bool refactored = false;     // capacitance: the factor was recomputed numerically (same
                                // ordering): the change or the Woodbury term was too large
                                // to pay, or the accuracy check after the update failed
+  bool refined = false;        // capacitance, Woodbury: the term missed the accuracy check
+                               // alone; its solves now take one refinement step each
   int columnsCorrected = 0;    // capacitance: cached columns kept, corrected on next use
   int columnsDropped = 0;      // capacitance: cached columns dropped (node left the free
                                // set, or correcting them would cost more than solving again)

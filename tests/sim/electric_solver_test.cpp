@@ -716,5 +716,51 @@ TEST(ElectricSolverUpdate, CapacitanceWoodburyTermIsFoldedIntoAFactorComputedOnA
   EXPECT_EQ((last[0] - last[1]).cwiseAbs().maxCoeff(), 0.0);
 }
 
+// An update whose Woodbury term misses the accuracy check alone refines Y once and
+// refines every later solve with that term, instead of refactorizing in the frame: with
+// the check made strict enough that the plain term misses it, the refined updates still
+// give a fresh build's potentials, columns solved after them included.
+TEST(ElectricSolverUpdate, CapacitanceWoodburyTermMissingItsCheckIsRefinedNotRefactorized) {
+  const Problem p = paperSlab(1013);
+  const auto sets = sampleContacts(p);
+  CutSlab cut(1013);
+  ElectricSolverOptions strict{.strategy = ElectricStrategy::Capacitance};
+  strict.capacitanceUpdateResidual = 5e-14;
+  auto solver = makeElectricSolver(strict);
+  solver->setContactCandidates(cut.surface);
+  solver->setMatrix(cut.K, cut.grounded);
+  Eigen::VectorXd u, uf;
+  solver->solve(sets[0], kVolt, u);  // the other sets' columns are solved after the updates
+  int refinedOnly = 0, refactored = 0;
+  for (int k = 0; k < 12; ++k) {
+    const int node = cut.nearestNode(Vec3(-0.04 + 0.006 * k, -0.03, 0.01));
+    cut.remove(cut.aliveTetsWith(node));
+    const ElectricUpdateStats st = solver->updateMatrix(cut.K, cut.grounded);
+    EXPECT_FALSE(st.fellBack) << st.fallbackReason;
+    refinedOnly += st.refined && !st.refactored;
+    refactored += st.refactored;
+    auto fresh = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
+    fresh->setMatrix(cut.K, cut.grounded);
+    for (const auto& contact : sets) {
+      solver->solve(contact, kVolt, u);
+      fresh->solve(contact, kVolt, uf);
+      EXPECT_LT(relError(u, uf), 1e-9) << "cut " << k;
+    }
+  }
+  std::cout << "12 cuts, check at 5e-14: " << refinedOnly << " refined and kept, " << refactored
+            << " refactorized\n";
+  EXPECT_GE(refinedOnly, 3);
+  ElectricSolverOptions bad = strict;
+  bad.capacitanceUpdateResidual = 0;
+  try {
+    makeElectricSolver(bad);
+    ADD_FAILURE() << "a zero capacitanceUpdateResidual was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("capacitanceUpdateResidual must be a positive"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace esim
