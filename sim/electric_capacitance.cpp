@@ -48,8 +48,9 @@
 //      (ElectricSolverOptions::capacitanceUpdateResidual; and, Downdate, every pivot > 0).
 //      Woodbury: else Y takes one step of iterative refinement (s solves with the same
 //      operator), and so does every later solve with this term (stats.refined), until the
-//      next factor replaces the term; only if the refined Y still misses is the factor
-//      recomputed in the frame. Downdate: else setMatrix.
+//      next factor replaces the term, when its s solves cost under half a factorization
+//      (kRefineShare); the factor is recomputed in the frame when they cost more, or if the
+//      refined Y still misses. Downdate: else setMatrix.
 //   2. cached columns: z = K^-1 e_j gives K' z = e_j + E z, so
 //        z' = K'^-1 e_j = z - K'^-1 (E z) = z - Y (E z)_S,   Y = K'^-1 I_:S
 //      (S: the rows of E staying free; rows leaving the free set give z'_D = 0). Y from
@@ -106,6 +107,18 @@ constexpr double kWoodburyShare = 0.5;
 constexpr int kMaxWoodburyRows = 1024;
 // ... and at this share of that limit the next factor is computed on a thread
 constexpr double kNextFactorShare = 0.5;
+// A term that misses the accuracy check is refined (one step, s solves, see refine_) when
+// those cost less than this share of a factorization's flops, else refactorized. Measured
+// (esim bench cut --strategy update --stages, temporary instrumentation): at 8000 nodes the
+// misses had s = 8-56 rows (0.16-1.1 of a factorization's flops), refined in 17-79 ms each
+// against 100-270 ms for a refactorization in the frame; at 20 000 nodes s = 45-93 (0.85-0.95
+// for s = 72-81), 50-290 ms against ~250 ms, and the term, refined every time, kept missing
+// (residuals to 3.5e-8). Refining every miss, two alternating pairs each against no
+// refinement: --sizes 8000 --frames 60 electric update p95 84-103 against 139-202 ms;
+// --sizes 20000 --frames 40 median 231-258 against 133-156 ms (worse); refining a term once
+// and refactorizing its next miss: worse at 20 000 nodes still (median 278-306 against
+// 144-168 ms)
+constexpr double kRefineShare = 0.5;
 
 class CapacitanceSolver final : public ElectricSolver {
  public:
@@ -180,9 +193,10 @@ class CapacitanceSolver final : public ElectricSolver {
       if (!stats.refactored) {
         y = inverseColumns(rows);
         double residual = identityResidual(rows, y);
-        if (!(residual <= options_.capacitanceUpdateResidual) && !downdate) {
+        if (!(residual <= options_.capacitanceUpdateResidual) && !downdate &&
+            rowSolveFlops(rows.size()) <= kRefineShare * factor_.factorizeFlops()) {
           // one step of iterative refinement, here and in every later solve with this term
-          // (see refine_), before a refactorization in the frame is paid
+          // (see refine_), where it costs less than a refactorization in the frame
           refine_ = true;
           stats.refined = true;
           refineIdentity(rows, y);
@@ -777,10 +791,11 @@ class CapacitanceSolver final : public ElectricSolver {
   std::future<std::unique_ptr<CholmodFactor>> nextFactor_;
   // the Woodbury term failed its accuracy check alone (a node nearly cut off makes
   // I + G0 E0 ill-conditioned): every solve with it takes one step of iterative refinement;
-  // false again with the next factor (adopted or computed), whose term is empty. (Starting
-  // the next factor at once instead measured worse: its adoption, a fixed update later for
-  // reproducible runs, waited 67-106 ms for it at 8000 nodes, the structural update
-  // sharing its core.)
+  // false again with the next factor (adopted or computed), whose term is empty. Only
+  // while its s solves cost under kRefineShare of a factorization (see there). Starting
+  // the next factor at once after a refinement measured worse: its adoption, a fixed
+  // update later for reproducible runs, waited 67-106 ms for it at 8000 nodes, the
+  // structural update sharing its core.
   bool refine_ = false;
   std::vector<double> nextValues_;
 };
