@@ -20,12 +20,12 @@
 // components it newly holds are deleted (cholmod_rowdel: they become identity rows), then
 // the removed tets' stiffness on the components still free is subtracted as a low-rank
 // downdate (cholmod_updown; the stiffness of each cluster of removed tets sharing nodes is
-// summed and split by a semidefinite LDL' in L's row order, so a cluster costs its free dofs less
-// its rigid motions in columns, not 6 per tet: 36 instead of 78 for 13 tets under the blade; L is
-// converted to simplicial LDL' at the first removal after a factorization, O(nnz(L)) once, or right
-// after each factorization with StructuralOptions::prepareForUpdates). Its cost grows with the
-// removed tets, the pieces they cut off and the columns of L below them, not with the mesh; when
-// the estimate of that cost exceeds StructuralOptions::updateCostLimit times a
+// summed and split by an LDL' in L's row order (threshold pivoting), so a cluster costs its free
+// dofs less its rigid motions in columns, not 6 per tet: 36 instead of 78 for 13 tets under the
+// blade; L is converted to simplicial LDL' at the first removal after a factorization, O(nnz(L))
+// once, or right after each factorization with StructuralOptions::prepareForUpdates). Its cost
+// grows with the removed tets, the pieces they cut off and the columns of L below them, not with
+// the mesh; when the estimate of that cost exceeds StructuralOptions::updateCostLimit times a
 // refactorization's, or a downdate loses positive definiteness (a pivot D(j) <= 0), it
 // refactorizes A instead. Either way the result equals a phase built afresh on the mesh
 // with the same tets removed and the same supports (to round-off; see the tests).
