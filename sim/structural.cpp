@@ -1260,11 +1260,19 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
   // median 1.3-1.8 against 2.7-3.0 ms, the frame p95 2.0-2.7 against 4.6-5.8 ms; --sizes 8000
   // --frames 60 --stages (two pairs) the update's median 81-85 against 142-160 ms, its p95
   // 181-205 against 399-420 ms, the frame p95 184-195 against 377-393 ms. Above
-  // kMaxGroupDofs the tets of a cluster go one by one (the dense LDL' is m^3 flops at most
-  // on m^2 doubles). 192 (was 96, measured with the eigenpairs): the 78- and 88-tet removals
-  // of esim bench cut --sizes 8000 frames 5 and 7 took 432 and 402 columns (per tet) with
-  // 96, 126 and 104 (summed) with 192; slowest frame 590 -> 442 ms
-  constexpr int kMaxGroupDofs = 192;
+  // kMaxGroupDofs the tets of a cluster go one by one, 6 columns each (the dense LDL' is
+  // ~m^3/3 flops on m^2 doubles: 150 Mflop and 4.7 MB at 768). 768 (was 192, and 96 with the
+  // eigenpairs, whose 192 x 192 eigenproblem took 9 ms): esim bench cut --sizes 50000
+  // --frames 30 --strategy update --stages, one run each (temporary instrumentation): with
+  // 192, 6 of the 27 removals had a cluster over the limit (151-392 tets, 237-408 dofs, up to
+  // 2352 columns one by one instead of 408 summed); with 768 none, and the structural
+  // update's p95 went 11.7 -> 8.4 s, its max 17.1 -> 13.5 s, the frame p95 11.0 -> 9.7 s
+  // (the same 2975 tets removed; the median of the 21 other removals came out 2.5 -> 3.6 s,
+  // the electric update's 1.2 -> 1.4 s: the machine, not the limit). --sizes 20000
+  // --frames 40: one cluster over 192 (96 tets, 195 dofs), that removal's update 2.25 ->
+  // 1.24 s. With 96 -> 192 (eigenpairs, --sizes 8000): the 78- and 88-tet removals of frames
+  // 5 and 7 took 432 and 402 columns with 96, 126 and 104 with 192
+  constexpr int kMaxGroupDofs = 768;
   constexpr double kPivotShare = 0.01;
   std::vector<int> cp{0}, ci;
   std::vector<double> cx;

@@ -421,6 +421,42 @@ TEST(StructuralRemoval, StarOfAnInteriorNodeDowndatesItsRankExactly) {
   expectSameAsFresh(phase, mesh, clamp, "the star of the centre");
 }
 
+// A cluster of removed tets with more free dofs than one dense group may hold (768) goes tet
+// by tet: one tet of each cell of the upper two thirds (297 tets sharing nodes: one cluster),
+// every node keeping a tet (456 nodes). Its rank then exceeds the cluster's free dofs, which a
+// summed group's cannot, and the update still equals a fresh build.
+TEST(StructuralRemoval, ClusterOverTheGroupLimitGoesTetByTet) {
+  SlabSpec spec;
+  spec.sizeM = {kLx, kLy, kLz};
+  spec.nodesPerAxis = {12, 10, 6};
+  TetMesh mesh = makeSlab(spec);
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralPhase phase(mesh, alwaysUpdate(), clamp);
+  std::vector<int> removed;
+  const int perCell = mesh.numTets() / (11 * 9 * 5);
+  for (int t = 0; t < mesh.numTets(); t += perCell)
+    if (centroidZ(mesh, t) > kLz / 3) removed.push_back(t);
+  std::vector<int> touched;  // nodes of the removed tets that keep a tet (stay free)
+  for (int t : removed)
+    for (int v : mesh.tets[t]) touched.push_back(v);
+  std::sort(touched.begin(), touched.end());
+  touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+  for (int t : removed) mesh.alive[t] = 0;
+  int keeping = 0;
+  for (int v : touched)
+    for (int t = 0; t < mesh.numTets(); ++t)
+      if (mesh.alive[t] && std::count(mesh.tets[t].begin(), mesh.tets[t].end(), v)) {
+        ++keeping;
+        break;
+      }
+  for (int t : removed) mesh.alive[t] = 1;
+  ASSERT_GT(3 * keeping, 768);
+  const StructuralUpdateStats st = removeBoth(phase, mesh, removed);
+  EXPECT_FALSE(st.refactorized);
+  EXPECT_GT(st.rank, 3 * keeping);  // more columns than free dofs: one by one
+  expectSameAsFresh(phase, mesh, clamp, "half the upper tets");
+}
+
 TEST(StructuralRemoval, OrphanedNodeIsHeld) {
   TetMesh mesh = distortedSlab();
   const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
