@@ -17,7 +17,8 @@
 // loose, or hanging by an edge or a node), so that K stays positive definite; such
 // islands carry no stress.
 // Removal (removeTets) updates the factor instead of rebuilding it: the rows of the
-// components it newly holds are deleted (cholmod_rowdel: they become identity rows), then
+// components it newly holds are deleted (identity rows, as cholmod_rowdel makes them, but all
+// in one multiple-rank cholmod_updown by L's columns at those rows: deleteRows), then
 // the removed tets' stiffness on the components still free is subtracted as a low-rank
 // downdate (cholmod_updown; the stiffness of each cluster of removed tets sharing nodes is
 // summed and split by an LDL' in L's row order (threshold pivoting), so a cluster costs its free
@@ -124,7 +125,7 @@ enum class StructuralSolveMethod {
 // factor) is built around that box grown by slackM, and reused while the box stays inside
 // it (a moving load pays a region factorization every slackM or so of travel).
 // Removals under the local method: the next local solve updates the region's factor (kept
-// simplicial LDL': cholmod_rowdel for the dofs held since, which become identity rows, and a
+// simplicial LDL': the rows of the dofs held since deleted, as identity rows, and a
 // downdate by the removed tets' stiffness on U, as the whole factor's update), or builds the
 // region again when that update would cost more than a factorization; a removal outside the
 // region's box, or one that frees a dof, rebuilds the region.

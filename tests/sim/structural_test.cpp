@@ -421,6 +421,40 @@ TEST(StructuralRemoval, StarOfAnInteriorNodeDowndatesItsRankExactly) {
   expectSameAsFresh(phase, mesh, clamp, "the star of the centre");
 }
 
+// Several nodes lose their last tets in one removal: their rows are deleted from L in one
+// multiple-rank update by L's own columns (more than the 8 columns of one pass), not one
+// row at a time, and the result equals a fresh build. The stars of interior nodes two
+// cells apart along x share no tet; each holds its centre's 3 dofs.
+TEST(StructuralRemoval, ManyNodesHeldAtOnceAreDeletedTogether) {
+  TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralPhase phase(mesh, alwaysUpdate(), clamp);
+  // interior nodes, none sharing a tet with another one taken (their stars are disjoint)
+  std::vector<std::uint8_t> near(mesh.numNodes(), 0);
+  std::vector<int> removed, held;
+  for (int c = 0; c < mesh.numNodes(); ++c) {
+    const Vec3& x = mesh.nodes[c];
+    if (onBoundary(x) || near[c]) continue;
+    std::vector<int> star;
+    for (int t = 0; t < mesh.numTets(); ++t)
+      if (std::count(mesh.tets[t].begin(), mesh.tets[t].end(), c)) star.push_back(t);
+    bool apart = true;
+    for (int t : star)
+      for (int u : mesh.tets[t]) apart = apart && !(u != c && near[u] == 2);
+    if (!apart) continue;
+    for (int t : star)
+      for (int u : mesh.tets[t]) near[u] = std::max<std::uint8_t>(near[u], u == c ? 2 : 1);
+    removed.insert(removed.end(), star.begin(), star.end());
+    held.push_back(c);
+  }
+  ASSERT_GE(held.size(), 4u);  // 12 rows or more: two passes of cholmod_updown at least
+  std::sort(removed.begin(), removed.end());
+  const StructuralUpdateStats st = removeBoth(phase, mesh, removed);
+  EXPECT_EQ(st.dofsHeld, 3 * static_cast<int>(held.size()));
+  EXPECT_FALSE(st.refactorized);
+  expectSameAsFresh(phase, mesh, clamp, std::to_string(held.size()) + " stars at once");
+}
+
 // A cluster of removed tets with more free dofs than one dense group may hold (768) goes tet
 // by tet: one tet of each cell of the upper two thirds (297 tets sharing nodes: one cluster),
 // every node keeping a tet (456 nodes). Its rank then exceeds the cluster's free dofs, which a
