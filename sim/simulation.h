@@ -348,11 +348,12 @@ class Simulation {
  private:
   struct Rebuilt;
   void buildInitialModel(TetMesh mesh);
+  // concurrent: the structural phase on a thread of its own while the others are built
   std::unique_ptr<SimModel> buildModel(std::vector<std::uint8_t> alive, std::vector<double> sigma,
-                                       int prefetchFrom, int prefetchTo) const;
+                                       int prefetchFrom, int prefetchTo, bool concurrent) const;
   void initState();
   std::unique_ptr<SimModel> rebuildModel(std::vector<std::uint8_t> alive, std::vector<double> sigma,
-                                         int first, int prefetchTo) const;
+                                         int first, int prefetchTo, bool concurrent) const;
   std::vector<int> findContacts(FrameRecord& record) const;
   void checkFinite(Stage stage, const char* what, const double* values, int count,
                    const char* unit) const;
