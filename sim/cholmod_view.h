@@ -4,26 +4,38 @@
 
 #include <cholmod.h>
 
+#include <algorithm>
+
 #include "sim/fem_p1.h"
 
 namespace esim {
 
-// the lower triangle of a symmetric, compressed Eigen matrix as a CHOLMOD matrix; it points
-// into `a`, which must outlive it and stay unchanged while CHOLMOD reads it
-inline cholmod_sparse cholmodViewLower(const SparseMatrix& a) {
+// ncol sparse columns of nrow rows (compressed: p[0..ncol] offsets into i, rows ascending in
+// each column, and x, the values) as an unsymmetric CHOLMOD matrix, e.g. the columns of a
+// low-rank update; it points into the arrays, which must outlive it
+inline cholmod_sparse cholmodViewColumns(size_t nrow, size_t ncol, int* p, int* i, double* x) {
   cholmod_sparse s{};
-  s.nrow = a.rows();
-  s.ncol = a.cols();
-  s.nzmax = a.nonZeros();
-  s.p = const_cast<int*>(a.outerIndexPtr());
-  s.i = const_cast<int*>(a.innerIndexPtr());
-  s.x = const_cast<double*>(a.valuePtr());
-  s.stype = -1;  // symmetric, lower triangle used
+  s.nrow = nrow;
+  s.ncol = ncol;
+  s.nzmax = std::max(1, p[ncol]);
+  s.p = p;
+  s.i = i;
+  s.x = x;
   s.itype = CHOLMOD_INT;
   s.xtype = CHOLMOD_REAL;
   s.dtype = CHOLMOD_DOUBLE;
   s.sorted = 1;
   s.packed = 1;
+  return s;
+}
+
+// the lower triangle of a symmetric, compressed Eigen matrix as a CHOLMOD matrix; it points
+// into `a`, which must outlive it and stay unchanged while CHOLMOD reads it
+inline cholmod_sparse cholmodViewLower(const SparseMatrix& a) {
+  cholmod_sparse s =
+      cholmodViewColumns(a.rows(), a.cols(), const_cast<int*>(a.outerIndexPtr()),
+                         const_cast<int*>(a.innerIndexPtr()), const_cast<double*>(a.valuePtr()));
+  s.stype = -1;  // symmetric, lower triangle used
   return s;
 }
 

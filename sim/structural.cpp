@@ -697,18 +697,7 @@ bool StructuralPhase::Impl::deleteRows(const std::vector<int>& dofs, const Targe
     for (int q = lp[k] + 1; q < lp[k] + lnz[k]; ++q) lx[q] = 0;
   }
   if (wp.size() == 1) return true;
-  cholmod_sparse w{};
-  w.nrow = f->n;
-  w.ncol = wp.size() - 1;
-  w.nzmax = wi.size();
-  w.p = wp.data();
-  w.i = wi.data();
-  w.x = wx.data();
-  w.itype = CHOLMOD_INT;
-  w.xtype = CHOLMOD_REAL;
-  w.dtype = CHOLMOD_DOUBLE;
-  w.sorted = 1;
-  w.packed = 1;
+  cholmod_sparse w = cholmodViewColumns(f->n, wp.size() - 1, wp.data(), wi.data(), wx.data());
   return cholmod_updown(true, &w, f, &cm);
 }
 
@@ -1486,18 +1475,7 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
   if (stats.updateCost <= updateCostLimit) {
     bool ok = newlyHeld.empty() || deleteRows(newlyHeld, target, cm);
     if (ok && stats.rank > 0) {
-      cholmod_sparse c{};
-      c.nrow = factor->n;
-      c.ncol = stats.rank;
-      c.nzmax = ci.size();
-      c.p = cp.data();
-      c.i = ci.data();
-      c.x = cx.data();
-      c.itype = CHOLMOD_INT;
-      c.xtype = CHOLMOD_REAL;
-      c.dtype = CHOLMOD_DOUBLE;
-      c.sorted = 1;
-      c.packed = 1;
+      cholmod_sparse c = cholmodViewColumns(factor->n, stats.rank, cp.data(), ci.data(), cx.data());
       ok = cholmod_updown(false, &c, factor, &cm);
     }
     for (size_t k = 0; ok && k < newlyFreed.size(); ++k) {
@@ -1533,18 +1511,7 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
         }
       }
       int rp[2] = {0, static_cast<int>(ri.size())};
-      cholmod_sparse r{};
-      r.nrow = factor->n;
-      r.ncol = 1;
-      r.nzmax = ri.size();
-      r.p = rp;
-      r.i = ri.data();
-      r.x = rx.data();
-      r.itype = CHOLMOD_INT;
-      r.xtype = CHOLMOD_REAL;
-      r.dtype = CHOLMOD_DOUBLE;
-      r.sorted = 1;
-      r.packed = 1;
+      cholmod_sparse r = cholmodViewColumns(factor->n, 1, rp, ri.data(), rx.data());
       ok = cholmod_rowadd(rowOfDof[dof], &r, factor, &cm);
     }
     // a downdate that lost positive definiteness shows as D(j) <= 0 on the walked columns
