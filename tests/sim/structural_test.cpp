@@ -423,8 +423,8 @@ TEST(StructuralRemoval, StarOfAnInteriorNodeDowndatesItsRankExactly) {
 
 // Several nodes lose their last tets in one removal: their rows are deleted from L in one
 // multiple-rank update by L's own columns (more than the 8 columns of one pass), not one
-// row at a time, and the result equals a fresh build. The stars of interior nodes two
-// cells apart along x share no tet; each holds its centre's 3 dofs.
+// row at a time, and the result equals a fresh build. The stars of interior nodes none of
+// which lies in an earlier one's star share no tet; each holds its centre's 3 dofs.
 TEST(StructuralRemoval, ManyNodesHeldAtOnceAreDeletedTogether) {
   TetMesh mesh = biggerSlab();
   const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
