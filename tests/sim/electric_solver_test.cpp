@@ -674,6 +674,30 @@ TEST(ElectricSolverUpdate, CapacitanceNewSurfaceIsPrefetchedAndUpdatesAreDetermi
   EXPECT_EQ((u[0] - u[1]).cwiseAbs().maxCoeff(), 0.0);
 }
 
+// Cut k of a line of cuts away from the contact spots: the k-th top node on the line
+// loses its tets and the solver is updated (no fallback); then each contact set's
+// potential must be within 1e-9 of a fresh solver's (and, if cached, solve no column).
+// Returns the update's stats; u: the last set's potential.
+ElectricUpdateStats cutLineNodeAndCompare(CutSlab& cut, ElectricSolver& solver,
+                                          const std::vector<std::vector<int>>& sets, int k,
+                                          bool cached, Eigen::VectorXd& u) {
+  cut.remove(cut.aliveTetsWith(cut.nearestNode(Vec3(-0.04 + 0.006 * k, -0.03, 0.01))));
+  const ElectricUpdateStats st = solver.updateMatrix(cut.K, cut.grounded);
+  EXPECT_FALSE(st.fellBack) << st.fallbackReason;
+  auto fresh = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
+  fresh->setMatrix(cut.K, cut.grounded);
+  Eigen::VectorXd uf;
+  for (const auto& contact : sets) {
+    const int solved = solver.solve(contact, kVolt, u).newColumns;
+    if (cached) {
+      EXPECT_EQ(solved, 0) << "cut " << k;
+    }
+    fresh->solve(contact, kVolt, uf);
+    EXPECT_LT(relError(u, uf), 1e-9) << "cut " << k;
+  }
+  return st;
+}
+
 // capacitance, Woodbury: cut after cut the term grows; from half its limit the matrix is
 // factorized on a thread and the next update adopts that factor (an empty term again), so
 // no update refactorizes in the frame; the cache stays valid throughout, every cut matches a
@@ -688,24 +712,13 @@ TEST(ElectricSolverUpdate, CapacitanceWoodburyTermIsFoldedIntoAFactorComputedOnA
     auto solver = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
     solver->setContactCandidates(cut.surface);
     solver->setMatrix(cut.K, cut.grounded);
-    Eigen::VectorXd u, uf;
+    Eigen::VectorXd u;
     for (const auto& contact : sets) solver->solve(contact, kVolt, u);
     int refactored = 0, adopted = 0;
     for (int k = 0; k < 12; ++k) {
-      // a top node on a line away from the contact spots loses its tets
-      const int node = cut.nearestNode(Vec3(-0.04 + 0.006 * k, -0.03, 0.01));
-      cut.remove(cut.aliveTetsWith(node));
-      const ElectricUpdateStats st = solver->updateMatrix(cut.K, cut.grounded);
-      EXPECT_FALSE(st.fellBack) << st.fallbackReason;
+      const ElectricUpdateStats st = cutLineNodeAndCompare(cut, *solver, sets, k, true, u);
       refactored += st.refactored;
       adopted += st.adoptedFactor;
-      auto fresh = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
-      fresh->setMatrix(cut.K, cut.grounded);
-      for (const auto& contact : sets) {
-        EXPECT_EQ(solver->solve(contact, kVolt, u).newColumns, 0) << "cut " << k;
-        fresh->solve(contact, kVolt, uf);
-        EXPECT_LT(relError(u, uf), 1e-9) << "cut " << k;
-      }
     }
     last[run] = u;
     std::cout << "12 cuts: " << adopted << " factors adopted from the thread, " << refactored
@@ -733,23 +746,13 @@ TEST(ElectricSolverUpdate, CapacitanceWoodburyTermMissingItsCheckIsRefinedWhereT
     auto solver = makeElectricSolver(strict);
     solver->setContactCandidates(cut.surface);
     solver->setMatrix(cut.K, cut.grounded);
-    Eigen::VectorXd u, uf;
+    Eigen::VectorXd u;
     solver->solve(sets[0], kVolt, u);  // the other sets' columns are solved after the updates
     int refinedOnly = 0, refactored = 0;
     for (int k = 0; k < 8; ++k) {
-      const int node = cut.nearestNode(Vec3(-0.04 + 0.006 * k, -0.03, 0.01));
-      cut.remove(cut.aliveTetsWith(node));
-      const ElectricUpdateStats st = solver->updateMatrix(cut.K, cut.grounded);
-      EXPECT_FALSE(st.fellBack) << st.fallbackReason;
+      const ElectricUpdateStats st = cutLineNodeAndCompare(cut, *solver, sets, k, false, u);
       refinedOnly += st.refined && !st.refactored;
       refactored += st.refactored;
-      auto fresh = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
-      fresh->setMatrix(cut.K, cut.grounded);
-      for (const auto& contact : sets) {
-        solver->solve(contact, kVolt, u);
-        fresh->solve(contact, kVolt, uf);
-        EXPECT_LT(relError(u, uf), 1e-9) << "cut " << k;
-      }
     }
     std::cout << nodes << " nodes, 8 cuts, check at 5e-14: " << refinedOnly << " refined and kept, "
               << refactored << " refactorized\n";
