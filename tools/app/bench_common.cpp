@@ -1,8 +1,13 @@
 // bench_common.cpp - option parsing shared by the `esim bench` commands (bench_common.h).
 #include "tools/app/bench_common.h"
 
+#include <unistd.h>
+
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <sstream>
+#include <system_error>
 
 #include "sim/core_error.h"
 
@@ -29,6 +34,51 @@ std::vector<int> parseNodeCounts(const std::string& text, const std::string& com
   }
   ESIM_VERIFY(!out.empty(), command + ": --sizes is empty");
   return out;
+}
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// FILE.tmp<pid>: beside FILE, so that the rename stays on one file system
+fs::path temporaryBeside(const std::string& path) {
+  return fs::path(path + ".tmp" + std::to_string(::getpid()));
+}
+
+}  // namespace
+
+CsvOutput::CsvOutput(std::string path, const std::string& header) : path_(std::move(path)) {
+  if (path_.empty()) return;
+  std::error_code ec;
+  ESIM_VERIFY(!fs::is_directory(path_, ec),
+              "--csv: cannot write '" + path_ + "' (a folder; expected a file name)");
+  const fs::path probe = temporaryBeside(path_);
+  const bool writable = std::ofstream(probe).good();
+  fs::remove(probe, ec);
+  ESIM_VERIFY(writable, "--csv: cannot write '" + path_ +
+                            "' (does its folder exist, and may it be written?)");
+  rows_ << header << '\n';
+}
+
+void CsvOutput::commit() {
+  if (path_.empty()) return;
+  const fs::path tmp = temporaryBeside(path_);
+  std::error_code ec;
+  {
+    std::ofstream os(tmp, std::ios::binary);
+    os << rows_.str();
+    os.flush();
+    if (!os.good()) {
+      fs::remove(tmp, ec);
+      throw Error("--csv: writing '" + path_ + "' failed (disk full?)", ErrorKind::Run);
+    }
+  }
+  fs::rename(tmp, path_, ec);
+  if (ec) {
+    const std::string why = ec.message();
+    fs::remove(tmp, ec);
+    throw Error("--csv: cannot replace '" + path_ + "': " + why, ErrorKind::Run);
+  }
 }
 
 }  // namespace esim::app

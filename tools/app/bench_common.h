@@ -1,6 +1,7 @@
 // bench_common.h - option parsing shared by the `esim bench` commands.
 #pragma once
 
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -12,5 +13,27 @@ std::vector<std::string> splitList(const std::string& text);
 // "1013,20000" -> {1013, 20000}: node counts in [8, 5e6]; throws esim::Error naming
 // `command`'s --sizes option and the bad item
 std::vector<int> parseNodeCounts(const std::string& text, const std::string& command);
+
+// A bench's --csv table, written whole or not at all. The constructor checks that FILE can
+// be written (a probe file beside it, removed again), so a bad path fails before the bench
+// runs; rows are kept in memory; commit() writes them to a temporary file beside FILE and
+// renames it to FILE. A bench that stops before commit() (bad input found later, an error,
+// an interruption) leaves FILE as it was: an earlier table is never truncated or left half
+// written. An empty path is no table (false).
+class CsvOutput {
+ public:
+  // throws esim::Error "--csv: cannot write 'FILE' (...)" (a folder, a missing folder, no
+  // permission)
+  CsvOutput(std::string path, const std::string& header);
+  explicit operator bool() const { return !path_.empty(); }
+  std::ostringstream& out() { return rows_; }  // the rows after the header
+  // writes and renames (once); throws esim::Error (Run kind) when that fails, FILE untouched
+  void commit();
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+  std::ostringstream rows_;
+};
 
 }  // namespace esim::app

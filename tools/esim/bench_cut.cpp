@@ -8,14 +8,14 @@
 // 4 s cut, 120 frames). Per (strategy, size): physics time per frame (median, p95, max,
 // removal frames included), tets removed, rebuilds, the rebuild stage's median on the frames
 // that removed tets, and the frames that waited for a background rebuild. --csv writes
-// strategy,nodes,frames,median_ms,p95_ms,max_ms,removed_tets,rebuilds,rebuild_median_ms,waits.
-// A benchmark, never a pass/fail test.
+// strategy,nodes,frames,median_ms,p95_ms,max_ms,removed_tets,rebuilds,rebuild_median_ms,waits
+// when the bench ends (app::CsvOutput: an earlier FILE stays as it was until then). Every run's
+// scenario is checked before the first run. A benchmark, never a pass/fail test.
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstdint>
 #include <cstdio>
-#include <fstream>
 #include <memory>
 #include <string>
 #include <thread>
@@ -50,6 +50,17 @@ double quantile(std::vector<double> v, double q) {
   return v[std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size())))];
 }
 
+// the scenario values of one run: the bench's own, then --set
+std::vector<std::string> runSets(const BenchCutOptions& opt, int nodes, const std::string& strategy,
+                                 const std::string& method) {
+  std::vector<std::string> sets = {
+      "mesh.slab.nodes=" + std::to_string(nodes), "tool.voltage_v=" + std::to_string(opt.voltageV),
+      "solvers.rebuild.mode=" + strategy, "solvers.structural.method=" + method,
+      "physics=[electric,thermal,boiling,structural,rupture]"};
+  sets.insert(sets.end(), opt.overrides.begin(), opt.overrides.end());
+  return sets;
+}
+
 int benchCut(const BenchCutOptions& opt) {
   const std::vector<int> sizes = app::parseNodeCounts(opt.sizes, "bench cut");
   std::vector<std::string> strategies =
@@ -60,32 +71,27 @@ int benchCut(const BenchCutOptions& opt) {
                 "--strategy: '" + s + "' is not synchronous, background, update or all");
   ESIM_VERIFY(opt.frames >= 0, "--frames must be >= 0");
   ESIM_VERIFY(opt.paceHz >= 0 && opt.paceHz <= 1e4, "--pace must be in 0..10000 Hz");
-  std::unique_ptr<std::ofstream> csv;
-  if (!opt.csv.empty()) {
-    csv = std::make_unique<std::ofstream>(opt.csv);
-    ESIM_VERIFY(csv->good(), "--csv: cannot write '" + opt.csv + "'");
-    *csv << "strategy,nodes,frames,median_ms,p95_ms,max_ms,removed_tets,rebuilds,"
-            "rebuild_median_ms,waits\n";
-  }
-  std::printf("esim bench cut: %s at %.0f V, physics per frame (no rendering), one BLAS thread\n",
-              opt.scenario.c_str(), opt.voltageV);
-  std::printf("%-12s %7s %6s %10s %9s %9s %8s %8s %11s %6s\n", "strategy", "nodes", "frames",
-              "median_ms", "p95_ms", "max_ms", "removed", "rebuilds", "rebuild_med", "waits");
   const std::vector<std::string> methods = app::splitList(opt.structural);
   for (const std::string& m : methods)
     ESIM_VERIFY(m == "full" || m == "local",
                 "--structural: '" + m + "' is not full or local (solvers.structural.method)");
+  // every run's scenario checked before the first run (its mesh is built when it runs)
+  for (const int nodes : sizes)
+    for (const std::string& strategy : strategies)
+      for (const std::string& method : methods)
+        loadScenario(opt.scenario, runSets(opt, nodes, strategy, method));
+  app::CsvOutput csv(opt.csv,
+                     "strategy,nodes,frames,median_ms,p95_ms,max_ms,removed_tets,rebuilds,"
+                     "rebuild_median_ms,waits");
+  std::printf("esim bench cut: %s at %.0f V, physics per frame (no rendering), one BLAS thread\n",
+              opt.scenario.c_str(), opt.voltageV);
+  std::printf("%-12s %7s %6s %10s %9s %9s %8s %8s %11s %6s\n", "strategy", "nodes", "frames",
+              "median_ms", "p95_ms", "max_ms", "removed", "rebuilds", "rebuild_med", "waits");
   for (const int nodes : sizes)
     for (const std::string& strategy : strategies) {
       std::vector<std::uint8_t> fullAlive;  // the removed set of the full solve's run
       for (const std::string& method : methods) {
-        std::vector<std::string> sets = {"mesh.slab.nodes=" + std::to_string(nodes),
-                                         "tool.voltage_v=" + std::to_string(opt.voltageV),
-                                         "solvers.rebuild.mode=" + strategy,
-                                         "solvers.structural.method=" + method,
-                                         "physics=[electric,thermal,boiling,structural,rupture]"};
-        sets.insert(sets.end(), opt.overrides.begin(), opt.overrides.end());
-        const Scenario sc = loadScenario(opt.scenario, sets);
+        const Scenario sc = loadScenario(opt.scenario, runSets(opt, nodes, strategy, method));
         const SimulationConfig config = app::makeSimulationConfig(sc);
         Simulation sim(app::buildMesh(sc), config);
         const int frames =
@@ -177,12 +183,15 @@ int benchCut(const BenchCutOptions& opt) {
         }
         std::fflush(stdout);
         if (csv)
-          *csv << label << ',' << sim.mesh().numNodes() << ',' << frames << ',' << med << ',' << p95
-               << ',' << mx << ',' << sim.removedTets() << ',' << sim.rebuilds() << ',' << rmed
-               << ',' << waits << '\n';
+          csv.out() << label << ',' << sim.mesh().numNodes() << ',' << frames << ',' << med << ','
+                    << p95 << ',' << mx << ',' << sim.removedTets() << ',' << sim.rebuilds() << ','
+                    << rmed << ',' << waits << '\n';
       }
     }
-  if (csv) std::printf("wrote %s\n", opt.csv.c_str());
+  if (csv) {
+    csv.commit();
+    std::printf("wrote %s\n", opt.csv.c_str());
+  }
   return cli::kExitOk;
 }
 

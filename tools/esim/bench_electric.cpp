@@ -466,6 +466,8 @@ int benchElectric(const BenchElectricOptions& opt) {
   const std::vector<ElectricStrategy> strategies = parseStrategies(opt.strategies);
   ESIM_VERIFY(opt.frames >= 1, "bench electric: --frames must be >= 1");
   ESIM_VERIFY(opt.threads >= 1, "bench electric: --threads must be >= 1");
+  app::CsvOutput csv(opt.csv,
+                     "strategy,nodes,precompute_s,median_ms,p95_ms,memory_mb,max_rel_error,note");
   std::vector<Row> rows;
   std::printf(
       "esim bench electric: blade cutting x = -40..40 mm by one grid spacing per frame "
@@ -526,16 +528,14 @@ int benchElectric(const BenchElectricOptions& opt) {
     rows.insert(rows.end(), sizeRows.begin(), sizeRows.end());
   }
   // CSV
-  if (!opt.csv.empty()) {
-    std::ofstream out(opt.csv);
-    ESIM_VERIFY(out.good(), "bench electric: cannot write --csv file '" + opt.csv + "'");
-    out << "strategy,nodes,precompute_s,median_ms,p95_ms,memory_mb,max_rel_error,note\n";
+  if (csv) {
+    std::ostringstream& out = csv.out();
     for (const Row& r : rows)
       out << r.strategy << ',' << r.nodes << ',' << fmt(r.precomputeS, "%.6f") << ','
           << fmt(r.medianMs, "%.6f") << ',' << fmt(r.p95Ms, "%.6f") << ','
           << fmt(r.memoryMb, "%.3f") << ',' << fmt(r.maxRelError, "%.3e") << ',' << csvQuote(r.note)
           << '\n';
-    ESIM_VERIFY(out.good(), "bench electric: writing '" + opt.csv + "' failed");
+    csv.commit();
     std::printf("\nwrote %s\n", opt.csv.c_str());
   }
   // 6. the paper's Fig. 9(a)

@@ -25,7 +25,6 @@
 #include <cstdlib>
 #include <ctime>
 #include <filesystem>
-#include <fstream>
 #include <limits>
 #include <memory>
 #include <sstream>
@@ -215,13 +214,10 @@ int benchRender(const BenchRenderOptions& opt) {
     sizes.push_back({w, h});
   }
   const std::vector<Variant> variants = parseVariants(opt);
-  std::unique_ptr<std::ofstream> csv;
-  if (!opt.csv.empty()) {
-    csv = std::make_unique<std::ofstream>(opt.csv);
-    ESIM_VERIFY(csv->good(), "--csv: cannot write '" + opt.csv + "'");
-    *csv << "surface,width,height,triangles,render_ms,convert_ms,encode_ms,shading,msaa,psnr_db"
-         << (opt.labels ? ",labels_ms" : "") << "\n";
-  }
+  app::CsvOutput csv(opt.csv,
+                     std::string("surface,width,height,triangles,render_ms,convert_ms,encode_ms,"
+                                 "shading,msaa,psnr_db") +
+                         (opt.labels ? ",labels_ms" : ""));
   const char* lpThreads = std::getenv("LP_NUM_THREADS");
   bool header = false;
 
@@ -292,15 +288,18 @@ int benchRender(const BenchRenderOptions& opt) {
         std::printf("\n");
         std::fflush(stdout);
         if (csv)
-          *csv << name << "," << w << "," << h << "," << base.numTriangles() << ","
-               << median(renderMs) << "," << convertMs << "," << encodeMs << "," << variant.shading
-               << "," << variant.msaa << "," << psnrDb;
-        if (csv && opt.labels) *csv << "," << median(r.labelsMs);
-        if (csv) *csv << "\n";
+          csv.out() << name << "," << w << "," << h << "," << base.numTriangles() << ","
+                    << median(renderMs) << "," << convertMs << "," << encodeMs << ","
+                    << variant.shading << "," << variant.msaa << "," << psnrDb;
+        if (csv && opt.labels) csv.out() << "," << median(r.labelsMs);
+        if (csv) csv.out() << "\n";
       }
     }
   }
-  if (csv) std::printf("wrote %s\n", opt.csv.c_str());
+  if (csv) {
+    csv.commit();
+    std::printf("wrote %s\n", opt.csv.c_str());
+  }
   return kExitOk;
 }
 

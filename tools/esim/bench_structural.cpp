@@ -211,13 +211,9 @@ int benchStructural(const BenchStructuralOptions& opt) {
   if (opt.local) return benchLocal(opt);
   ESIM_VERIFY(opt.solves >= 1, "--solves must be >= 1");
   const std::vector<int> sizes = app::parseNodeCounts(opt.sizes, "bench structural");
-  std::unique_ptr<std::ofstream> csv;
-  if (!opt.csv.empty()) {
-    csv = std::make_unique<std::ofstream>(opt.csv);
-    ESIM_VERIFY(csv->good(), "--csv: cannot write '" + opt.csv + "'");
-    *csv << "nodes,dofs,factor_ms,solve_ms,rebuild5_ms,update5_ms,convert_ms,update_refactorized,"
-            "solve_updated_ms,update_vs_rebuild,max_von_mises_pa\n";
-  }
+  app::CsvOutput csv(opt.csv,
+                     "nodes,dofs,factor_ms,solve_ms,rebuild5_ms,update5_ms,convert_ms,"
+                     "update_refactorized,solve_updated_ms,update_vs_rebuild,max_von_mises_pa");
   std::printf(
       "esim bench structural: paper slab 100x100x10 mm, bottom clamped, Gaussian "
       "expansion (peak %.2f, radius 3 mm) under the top centre; %d solves; E 4.75e4 "
@@ -293,12 +289,15 @@ int benchStructural(const BenchStructuralOptions& opt) {
                 difference, maxVm);
     std::fflush(stdout);
     if (csv)
-      *csv << mesh.numNodes() << ',' << rebuilt->numFreeDofs() << ',' << factorMs << ','
-           << solveMs[solveMs.size() / 2] << ',' << rebuildMs << ',' << updateMs << ',' << convertMs
-           << ',' << (update.refactorized ? 1 : 0) << ',' << solveUpdatedMs << ',' << difference
-           << ',' << maxVm << '\n';
+      csv.out() << mesh.numNodes() << ',' << rebuilt->numFreeDofs() << ',' << factorMs << ','
+                << solveMs[solveMs.size() / 2] << ',' << rebuildMs << ',' << updateMs << ','
+                << convertMs << ',' << (update.refactorized ? 1 : 0) << ',' << solveUpdatedMs << ','
+                << difference << ',' << maxVm << '\n';
   }
-  if (csv) std::printf("wrote %s\n", opt.csv.c_str());
+  if (csv) {
+    csv.commit();
+    std::printf("wrote %s\n", opt.csv.c_str());
+  }
   return cli::kExitOk;
 }
 

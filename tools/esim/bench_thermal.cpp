@@ -18,7 +18,6 @@
 #include <cmath>
 #include <cstdio>
 #include <ctime>
-#include <fstream>
 #include <memory>
 #include <sstream>
 
@@ -91,12 +90,7 @@ int benchThermal(const BenchThermalOptions& opt) {
   openblas_set_num_threads(1);
   const double dt = 1.0 / opt.fps;
 
-  std::unique_ptr<std::ofstream> csv;
-  if (!opt.csv.empty()) {
-    csv = std::make_unique<std::ofstream>(opt.csv);
-    ESIM_VERIFY(csv->good(), "--csv: cannot write '" + opt.csv + "'");
-    *csv << "integrator,nodes,dt_s,median_ms,p95_ms,max_abs_error_K\n";
-  }
+  app::CsvOutput csv(opt.csv, "integrator,nodes,dt_s,median_ms,p95_ms,max_abs_error_K");
   std::printf(
       "esim bench thermal: %d frames of %.4f s, boiling %s, hot spot 5e8 W/m^3 r 2 mm "
       "moving 5 mm/s; reference CN x%d sub-steps; solver %s; boiling tolerance %.0e K; "
@@ -198,13 +192,16 @@ int benchThermal(const BenchThermalOptions& opt) {
           double(substeps) / opt.frames, double(iterations) / opt.frames,
           double(cgIterations) / opt.frames, solverName.c_str(), maxErr, tMaxC, removeMs, nextMs);
       if (csv)
-        *csv << name << "," << mesh.numNodes() << "," << dt << "," << med << "," << p95 << ","
-             << maxErr << "\n";
+        csv.out() << name << "," << mesh.numNodes() << "," << dt << "," << med << "," << p95 << ","
+                  << maxErr << "\n";
     }
     std::printf("%-15s %7d explicit stability limit %.3f s (%.0f frames)\n", "", mesh.numNodes(),
                 explicitLimit, explicitLimit / dt);
   }
-  if (csv) std::printf("wrote %s\n", opt.csv.c_str());
+  if (csv) {
+    csv.commit();
+    std::printf("wrote %s\n", opt.csv.c_str());
+  }
   return cli::kExitOk;
 }
 

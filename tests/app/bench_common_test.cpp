@@ -1,0 +1,117 @@
+// bench_common_test.cpp - what the esim bench commands share (tools/app/bench_common.cpp):
+// option lists, node counts, and a --csv table that is written whole or not at all.
+#include "tools/app/bench_common.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "sim/core_error.h"
+
+namespace esim::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+class CsvOutputTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    root_ = fs::temp_directory_path() /
+            ("esim_bench_common_" + std::to_string(::getpid()) + "_" +
+             ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(root_);
+    fs::create_directories(root_);
+  }
+  void TearDown() override { fs::remove_all(root_); }
+  static std::string read(const fs::path& p) {
+    std::ifstream is(p);
+    std::stringstream ss;
+    ss << is.rdbuf();
+    return ss.str();
+  }
+  // the files in root_, by name
+  std::vector<std::string> files() const {
+    std::vector<std::string> names;
+    for (const auto& e : fs::directory_iterator(root_)) names.push_back(e.path().filename());
+    std::sort(names.begin(), names.end());
+    return names;
+  }
+  fs::path root_;
+};
+
+TEST_F(CsvOutputTest, CommitReplacesTheFileWithTheWholeTable) {
+  const fs::path file = root_ / "t.csv";
+  std::ofstream(file) << "an earlier table\n";
+  CsvOutput csv(file.string(), "a,b");
+  ASSERT_TRUE(static_cast<bool>(csv));
+  csv.out() << "1,2\n";
+  EXPECT_EQ(read(file), "an earlier table\n");  // untouched until commit
+  csv.out() << "3,4\n";
+  csv.commit();
+  EXPECT_EQ(read(file), "a,b\n1,2\n3,4\n");
+  EXPECT_EQ(files(), std::vector<std::string>{"t.csv"});  // no temporary file left
+}
+
+TEST_F(CsvOutputTest, ABenchThatStopsBeforeCommitLeavesTheFileAsItWas) {
+  const fs::path file = root_ / "t.csv";
+  std::ofstream(file) << "an earlier table\n";
+  try {
+    CsvOutput csv(file.string(), "a,b");
+    csv.out() << "1,2\n";
+    throw Error("bad input found after the table was opened");
+  } catch (const Error&) {
+  }
+  EXPECT_EQ(read(file), "an earlier table\n");
+  EXPECT_EQ(files(), std::vector<std::string>{"t.csv"});
+  // and a path that did not exist is not created
+  { CsvOutput csv((root_ / "new.csv").string(), "a"); }
+  EXPECT_EQ(files(), std::vector<std::string>{"t.csv"});
+}
+
+TEST_F(CsvOutputTest, AnUnwritablePathFailsAtOnceNamingIt) {
+  const std::string folder = root_.string();
+  try {
+    CsvOutput csv(folder, "a");
+    FAIL() << "a folder was accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "--csv: cannot write '" + folder + "' (a folder; expected a file name)");
+    EXPECT_EQ(e.kind(), ErrorKind::Input);
+  }
+  const std::string missing = (root_ / "no" / "t.csv").string();
+  try {
+    CsvOutput csv(missing, "a");
+    FAIL() << "a missing folder was accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), "--csv: cannot write '" + missing +
+                                         "' (does its folder exist, and may it be written?)");
+  }
+  EXPECT_TRUE(files().empty());
+}
+
+TEST_F(CsvOutputTest, NoPathIsNoTable) {
+  CsvOutput csv("", "a,b");
+  EXPECT_FALSE(static_cast<bool>(csv));
+  csv.commit();  // nothing to write
+  EXPECT_TRUE(files().empty());
+}
+
+TEST(BenchOptions, ListsAndNodeCounts) {
+  EXPECT_EQ(splitList("a,,b,c"), (std::vector<std::string>{"a", "b", "c"}));
+  EXPECT_EQ(parseNodeCounts("1013,50000", "bench cut"), (std::vector<int>{1013, 50000}));
+  try {
+    parseNodeCounts("1013,7", "bench cut");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "bench cut: --sizes: '7' is not a node count in [8, 5000000] (expected e.g. "
+              "1013,20000,50000)");
+  }
+  EXPECT_THROW(parseNodeCounts(",", "bench cut"), Error);
+}
+
+}  // namespace
+}  // namespace esim::app

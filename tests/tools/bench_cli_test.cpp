@@ -1,0 +1,93 @@
+// bench_cli_test.cpp - the esim bench commands end to end, on their input checks and their
+// --csv tables (timings are never asserted: the benches are measurements, not tests). A bench
+// given bad input exits 2 naming it and leaves an earlier table as it was; one that runs
+// writes its whole table.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "tests/tools/cli_test_util.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using esim::cli_test::readFile;
+using esim::cli_test::shell;
+
+class BenchCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("esim_bench_cli_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    csv_ = dir_ / "table.csv";
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string esim(const std::string& args) const {
+    return std::string("\"") + ESIM_EXE + "\" " + args + " --csv \"" + csv_.string() + "\"";
+  }
+  fs::path dir_, csv_;
+};
+
+TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
+  struct Case {
+    std::string args, message;
+  };
+  const std::vector<Case> cases = {
+      {"bench cut --sizes 50 --structural bar",
+       "--structural: 'bar' is not full or local (solvers.structural.method)"},
+      {"bench cut --sizes 50 --scenario /nonexistent/cut.yaml",
+       "/nonexistent/cut.yaml: cannot open the scenario file"},
+      // the second size's run is checked before the first one runs
+      {"bench cut --sizes 50,20000 --set tool.voltage_v=abc",
+       "--set tool.voltage_v=abc: tool.voltage_v: expected a number in volts, got 'abc'"},
+      {"bench structural --sizes 100 --solves 0", "--solves must be >= 1"},
+      {"bench thermal --sizes 100 --solver foo", "--solver 'foo': expected auto, direct or cg"},
+      {"bench electric --sizes 100 --frames 0", "bench electric: --frames must be >= 1"},
+      {"bench render --sizes x", "--sizes: 'x' is not WIDTHxHEIGHT (e.g. 1280x720)"},
+  };
+  for (const Case& c : cases) {
+    std::ofstream(csv_) << "an earlier table\n";
+    const auto r = shell(esim(c.args));
+    EXPECT_EQ(r.exitCode, 2) << c.args << "\n" << r.output;
+    EXPECT_NE(r.output.find(c.message), std::string::npos) << c.args << "\n" << r.output;
+    EXPECT_EQ(readFile(csv_), "an earlier table\n") << c.args;
+    EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 1)
+        << c.args << ": a file was left beside the table";
+  }
+}
+
+TEST_F(BenchCli, AnUnwritableTableFailsBeforeTheBenchRuns) {
+  const auto r = shell(std::string("\"") + ESIM_EXE + "\" bench cut --sizes 50 --csv \"" +
+                       (dir_ / "missing" / "t.csv").string() + "\"");
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_NE(r.output.find("--csv: cannot write '" + (dir_ / "missing" / "t.csv").string() +
+                          "' (does its folder exist, and may it be written?)"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("strategy"), std::string::npos) << "the table was started:\n"
+                                                          << r.output;
+}
+
+TEST_F(BenchCli, CutWritesTheIssuesColumns) {
+  std::ofstream(csv_) << "an earlier table\n";
+  const auto r = shell(esim("bench cut --sizes 50 --frames 2 --strategy update,synchronous"));
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  const std::string table = readFile(csv_);
+  EXPECT_EQ(table.rfind(
+                "strategy,nodes,frames,median_ms,p95_ms,max_ms,removed_tets,rebuilds,"
+                "rebuild_median_ms,waits\nupdate,",
+                0),
+            0u)
+      << table;
+  EXPECT_NE(table.find("\nsynchronous,"), std::string::npos) << table;
+  EXPECT_EQ(std::count(table.begin(), table.end(), '\n'), 3) << table;
+}
+
+}  // namespace
