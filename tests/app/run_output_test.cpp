@@ -129,5 +129,33 @@ TEST_F(RunOutputTest, AnUnwritableLocationIsRefused) {
   fs::permissions(root_ / "ro", fs::perms::owner_all);
 }
 
+TEST_F(RunOutputTest, AResultsFolderIsCreatedOrRefusedWithoutTouchingAFile) {
+  const fs::path nested = root_ / "a" / "b";
+  createOutputFolder(nested, "--out");
+  EXPECT_TRUE(fs::is_directory(nested));
+  createOutputFolder(nested, "--out");  // an existing folder is fine
+  const fs::path file = root_ / "f";
+  touch(file);
+  try {
+    createOutputFolder(file, "--report");
+    FAIL() << "a file was taken for a folder";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "--report: '" + file.string() + "' is a file; expected a folder");
+    EXPECT_EQ(e.kind(), ErrorKind::Input);
+  }
+  EXPECT_EQ(read(file), "user data\n");
+  try {
+    createOutputFolder(file / "under", "--out");
+    FAIL() << "a folder under a file was created";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()).rfind(
+                  "--out: cannot create the folder '" + (file / "under").string() + "': ", 0),
+              0u)
+        << e.what();
+  }
+  EXPECT_EQ(read(file), "user data\n");
+}
+
 }  // namespace
 }  // namespace esim::app

@@ -63,6 +63,22 @@ TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
   }
 }
 
+TEST_F(BenchCli, AResultsFolderThatIsAFileIsRefusedBeforeAnythingRuns) {
+  std::ofstream(csv_) << "an earlier table\n";
+  for (const std::string& args :
+       {std::string("bench accuracy --quick --only mesh_graded:1013 --out"),
+        std::string("render-sample --out")}) {
+    const auto r =
+        shell(std::string("\"") + ESIM_EXE + "\" " + args + " \"" + csv_.string() + "\"");
+    EXPECT_EQ(r.exitCode, 2) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find("--out: '" + csv_.string() + "' is a file; expected a folder"),
+              std::string::npos)
+        << args << "\n"
+        << r.output;
+    EXPECT_EQ(readFile(csv_), "an earlier table\n") << args;
+  }
+}
+
 TEST_F(BenchCli, AnUnwritableTableFailsBeforeTheBenchRuns) {
   const auto r = shell(std::string("\"") + ESIM_EXE + "\" bench cut --sizes 50 --csv \"" +
                        (dir_ / "missing" / "t.csv").string() + "\"");
@@ -71,8 +87,7 @@ TEST_F(BenchCli, AnUnwritableTableFailsBeforeTheBenchRuns) {
                           "' (does its folder exist, and may it be written?)"),
             std::string::npos)
       << r.output;
-  EXPECT_EQ(r.output.find("strategy"), std::string::npos) << "the table was started:\n"
-                                                          << r.output;
+  EXPECT_EQ(r.output.find("strategy"), std::string::npos) << "the table was started:\n" << r.output;
 }
 
 TEST_F(BenchCli, CutWritesTheIssuesColumns) {
@@ -80,10 +95,9 @@ TEST_F(BenchCli, CutWritesTheIssuesColumns) {
   const auto r = shell(esim("bench cut --sizes 50 --frames 2 --strategy update,synchronous"));
   ASSERT_EQ(r.exitCode, 0) << r.output;
   const std::string table = readFile(csv_);
-  EXPECT_EQ(table.rfind(
-                "strategy,nodes,frames,median_ms,p95_ms,max_ms,removed_tets,rebuilds,"
-                "rebuild_median_ms,waits\nupdate,",
-                0),
+  EXPECT_EQ(table.rfind("strategy,nodes,frames,median_ms,p95_ms,max_ms,removed_tets,rebuilds,"
+                        "rebuild_median_ms,waits\nupdate,",
+                        0),
             0u)
       << table;
   EXPECT_NE(table.find("\nsynchronous,"), std::string::npos) << table;

@@ -10,6 +10,7 @@
 #include "render/image_hash.h"
 #include "render/image_png.h"
 #include "sim/core_error.h"
+#include "tools/app/run_output.h"
 
 namespace esim::app {
 
@@ -51,7 +52,7 @@ CompareResult compareRuns(const std::string& runA, const std::string& runB,
   r.framesA = static_cast<int>(fa.size());
   r.framesB = static_cast<int>(fb.size());
   const int n = std::min(r.framesA, r.framesB);
-  if (writeDiffs && !reportDir.empty()) fs::create_directories(reportDir);
+  if (writeDiffs && !reportDir.empty()) createOutputFolder(reportDir, "--report");
   nlohmann::json frames = nlohmann::json::array();
   for (int f = 0; f < n; ++f) {
     if (fa[f].at("xxh3") == fb[f].at("xxh3")) continue;
@@ -84,7 +85,7 @@ CompareResult compareRuns(const std::string& runA, const std::string& runB,
                       {"within_tolerance", d.withinTolerance}});
   }
   if (!reportDir.empty()) {
-    fs::create_directories(reportDir);
+    createOutputFolder(reportDir, "--report");
     nlohmann::json rep = {{"run_a", runA},
                           {"run_b", runB},
                           {"frames_a", r.framesA},

@@ -102,4 +102,12 @@ void RunOutput::discard() {
   if (isEsimRunFolder(partial_)) fs::remove_all(partial_, ec);
 }
 
+void createOutputFolder(const fs::path& dir, const std::string& option) {
+  std::error_code ec;
+  ESIM_VERIFY(!fs::exists(dir, ec) || fs::is_directory(dir, ec),
+              option + ": '" + dir.string() + "' is a file; expected a folder");
+  fs::create_directories(dir, ec);
+  ESIM_VERIFY(!ec, option + ": cannot create the folder '" + dir.string() + "': " + ec.message());
+}
+
 }  // namespace esim::app

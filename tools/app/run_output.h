@@ -46,4 +46,10 @@ class RunOutput {
 // true when the folder holds an ESim run (complete or partial)
 bool isEsimRunFolder(const std::filesystem::path& dir);
 
+// A folder of results that a command writes its named files into, replacing them (esim bench
+// accuracy --out, render-sample --out, compare --report): created with its parents when
+// missing; throws Error (Input) naming `option` and the path when it is a file or cannot be
+// created, before anything is computed
+void createOutputFolder(const std::filesystem::path& dir, const std::string& option);
+
 }  // namespace esim::app

@@ -44,6 +44,7 @@
 #include "tools/app/bench_common.h"
 #include "tools/app/plot_script.h"
 #include "tools/app/run_config.h"
+#include "tools/app/run_output.h"
 #include "tools/esim/command.h"
 
 namespace esim::cli {
@@ -386,7 +387,7 @@ int benchAccuracy(const AccuracyOptions& opt) {
     }
     sw.points = kept;
   }
-  fs::create_directories(opt.out);
+  app::createOutputFolder(opt.out, "--out");
   std::printf(
       "esim bench accuracy%s: %s, %.2f s of the cut, %zu points + the reference, "
       "images %dx%d every %d frames\n",

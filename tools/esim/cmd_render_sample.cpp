@@ -15,6 +15,7 @@
 #include "render/renderer.h"
 #include "sim/core_error.h"
 #include "tools/app/render_scenes.h"
+#include "tools/app/run_output.h"
 #include "tools/esim/command.h"
 
 namespace esim::cli {
@@ -47,7 +48,7 @@ int runRenderSample(const RenderSampleOptions& opt) {
     target = {0.0f, 0.0f, zMax - 0.03f};
   }
   applyAnalyticCut(cut, 9.0, snap);
-  std::filesystem::create_directories(opt.out);
+  app::createOutputFolder(opt.out, "--out");
   // 2-3. both looks
   for (const std::string look : {"temperature", "tissue"}) {
     RenderOptions ro;
