@@ -54,7 +54,8 @@ void validateRenderOptions(const RenderOptions& o) {
               "camera.fov_deg: " + std::to_string(o.fovDeg) + " is out of range (1, 170)");
   const V3 view = sub(o.targetM, o.eyeM);
   ESIM_VERIFY(norm(view) > 0, "camera.eye_m/target_m: the camera eye and target coincide");
-  ESIM_VERIFY(norm(cross(normalized(view), o.up)) > 1e-3,
+  // the sine of the angle between them (as the scenario checks: any length of up)
+  ESIM_VERIFY(norm(o.up) > 0 && norm(cross(normalized(view), normalized(o.up))) > 1e-3,
               "camera.up: the up vector is zero or parallel to the viewing direction");
   ESIM_VERIFY(o.msaaSamples == 0 || o.msaaSamples == 2 || o.msaaSamples == 4,
               "look.msaa: " + std::to_string(o.msaaSamples) + ", expected 0, 2 or 4");

@@ -342,7 +342,7 @@ const std::vector<Field>& schema() {
                        "point looked at"));
     f.push_back(vector("camera.up", ESIM_REF(camera.up), "", closed(-1e3, 1e3),
                        "up direction (not along the view direction)", true));
-    f.push_back(number("camera.fov_deg", ESIM_REF(camera.fovDeg), "deg", {0.0, 180.0, true, true},
+    f.push_back(number("camera.fov_deg", ESIM_REF(camera.fovDeg), "deg", {1.0, 170.0, true, true},
                        "vertical field of view"));
     // look
     f.push_back(choice("look.style", ESIM_REF(look.style), {"temperature", "tissue", "potential"},

@@ -447,6 +447,12 @@ TEST(Scenario, OtherCrossFieldChecks) {
                 {"mesh.slab.nodes_per_axis: each entry must be >= 2"});
   expectMessage(errorOf("camera: {eye_m: [0, 0, 0.1], target_m: [0, 0, 0]}\n"),
                 {"camera.up is parallel to the view direction"});
+  // the renderer's criteria (render/renderer.cpp): up's angle to the view, and the field of view
+  expectMessage(errorOf("camera: {eye_m: [0, 0, 0.1], target_m: [0, 0, 0], up: [0.0005, 0, -1]}\n"),
+                {"camera.up is parallel to the view direction"});
+  EXPECT_NO_THROW(parseScenario(
+      "camera: {eye_m: [0, 0, 0.1], target_m: [0, 0, 0], up: [0.000005, 0, -0.001]}\n", "ok.yaml"));
+  expectMessage(errorOf("camera: {fov_deg: 175}\n"), {"camera.fov_deg = 175 is outside (1, 170)"});
   expectMessage(errorOf("return_electrode: {normal: [0, 0, 0]}\n"),
                 {"return_electrode.normal: must not be the zero vector"});
   expectMessage(errorOf("time: {duration_s: 0.01}\n"), {"gives no frame"});

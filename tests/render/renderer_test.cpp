@@ -573,6 +573,18 @@ TEST(Renderer, RejectsBadOptionsAndSnapshots) {
   o = topDown();
   o.backend = "vulkan";
   EXPECT_NE(message([&] { Renderer r(o); }).find("RenderOptions::backend"), std::string::npos);
+  // camera.up is judged by its angle to the view, whatever its length (as the scenario
+  // checks do: a short up 0.2 degrees off the view passed there and was refused here)
+  o = topDown();
+  o.up = {0, 0.001 * std::sin(0.0035), -0.001 * std::cos(0.0035)};  // 0.2 deg off, 1 mm long
+  EXPECT_EQ(message([&] { Renderer r(o); }), "no error");
+  o.up = {0, 10 * std::sin(0.0005), -10 * std::cos(0.0005)};  // sine 5e-4, 10 m long
+  EXPECT_NE(message([&] { Renderer r(o); }).find("camera.up"), std::string::npos);
+  o.up = {0, 0, 0};
+  EXPECT_NE(message([&] { Renderer r(o); }).find("camera.up"), std::string::npos);
+  o = topDown();
+  o.fovDeg = 170;  // the scenario schema's range, (1, 170)
+  EXPECT_NE(message([&] { Renderer r(o); }).find("camera.fov_deg"), std::string::npos);
   Renderer r(topDown());
   SurfaceSnapshot s = gradientStrip();
   s.triangles.back() = 99;

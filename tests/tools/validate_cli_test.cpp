@@ -74,6 +74,14 @@ TEST(ValidateCli, BadInputExitsTwoWithTheMessage) {
             std::string::npos)
       << o.output;
 
+  // the schema's range is the renderer's (validate said ok to a field of view run refused)
+  const Result fov = runEsim("validate \"" + good.string() + "\" --set camera.fov_deg=175");
+  EXPECT_EQ(fov.exitCode, 2) << fov.output;
+  EXPECT_NE(fov.output.find(good.string() +
+                            ": --set camera.fov_deg=175: camera.fov_deg = 175 is outside (1, 170)"),
+            std::string::npos)
+      << fov.output;
+
   const Result set = runEsim("validate \"" + good.string() + "\" --set tool.voltage_v=60");
   EXPECT_EQ(set.exitCode, 0) << set.output;
   EXPECT_NE(set.output.find("tool blade 60 V"), std::string::npos) << set.output;
