@@ -162,9 +162,9 @@ int aliveTetContaining(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
 }
 
 std::string returnElectrodeMessage(const ReturnElectrode& r) {
-  return "return_electrode: no mesh node lies on the return electrode disc (centre " +
-         std::to_string(r.centerM.x()) + " " + std::to_string(r.centerM.y()) + " " +
-         std::to_string(r.centerM.z()) + " m, radius " + std::to_string(r.radiusM) +
+  return "return_electrode: no mesh node lies on the return electrode disc (centre [" +
+         messageNumber(r.centerM.x()) + ", " + messageNumber(r.centerM.y()) + ", " +
+         messageNumber(r.centerM.z()) + "] m, radius " + messageNumber(r.radiusM) +
          " m); move it onto the tissue surface or enlarge radius_m/tolerance_m";
 }
 

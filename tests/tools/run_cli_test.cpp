@@ -200,8 +200,10 @@ TEST(RunCli, BadInputExitsTwoAndWritesNothing) {
       {"scenarios/paper_slab.yaml --set tool.voltage_v=abc", "tool.voltage_v"},
       {"scenarios/paper_slab.yaml --set physics=[electric,magic]", "magic"},
       {"scenarios/nope.yaml", "nope.yaml"},
+      // found only once the mesh is built: named by the scenario file still
       {"scenarios/paper_slab.yaml --set return_electrode.center_m=[0,0,-0.5]",
-       "return_electrode: no mesh node lies on the return electrode disc"},
+       "scenarios/paper_slab.yaml: return_electrode: no mesh node lies on the return electrode "
+       "disc"},
       {"scenarios/paper_slab.yaml --set solvers.electric.strategy=dense-inverse "
        "--set mesh.slab.nodes=60000 --set solvers.electric.dense_memory_limit_mb=100",
        "capacitance"},

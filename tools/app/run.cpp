@@ -115,14 +115,24 @@ Setup setUp(const RunOptions& opt, Scenario scenario) {
   if (s.labels.enabled) validateRenderOptions(makeRenderOptions(sc));
   if (s.labels.preview) validateVideoRate(sc.time.fps);
   const SimulationConfig config = makeSimulationConfig(sc);
-  const auto t0 = Clock::now();
-  TetMesh mesh = buildMesh(sc);
-  s.meshS = secondsSince(t0);
-  s.nodes = mesh.numNodes();
-  s.tets = mesh.numTets();
-  const auto t1 = Clock::now();
-  s.sim = std::make_unique<Simulation>(std::move(mesh), config);
-  s.setupS = secondsSince(t1);
+  // what only the mesh shows (a return electrode off the tissue, a singular model) is the
+  // scenario's: its errors name the file as the scenario checks do
+  try {
+    const auto t0 = Clock::now();
+    TetMesh mesh = buildMesh(sc);
+    s.meshS = secondsSince(t0);
+    s.nodes = mesh.numNodes();
+    s.tets = mesh.numTets();
+    const auto t1 = Clock::now();
+    s.sim = std::make_unique<Simulation>(std::move(mesh), config);
+    s.setupS = secondsSince(t1);
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    if (e.kind() != ErrorKind::Input || sc.sourceName.empty() ||
+        what.rfind(sc.sourceName, 0) == 0 || dynamic_cast<const Interrupted*>(&e))
+      throw;
+    throw Error(sc.sourceName + ": " + what, e.kind());
+  }
   s.rssAfterSetupMb = peakRssMb();
   if (s.video || sc.output.pngEvery > 0 || sc.output.hashes || s.labels.enabled)
     s.renderer = std::make_unique<Renderer>(makeRenderOptions(sc));
