@@ -99,6 +99,26 @@ TEST_F(CsvOutputTest, NoPathIsNoTable) {
   EXPECT_TRUE(files().empty());
 }
 
+TEST(BenchOptions, TheDefaultSceneIsFoundFromAnyWorkingFolder) {
+  const fs::path before = fs::current_path();
+  fs::current_path(fs::temp_directory_path());
+  const std::string found = benchScenarioPath("scenarios/slab_cut.yaml", "scenarios/slab_cut.yaml");
+  fs::current_path(before);
+  EXPECT_TRUE(fs::is_regular_file(found)) << found;
+  EXPECT_EQ(fs::path(found).filename(), "slab_cut.yaml");
+  // a path given is the caller's, found or not (the scenario loader names it)
+  EXPECT_EQ(benchScenarioPath("nope.yaml", "scenarios/slab_cut.yaml"), "nope.yaml");
+  try {
+    benchScenarioPath("scenarios/missing_default.yaml", "scenarios/missing_default.yaml");
+    FAIL() << "a default found nowhere was accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "--scenario: the default scene scenarios/missing_default.yaml is neither in the "
+              "working folder nor in ESim's source tree; run from the source folder or give "
+              "--scenario FILE");
+  }
+}
+
 TEST(BenchOptions, ListsAndNodeCounts) {
   EXPECT_EQ(splitList("a,,b,c"), (std::vector<std::string>{"a", "b", "c"}));
   EXPECT_EQ(parseNodeCounts("1013,50000", "bench cut"), (std::vector<int>{1013, 50000}));

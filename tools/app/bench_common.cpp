@@ -47,6 +47,25 @@ fs::path temporaryBeside(const std::string& path) {
 
 }  // namespace
 
+std::string benchScenarioPath(const std::string& path, const std::string& defaultPath) {
+  std::error_code ec;
+  if (path != defaultPath || fs::is_regular_file(path, ec)) return path;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec)
+    for (fs::path dir = exe.parent_path(); !dir.empty(); dir = dir.parent_path()) {
+      const fs::path p = dir / defaultPath;
+      if (fs::is_regular_file(p, ec)) return p.string();
+      if (dir == dir.root_path()) break;
+    }
+#ifdef ESIM_SOURCE_DIR
+  const fs::path p = fs::path(ESIM_SOURCE_DIR) / defaultPath;
+  if (fs::is_regular_file(p, ec)) return p.string();
+#endif
+  throw Error("--scenario: the default scene " + defaultPath +
+              " is neither in the working folder nor in ESim's source tree; run from the "
+              "source folder or give --scenario FILE");
+}
+
 CsvOutput::CsvOutput(std::string path, const std::string& header) : path_(std::move(path)) {
   if (path_.empty()) return;
   std::error_code ec;

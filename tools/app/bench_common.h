@@ -14,6 +14,13 @@ std::vector<std::string> splitList(const std::string& text);
 // `command`'s --sizes option and the bad item
 std::vector<int> parseNodeCounts(const std::string& text, const std::string& command);
 
+// The scene file of a bench: `path` as given; the bench's default (`defaultPath`, relative
+// to the source folder, e.g. scenarios/slab_cut.yaml) when not in the working folder is
+// looked for above the esim executable, then in the source tree it was built from. Throws
+// esim::Error naming --scenario when the default is nowhere (a path given is left to the
+// scenario loader's message).
+std::string benchScenarioPath(const std::string& path, const std::string& defaultPath);
+
 // A bench's --csv table, written whole or not at all. The constructor checks that FILE can
 // be written (a probe file beside it, removed again), so a bad path fails before the bench
 // runs; rows are kept in memory; commit() writes them to a temporary file beside FILE and

@@ -57,10 +57,13 @@ using app::GrooveShape;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kInitialTemperatureC = 37.0;
 
+// the scene when --scenario is not given (found from any working folder: benchScenarioPath)
+constexpr const char* kDefaultScenario = "scenarios/slab_cut.yaml";
+
 struct AccuracyOptions {
   bool quick = false;
   std::string out = "out/accuracy";
-  std::string scenario = "scenarios/slab_cut.yaml";
+  std::string scenario = kDefaultScenario;
   std::string only;     // run the reference and these points only (names or knobs, a,b,c)
   double seconds = 0;   // simulated time (0: 2 s, --quick 0.6 s)
   int renderEvery = 0;  // 0: 5 (--quick 3)
@@ -617,7 +620,11 @@ Registrar reg({"bench", "accuracy"},
                                "render every Nth frame (default 5, --quick 3)")
                     ->check(CLI::Range(0, 1000));
                 app.add_flag("--no-plot", opt->noPlot, "no accuracy_vs_time.png");
-                return [opt] { return benchAccuracy(*opt); };
+                return [opt] {
+                  AccuracyOptions o = *opt;
+                  o.scenario = app::benchScenarioPath(o.scenario, kDefaultScenario);
+                  return benchAccuracy(o);
+                };
               });
 
 }  // namespace

@@ -30,10 +30,13 @@
 namespace esim {
 namespace {
 
+// the scene when --scenario is not given (found from any working folder: benchScenarioPath)
+constexpr const char* kDefaultScenario = "scenarios/slab_cut.yaml";
+
 struct BenchCutOptions {
   std::string sizes = "1013,8000,20000,50000";
   std::string strategy = "all";
-  std::string scenario = "scenarios/slab_cut.yaml";
+  std::string scenario = kDefaultScenario;
   double voltageV = 200;
   int frames = 0;  // 0: the scenario's duration
   std::string csv;
@@ -222,7 +225,11 @@ cli::Registrar registerBenchCut(
       app.add_option("--set", opt->overrides,
                      "KEY=VALUE: a scenario value for every run, as esim run's --set (e.g. "
                      "solvers.structural.local_margin_m=0.004)");
-      return [opt] { return benchCut(*opt); };
+      return [opt] {
+        BenchCutOptions o = *opt;
+        o.scenario = app::benchScenarioPath(o.scenario, kDefaultScenario);
+        return benchCut(o);
+      };
     });
 
 }  // namespace
