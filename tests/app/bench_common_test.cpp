@@ -3,29 +3,21 @@
 #include "tools/app/bench_common.h"
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 
 #include "sim/core_error.h"
+#include "tests/scratch_dir_util.h"
 
 namespace esim::app {
 namespace {
 
 namespace fs = std::filesystem;
 
-class CsvOutputTest : public ::testing::Test {
+class CsvOutputTest : public test::ScratchDirTest {
  protected:
-  void SetUp() override {
-    root_ = fs::temp_directory_path() /
-            ("esim_bench_common_" + std::to_string(::getpid()) + "_" +
-             ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(root_);
-    fs::create_directories(root_);
-  }
-  void TearDown() override { fs::remove_all(root_); }
   static std::string read(const fs::path& p) {
     std::ifstream is(p);
     std::stringstream ss;
@@ -39,7 +31,6 @@ class CsvOutputTest : public ::testing::Test {
     std::sort(names.begin(), names.end());
     return names;
   }
-  fs::path root_;
 };
 
 TEST_F(CsvOutputTest, CommitReplacesTheFileWithTheWholeTable) {

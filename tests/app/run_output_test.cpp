@@ -3,27 +3,19 @@
 #include "tools/app/run_output.h"
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <fstream>
 
 #include "sim/core_error.h"
+#include "tests/scratch_dir_util.h"
 
 namespace esim::app {
 namespace {
 
 namespace fs = std::filesystem;
 
-class RunOutputTest : public ::testing::Test {
+class RunOutputTest : public test::ScratchDirTest {
  protected:
-  void SetUp() override {
-    root_ = fs::temp_directory_path() /
-            ("esim_run_output_" + std::to_string(::getpid()) + "_" +
-             ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(root_);
-    fs::create_directories(root_);
-  }
-  void TearDown() override { fs::remove_all(root_); }
   static void touch(const fs::path& p, const std::string& text = "user data\n") {
     std::ofstream(p) << text;
   }
@@ -31,7 +23,6 @@ class RunOutputTest : public ::testing::Test {
     std::ifstream is(p);
     return std::string(std::istreambuf_iterator<char>(is), {});
   }
-  fs::path root_;
 };
 
 void expectInputError(const std::function<void()>& f, const std::string& part) {

@@ -3,13 +3,13 @@
 // given bad input exits 2 naming it and leaves an earlier table as it was; one that runs
 // writes its whole table.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
 #include <string>
 #include <vector>
 
+#include "tests/scratch_dir_util.h"
 #include "tests/tools/cli_test_util.h"
 
 namespace {
@@ -18,21 +18,16 @@ namespace fs = std::filesystem;
 using esim::cli_test::readFile;
 using esim::cli_test::shell;
 
-class BenchCli : public ::testing::Test {
+class BenchCli : public esim::test::ScratchDirTest {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("esim_bench_cli_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-    csv_ = dir_ / "table.csv";
+    ScratchDirTest::SetUp();
+    csv_ = root_ / "table.csv";
   }
-  void TearDown() override { fs::remove_all(dir_); }
   std::string esim(const std::string& args) const {
     return std::string("\"") + ESIM_EXE + "\" " + args + " --csv \"" + csv_.string() + "\"";
   }
-  fs::path dir_, csv_;
+  fs::path csv_;
 };
 
 TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
@@ -58,7 +53,7 @@ TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
     EXPECT_EQ(r.exitCode, 2) << c.args << "\n" << r.output;
     EXPECT_NE(r.output.find(c.message), std::string::npos) << c.args << "\n" << r.output;
     EXPECT_EQ(readFile(csv_), "an earlier table\n") << c.args;
-    EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 1)
+    EXPECT_EQ(std::distance(fs::directory_iterator(root_), fs::directory_iterator()), 1)
         << c.args << ": a file was left beside the table";
   }
 }
@@ -81,9 +76,9 @@ TEST_F(BenchCli, AResultsFolderThatIsAFileIsRefusedBeforeAnythingRuns) {
 
 TEST_F(BenchCli, AnUnwritableTableFailsBeforeTheBenchRuns) {
   const auto r = shell(std::string("\"") + ESIM_EXE + "\" bench cut --sizes 50 --csv \"" +
-                       (dir_ / "missing" / "t.csv").string() + "\"");
+                       (root_ / "missing" / "t.csv").string() + "\"");
   EXPECT_EQ(r.exitCode, 2) << r.output;
-  EXPECT_NE(r.output.find("--csv: cannot write '" + (dir_ / "missing" / "t.csv").string() +
+  EXPECT_NE(r.output.find("--csv: cannot write '" + (root_ / "missing" / "t.csv").string() +
                           "' (does its folder exist, and may it be written?)"),
             std::string::npos)
       << r.output;
