@@ -531,9 +531,8 @@ void Simulation::updateModel(const std::vector<int>& broken, FrameRecord& rec) {
     if (m.structural) {  // the factor's update on a thread, joined by the next structural
       structuralJobFrame_ = state_.frame;  // solve (see the header); its pieces here
       structuralJob_ =
-          std::async(std::launch::async, [update = m.structural->beginRemoval(broken)]() mutable {
-            return update().seconds * 1e3;
-          });
+          std::async(std::launch::async,
+                     [update = m.structural->beginRemoval(broken)]() mutable { return update(); });
     }
     removeFromBoundary(m.mesh, *m.faceNeighbours, broken, m.surface);
     const BoundaryNodeChange moved =
@@ -654,7 +653,7 @@ Simulation::~Simulation() {
 void Simulation::waitStructural() const {
   if (!structuralJob_.valid()) return;
   try {
-    structuralJobMs_ = structuralJob_.get();
+    structuralJobStats_ = structuralJob_.get();
   } catch (...) {
     structuralError_ = std::current_exception();
   }
@@ -667,7 +666,9 @@ void Simulation::joinStructural() {
       checkInterrupt();  // (the update runs on to its end, as a CHOLMOD call cannot be
                          // stopped; whoever destroys the simulation waits for it)
     waitStructural();
-    record_.structuralUpdateMs = structuralJobMs_;
+    record_.structuralUpdateMs = structuralJobStats_.seconds * 1e3;
+    record_.structuralUpdateWork =
+        structuralJobStats_.refactorized ? 0.0 : structuralJobStats_.updateWork;
   }
   if (!structuralError_) return;
   const std::exception_ptr error = std::exchange(structuralError_, nullptr);

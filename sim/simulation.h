@@ -82,6 +82,9 @@ struct FrameRecord {
   std::array<double, 4> updatePartMs{};  // surface (and contacts), thermal, electric, structural
   double structuralUpdateMs = 0;         // update mode: the structural update joined in this frame,
                                   // run on a thread since the removal (its own wall time) [ms]
+  double structuralUpdateWork = 0;  // ... its work: entries of L walked times the columns
+                                    // passing them (StructuralUpdateStats::updateWork; 0 when
+                                    // it refactorized instead)
   bool contactByTet = false;        // tool inside the tissue, no node within reach: the nearest
                                     // node of the tet holding the tip carried the current
   bool toolSwept = false;           // the tool moved more than an element: contacts along its path
@@ -391,9 +394,9 @@ class Simulation {
   // rowadd), on a thread from the removal frame's rupture to the next structural solve,
   // while the other phases' updates and the next frame's contacts, potential and heat run
   // (the same arithmetic as in the frame loop: the result does not depend on the timing)
-  mutable std::future<double> structuralJob_;  // its wall time [ms]
+  mutable std::future<StructuralUpdateStats> structuralJob_;
   mutable std::exception_ptr structuralError_;
-  mutable double structuralJobMs_ = 0;
+  mutable StructuralUpdateStats structuralJobStats_;  // of the last one joined
   int structuralJobFrame_ = -1;           // the removal frame (its errors are that rupture's)
   void waitStructural() const;            // joins; keeps its error for joinStructural
   void joinStructural();                  // joins, and throws its error as the rupture's

@@ -10,7 +10,10 @@
 // that removed tets, and the frames that waited for a background rebuild. --csv writes
 // strategy,nodes,frames,median_ms,p95_ms,max_ms,removed_tets,rebuilds,rebuild_median_ms,waits
 // when the bench ends (app::CsvOutput: an earlier FILE stays as it was until then). Every run's
-// scenario is checked before the first run. A benchmark, never a pass/fail test.
+// scenario is checked before the first run. --stages adds each stage's median / p95 / max, the
+// parts of a removal in update mode, the structural update's work (CHOLMOD's entries of L
+// walked times the columns passing them) and its rate, and the slowest frames. A benchmark,
+// never a pass/fail test.
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -103,7 +106,8 @@ int benchCut(const BenchCutOptions& opt) {
         std::vector<double> ms, rebuildMs;
         std::vector<std::string> frameLines;  // --stages: what each frame spent, for the slowest
         std::array<std::vector<double>, kStageCount> stageMs;
-        std::array<std::vector<double>, 4> partMs;  // update mode: the parts of a removal
+        std::array<std::vector<double>, 4> partMs;   // update mode: the parts of a removal
+        std::vector<double> structuralWork, workMs;  // ... the structural updates' work, time
         int waits = 0;
         // --pace: frame f starts at its tick; a frame that overruns its tick makes the loop
         // skip the ticks it covered (a real-time loop drops them), and counts as late
@@ -127,7 +131,13 @@ int benchCut(const BenchCutOptions& opt) {
           if (r.removedTets > 0) rebuildMs.push_back(r.ms[static_cast<int>(Stage::Rebuild)]);
           if (r.removedTets > 0 && strategy == "update")
             for (int k = 0; k < 3; ++k) partMs[k].push_back(r.updatePartMs[k]);
-          if (r.structuralUpdateMs > 0) partMs[3].push_back(r.structuralUpdateMs);
+          if (r.structuralUpdateMs > 0) {
+            partMs[3].push_back(r.structuralUpdateMs);
+            if (r.structuralUpdateWork > 0) {
+              structuralWork.push_back(r.structuralUpdateWork);
+              workMs.push_back(r.structuralUpdateMs);
+            }
+          }
           if (r.rebuildWaitMs > 1.0) ++waits;
           if (opt.stages) {
             char line[256];
@@ -175,6 +185,16 @@ int benchCut(const BenchCutOptions& opt) {
                           quantile(partMs[k], 0.95),
                           *std::max_element(partMs[k].begin(), partMs[k].end()));
           std::printf("    (* on a thread from the removal to the next structural solve)\n");
+          double work = 0, seconds = 0;
+          for (size_t k = 0; k < structuralWork.size(); ++k) {
+            work += structuralWork[k];
+            seconds += workMs[k] * 1e-3;
+          }
+          if (work > 0)
+            std::printf(
+                "    structural* work (entries of L walked x columns passing; updates that "
+                "refactorized left out): median %.3g a removal, %.3g a second of their wall time\n",
+                quantile(structuralWork, 0.5), work / seconds);
         }
         if (opt.stages) {  // the slowest frames (what lies above the p95)
           std::vector<int> order(frames);
