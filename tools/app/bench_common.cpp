@@ -1,4 +1,4 @@
-// bench_common.cpp - option parsing shared by the `esim bench` commands (bench_common.h).
+// bench_common.cpp - what the `esim bench` commands share (bench_common.h).
 #include "tools/app/bench_common.h"
 
 #include <unistd.h>

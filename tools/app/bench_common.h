@@ -1,4 +1,5 @@
-// bench_common.h - option parsing shared by the `esim bench` commands.
+// bench_common.h - what the `esim bench` commands share: option parsing, the default scene,
+// and the --csv table written whole.
 #pragma once
 
 #include <sstream>
@@ -36,7 +37,6 @@ class CsvOutput {
   std::ostringstream& out() { return rows_; }  // the rows after the header
   // writes and renames (once); throws esim::Error (Run kind) when that fails, FILE untouched
   void commit();
-  const std::string& path() const { return path_; }
 
  private:
   std::string path_;
