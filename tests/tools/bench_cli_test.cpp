@@ -74,6 +74,16 @@ TEST_F(BenchCli, AResultsFolderThatIsAFileIsRefusedBeforeAnythingRuns) {
   }
 }
 
+TEST_F(BenchCli, RenderSampleChecksItsOptionsBeforeMakingItsFolder) {
+  const fs::path out = root_ / "samples";
+  const auto r = shell(std::string("\"") + ESIM_EXE + "\" render-sample --width 5 --out \"" +
+                       out.string() + "\"");
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_NE(r.output.find("look.width/height: 5x360 is out of range"), std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(out)) << "a failed render-sample left its folder behind";
+}
+
 TEST_F(BenchCli, AnUnwritableTableFailsBeforeTheBenchRuns) {
   const auto r = shell(std::string("\"") + ESIM_EXE + "\" bench cut --sizes 50 --csv \"" +
                        (root_ / "missing" / "t.csv").string() + "\"");

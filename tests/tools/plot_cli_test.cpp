@@ -10,6 +10,9 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "tests/app/timing_reports_check.h"
 #include "tests/tools/cli_test_util.h"
@@ -89,6 +92,23 @@ TEST(PlotCli, CutReportsAndEsimPlot) {
   EXPECT_GT(removed, 0) << "the cut removed nothing in 20 frames";
   EXPECT_GE(waited, 0);
   EXPECT_FALSE(fs::exists(out / "timing.png"));  // no --plots
+  // -o must name a .png in a folder that exists: refused (exit 2) before python runs, nothing
+  // written (matplotlib wrote FOLDER.png for a folder and NAME.png for a name without .png,
+  // and a missing folder ended in a traceback)
+  const fs::path note = out / "notes";  // a user's file without the extension
+  std::ofstream(note) << "user data\n";
+  for (const auto& [arg, message] : std::vector<std::pair<std::string, std::string>>{
+           {out.string(), "is a folder; expected a .png file name"},
+           {note.string(), "must end in .png"},
+           {(out / "missing" / "t.png").string(), "' does not exist"}}) {
+    const Result bad = esim("plot " + out.string() + " -o " + arg);
+    EXPECT_EQ(bad.exitCode, 2) << arg << "\n" << bad.output;
+    EXPECT_NE(bad.output.find(message), std::string::npos) << arg << "\n" << bad.output;
+  }
+  EXPECT_EQ(readFile(note), "user data\n");
+  EXPECT_FALSE(fs::exists(note.string() + ".png"));
+  EXPECT_FALSE(fs::exists(out.string() + ".png"));
+  fs::remove(note);
   if (!haveMatplotlib()) GTEST_SKIP() << "no matplotlib for /usr/bin/python3";
   const Result p = esim("plot " + out.string());
   ASSERT_EQ(p.exitCode, 0) << p.output;
@@ -96,6 +116,11 @@ TEST(PlotCli, CutReportsAndEsimPlot) {
   const fs::path other = out.string() + "_other.png";
   ASSERT_EQ(esim("plot " + out.string() + " -o " + other.string()).exitCode, 0);
   EXPECT_TRUE(isPng(other));
+  // the script's temporary PNGs were renamed, none left beside the targets
+  for (const auto& [dir, name] : {std::pair{out.parent_path(), other.filename().string()},
+                                  std::pair{out, std::string("timing.png")}})
+    for (const auto& e : fs::directory_iterator(dir))
+      EXPECT_NE(e.path().filename().string().rfind(name + ".tmp", 0), 0u) << e.path();
   fs::remove(other);
   fs::remove_all(out);
 }

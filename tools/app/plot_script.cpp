@@ -86,11 +86,18 @@ PlotResult runPlotScript(const std::string& script, const std::vector<std::strin
 }
 
 PlotResult plotTiming(const fs::path& runDir, const fs::path& png) {
-  std::vector<std::string> args = {runDir.string()};
-  if (!png.empty()) args.insert(args.end(), {"-o", png.string()});
-  PlotResult r = runPlotScript("plot_timing.py", args);
-  if (r.status == PlotStatus::Written)
-    r.message = "wrote " + (png.empty() ? (runDir / "timing.png").string() : png.string());
+  // the script writes a temporary PNG beside the target, renamed when it succeeded: a failed
+  // or interrupted plot never leaves a half-written or truncated PNG in its place
+  const fs::path target = png.empty() ? runDir / "timing.png" : png;
+  const fs::path tmp = target.string() + ".tmp" + std::to_string(::getpid()) + ".png";
+  PlotResult r = runPlotScript("plot_timing.py", {runDir.string(), "-o", tmp.string()});
+  std::error_code ec;
+  if (r.status == PlotStatus::Written) {
+    fs::rename(tmp, target, ec);
+    if (ec) r = {PlotStatus::Failed, "cannot write " + target.string() + ": " + ec.message()};
+  }
+  fs::remove(tmp, ec);
+  if (r.status == PlotStatus::Written) r.message = "wrote " + target.string();
   return r;
 }
 

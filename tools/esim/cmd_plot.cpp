@@ -2,9 +2,11 @@
 // (tools/plot_timing.py through tools/app/plot_script.h; `esim run --plots` does the same at
 // the end of a run).
 //
-// 1. Check RUN_DIR holds a run's timing.csv (else bad input, exit 2).
+// 1. Check RUN_DIR holds a run's timing.csv, and -o names a .png in a folder that exists
+//    (else bad input, exit 2).
 // 2. Run the script; exit 0 when the PNG is written, 1 with the reason when it cannot be
 //    (python3 or matplotlib missing, a failing script).
+#include <cctype>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -27,6 +29,17 @@ int plotRun(const PlotOptions& opt) {
   ESIM_VERIFY(fs::is_regular_file(fs::path(opt.runDir) / "timing.csv", ec),
               "esim plot: '" + opt.runDir +
                   "' holds no timing.csv (expected the folder of an esim run, e.g. out/demo)");
+  if (!opt.png.empty()) {  // a PNG file in a folder that exists (matplotlib would add .png)
+    const fs::path png = opt.png;
+    std::string ext = png.extension().string();
+    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    ESIM_VERIFY(!fs::is_directory(png, ec),
+                "esim plot: -o '" + opt.png + "' is a folder; expected a .png file name");
+    ESIM_VERIFY(ext == ".png", "esim plot: -o '" + opt.png + "' must end in .png");
+    const fs::path parent = png.has_parent_path() ? png.parent_path() : fs::path(".");
+    ESIM_VERIFY(fs::is_directory(parent, ec), "esim plot: -o '" + opt.png + "': the folder '" +
+                                                  parent.string() + "' does not exist");
+  }
   const app::PlotResult r = app::plotTiming(opt.runDir, opt.png);
   if (r.status == app::PlotStatus::Written) {
     std::cout << "esim: " << r.message << "\n";

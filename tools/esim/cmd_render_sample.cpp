@@ -48,9 +48,7 @@ int runRenderSample(const RenderSampleOptions& opt) {
     target = {0.0f, 0.0f, zMax - 0.03f};
   }
   applyAnalyticCut(cut, 9.0, snap);
-  app::createOutputFolder(opt.out, "--out");
-  // 2-3. both looks
-  for (const std::string look : {"temperature", "tissue"}) {
+  const auto options = [&](const std::string& look) {
     RenderOptions ro;
     ro.width = opt.width;
     ro.height = opt.height;
@@ -59,6 +57,13 @@ int runRenderSample(const RenderSampleOptions& opt) {
     ro.eyeM = eye;
     ro.targetM = target;
     ro.fovDeg = 32;
+    return ro;
+  };
+  validateRenderOptions(options("tissue"));  // before the folder is made: nothing left behind
+  app::createOutputFolder(opt.out, "--out");
+  // 2-3. both looks
+  for (const std::string look : {"temperature", "tissue"}) {
+    const RenderOptions ro = options(look);
     Renderer renderer(ro);
     const auto& rgb = renderer.render(snap);
     const std::string path = opt.out + "/sample_" + look + ".png";
