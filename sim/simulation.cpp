@@ -502,7 +502,8 @@ std::unique_ptr<SimModel> Simulation::rebuildModel(std::vector<std::uint8_t> ali
 // cannot go on (internal checks and interruptions pass as they are)
 void Simulation::throwRebuildError(const Error& e, int ruptureFrame) const {
   if (e.kind() == ErrorKind::Internal || dynamic_cast<const Interrupted*>(&e)) throw;
-  const std::string what = e.what();
+  std::string what = e.what();
+  if (what.rfind("rupture: ", 0) == 0) what.erase(0, 9);  // said once, with the frame
   std::string context = "rupture, frame " + std::to_string(ruptureFrame) + ": ";
   if (what.find("supports") != std::string::npos)
     context +=

@@ -271,6 +271,23 @@ TEST(RunCli, AFailedRunExitsOneAndKeepsItsFramesMarkedPartial) {
   fs::remove_all(partial);
 }
 
+// a rupture's error names its frame once: not "frame 0: rupture, frame 0: rupture: ..."
+TEST(RunCli, ARuptureThatEndsTheRunSaysSoOnce) {
+  const fs::path out = tempOut("rupture_all");
+  fs::remove_all(out.string() + ".partial");
+  const Result r = esimRun(
+      "scenarios/slab_cut.yaml --frames 3 --no-video --set mesh.slab.nodes=1013 "
+      "--set material.critical_stress_pa=1e-9 -q -o " +
+      out.string());
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  EXPECT_NE(r.output.find("esim: error: rupture, frame 0: every element of the tissue has been "
+                          "removed\n"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("frame 0: rupture"), std::string::npos) << r.output;
+  fs::remove_all(out.string() + ".partial");
+}
+
 TEST(RunCli, AnInterruptedRunStaysPartialWithAPlayableVideo) {
   const fs::path out = tempOut("interrupted");
   const fs::path partial = out.string() + ".partial";

@@ -578,7 +578,11 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet) {
       // the run cannot go on (a failed solve, all tissue gone, a tool reaching the return
       // electrode): the frames so far are kept
       loop.failureKind = e.kind();
-      loop.failure = "frame " + std::to_string(f) + ": " + e.what();
+      // (a rupture's error names its frame already: "rupture, frame N: ...")
+      const std::string what = e.what();
+      loop.failure = what.rfind("rupture, frame " + std::to_string(f) + ":", 0) == 0
+                         ? what
+                         : "frame " + std::to_string(f) + ": " + what;
       loop.frameStartUs.pop_back();
       break;
     }
