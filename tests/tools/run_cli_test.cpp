@@ -250,15 +250,23 @@ TEST(RunCli, OutputNeverReplacesWhatTheRunDidNotCreate) {
   fs::remove_all(root);
 }
 
+// a run into tempOut(name) (its earlier .partial removed first) that must fail: exit 1
+Result failingRun(const std::string& name, const std::string& args) {
+  const fs::path out = tempOut(name);
+  fs::remove_all(out.string() + ".partial");
+  const Result r = esimRun(args + " -o " + out.string());
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  return r;
+}
+
 TEST(RunCli, AFailedRunExitsOneAndKeepsItsFramesMarkedPartial) {
   const fs::path out = tempOut("failed");
-  fs::remove_all(out.string() + ".partial");
   // pcg capped at 2 iterations cannot reach 1e-12: the first solve fails
-  const Result r = esimRun(
+  const Result r = failingRun(
+      "failed",
       "scenarios/paper_slab.yaml --frames 4 --no-video --set solvers.electric.strategy=pcg "
       "--set solvers.electric.max_iterations=2 --set solvers.electric.tolerance=1e-12" +
-      std::string(kSmall) + " -o " + out.string());
-  EXPECT_EQ(r.exitCode, 1) << r.output;
+          std::string(kSmall));
   EXPECT_NE(r.output.find("pcg did not converge"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("solvers.electric.max_iterations"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(out)) << "a failed run is never renamed as complete";
@@ -273,19 +281,15 @@ TEST(RunCli, AFailedRunExitsOneAndKeepsItsFramesMarkedPartial) {
 
 // a rupture's error names its frame once: not "frame 0: rupture, frame 0: rupture: ..."
 TEST(RunCli, ARuptureThatEndsTheRunSaysSoOnce) {
-  const fs::path out = tempOut("rupture_all");
-  fs::remove_all(out.string() + ".partial");
-  const Result r = esimRun(
-      "scenarios/slab_cut.yaml --frames 3 --no-video --set mesh.slab.nodes=1013 "
-      "--set material.critical_stress_pa=1e-9 -q -o " +
-      out.string());
-  EXPECT_EQ(r.exitCode, 1) << r.output;
+  const Result r = failingRun("rupture_all",
+                              "scenarios/slab_cut.yaml --frames 3 --no-video --set "
+                              "mesh.slab.nodes=1013 --set material.critical_stress_pa=1e-9 -q");
   EXPECT_NE(r.output.find("esim: error: rupture, frame 0: every element of the tissue has been "
                           "removed\n"),
             std::string::npos)
       << r.output;
   EXPECT_EQ(r.output.find("frame 0: rupture"), std::string::npos) << r.output;
-  fs::remove_all(out.string() + ".partial");
+  fs::remove_all(tempOut("rupture_all").string() + ".partial");
 }
 
 TEST(RunCli, AnInterruptedRunStaysPartialWithAPlayableVideo) {
