@@ -74,6 +74,14 @@ TEST(ValidateCli, BadInputExitsTwoWithTheMessage) {
             std::string::npos)
       << o.output;
 
+  // what only the run's set-up checks (here the mesh) find names the file too
+  const Result pad =
+      runEsim("validate \"" + good.string() + "\" --set \"return_electrode.center_m=[0,0,-0.5]\"");
+  EXPECT_EQ(pad.exitCode, 2) << pad.output;
+  EXPECT_NE(pad.output.find("error: " + good.string() +
+                            ": return_electrode: no mesh node lies on the return electrode disc"),
+            std::string::npos)
+      << pad.output;
   // the schema's range is the renderer's (validate said ok to a field of view run refused)
   const Result fov = runEsim("validate \"" + good.string() + "\" --set camera.fov_deg=175");
   EXPECT_EQ(fov.exitCode, 2) << fov.output;

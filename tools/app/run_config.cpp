@@ -134,12 +134,20 @@ TetMesh buildMesh(const Scenario& s) {
 }
 
 void checkRunnable(const Scenario& s, bool withMesh, bool noVideo) {
-  const SimulationConfig config = makeSimulationConfig(s);
-  validateSimulationConfig(config);
-  if (s.output.video || s.output.pngEvery > 0 || s.output.hashes)
-    validateRenderOptions(makeRenderOptions(s));
-  if (s.output.video && !noVideo) validateVideoRate(s.time.fps);
-  if (withMesh && s.mesh.source == MeshSource::Slab) validateSimulationMesh(buildMesh(s), config);
+  // the checks of the core and the renderer name fields, not files: named here
+  try {
+    const SimulationConfig config = makeSimulationConfig(s);
+    validateSimulationConfig(config);
+    if (s.output.video || s.output.pngEvery > 0 || s.output.hashes)
+      validateRenderOptions(makeRenderOptions(s));
+    if (s.output.video && !noVideo) validateVideoRate(s.time.fps);
+    if (withMesh && s.mesh.source == MeshSource::Slab) validateSimulationMesh(buildMesh(s), config);
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    if (e.kind() != ErrorKind::Input || s.sourceName.empty() || what.rfind(s.sourceName, 0) == 0)
+      throw;
+    throw Error(s.sourceName + ": " + what, e.kind());
+  }
 }
 
 }  // namespace esim::app
