@@ -10,6 +10,8 @@
 #include <system_error>
 
 #include "sim/core_error.h"
+#include "tools/app/run_output.h"
+#include "tools/app/source_tree.h"
 
 namespace esim::app {
 
@@ -36,34 +38,16 @@ std::vector<int> parseNodeCounts(const std::string& text, const std::string& com
   return out;
 }
 
-namespace {
-
 namespace fs = std::filesystem;
-
-// FILE.tmp<pid>: beside FILE, so that the rename stays on one file system
-fs::path temporaryBeside(const std::string& path) {
-  return fs::path(path + ".tmp" + std::to_string(::getpid()));
-}
-
-}  // namespace
 
 std::string benchScenarioPath(const std::string& path, const std::string& defaultPath) {
   std::error_code ec;
   if (path != defaultPath || fs::is_regular_file(path, ec)) return path;
-  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-  if (!ec)
-    for (fs::path dir = exe.parent_path(); !dir.empty(); dir = dir.parent_path()) {
-      const fs::path p = dir / defaultPath;
-      if (fs::is_regular_file(p, ec)) return p.string();
-      if (dir == dir.root_path()) break;
-    }
-#ifdef ESIM_SOURCE_DIR
-  const fs::path p = fs::path(ESIM_SOURCE_DIR) / defaultPath;
-  if (fs::is_regular_file(p, ec)) return p.string();
-#endif
-  throw Error("--scenario: the default scene " + defaultPath +
-              " is neither in the working folder nor in ESim's source tree; run from the "
-              "source folder or give --scenario FILE");
+  const fs::path found = findSourceTreeFile(defaultPath);
+  ESIM_VERIFY(!found.empty(), "--scenario: the default scene " + defaultPath +
+                                  " is neither in the working folder nor in ESim's source tree; "
+                                  "run from the source folder or give --scenario FILE");
+  return found.string();
 }
 
 CsvOutput::CsvOutput(std::string path, const std::string& header) : path_(std::move(path)) {
@@ -71,7 +55,7 @@ CsvOutput::CsvOutput(std::string path, const std::string& header) : path_(std::m
   std::error_code ec;
   ESIM_VERIFY(!fs::is_directory(path_, ec),
               "--csv: cannot write '" + path_ + "' (a folder; expected a file name)");
-  const fs::path probe = temporaryBeside(path_);
+  const fs::path probe = path_ + ".probe" + std::to_string(::getpid());  // beside FILE
   const bool writable = std::ofstream(probe).good();
   fs::remove(probe, ec);
   ESIM_VERIFY(writable, "--csv: cannot write '" + path_ +
@@ -80,24 +64,7 @@ CsvOutput::CsvOutput(std::string path, const std::string& header) : path_(std::m
 }
 
 void CsvOutput::commit() {
-  if (path_.empty()) return;
-  const fs::path tmp = temporaryBeside(path_);
-  std::error_code ec;
-  {
-    std::ofstream os(tmp, std::ios::binary);
-    os << rows_.str();
-    os.flush();
-    if (!os.good()) {
-      fs::remove(tmp, ec);
-      throw Error("--csv: writing '" + path_ + "' failed (disk full?)", ErrorKind::Run);
-    }
-  }
-  fs::rename(tmp, path_, ec);
-  if (ec) {
-    const std::string why = ec.message();
-    fs::remove(tmp, ec);
-    throw Error("--csv: cannot replace '" + path_ + "': " + why, ErrorKind::Run);
-  }
+  if (!path_.empty()) writeFileAtomic(path_, rows_.str());
 }
 
 }  // namespace esim::app

@@ -14,6 +14,7 @@
 
 #include "render/image_hash.h"
 #include "sim/core_error.h"
+#include "tools/app/run_output.h"
 
 namespace esim::app {
 
@@ -86,21 +87,6 @@ nlohmann::json hashTree(const fs::path& root, const fs::path& base) {
   nlohmann::json out = nlohmann::json::object();
   for (const auto& f : files) out[f.lexically_relative(base).generic_string()] = hashFile(f);
   return out;
-}
-
-void writeFileAtomic(const fs::path& path, const std::string& text) {
-  const fs::path tmp = path.string() + ".tmp" + std::to_string(::getpid());
-  {
-    std::ofstream os(tmp, std::ios::binary);
-    os << text;
-    os.flush();
-    if (!os.good()) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      throw Error(path.string() + ": write failed (disk full?)", ErrorKind::Run);
-    }
-  }
-  fs::rename(tmp, path);
 }
 
 nlohmann::json readSweepJson(const fs::path& dir) {

@@ -59,9 +59,6 @@ std::vector<nlohmann::json> manifestLines(const std::filesystem::path& dir);
 // rewrites DIR/manifest.jsonl from sweep.json and the results (under DIR/.lock)
 void writeManifest(const std::filesystem::path& dir);
 
-// writes text to path through a temporary file renamed into place
-void writeFileAtomic(const std::filesystem::path& path, const std::string& text);
-
 // `esim dataset verify DIR`: every file of every complete variant re-hashed against the
 // manifest; a file changed, missing, or not in the manifest is a problem
 struct VerifyReport {

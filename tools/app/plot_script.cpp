@@ -9,6 +9,8 @@
 #include <cstdlib>
 #include <cstring>
 
+#include "tools/app/source_tree.h"
+
 extern char** environ;
 
 namespace esim::app {
@@ -34,18 +36,7 @@ fs::path findToolScript(const std::string& name) {
     const fs::path p = fs::path(d) / name;
     return fs::is_regular_file(p, ec) ? p : fs::path();
   }
-  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-  if (!ec)
-    for (fs::path dir = exe.parent_path(); !dir.empty(); dir = dir.parent_path()) {
-      const fs::path p = dir / "tools" / name;
-      if (fs::is_regular_file(p, ec)) return p;
-      if (dir == dir.root_path()) break;
-    }
-#ifdef ESIM_SOURCE_DIR
-  const fs::path p = fs::path(ESIM_SOURCE_DIR) / "tools" / name;
-  if (fs::is_regular_file(p, ec)) return p;
-#endif
-  return {};
+  return findSourceTreeFile("tools/" + name);
 }
 
 PlotResult runPlotScript(const std::string& script, const std::vector<std::string>& args) {

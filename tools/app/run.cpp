@@ -127,11 +127,7 @@ Setup setUp(const RunOptions& opt, Scenario scenario) {
     s.sim = std::make_unique<Simulation>(std::move(mesh), config);
     s.setupS = secondsSince(t1);
   } catch (const Error& e) {
-    const std::string what = e.what();
-    if (e.kind() != ErrorKind::Input || sc.sourceName.empty() ||
-        what.rfind(sc.sourceName, 0) == 0 || dynamic_cast<const Interrupted*>(&e))
-      throw;
-    throw Error(sc.sourceName + ": " + what, e.kind());
+    rethrowNamingScenario(e, sc);
   }
   s.rssAfterSetupMb = peakRssMb();
   if (s.video || sc.output.pngEvery > 0 || sc.output.hashes || s.labels.enabled)

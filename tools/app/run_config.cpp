@@ -143,11 +143,16 @@ void checkRunnable(const Scenario& s, bool withMesh, bool noVideo) {
     if (s.output.video && !noVideo) validateVideoRate(s.time.fps);
     if (withMesh && s.mesh.source == MeshSource::Slab) validateSimulationMesh(buildMesh(s), config);
   } catch (const Error& e) {
-    const std::string what = e.what();
-    if (e.kind() != ErrorKind::Input || s.sourceName.empty() || what.rfind(s.sourceName, 0) == 0)
-      throw;
-    throw Error(s.sourceName + ": " + what, e.kind());
+    rethrowNamingScenario(e, s);
   }
+}
+
+void rethrowNamingScenario(const Error& error, const Scenario& scenario) {
+  const std::string what = error.what();
+  if (error.kind() != ErrorKind::Input || scenario.sourceName.empty() ||
+      what.rfind(scenario.sourceName, 0) == 0)
+    throw;
+  throw Error(scenario.sourceName + ": " + what, error.kind());
 }
 
 }  // namespace esim::app

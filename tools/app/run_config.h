@@ -9,6 +9,7 @@
 #pragma once
 
 #include "render/renderer.h"
+#include "sim/core_error.h"
 #include "sim/io/scenario.h"
 #include "sim/mesh_tet.h"
 #include "sim/simulation.h"
@@ -30,5 +31,10 @@ TetMesh buildMesh(const Scenario& scenario);
 // throws Error naming the scenario key. `esim run` calls it without the mesh (its set-up
 // checks the mesh it builds), `esim validate` with; noVideo: as `esim run --no-video`.
 void checkRunnable(const Scenario& scenario, bool withMesh = true, bool noVideo = false);
+
+// an input error of the core or the renderer (which name fields, not files) thrown again as
+// "FILE: ..." for the scenario it came from; other errors, and messages that start with the
+// file already, as they are (call it from the handler that caught `error`)
+[[noreturn]] void rethrowNamingScenario(const Error& error, const Scenario& scenario);
 
 }  // namespace esim::app

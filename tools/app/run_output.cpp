@@ -110,4 +110,24 @@ void createOutputFolder(const fs::path& dir, const std::string& option) {
   ESIM_VERIFY(!ec, option + ": cannot create the folder '" + dir.string() + "': " + ec.message());
 }
 
+void writeFileAtomic(const fs::path& path, const std::string& text) {
+  const fs::path tmp = path.string() + ".tmp" + std::to_string(::getpid());
+  std::error_code ec;
+  {
+    std::ofstream os(tmp, std::ios::binary);
+    os << text;
+    os.flush();
+    if (!os.good()) {
+      fs::remove(tmp, ec);
+      throw Error(path.string() + ": write failed (disk full?)", ErrorKind::Run);
+    }
+  }
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    const std::string why = ec.message();
+    fs::remove(tmp, ec);
+    throw Error(path.string() + ": cannot replace it: " + why, ErrorKind::Run);
+  }
+}
+
 }  // namespace esim::app

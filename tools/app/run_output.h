@@ -52,4 +52,8 @@ bool isEsimRunFolder(const std::filesystem::path& dir);
 // created, before anything is computed
 void createOutputFolder(const std::filesystem::path& dir, const std::string& option);
 
+// writes text to path whole: through a temporary file beside it (PATH.tmp<pid>), renamed into
+// place; throws Error (Run kind) when that fails, path untouched and the temporary removed
+void writeFileAtomic(const std::filesystem::path& path, const std::string& text);
+
 }  // namespace esim::app

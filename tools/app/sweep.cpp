@@ -36,6 +36,7 @@
 #include "sim/core_error.h"
 #include "sim/io/scenario.h"
 #include "tools/app/dataset.h"
+#include "tools/app/run_output.h"
 #include "tools/app/sweep_spec.h"
 
 extern char** environ;
