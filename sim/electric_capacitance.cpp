@@ -107,6 +107,11 @@ constexpr double kWoodburyShare = 0.5;
 constexpr int kMaxWoodburyRows = 1024;
 // ... and at this share of that limit the next factor is computed on a thread
 constexpr double kNextFactorShare = 0.5;
+// ... and adopted by the first update at least this many solves after it started. Adopted
+// by the very next update, it was waited for at two removals in consecutive frames: 3 ms of
+// a 1013-node frame (esim bench cut --sizes 1013 --strategy update --stages, temporary
+// instrumentation), the structural update sharing its core
+constexpr int kAdoptAfterSolves = 2;
 // A term that misses the accuracy check is refined (one step, s solves, see refine_) when
 // those cost less than this share of a factorization's flops, else refactorized. Measured
 // (esim bench cut --strategy update --stages, temporary instrumentation): at 8000 nodes the
@@ -182,9 +187,14 @@ class CapacitanceSolver final : public ElectricSolver {
         if (!factor_.pivotsPositive())
           return fallBack("the downdate lost positive definiteness (a pivot <= 0)");
       } else {
-        stats.adoptedFactor = adoptNextFactor();
+        // the next factor is adopted once due (kAdoptAfterSolves), or when the term
+        // would outgrow its limit (extendWoodbury), never merely because it is done:
+        // which factor a solve uses depends on the calls, not on the thread's timing
+        std::vector<int> carried;
+        if (nextFactor_.valid() && solvesSinceNextFactor_ >= kAdoptAfterSolves)
+          stats.adoptedFactor = adoptNextFactor(carried);
         free_.apply(change);
-        stats.rank = extendWoodbury(change, stats);
+        stats.rank = extendWoodbury(change, carried, stats);
       }
       // Y = K'^-1 I_:S on the rows S of E staying free: checks the update along the
       // directions it changed, then corrects the cached columns
@@ -237,6 +247,7 @@ class CapacitanceSolver final : public ElectricSolver {
   ElectricSolveStats solve(const std::vector<int>& contact, double voltageV,
                            Eigen::VectorXd& potential) override {
     ESIM_CHECK(free_.current.n > 0);  // setMatrix before solve
+    if (nextFactor_.valid()) ++solvesSinceNextFactor_;
     ElectricSolveStats stats;
     const std::vector<int> cf = free_.contactBaseIndices(contact);
     if (cf.empty()) {
@@ -361,6 +372,7 @@ class CapacitanceSolver final : public ElectricSolver {
 
   // factorizes the current matrix with the kept ordering; the Woodbury term is emptied
   void refactorNumeric() {
+    dropNextFactor();  // of an older matrix
     factor_.factorize(free_.matrix, "capacitance");
     factoredValues_.assign(free_.matrix.valuePtr(),
                            free_.matrix.valuePtr() + free_.matrix.nonZeros());
@@ -378,30 +390,36 @@ class CapacitanceSolver final : public ElectricSolver {
   }
 
   // Once the term holds kNextFactorShare of its limit, the current matrix K_k is factorized
-  // on a thread (its own CHOLMOD workspace, a copy of K_k); the next update adopts it first
-  // (waiting if it is not done: the frame it happens in is fixed, so runs stay
-  // reproducible) with K_k as K0 and an empty term, so the term rarely reaches its limit and
-  // the frame loop no longer pays a numeric refactorization (measured: the 4-9 ms removal
-  // frames at 1k nodes, the electric update's p95 at 8k).
+  // on a thread (its own CHOLMOD workspace, a copy of K_k). The first update at least
+  // kAdoptAfterSolves solves later, or the first whose term would pass its limit, adopts it
+  // (waiting if it is not done: the update it happens in is fixed by the calls, so runs
+  // stay reproducible) with K_k as K0 and a term on the rows changed since K_k, so the term
+  // rarely reaches its limit and the frame loop no longer pays a numeric refactorization
+  // (measured: the 4-9 ms removal frames at 1k nodes, the electric update's p95 at 8k).
   void startNextFactor() {
     if (nextFactor_.valid() || free_.size() == 0 ||
         static_cast<double>(woodburyRows_.size()) < kNextFactorShare * woodburyLimit())
       return;
     nextValues_.assign(free_.matrix.valuePtr(), free_.matrix.valuePtr() + free_.matrix.nonZeros());
-    nextFactor_ = std::async(std::launch::async,
-                             [k = SparseMatrix(free_.matrix), threads = options_.threads] {
-                               deprioritizeThisThread();
-                               setBlasThreads(threads);
-                               auto f = std::make_unique<CholmodFactor>();
-                               f->analyze(k);
-                               f->factorize(k, "capacitance");
-                               return f;
-                             });
+    solvesSinceNextFactor_ = 0;
+    rowsSinceNextFactor_.clear();
+    nextFactor_ =
+        std::async(std::launch::async, [k = SparseMatrix(free_.matrix), threads = options_.threads,
+                                        ordering = factor_.ordering()] {
+          deprioritizeThisThread();
+          setBlasThreads(threads);
+          auto f = std::make_unique<CholmodFactor>();
+          f->analyze(k, ordering);  // the same pattern: no new ordering
+          f->factorize(k, "capacitance");
+          return f;
+        });
   }
 
-  // the factor started by startNextFactor becomes K0 (false: none, or it failed: the
-  // current factor and term go on)
-  bool adoptNextFactor() {
+  // the factor started by startNextFactor becomes K0, with an empty term; `carried` gets
+  // the rows changed since (they start the new term). False: none, or it failed: the
+  // current factor and term go on.
+  bool adoptNextFactor(std::vector<int>& carried) {
+    carried.clear();
     if (!nextFactor_.valid()) return false;
     std::unique_ptr<CholmodFactor> f;
     try {
@@ -412,6 +430,7 @@ class CapacitanceSolver final : public ElectricSolver {
     }
     factor_.swap(*f);
     factoredValues_.swap(nextValues_);
+    carried.swap(rowsSinceNextFactor_);
     refine_ = false;
     woodburyRows_.clear();
     woodburyPos_.assign(free_.size(), -1);
@@ -428,27 +447,40 @@ class CapacitanceSolver final : public ElectricSolver {
     }
   }
 
-  // adds the rows of this change to S0 (one block solve for the new ones) and recomputes
-  // M; folds everything into a numeric refactorization when the term grows too large.
-  // Returns the rows of the change.
-  int extendWoodbury(const BaseChange& change, ElectricUpdateStats& stats) {
+  // adds the rows of this change and the rows `carried` over from before an adopted
+  // factor to S0 (one block solve for the new ones) and recomputes M; a term that would
+  // outgrow its limit first adopts the next factor if there is one, else everything is
+  // folded into a numeric refactorization. Returns the rows of the change.
+  int extendWoodbury(const BaseChange& change, std::vector<int> carried,
+                     ElectricUpdateStats& stats) {
     const int nf = free_.size();
     std::vector<int> rows, fresh;
     std::vector<std::uint8_t> seen(nf, 0);
     for (int j = 0; j < nf; ++j)
       for (SparseMatrix::InnerIterator it(change.delta, j); it; ++it) seen[it.row()] = 1;
-    for (int i = 0; i < nf; ++i) {
-      if (!seen[i]) continue;
-      rows.push_back(i);
-      if (woodburyPos_[i] < 0) fresh.push_back(i);
-    }
-    const int s0 = static_cast<int>(woodburyRows_.size() + fresh.size());
+    for (int i = 0; i < nf; ++i)
+      if (seen[i]) rows.push_back(i);
+    const auto freshRows = [&] {
+      std::vector<std::uint8_t> in(seen);
+      for (int i : carried) in[i] = 1;
+      fresh.clear();
+      for (int i = 0; i < nf; ++i)
+        if (in[i] && woodburyPos_[i] < 0) fresh.push_back(i);
+      return static_cast<int>(woodburyRows_.size() + fresh.size());
+    };
+    int s0 = freshRows();
     const double limit = woodburyLimit();
+    if (s0 > limit && nextFactor_.valid() && adoptNextFactor(carried)) {
+      stats.adoptedFactor = true;
+      s0 = freshRows();
+    }
     if (s0 > limit || rowSolveFlops(fresh.size()) > refactorFlops()) {
       refactorNumeric();
       stats.refactored = true;
       return static_cast<int>(rows.size());
     }
+    if (nextFactor_.valid())
+      rowsSinceNextFactor_.insert(rowsSinceNextFactor_.end(), rows.begin(), rows.end());
     // Y0 for the new rows
     if (!fresh.empty()) {
       const int k = static_cast<int>(fresh.size());
@@ -798,6 +830,9 @@ class CapacitanceSolver final : public ElectricSolver {
   // structural update sharing its core.
   bool refine_ = false;
   std::vector<double> nextValues_;
+  // solves, and rows of the term (with repeats), since the next factor started
+  int solvesSinceNextFactor_ = 0;
+  std::vector<int> rowsSinceNextFactor_;
 };
 
 }  // namespace

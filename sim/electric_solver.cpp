@@ -340,6 +340,31 @@ void CholmodFactor::analyze(const SparseMatrix& A) {
   factorizeFlops_ = c->fl;
 }
 
+void CholmodFactor::analyze(const SparseMatrix& A, const std::vector<int>& ordering) {
+  ESIM_CHECK(A.isCompressed() && static_cast<int>(ordering.size()) == A.rows());
+  cholmod_common* c = &impl_->common;
+  if (impl_->factor) cholmod_free_factor(&impl_->factor, c);
+  factorized_ = false;
+  cholmod_sparse s = cholmodViewLower(A);
+  const int methods = c->nmethods, method = c->method[0].ordering;
+  c->nmethods = 1;
+  c->method[0].ordering = CHOLMOD_GIVEN;
+  std::vector<int> perm(ordering);  // CHOLMOD takes a non-const pointer
+  impl_->factor = cholmod_analyze_p(&s, perm.data(), nullptr, 0, c);
+  c->nmethods = methods;
+  c->method[0].ordering = method;
+  ESIM_RUN_CHECK(impl_->factor != nullptr,
+                 "electric solver: CHOLMOD symbolic analysis failed "
+                 "(out of memory?)");
+  factorizeFlops_ = c->fl;
+}
+
+std::vector<int> CholmodFactor::ordering() const {
+  if (!impl_->factor) return {};
+  const int* perm = static_cast<const int*>(impl_->factor->Perm);
+  return std::vector<int>(perm, perm + impl_->factor->n);
+}
+
 void CholmodFactor::factorize(const SparseMatrix& A, const char* what) {
   ESIM_CHECK(impl_->factor != nullptr);  // analyze before factorize
   cholmod_common* c = &impl_->common;

@@ -302,6 +302,11 @@ class CholmodFactor {
   CholmodFactor& operator=(const CholmodFactor&) = delete;
   // symbolic analysis (fill-reducing ordering) of a symmetric matrix (lower part used)
   void analyze(const SparseMatrix& A);
+  // ... with a given fill-reducing ordering (ordering() of a factor of a matrix with A's
+  // pattern): no ordering is computed, the same factor comes out
+  void analyze(const SparseMatrix& A, const std::vector<int>& ordering);
+  // the fill-reducing permutation of the analysis (empty before one)
+  std::vector<int> ordering() const;
   // numeric factorization; throws Error naming `what` if A is not positive definite
   void factorize(const SparseMatrix& A, const char* what);
   // x = A^-1 b for `ncols` column-major right-hand sides of length n
