@@ -317,6 +317,10 @@ Scenario parseScenario(const std::string& yamlText, const std::string& sourceNam
 // the fully resolved scenario as YAML (every field, in schema order); parse(toYaml(s)) == s
 std::string scenarioToYaml(const Scenario& scenario);
 
+// a number as a scenario (and --set KEY=VALUE) writes it: the shortest text that reads back
+// to the same double (std::to_string would give 0.000000 for 1e-7 and 309 digits for 1e308)
+std::string scenarioNumber(double value);
+
 // FNV-1a 64-bit hash of scenarioToYaml (stable across runs and machines)
 std::uint64_t scenarioHash(const Scenario& scenario);
 

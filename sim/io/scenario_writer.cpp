@@ -70,6 +70,8 @@ std::string allowedText(const Field& f) {
 
 using namespace scenario_detail;
 
+std::string scenarioNumber(double value) { return formatNumber(value); }
+
 std::string scenarioToYaml(const Scenario& s) {
   std::string out = "# ESim scenario, fully resolved (every field explicit)\n";
   std::vector<std::string> open;  // current group path components

@@ -238,6 +238,18 @@ TEST(Scenario, SummaryNamesFramesPhasesAndMesh) {
 
 // ---- overrides ----
 
+// what the benches pass as --set values: every double reads back to itself, at any magnitude
+TEST(Scenario, ScenarioNumberReadsBackExactly) {
+  for (const double v : {2.5e-7, 1.0 / 3.0, 60.0, 0.0, 1e-300, 9999.999999999998}) {
+    SCOPED_TRACE(v);
+    const std::string text = scenarioNumber(v);
+    EXPECT_LT(text.size(), 26u) << text;
+    EXPECT_EQ(parseScenario("", "n.yaml", {"tool.voltage_v=" + text}).tool.voltageV, v);
+  }
+  EXPECT_EQ(scenarioNumber(1e308), "1e+308");
+  EXPECT_EQ(scenarioNumber(200), "200");
+}
+
 TEST(Scenario, OverridesSetNumbersListsAndNestedFields) {
   const std::string base = "tool: {voltage_v: 50}\n";
   const Scenario s =

@@ -42,6 +42,9 @@ TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
       // the second size's run is checked before the first one runs
       {"bench cut --sizes 50,20000 --set tool.voltage_v=abc",
        "--set tool.voltage_v=abc: tool.voltage_v: expected a number in volts, got 'abc'"},
+      // --voltage goes to the scene as written (it printed 309 digits)
+      {"bench cut --sizes 50 --voltage 1e308",
+       "--set tool.voltage_v=1e+308: tool.voltage_v = 1e+308 is outside [0, 10000]"},
       {"bench structural --sizes 100 --solves 0", "--solves must be >= 1"},
       {"bench thermal --sizes 100 --solver foo", "--solver 'foo': expected auto, direct or cg"},
       {"bench electric --sizes 100 --frames 0", "bench electric: --frames must be >= 1"},
@@ -107,6 +110,13 @@ TEST_F(BenchCli, CutWritesTheIssuesColumns) {
       << table;
   EXPECT_NE(table.find("\nsynchronous,"), std::string::npos) << table;
   EXPECT_EQ(std::count(table.begin(), table.end(), '\n'), 3) << table;
+}
+
+// a small --voltage reaches the scene whole (std::to_string made 2.5e-7 V into 0 V)
+TEST_F(BenchCli, CutPassesItsVoltageExactly) {
+  const auto r = shell(esim("bench cut --sizes 50 --frames 1 --strategy update --voltage 2.5e-7"));
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_NE(r.output.find("at 2.5e-07 V"), std::string::npos) << r.output;
 }
 
 }  // namespace

@@ -230,7 +230,7 @@ app::VoxelGrid voxelGrid(const Scenario& sc, double voxelM) {
 
 std::vector<std::string> allSets(const Sweep& sw, const Point& p, double seconds) {
   std::vector<std::string> sets = sw.baseSets;
-  sets.push_back("time.duration_s=" + std::to_string(seconds));
+  sets.push_back("time.duration_s=" + scenarioNumber(seconds));
   sets.insert(sets.end(), p.sets.begin(), p.sets.end());
   return sets;
 }

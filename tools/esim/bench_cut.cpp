@@ -60,7 +60,7 @@ double quantile(std::vector<double> v, double q) {
 std::vector<std::string> runSets(const BenchCutOptions& opt, int nodes, const std::string& strategy,
                                  const std::string& method) {
   std::vector<std::string> sets = {
-      "mesh.slab.nodes=" + std::to_string(nodes), "tool.voltage_v=" + std::to_string(opt.voltageV),
+      "mesh.slab.nodes=" + std::to_string(nodes), "tool.voltage_v=" + scenarioNumber(opt.voltageV),
       "solvers.rebuild.mode=" + strategy, "solvers.structural.method=" + method,
       "physics=[electric,thermal,boiling,structural,rupture]"};
   sets.insert(sets.end(), opt.overrides.begin(), opt.overrides.end());
@@ -89,8 +89,8 @@ int benchCut(const BenchCutOptions& opt) {
   app::CsvOutput csv(opt.csv,
                      "strategy,nodes,frames,median_ms,p95_ms,max_ms,removed_tets,rebuilds,"
                      "rebuild_median_ms,waits");
-  std::printf("esim bench cut: %s at %.0f V, physics per frame (no rendering), one BLAS thread\n",
-              opt.scenario.c_str(), opt.voltageV);
+  std::printf("esim bench cut: %s at %s V, physics per frame (no rendering), one BLAS thread\n",
+              opt.scenario.c_str(), scenarioNumber(opt.voltageV).c_str());
   std::printf("%-12s %7s %6s %10s %9s %9s %8s %8s %11s %6s\n", "strategy", "nodes", "frames",
               "median_ms", "p95_ms", "max_ms", "removed", "rebuilds", "rebuild_med", "waits");
   for (const int nodes : sizes)

@@ -99,8 +99,7 @@ Checks study(int targetNodes) {
   c.supernodal = CHOLMOD_SUPERNODAL;
   c.nmethods = 1;
   c.method[0].ordering = CHOLMOD_METIS;
-  cholmod_triplet* t =
-      cholmod_allocate_triplet(n, n, 78 * mesh.tets.size(), -1, CHOLMOD_REAL, &c);
+  cholmod_triplet* t = cholmod_allocate_triplet(n, n, 78 * mesh.tets.size(), -1, CHOLMOD_REAL, &c);
   for (int e = 0; e < mesh.numTets(); ++e) {
     const Matrix12 k = elementStiffness(geo[e]);
     for (int a = 0; a < 12; ++a)
@@ -229,8 +228,9 @@ Checks study(int targetNodes) {
         const int* lp = static_cast<int*>(original->p);
         const double* lx = static_cast<double*>(original->x);
         for (int row = 0; row < n; ++row) yBlock.row(row) *= std::sqrt(lx[lp[row]]);
-        checks.reachVsBlock = std::max(checks.reachVsBlock, (yReach - yBlock).cwiseAbs().maxCoeff() /
-                                                                yReach.cwiseAbs().maxCoeff());
+        checks.reachVsBlock =
+            std::max(checks.reachVsBlock,
+                     (yReach - yBlock).cwiseAbs().maxCoeff() / yReach.cwiseAbs().maxCoeff());
       }
 
       s = seconds();
@@ -271,8 +271,7 @@ int main(int argc, char** argv) {
     char* end = nullptr;
     const long v = std::strtol(argv[i], &end, 10);
     if (*end != '\0' || v < 100 || v > 200000) {
-      std::fprintf(stderr, "updown_study: '%s': expected a node count in [100, 200000]\n",
-                   argv[i]);
+      std::fprintf(stderr, "updown_study: '%s': expected a node count in [100, 200000]\n", argv[i]);
       return 2;
     }
     sizes.push_back(static_cast<int>(v));
