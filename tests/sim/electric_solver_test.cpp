@@ -723,6 +723,18 @@ ElectricUpdateStats cutLineNodeAndCompare(CutSlab& cut, ElectricSolver& solver,
   return st;
 }
 
+// a capacitance solver of the uncut slab with the columns of every contact set cached
+// (u: the last set's potential)
+std::unique_ptr<ElectricSolver> cachedCapacitance(const CutSlab& cut,
+                                                  const std::vector<std::vector<int>>& sets,
+                                                  Eigen::VectorXd& u) {
+  auto solver = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
+  solver->setContactCandidates(cut.surface);
+  solver->setMatrix(cut.K, cut.grounded);
+  for (const auto& contact : sets) solver->solve(contact, kVolt, u);
+  return solver;
+}
+
 // capacitance, Woodbury: cut after cut the term grows; from half its limit the matrix is
 // factorized on a thread and the next update adopts that factor (an empty term again), so
 // no update refactorizes in the frame; the cache stays valid throughout, every cut matches a
@@ -734,11 +746,8 @@ TEST(ElectricSolverUpdate, CapacitanceWoodburyTermIsFoldedIntoAFactorComputedOnA
   std::vector<Eigen::VectorXd> last(2);
   for (int run = 0; run < 2; ++run) {
     CutSlab cut(1013);
-    auto solver = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
-    solver->setContactCandidates(cut.surface);
-    solver->setMatrix(cut.K, cut.grounded);
     Eigen::VectorXd u;
-    for (const auto& contact : sets) solver->solve(contact, kVolt, u);
+    const auto solver = cachedCapacitance(cut, sets, u);
     int refactored = 0, adopted = 0;
     for (int k = 0; k < 12; ++k) {
       const ElectricUpdateStats st = cutLineNodeAndCompare(cut, *solver, sets, k, true, u);
@@ -765,11 +774,8 @@ TEST(ElectricSolverUpdate, CapacitanceFactorAdoptedAfterCutsInARowCarriesTheirRo
   std::vector<Eigen::VectorXd> last(2);
   for (int run = 0; run < 2; ++run) {
     CutSlab cut(1013);
-    auto solver = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
-    solver->setContactCandidates(cut.surface);
-    solver->setMatrix(cut.K, cut.grounded);
     Eigen::VectorXd u;
-    for (const auto& contact : sets) solver->solve(contact, kVolt, u);
+    const auto solver = cachedCapacitance(cut, sets, u);
     int refactored = 0, adoptedAfterARow = 0;
     for (int k = 0; k < 14; k += 2) {
       // the first cut of the pair, no solve after it
