@@ -48,6 +48,10 @@ TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
       {"bench structural --sizes 100 --solves 0", "--solves must be >= 1"},
       {"bench thermal --sizes 100 --solver foo", "--solver 'foo': expected auto, direct or cg"},
       {"bench electric --sizes 100 --frames 0", "bench electric: --frames must be >= 1"},
+      // --only-update skips the table these options (and the fixture's --csv) are for
+      {"bench electric --only-update",
+       "bench electric: --csv is an option of the blade-sweep "
+       "table, which --only-update skips"},
       {"bench render --sizes x", "--sizes: 'x' is not WIDTHxHEIGHT (e.g. 1280x720)"},
   };
   for (const Case& c : cases) {

@@ -551,28 +551,39 @@ const Registrar registrar(
     "capacitance, pcg)",
     [](CLI::App& app) -> Runner {
       auto opt = std::make_shared<BenchElectricOptions>();
-      app.add_option("--sizes", opt->sizes, "comma-separated slab node counts")
+      // the blade sweep's options, which --only-update would silently ignore
+      std::vector<CLI::Option*> sweep;
+      sweep.push_back(app.add_option("--sizes", opt->sizes, "comma-separated slab node counts")
+                          ->capture_default_str());
+      app.add_option("--frames", opt->frames,
+                     "frames of the blade sweep (the update table warms up on at least 60)")
           ->capture_default_str();
-      app.add_option("--frames", opt->frames, "frames of the blade sweep")->capture_default_str();
-      app.add_option("--csv", opt->csv, "write one row per strategy and size to this CSV file");
-      app.add_option("--strategies", opt->strategies, "comma-separated strategies to run")
-          ->capture_default_str();
-      app.add_option("--threads", opt->threads, "BLAS threads")->capture_default_str();
-      app.add_option("--pcg-tolerance", opt->pcgTolerance, "pcg relative residual")
-          ->capture_default_str();
-      app.add_option("--pcg-preconditioner", opt->pcgPreconditioner, "ic or jacobi")
-          ->check(CLI::IsMember({"ic", "jacobi"}))
-          ->capture_default_str();
-      app.add_option("--dense-limit-gb", opt->denseLimitGb, "dense-inverse memory limit [GB]")
-          ->capture_default_str();
-      app.add_option("--error-frames", opt->errorFrames,
-                     "frames compared against a fresh direct solve")
-          ->capture_default_str();
-      app.add_option("--fig9-frames", opt->fig9Frames, "frames of the Fig. 9(a) runs")
-          ->capture_default_str();
-      app.add_flag("!--no-fig9", opt->fig9, "skip the paper's Fig. 9(a) comparison");
-      app.add_flag("!--no-prefetch", opt->pathPrefetch,
-                   "skip the capacitance+prefetch row (scripted path prefetched at setup)");
+      sweep.push_back(app.add_option("--csv", opt->csv,
+                                     "write one row per strategy and size to this CSV file"));
+      sweep.push_back(
+          app.add_option("--strategies", opt->strategies, "comma-separated strategies to run")
+              ->capture_default_str());
+      sweep.push_back(
+          app.add_option("--threads", opt->threads, "BLAS threads")->capture_default_str());
+      sweep.push_back(app.add_option("--pcg-tolerance", opt->pcgTolerance, "pcg relative residual")
+                          ->capture_default_str());
+      sweep.push_back(app.add_option("--pcg-preconditioner", opt->pcgPreconditioner, "ic or jacobi")
+                          ->check(CLI::IsMember({"ic", "jacobi"}))
+                          ->capture_default_str());
+      sweep.push_back(
+          app.add_option("--dense-limit-gb", opt->denseLimitGb, "dense-inverse memory limit [GB]")
+              ->capture_default_str());
+      sweep.push_back(app.add_option("--error-frames", opt->errorFrames,
+                                     "frames compared against a fresh direct solve")
+                          ->capture_default_str());
+      sweep.push_back(
+          app.add_option("--fig9-frames", opt->fig9Frames, "frames of the Fig. 9(a) runs")
+              ->capture_default_str());
+      sweep.push_back(
+          app.add_flag("!--no-fig9", opt->fig9, "skip the paper's Fig. 9(a) comparison"));
+      sweep.push_back(
+          app.add_flag("!--no-prefetch", opt->pathPrefetch,
+                       "skip the capacitance+prefetch row (scripted path prefetched at setup)"));
       app.add_flag("--update", opt->update, "also the updateMatrix-after-a-cut table");
       app.add_flag("--only-update", opt->onlyUpdate, "only the updateMatrix-after-a-cut table");
       app.add_option("--update-sizes", opt->updateSizes, "node counts of the update table")
@@ -583,7 +594,16 @@ const Registrar registrar(
           ->capture_default_str();
       app.add_option("--update-reps", opt->updateReps, "runs per row (best taken)")
           ->capture_default_str();
-      return [opt] { return benchElectric(*opt); };
+      return [opt, sweep] {
+        if (opt->onlyUpdate)
+          for (const CLI::Option* o : sweep)
+            ESIM_VERIFY(o->count() == 0,
+                        "bench electric: " + o->get_name() +
+                            " is an option of the blade-sweep table, which --only-update skips "
+                            "(the update table's: --update-sizes, --update-tets, "
+                            "--update-strategies, --update-reps)");
+        return benchElectric(*opt);
+      };
     });
 
 }  // namespace
