@@ -46,6 +46,11 @@ TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
       {"bench cut --sizes 50 --voltage 1e308",
        "--set tool.voltage_v=1e+308: tool.voltage_v = 1e+308 is outside [0, 10000]"},
       {"bench structural --sizes 100 --solves 0", "--solves must be >= 1"},
+      // an option of the other bench is refused, not ignored
+      {"bench structural --sizes 100 --margins-mm 5",
+       "bench structural: --margins-mm is an option of --local only"},
+      {"bench structural --sizes 100 --local",
+       "bench structural: --csv is not an option of --local"},
       {"bench thermal --sizes 100 --solver foo", "--solver 'foo': expected auto, direct or cg"},
       {"bench electric --sizes 100 --frames 0", "bench electric: --frames must be >= 1"},
       // --only-update skips the table these options (and the fixture's --csv) are for
@@ -53,6 +58,8 @@ TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
        "bench electric: --csv is an option of the blade-sweep "
        "table, which --only-update skips"},
       {"bench render --sizes x", "--sizes: 'x' is not WIDTHxHEIGHT (e.g. 1280x720)"},
+      {"bench render --surfaces slab --liver assets/liver.obj",
+       "bench render: --liver is the 'liver' case's, which --surfaces leaves out"},
   };
   for (const Case& c : cases) {
     std::ofstream(csv_) << "an earlier table\n";

@@ -552,7 +552,7 @@ const Registrar registrar(
     [](CLI::App& app) -> Runner {
       auto opt = std::make_shared<BenchElectricOptions>();
       // the blade sweep's options, which --only-update would silently ignore
-      std::vector<CLI::Option*> sweep;
+      std::vector<const CLI::Option*> sweep;
       sweep.push_back(app.add_option("--sizes", opt->sizes, "comma-separated slab node counts")
                           ->capture_default_str());
       app.add_option("--frames", opt->frames,
@@ -596,12 +596,10 @@ const Registrar registrar(
           ->capture_default_str();
       return [opt, sweep] {
         if (opt->onlyUpdate)
-          for (const CLI::Option* o : sweep)
-            ESIM_VERIFY(o->count() == 0,
-                        "bench electric: " + o->get_name() +
-                            " is an option of the blade-sweep table, which --only-update skips "
-                            "(the update table's: --update-sizes, --update-tets, "
-                            "--update-strategies, --update-reps)");
+          refuseGiven(sweep, "bench electric",
+                      "is an option of the blade-sweep table, which --only-update skips (the "
+                      "update table's: --update-sizes, --update-tets, --update-strategies, "
+                      "--update-reps)");
         return benchElectric(*opt);
       };
     });

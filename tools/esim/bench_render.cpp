@@ -321,14 +321,21 @@ Registrar registerBenchRender(
           ->capture_default_str();
       app.add_option("--preset", opt->preset, "x264 preset")->capture_default_str();
       app.add_option("--crf", opt->crf, "x264 CRF")->capture_default_str();
-      app.add_option("--liver", opt->liver, "surface file of the 'liver' case")
-          ->capture_default_str();
+      const CLI::Option* liver =
+          app.add_option("--liver", opt->liver, "surface file of the 'liver' case")
+              ->capture_default_str();
       app.add_flag("--labels", opt->labels,
                    "also time the label pass (Renderer::renderLabels) after each frame");
       app.add_option("--csv", opt->csv,
                      "write surface,width,height,triangles,render_ms,convert_ms,encode_ms,"
                      "shading,msaa,psnr_db");
-      return [opt] { return benchRender(*opt); };
+      return [opt, liver] {
+        const std::vector<std::string> surfaces = splitList(opt->surfaces);
+        if (std::find(surfaces.begin(), surfaces.end(), "liver") == surfaces.end())
+          refuseGiven({liver}, "bench render",
+                      "is the 'liver' case's, which --surfaces leaves out");
+        return benchRender(*opt);
+      };
     });
 
 }  // namespace

@@ -307,38 +307,55 @@ cli::Registrar registerBenchStructural(
     "tets",
     [](CLI::App& app) -> cli::Runner {
       auto opt = std::make_shared<BenchStructuralOptions>();
+      // what only one of the two benches reads (the other would silently ignore it)
+      std::vector<const CLI::Option*> fullOnly, localOnly;
       app.add_option("--sizes", opt->sizes, "slab node counts, comma separated")
           ->capture_default_str();
-      app.add_option("--solves", opt->solves, "timed solves per size")->capture_default_str();
-      app.add_option("--peak-expansion", opt->peakExpansion,
-                     "peak volumetric expansion dV/V of the load")
-          ->capture_default_str();
-      app.add_flag("--prepare-for-updates", opt->prepareForUpdates,
-                   "StructuralOptions::prepareForUpdates for the phase of steps 1, 2 and 4 (the "
-                   "factor converted to LDL' at construction: update5_ms is the steady state)");
+      fullOnly.push_back(
+          app.add_option("--solves", opt->solves, "timed solves per size")->capture_default_str());
+      fullOnly.push_back(app.add_option("--peak-expansion", opt->peakExpansion,
+                                        "peak volumetric expansion dV/V of the load")
+                             ->capture_default_str());
+      fullOnly.push_back(app.add_flag(
+          "--prepare-for-updates", opt->prepareForUpdates,
+          "StructuralOptions::prepareForUpdates for the phase of steps 1, 2 and 4 (the "
+          "factor converted to LDL' at construction: update5_ms is the steady state)"));
       app.add_flag("--local", opt->local,
                    "instead: the local solve against the full one on a growing and a moving "
                    "load (errors of von Mises, tets on the other side of the critical stress)");
-      app.add_option("--frames", opt->frames, "--local: frames per scene")->capture_default_str();
-      app.add_option("--step-mm", opt->stepMm, "--local: the moving load's step a frame [mm]")
-          ->capture_default_str();
-      app.add_option("--overload", opt->overload,
-                     "--local: the load's peak von Mises over the critical stress")
-          ->capture_default_str();
-      app.add_option("--margins-mm", opt->marginsMm,
-                     "--local: LocalSolveOptions::marginM values [mm], comma separated")
-          ->capture_default_str();
-      app.add_option("--slack-mm", opt->slackMm, "--local: LocalSolveOptions::slackM [mm]")
-          ->capture_default_str();
-      app.add_option("--refresh", opt->refresh, "--local: LocalSolveOptions::refreshEvery")
-          ->capture_default_str();
-      app.add_flag("--refresh-on-thread", opt->refreshOnThread,
-                   "--local: LocalSolveOptions::refreshOnThread");
-      app.add_option("--csv", opt->csv,
-                     "write nodes,dofs,factor_ms,solve_ms,rebuild5_ms,update5_ms,convert_ms,"
-                     "update_refactorized,solve_updated_ms,update_vs_rebuild,max_von_mises_pa "
-                     "to FILE");
-      return [opt] { return benchStructural(*opt); };
+      localOnly.push_back(app.add_option("--frames", opt->frames, "--local: frames per scene")
+                              ->capture_default_str());
+      localOnly.push_back(
+          app.add_option("--step-mm", opt->stepMm, "--local: the moving load's step a frame [mm]")
+              ->capture_default_str());
+      localOnly.push_back(
+          app.add_option("--overload", opt->overload,
+                         "--local: the load's peak von Mises over the critical stress")
+              ->capture_default_str());
+      localOnly.push_back(
+          app.add_option("--margins-mm", opt->marginsMm,
+                         "--local: LocalSolveOptions::marginM values [mm], comma separated")
+              ->capture_default_str());
+      localOnly.push_back(
+          app.add_option("--slack-mm", opt->slackMm, "--local: LocalSolveOptions::slackM [mm]")
+              ->capture_default_str());
+      localOnly.push_back(
+          app.add_option("--refresh", opt->refresh, "--local: LocalSolveOptions::refreshEvery")
+              ->capture_default_str());
+      localOnly.push_back(app.add_flag("--refresh-on-thread", opt->refreshOnThread,
+                                       "--local: LocalSolveOptions::refreshOnThread"));
+      fullOnly.push_back(
+          app.add_option("--csv", opt->csv,
+                         "write nodes,dofs,factor_ms,solve_ms,rebuild5_ms,update5_ms,convert_ms,"
+                         "update_refactorized,solve_updated_ms,update_vs_rebuild,max_von_mises_pa "
+                         "to FILE"));
+      return [opt, fullOnly, localOnly] {
+        if (opt->local)
+          cli::refuseGiven(fullOnly, "bench structural", "is not an option of --local");
+        else
+          cli::refuseGiven(localOnly, "bench structural", "is an option of --local only");
+        return benchStructural(*opt);
+      };
     });
 
 }  // namespace

@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "sim/core_error.h"
 #include "tools/app/exit_codes.h"
 
 namespace esim::cli {
@@ -40,6 +41,15 @@ struct Registrar {
     commandRegistry().push_back({std::move(path), std::move(description), std::move(setup)});
   }
 };
+
+// An option the command would silently ignore is bad input: throws an Input error naming
+// the first of `options` that was given, "<command>: --x <why>" (e.g. why = "is an option of
+// the blade-sweep table, which --only-update skips").
+inline void refuseGiven(const std::vector<const CLI::Option*>& options, const std::string& command,
+                        const std::string& why) {
+  for (const CLI::Option* o : options)
+    ESIM_VERIFY(o->count() == 0, command + ": " + o->get_name() + " " + why);
+}
 
 // exit codes (tools/app/exit_codes.h, documented in README)
 using ::esim::exitCodeOf;
