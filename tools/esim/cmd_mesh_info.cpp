@@ -124,37 +124,56 @@ Registrar reg(
       app.add_option("file", opt->file, "surface mesh file, a .vtu tet mesh, or 'slab'");
       app.add_option("--slab-nodes", opt->slabNodes, "report the paper's slab with this many nodes")
           ->check(CLI::PositiveNumber);
-      app.add_option("--cell-size", opt->meshing.cellSizeM, "tet circumradius bound [m]")
-          ->capture_default_str();
-      app.add_option("--facet-size", opt->meshing.facetSizeM,
-                     "surface facet size [m] (default: cell size)");
-      app.add_option("--facet-distance", opt->meshing.facetDistanceM,
-                     "surface approximation error [m] (default: cell size / 20)");
-      app.add_option("--radius-edge", opt->meshing.cellRadiusEdgeRatio,
-                     "tet radius-edge ratio bound (>= 2)")
-          ->capture_default_str();
-      app.add_option("--sliver-bound", opt->meshing.sliverBoundDeg,
-                     "perturb/exude target min dihedral angle [deg]")
-          ->capture_default_str();
-      app.add_option("--scale", opt->scaleToMetres,
-                     "multiply file coordinates by this to get metres (0.001 for mm)")
-          ->capture_default_str();
-      app.add_option("--seed", opt->meshing.seed, "meshing random seed")->capture_default_str();
-      app.add_flag("--lloyd", opt->meshing.lloyd, "Lloyd smoothing");
-      app.add_flag("--no-perturb", opt->noPerturb, "skip sliver perturbation");
-      app.add_flag("--no-exude", opt->noExude, "skip sliver exudation");
-      app.add_option("--refine-from", opt->refineFrom,
-                     "refine around a planned cut from x,y,z [m] (with --refine-to)")
-          ->delimiter(',');
-      app.add_option("--refine-to", opt->refineTo, "planned cut end x,y,z [m]")->delimiter(',');
-      app.add_option("--refine-size", opt->meshing.refinement.cellSizeM,
-                     "tet size bound near the planned cut [m]")
-          ->capture_default_str();
-      app.add_option("--refine-width", opt->meshing.refinement.widthM,
-                     "radius of the fine zone around the planned cut [m]")
-          ->capture_default_str();
+      // what only the meshing of a surface file reads (the slab and a .vtu would ignore it)
+      std::vector<const CLI::Option*> meshing;
+      meshing.push_back(
+          app.add_option("--cell-size", opt->meshing.cellSizeM, "tet circumradius bound [m]")
+              ->capture_default_str());
+      meshing.push_back(app.add_option("--facet-size", opt->meshing.facetSizeM,
+                                       "surface facet size [m] (default: cell size)"));
+      meshing.push_back(
+          app.add_option("--facet-distance", opt->meshing.facetDistanceM,
+                         "surface approximation error [m] (default: cell size / 20)"));
+      meshing.push_back(app.add_option("--radius-edge", opt->meshing.cellRadiusEdgeRatio,
+                                       "tet radius-edge ratio bound (>= 2)")
+                            ->capture_default_str());
+      meshing.push_back(app.add_option("--sliver-bound", opt->meshing.sliverBoundDeg,
+                                       "perturb/exude target min dihedral angle [deg]")
+                            ->capture_default_str());
+      meshing.push_back(
+          app.add_option("--scale", opt->scaleToMetres,
+                         "multiply file coordinates by this to get metres (0.001 for mm)")
+              ->capture_default_str());
+      meshing.push_back(app.add_option("--seed", opt->meshing.seed, "meshing random seed")
+                            ->capture_default_str());
+      meshing.push_back(app.add_flag("--lloyd", opt->meshing.lloyd, "Lloyd smoothing"));
+      meshing.push_back(app.add_flag("--no-perturb", opt->noPerturb, "skip sliver perturbation"));
+      meshing.push_back(app.add_flag("--no-exude", opt->noExude, "skip sliver exudation"));
+      meshing.push_back(
+          app.add_option("--refine-from", opt->refineFrom,
+                         "refine around a planned cut from x,y,z [m] (with --refine-to)")
+              ->delimiter(','));
+      meshing.push_back(app.add_option("--refine-to", opt->refineTo, "planned cut end x,y,z [m]")
+                            ->delimiter(','));
+      meshing.push_back(app.add_option("--refine-size", opt->meshing.refinement.cellSizeM,
+                                       "tet size bound near the planned cut [m]")
+                            ->capture_default_str());
+      meshing.push_back(app.add_option("--refine-width", opt->meshing.refinement.widthM,
+                                       "radius of the fine zone around the planned cut [m]")
+                            ->capture_default_str());
       app.add_option("--vtu", opt->vtuOut, "also write the tet mesh to this .vtu file");
-      return [opt] { return runMeshInfo(*opt); };
+      return [opt, meshing] {
+        const bool slab = opt->slabNodes > 0 || opt->file == "slab";
+        ESIM_VERIFY(opt->slabNodes == 0 || opt->file.empty() || opt->file == "slab",
+                    "mesh-info: --slab-nodes reports the slab; give it without '" + opt->file +
+                        "' (or with 'slab')");
+        if (slab || endsWith(opt->file, ".vtu"))
+          refuseGiven(
+              meshing, "mesh-info",
+              std::string("is an option of meshing a surface file, and ") +
+                  (slab ? "the slab is built, not meshed" : "a .vtu tet mesh is read as it is"));
+        return runMeshInfo(*opt);
+      };
     });
 
 }  // namespace

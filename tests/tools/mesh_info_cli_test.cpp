@@ -1,0 +1,55 @@
+// mesh_info_cli_test.cpp - `esim mesh-info` end to end on the slab and a .vtu it wrote: the
+// counts it prints, and the options a mode would silently ignore refused with exit 2 (a
+// surface file beside --slab-nodes, meshing options for the slab or a .vtu).
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "tests/scratch_dir_util.h"
+#include "tests/tools/cli_test_util.h"
+
+namespace {
+
+using esim::cli_test::shell;
+
+class MeshInfoCli : public esim::test::ScratchDirTest {
+ protected:
+  static std::string esim(const std::string& args) {
+    return std::string("\"") + ESIM_EXE + "\" mesh-info " + args;
+  }
+};
+
+TEST_F(MeshInfoCli, TheSlabAndTheVtuItWroteHaveTheSameCounts) {
+  const std::string vtu = (root_ / "slab.vtu").string();
+  const auto slab = shell(esim("--slab-nodes 300 --vtu \"" + vtu + "\""));
+  ASSERT_EQ(slab.exitCode, 0) << slab.output;
+  EXPECT_NE(slab.output.find("nodes          300\n"), std::string::npos) << slab.output;
+  const auto read = shell(esim("\"" + vtu + "\""));
+  ASSERT_EQ(read.exitCode, 0) << read.output;
+  EXPECT_NE(read.output.find("nodes          300\n"), std::string::npos) << read.output;
+}
+
+TEST_F(MeshInfoCli, AnOptionTheModeWouldIgnoreIsRefused) {
+  const std::string vtu = (root_ / "slab.vtu").string();
+  ASSERT_EQ(shell(esim("--slab-nodes 300 --vtu \"" + vtu + "\"")).exitCode, 0);
+  struct Case {
+    std::string args, message;
+  };
+  const Case cases[] = {
+      {"assets/liver.obj --slab-nodes 500",
+       "mesh-info: --slab-nodes reports the slab; give it without 'assets/liver.obj'"},
+      {"--slab-nodes 500 --lloyd",
+       "mesh-info: --lloyd is an option of meshing a surface file, and the slab is built"},
+      {"slab --cell-size 0.002", "mesh-info: --cell-size is an option of meshing a surface file"},
+      {"\"" + vtu + "\" --refine-size 0.001",
+       "--refine-size is an option of meshing a surface file, and a .vtu tet mesh is read as it "
+       "is"},
+  };
+  for (const Case& c : cases) {
+    const auto r = shell(esim(c.args));
+    EXPECT_EQ(r.exitCode, 2) << c.args << "\n" << r.output;
+    EXPECT_NE(r.output.find(c.message), std::string::npos) << c.args << "\n" << r.output;
+  }
+}
+
+}  // namespace
