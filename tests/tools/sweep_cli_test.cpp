@@ -211,6 +211,18 @@ TEST(SweepCli, BadSweepsExitTwoWithNothingWritten) {
             std::string::npos)
       << opt.output;
   EXPECT_FALSE(fs::exists(dir));
+  // an option the chosen kind of sweep would ignore is refused
+  for (const auto& [args, message] : std::vector<std::pair<std::string, std::string>>{
+           {"--mem-mb 100", "sweep: --mem-mb is a Slurm option; it goes with --slurm"},
+           {"--sbatch-arg=--partition=long",
+            "sweep: --sbatch-arg is a Slurm option; it goes with --slurm"},
+           {"--slurm --workers 3", "sweep: --workers runs variants on this machine; with --slurm"},
+       }) {
+    const Result ignored = esim("sweep " + kTiny + " -o " + dir.string() + " " + args);
+    EXPECT_EQ(ignored.exitCode, 2) << args << "\n" << ignored.output;
+    EXPECT_NE(ignored.output.find(message), std::string::npos) << args << "\n" << ignored.output;
+    EXPECT_FALSE(fs::exists(dir)) << args;
+  }
   // a folder of other files is refused
   fs::create_directories(dir);
   writeFile(dir / "mine.txt", "x");

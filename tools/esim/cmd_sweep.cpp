@@ -46,8 +46,11 @@ Registrar reg(
       app.add_option("spec", opt->spec, "sweep file (scenarios/sweeps/README.md)")->required();
       app.add_option("-o,--out", opt->outDir,
                      "the sweep's folder: new, empty, or an earlier run of this sweep to resume");
-      app.add_option("--workers", opt->workers, "variants run at once on this machine")
-          ->check(CLI::Range(1, 1024));
+      // what only a local sweep, or only a Slurm one, reads (the other would ignore it)
+      std::vector<const CLI::Option*> localOnly, slurmOnly;
+      localOnly.push_back(
+          app.add_option("--workers", opt->workers, "variants run at once on this machine")
+              ->check(CLI::Range(1, 1024)));
       app.add_flag("--retry-failed", opt->retryFailed,
                    "run the variants that failed earlier again (interrupted ones always are)");
       app.add_option("--run-args", *runArgs,
@@ -59,21 +62,31 @@ Registrar reg(
                    "write DIR/slurm/sweep.sbatch, a job array of one variant per task, instead "
                    "of running here");
       app.add_flag("--submit", opt->submit, "with --slurm: sbatch the script and wait for it");
-      app.add_option("--mem-mb", opt->memMb, "Slurm: memory per task in MB (default: measured)")
-          ->check(CLI::Range(1, 100000000));
-      app.add_option("--time-min", opt->timeMin,
-                     "Slurm: time limit per task in minutes (default: measured)")
-          ->check(CLI::Range(1, 100000000));
-      app.add_option("--cpus", opt->cpus,
-                     "Slurm: CPUs per task (default: the scene's solver threads, +1 for a "
-                     "background rebuild)")
-          ->check(CLI::Range(1, 4096));
-      app.add_option("--max-parallel", opt->maxParallel,
-                     "Slurm: at most this many tasks at once (the array's %N)")
-          ->check(CLI::Range(1, 1000000));
-      app.add_option("--sbatch-arg", opt->sbatchArgs,
-                     "Slurm: one more #SBATCH line, e.g. --sbatch-arg=--partition=long");
-      return [opt, runArgs] {
+      slurmOnly.push_back(
+          app.add_option("--mem-mb", opt->memMb, "Slurm: memory per task in MB (default: measured)")
+              ->check(CLI::Range(1, 100000000)));
+      slurmOnly.push_back(
+          app.add_option("--time-min", opt->timeMin,
+                         "Slurm: time limit per task in minutes (default: measured)")
+              ->check(CLI::Range(1, 100000000)));
+      slurmOnly.push_back(
+          app.add_option("--cpus", opt->cpus,
+                         "Slurm: CPUs per task (default: the scene's solver threads, +1 for a "
+                         "background rebuild)")
+              ->check(CLI::Range(1, 4096)));
+      slurmOnly.push_back(app.add_option("--max-parallel", opt->maxParallel,
+                                         "Slurm: at most this many tasks at once (the array's %N)")
+                              ->check(CLI::Range(1, 1000000)));
+      slurmOnly.push_back(
+          app.add_option("--sbatch-arg", opt->sbatchArgs,
+                         "Slurm: one more #SBATCH line, e.g. --sbatch-arg=--partition=long"));
+      return [opt, runArgs, localOnly, slurmOnly] {
+        if (opt->slurm)
+          refuseGiven(localOnly, "sweep",
+                      "runs variants on this machine; with --slurm, Slurm runs them "
+                      "(--max-parallel limits how many at once)");
+        else
+          refuseGiven(slurmOnly, "sweep", "is a Slurm option; it goes with --slurm");
         opt->runArgs = splitWords(*runArgs);
         return app::runSweep(*opt, checkRunOptions);
       };
