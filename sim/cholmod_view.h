@@ -1,5 +1,6 @@
-// cholmod_view.h - an Eigen sparse matrix seen by CHOLMOD without a copy (the electric
-// solvers' and the structural phase's factorizations).
+// cholmod_view.h - an Eigen sparse matrix seen by CHOLMOD without a copy, and a symbolic
+// analysis with a given ordering (the electric solvers' and the structural phase's
+// factorizations).
 #pragma once
 
 #include <cholmod.h>
@@ -37,6 +38,19 @@ inline cholmod_sparse cholmodViewLower(const SparseMatrix& a) {
                          const_cast<int*>(a.innerIndexPtr()), const_cast<double*>(a.valuePtr()));
   s.stype = -1;  // symmetric, lower triangle used
   return s;
+}
+
+// the symbolic analysis of `a` with the fill-reducing ordering `perm` (n entries; no AMD or
+// METIS search): the common's ordering methods are set to CHOLMOD_GIVEN for the call and
+// restored; nullptr when CHOLMOD fails (out of memory)
+inline cholmod_factor* cholmodAnalyzeGiven(cholmod_sparse* a, int* perm, cholmod_common* c) {
+  const int methods = c->nmethods, ordering = c->method[0].ordering;
+  c->nmethods = 1;
+  c->method[0].ordering = CHOLMOD_GIVEN;
+  cholmod_factor* f = cholmod_analyze_p(a, perm, nullptr, 0, c);
+  c->nmethods = methods;
+  c->method[0].ordering = ordering;
+  return f;
 }
 
 }  // namespace esim

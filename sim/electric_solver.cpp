@@ -327,32 +327,17 @@ CholmodFactor::~CholmodFactor() {
   delete impl_;
 }
 
-void CholmodFactor::analyze(const SparseMatrix& A) {
-  ESIM_CHECK(A.isCompressed());
-  cholmod_common* c = &impl_->common;
-  if (impl_->factor) cholmod_free_factor(&impl_->factor, c);
-  factorized_ = false;
-  cholmod_sparse s = cholmodViewLower(A);
-  impl_->factor = cholmod_analyze(&s, c);
-  ESIM_RUN_CHECK(impl_->factor != nullptr,
-                 "electric solver: CHOLMOD symbolic analysis failed "
-                 "(out of memory?)");
-  factorizeFlops_ = c->fl;
-}
+void CholmodFactor::analyze(const SparseMatrix& A) { analyze(A, {}); }
 
 void CholmodFactor::analyze(const SparseMatrix& A, const std::vector<int>& ordering) {
-  ESIM_CHECK(A.isCompressed() && static_cast<int>(ordering.size()) == A.rows());
+  ESIM_CHECK(A.isCompressed() &&
+             (ordering.empty() || static_cast<int>(ordering.size()) == A.rows()));
   cholmod_common* c = &impl_->common;
   if (impl_->factor) cholmod_free_factor(&impl_->factor, c);
   factorized_ = false;
   cholmod_sparse s = cholmodViewLower(A);
-  const int methods = c->nmethods, method = c->method[0].ordering;
-  c->nmethods = 1;
-  c->method[0].ordering = CHOLMOD_GIVEN;
   std::vector<int> perm(ordering);  // CHOLMOD takes a non-const pointer
-  impl_->factor = cholmod_analyze_p(&s, perm.data(), nullptr, 0, c);
-  c->nmethods = methods;
-  c->method[0].ordering = method;
+  impl_->factor = perm.empty() ? cholmod_analyze(&s, c) : cholmodAnalyzeGiven(&s, perm.data(), c);
   ESIM_RUN_CHECK(impl_->factor != nullptr,
                  "electric solver: CHOLMOD symbolic analysis failed "
                  "(out of memory?)");

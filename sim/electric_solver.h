@@ -303,7 +303,7 @@ class CholmodFactor {
   // symbolic analysis (fill-reducing ordering) of a symmetric matrix (lower part used)
   void analyze(const SparseMatrix& A);
   // ... with a given fill-reducing ordering (ordering() of a factor of a matrix with A's
-  // pattern): no ordering is computed, the same factor comes out
+  // pattern): no ordering is computed, the same factor comes out (empty: as above)
   void analyze(const SparseMatrix& A, const std::vector<int>& ordering);
   // the fill-reducing permutation of the analysis (empty before one)
   std::vector<int> ordering() const;

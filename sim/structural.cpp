@@ -1048,12 +1048,7 @@ bool StructuralPhase::Impl::buildRegion(const Eigen::AlignedBox3d& box) {
   for (int k = 0; k < m; ++k) order[k] = k;
   std::sort(order.begin(), order.end(),
             [&](int a, int b) { return rowOfDof[regionDofs[a]] < rowOfDof[regionDofs[b]]; });
-  const int methods = common.nmethods, ordering = common.method[0].ordering;
-  common.nmethods = 1;
-  common.method[0].ordering = CHOLMOD_GIVEN;
-  regionFactor = cholmod_analyze_p(&view, order.data(), nullptr, 0, &common);
-  common.nmethods = methods;
-  common.method[0].ordering = ordering;
+  regionFactor = cholmodAnalyzeGiven(&view, order.data(), &common);
   ESIM_RUN_CHECK(regionFactor != nullptr, "structural: CHOLMOD analysis failed (out of memory?)");
   regionFlops = common.fl;
   const int ok = cholmod_factorize(&view, regionFactor, &common);
