@@ -8,6 +8,7 @@
 
 #include <Eigen/SparseCholesky>
 #include <algorithm>
+#include <functional>
 #include <iostream>
 #include <limits>
 #include <random>
@@ -723,16 +724,24 @@ ElectricUpdateStats cutLineNodeAndCompare(CutSlab& cut, ElectricSolver& solver,
   return st;
 }
 
-// a capacitance solver of the uncut slab with the columns of every contact set cached
-// (u: the last set's potential)
-std::unique_ptr<ElectricSolver> cachedCapacitance(const CutSlab& cut,
-                                                  const std::vector<std::vector<int>>& sets,
-                                                  Eigen::VectorXd& u) {
-  auto solver = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
-  solver->setContactCandidates(cut.surface);
-  solver->setMatrix(cut.K, cut.grounded);
-  for (const auto& contact : sets) solver->solve(contact, kVolt, u);
-  return solver;
+// Runs `cuts` twice, each time on a fresh 1013-node slab with a capacitance solver that has
+// every contact set's columns cached (u: the last set's potential, then whatever `cuts`
+// leaves in it), and expects the two runs' final u to be the same bits.
+void expectSameBitsTwice(
+    const std::vector<std::vector<int>>& sets,
+    const std::function<void(CutSlab&, ElectricSolver&, Eigen::VectorXd&)>& cuts) {
+  std::vector<Eigen::VectorXd> last(2);
+  for (int run = 0; run < 2; ++run) {
+    CutSlab cut(1013);
+    auto solver = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
+    solver->setContactCandidates(cut.surface);
+    solver->setMatrix(cut.K, cut.grounded);
+    Eigen::VectorXd u;
+    for (const auto& contact : sets) solver->solve(contact, kVolt, u);
+    cuts(cut, *solver, u);
+    last[run] = u;
+  }
+  EXPECT_EQ((last[0] - last[1]).cwiseAbs().maxCoeff(), 0.0);
 }
 
 // capacitance, Woodbury: cut after cut the term grows; from half its limit the matrix is
@@ -743,24 +752,18 @@ std::unique_ptr<ElectricSolver> cachedCapacitance(const CutSlab& cut,
 TEST(ElectricSolverUpdate, CapacitanceWoodburyTermIsFoldedIntoAFactorComputedOnAThread) {
   const Problem p = paperSlab(1013);
   const auto sets = sampleContacts(p);
-  std::vector<Eigen::VectorXd> last(2);
-  for (int run = 0; run < 2; ++run) {
-    CutSlab cut(1013);
-    Eigen::VectorXd u;
-    const auto solver = cachedCapacitance(cut, sets, u);
+  expectSameBitsTwice(sets, [&](CutSlab& cut, ElectricSolver& solver, Eigen::VectorXd& u) {
     int refactored = 0, adopted = 0;
     for (int k = 0; k < 12; ++k) {
-      const ElectricUpdateStats st = cutLineNodeAndCompare(cut, *solver, sets, k, true, u);
+      const ElectricUpdateStats st = cutLineNodeAndCompare(cut, solver, sets, k, true, u);
       refactored += st.refactored;
       adopted += st.adoptedFactor;
     }
-    last[run] = u;
     std::cout << "12 cuts: " << adopted << " factors adopted from the thread, " << refactored
               << " numeric refactorizations in the update\n";
     EXPECT_GE(adopted, 1);
     EXPECT_EQ(refactored, 0);
-  }
-  EXPECT_EQ((last[0] - last[1]).cwiseAbs().maxCoeff(), 0.0);
+  });
 }
 
 // The next factor is adopted only at least two solves after it started: two cuts in a row
@@ -771,32 +774,26 @@ TEST(ElectricSolverUpdate, CapacitanceFactorAdoptedAfterCutsInARowCarriesTheirRo
   const Problem p = paperSlab(1013);
   const auto sets = sampleContacts(p);
   ASSERT_GE(sets.size(), 2u);
-  std::vector<Eigen::VectorXd> last(2);
-  for (int run = 0; run < 2; ++run) {
-    CutSlab cut(1013);
-    Eigen::VectorXd u;
-    const auto solver = cachedCapacitance(cut, sets, u);
+  expectSameBitsTwice(sets, [&](CutSlab& cut, ElectricSolver& solver, Eigen::VectorXd& u) {
     int refactored = 0, adoptedAfterARow = 0;
     for (int k = 0; k < 14; k += 2) {
       // the first cut of the pair, no solve after it
       cut.remove(cut.aliveTetsWith(cut.nearestNode(Vec3(-0.04 + 0.006 * k, -0.03, 0.01))));
-      const ElectricUpdateStats first = solver->updateMatrix(cut.K, cut.grounded);
+      const ElectricUpdateStats first = solver.updateMatrix(cut.K, cut.grounded);
       EXPECT_FALSE(first.fellBack) << first.fallbackReason;
       refactored += first.refactored;
-      const ElectricUpdateStats second = cutLineNodeAndCompare(cut, *solver, sets, k + 1, true, u);
+      const ElectricUpdateStats second = cutLineNodeAndCompare(cut, solver, sets, k + 1, true, u);
       refactored += second.refactored;
       // a factor adopted at the first cut of a pair carries the last pair's second cut
       adoptedAfterARow += first.adoptedFactor && k > 0;
       EXPECT_FALSE(second.adoptedFactor) << "cut " << k + 1 << ": no solve since the last cut";
     }
-    last[run] = u;
     std::cout << "7 pairs of cuts: " << adoptedAfterARow
               << " factors adopted after two cuts in a row, " << refactored
               << " numeric refactorizations in the update\n";
     EXPECT_GE(adoptedAfterARow, 1);
     EXPECT_EQ(refactored, 0);
-  }
-  EXPECT_EQ((last[0] - last[1]).cwiseAbs().maxCoeff(), 0.0);
+  });
 }
 
 // An update whose Woodbury term misses the accuracy check alone refines Y once and
