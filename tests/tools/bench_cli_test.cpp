@@ -6,6 +6,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -121,6 +122,40 @@ TEST_F(BenchCli, CutWritesTheIssuesColumns) {
       << table;
   EXPECT_NE(table.find("\nsynchronous,"), std::string::npos) << table;
   EXPECT_EQ(std::count(table.begin(), table.end(), '\n'), 3) << table;
+}
+
+// --render draws each frame (timed apart): four more columns, physics + render at least the
+// render; a look the renderer refuses stops the bench before it runs
+TEST_F(BenchCli, CutWithRenderAddsTheRenderColumns) {
+  const auto r = shell(
+      esim("bench cut --sizes 50 --frames 3 --strategy update --render --set look.width=160 --set "
+           "look.height=120"));
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_NE(r.output.find("each frame drawn at 160x120"), std::string::npos) << r.output;
+  std::ifstream in(csv_);
+  std::string header, row;
+  std::getline(in, header);
+  std::getline(in, row);
+  EXPECT_EQ(header,
+            "strategy,nodes,frames,median_ms,p95_ms,max_ms,removed_tets,rebuilds,"
+            "rebuild_median_ms,waits,render_median_ms,render_p95_ms,interactive_median_ms,"
+            "interactive_p95_ms");
+  std::vector<double> v;
+  std::stringstream fields(row.substr(row.find(',') + 1));
+  for (std::string f; std::getline(fields, f, ',');) v.push_back(std::stod(f));
+  ASSERT_EQ(v.size(), 13u) << row;
+  EXPECT_GT(v[9], 0) << row;       // render median
+  EXPECT_GE(v[10], v[9]) << row;   // its p95
+  EXPECT_GE(v[11], v[9]) << row;   // physics + render median
+  EXPECT_GE(v[12], v[11]) << row;  // ... p95
+
+  std::ofstream(csv_) << "an earlier table\n";
+  const auto bad = shell(esim("bench cut --sizes 50 --frames 3 --render --set look.width=5"));
+  EXPECT_EQ(bad.exitCode, 2) << bad.output;
+  EXPECT_NE(bad.output.find("look.width = 5 is outside [16, 7680]"), std::string::npos)
+      << bad.output;
+  EXPECT_EQ(bad.output.find("strategy"), std::string::npos) << bad.output;
+  EXPECT_EQ(readFile(csv_), "an earlier table\n");
 }
 
 // a small --voltage reaches the scene whole (std::to_string made 2.5e-7 V into 0 V)

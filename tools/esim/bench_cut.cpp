@@ -1,6 +1,6 @@
 // bench_cut.cpp - `esim bench cut`: the whole cut (electric, thermal, boiling, structural,
-// rupture) per mesh size and rebuild strategy, physics only (no rendering), measured side by
-// side in one run.
+// rupture) per mesh size and rebuild strategy, measured side by side in one run: the physics
+// per frame, and with --render the drawing of each frame apart.
 //
 // The scene is scenarios/slab_cut.yaml (a blade drawn 40 mm through a 60 x 30 x 10 mm slab,
 // graded along the cut) with mesh.slab.nodes set to each --sizes entry, tool.voltage_v to
@@ -14,6 +14,12 @@
 // parts of a removal in update mode, the structural update's work (CHOLMOD's entries of L
 // walked times the columns passing them) and its rate, and the slowest frames. A benchmark,
 // never a pass/fail test.
+// --render draws every frame as `esim run` does (the scene's look and frame size; --set
+// look.msaa=0 etc. change it): the snapshot stays in the physics time, as in esim run's
+// timing.csv, the drawing is timed apart, and the table gains render_median_ms, render_p95_ms
+// and the physics + render time per frame (interactive_median_ms, interactive_p95_ms: the
+// quantity of the 30 Hz target). In update mode the structural update's thread runs on
+// while the frame is drawn, as in esim run. Encoding (esim run's own thread) is left out.
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -23,6 +29,7 @@
 #include <string>
 #include <thread>
 
+#include "render/renderer.h"
 #include "sim/core_error.h"
 #include "sim/io/scenario.h"
 #include "sim/simulation.h"
@@ -44,6 +51,7 @@ struct BenchCutOptions {
   int frames = 0;  // 0: the scenario's duration
   std::string csv;
   bool stages = false;              // per-stage median / p95 / max under each row
+  bool render = false;              // draw every frame, timed apart
   std::string structural = "full";  // solvers.structural.method values, comma separated
   double paceHz = 0;  // > 0: each frame starts on its tick of a loop at this rate (as a
                       // haptic or display loop runs), not right after the last one
@@ -86,13 +94,36 @@ int benchCut(const BenchCutOptions& opt) {
     for (const std::string& strategy : strategies)
       for (const std::string& method : methods)
         loadScenario(opt.scenario, runSets(opt, nodes, strategy, method));
-  app::CsvOutput csv(opt.csv,
-                     "strategy,nodes,frames,median_ms,p95_ms,max_ms,removed_tets,rebuilds,"
-                     "rebuild_median_ms,waits");
-  std::printf("esim bench cut: %s at %s V, physics per frame (no rendering), one BLAS thread\n",
-              opt.scenario.c_str(), scenarioNumber(opt.voltageV).c_str());
-  std::printf("%-12s %7s %6s %10s %9s %9s %8s %8s %11s %6s\n", "strategy", "nodes", "frames",
+  // --render: one renderer for every run (the look is the same: --set applies to all), made
+  // before the first run, so that a scene it cannot draw fails before anything runs
+  std::unique_ptr<Renderer> renderer;
+  double displacementScale = 1;
+  if (opt.render) {
+    const Scenario sc =
+        loadScenario(opt.scenario, runSets(opt, sizes.front(), strategies.front(), methods[0]));
+    renderer = std::make_unique<Renderer>(app::makeRenderOptions(sc));
+    displacementScale = sc.look.displacementScale;
+  }
+  app::CsvOutput csv(opt.csv, std::string("strategy,nodes,frames,median_ms,p95_ms,max_ms,"
+                                          "removed_tets,rebuilds,rebuild_median_ms,waits") +
+                                  (opt.render ? ",render_median_ms,render_p95_ms,"
+                                                "interactive_median_ms,interactive_p95_ms"
+                                              : ""));
+  if (renderer)
+    std::printf(
+        "esim bench cut: %s at %s V, physics per frame, then each frame drawn at %dx%d "
+        "(render and physics + render apart), one BLAS thread\n",
+        opt.scenario.c_str(), scenarioNumber(opt.voltageV).c_str(), renderer->options().width,
+        renderer->options().height);
+  else
+    std::printf("esim bench cut: %s at %s V, physics per frame (no rendering), one BLAS thread\n",
+                opt.scenario.c_str(), scenarioNumber(opt.voltageV).c_str());
+  std::printf("%-12s %7s %6s %10s %9s %9s %8s %8s %11s %6s", "strategy", "nodes", "frames",
               "median_ms", "p95_ms", "max_ms", "removed", "rebuilds", "rebuild_med", "waits");
+  if (renderer)
+    std::printf(" %10s %10s %15s %15s", "render_med", "render_p95", "interactive_med",
+                "interactive_p95");
+  std::printf("\n");
   for (const int nodes : sizes)
     for (const std::string& strategy : strategies) {
       std::vector<std::uint8_t> fullAlive;  // the removed set of the full solve's run
@@ -103,7 +134,7 @@ int benchCut(const BenchCutOptions& opt) {
         const int frames =
             opt.frames > 0 ? opt.frames
                            : std::max(1, static_cast<int>(sc.time.durationS * sc.time.fps + 0.5));
-        std::vector<double> ms, rebuildMs;
+        std::vector<double> ms, rebuildMs, renderMs, frameMs;
         std::vector<std::string> frameLines;  // --stages: what each frame spent, for the slowest
         std::array<std::vector<double>, kStageCount> stageMs;
         std::array<std::vector<double>, 4> partMs;   // update mode: the parts of a removal
@@ -121,6 +152,15 @@ int benchCut(const BenchCutOptions& opt) {
             next += period;
           }
           const FrameRecord& r = sim.step();
+          if (renderer) {  // the snapshot is timed into r's Snapshot stage (physics), as in run
+            const SurfaceSnapshot snap = sim.snapshot(displacementScale);
+            const auto t0 = std::chrono::steady_clock::now();
+            renderer->render(snap);
+            renderMs.push_back(
+                std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
+                    .count());
+            frameMs.push_back(r.physicsMs() + renderMs.back());
+          }
           if (opt.paceHz > 0 && std::chrono::steady_clock::now() > next) {
             ++late;
             while (next < std::chrono::steady_clock::now()) next += period;
@@ -166,6 +206,9 @@ int benchCut(const BenchCutOptions& opt) {
         std::printf("%-12s %7d %6d %10.2f %9.2f %9.2f %8d %8d %11.2f %6d", label.c_str(),
                     sim.mesh().numNodes(), frames, med, p95, mx, sim.removedTets(), sim.rebuilds(),
                     rmed, waits);
+        if (renderer)
+          std::printf(" %10.2f %10.2f %15.2f %15.2f", quantile(renderMs, 0.5),
+                      quantile(renderMs, 0.95), quantile(frameMs, 0.5), quantile(frameMs, 0.95));
         if (differ >= 0) std::printf("  (%d tets removed by one of full/local only)", differ);
         if (opt.paceHz > 0) std::printf("  (%d frames ended after their tick)", late);
         std::printf("\n");
@@ -205,10 +248,15 @@ int benchCut(const BenchCutOptions& opt) {
           for (int k = 0; k < shown; ++k) std::printf("    %s\n", frameLines[order[k]].c_str());
         }
         std::fflush(stdout);
-        if (csv)
+        if (csv) {
           csv.out() << label << ',' << sim.mesh().numNodes() << ',' << frames << ',' << med << ','
                     << p95 << ',' << mx << ',' << sim.removedTets() << ',' << sim.rebuilds() << ','
-                    << rmed << ',' << waits << '\n';
+                    << rmed << ',' << waits;
+          if (renderer)
+            csv.out() << ',' << quantile(renderMs, 0.5) << ',' << quantile(renderMs, 0.95) << ','
+                      << quantile(frameMs, 0.5) << ',' << quantile(frameMs, 0.95);
+          csv.out() << '\n';
+        }
       }
     }
   if (csv) {
@@ -242,6 +290,9 @@ cli::Registrar registerBenchCut(
                      "local solve's removed set compared with the full one's)")
           ->capture_default_str();
       app.add_flag("--stages", opt->stages, "per-stage median, p95 and max under each row");
+      app.add_flag("--render", opt->render,
+                   "draw every frame as esim run does (the scene's look and size), timed apart: "
+                   "render and physics + render columns");
       app.add_option("--set", opt->overrides,
                      "KEY=VALUE: a scenario value for every run, as esim run's --set (e.g. "
                      "solvers.structural.local_margin_m=0.004)");
