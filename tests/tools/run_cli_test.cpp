@@ -10,6 +10,9 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "render/image_hash.h"
 #include "render/image_png.h"
@@ -78,6 +81,29 @@ TEST(RunCli, ImplausibleTemperaturesAreFlagged) {
   const auto th = nlohmann::json::parse(readFile(hot / "timing.json"));
   ASSERT_EQ(th["warnings"].size(), 1u);
   EXPECT_NE(th["warnings"][0].get<std::string>().find("chars and ablates"), std::string::npos);
+  // the remedies: a lower voltage, and only what the scene does not do yet
+  EXPECT_NE(h.output.find("does not include; lower tool.voltage_v, or enable "
+                          "effects.temperature_dependent_conductivity (drying cuts the current) "
+                          "or the structural and rupture phases (boiling tissue is removed)\n"),
+            std::string::npos)
+      << h.output;
+  for (const auto& [sets, remedies] : std::vector<std::pair<std::string, std::string>>{
+           {"",
+            "; lower tool.voltage_v, or enable effects.temperature_dependent_conductivity "
+            "(drying cuts the current)\n"},
+           {" --set effects.temperature_dependent_conductivity=true",
+            "; lower tool.voltage_v\n"}}) {
+    fs::remove_all(hot);
+    const Result c = esimRun(
+        "scenarios/paper_slab.yaml --frames 10 --no-video --set tool.voltage_v=10000 --set "
+        "physics=[electric,thermal,boiling,structural,rupture] --set output.hashes=false -q -o " +
+        hot.string() + sets);
+    ASSERT_EQ(c.exitCode, 0) << c.output;
+    EXPECT_NE(c.output.find("chars and ablates, which the model does not include" + remedies),
+              std::string::npos)
+        << sets << "\n"
+        << c.output;
+  }
   const Result n = esimRun(
       "scenarios/paper_slab.yaml --frames 10 --no-video --set "
       "output.hashes=false -q -o " +

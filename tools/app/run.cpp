@@ -316,14 +316,22 @@ struct LoopResult {
 std::vector<std::string> runWarnings(const Simulation& sim, double maxTemperatureSeenC) {
   std::vector<std::string> warnings = sim.warnings();
   if (maxTemperatureSeenC > kImplausibleTemperatureC) {
-    char w[400];
+    // the remedies: a lower voltage, and what the scene does not do yet
+    const SimulationConfig& c = sim.config();
+    std::string remedies = "lower tool.voltage_v";
+    std::vector<std::string> enable;
+    if (!c.temperatureDependentConductivity)
+      enable.push_back("effects.temperature_dependent_conductivity (drying cuts the current)");
+    if (!(c.phases.structural && c.phases.rupture))
+      enable.push_back("the structural and rupture phases (boiling tissue is removed)");
+    for (size_t k = 0; k < enable.size(); ++k)
+      remedies += (k == 0 ? ", or enable " : " or ") + enable[k];
+    char w[200];
     std::snprintf(w, sizeof w,
                   "the tissue reached %.0f C: above ~%.0f C it chars and ablates, which the model "
-                  "does not include; lower tool.voltage_v, or enable "
-                  "effects.temperature_dependent_conductivity (drying cuts the current) or the "
-                  "structural and rupture phases (boiling tissue is removed)",
+                  "does not include; ",
                   maxTemperatureSeenC, kImplausibleTemperatureC);
-    warnings.push_back(w);
+    warnings.push_back(w + remedies);
   }
   return warnings;
 }
