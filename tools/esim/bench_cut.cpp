@@ -26,6 +26,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <string>
 #include <thread>
 
@@ -80,30 +81,33 @@ int benchCut(const BenchCutOptions& opt) {
   std::vector<std::string> strategies =
       opt.strategy == "all" ? std::vector<std::string>{"synchronous", "background", "update"}
                             : app::splitList(opt.strategy);
+  ESIM_VERIFY(!strategies.empty(),
+              "--strategy is empty; expected synchronous, background, update (comma separated) or "
+              "all");
   for (const std::string& s : strategies)
     ESIM_VERIFY(s == "synchronous" || s == "background" || s == "update",
                 "--strategy: '" + s + "' is not synchronous, background, update or all");
   ESIM_VERIFY(opt.frames >= 0, "--frames must be >= 0");
   ESIM_VERIFY(opt.paceHz >= 0 && opt.paceHz <= 1e4, "--pace must be in 0..10000 Hz");
   const std::vector<std::string> methods = app::splitList(opt.structural);
+  ESIM_VERIFY(!methods.empty(), "--structural is empty; expected full, local or full,local");
   for (const std::string& m : methods)
     ESIM_VERIFY(m == "full" || m == "local",
                 "--structural: '" + m + "' is not full or local (solvers.structural.method)");
-  // every run's scenario checked before the first run (its mesh is built when it runs)
+  // every run's scenario checked before the first run (its mesh is built when it runs); the
+  // first one's look serves --render
+  std::optional<Scenario> first;
   for (const int nodes : sizes)
     for (const std::string& strategy : strategies)
-      for (const std::string& method : methods)
-        loadScenario(opt.scenario, runSets(opt, nodes, strategy, method));
+      for (const std::string& method : methods) {
+        Scenario sc = loadScenario(opt.scenario, runSets(opt, nodes, strategy, method));
+        if (!first) first = std::move(sc);
+      }
   // --render: one renderer for every run (the look is the same: --set applies to all), made
   // before the first run, so that a scene it cannot draw fails before anything runs
   std::unique_ptr<Renderer> renderer;
-  double displacementScale = 1;
-  if (opt.render) {
-    const Scenario sc =
-        loadScenario(opt.scenario, runSets(opt, sizes.front(), strategies.front(), methods[0]));
-    renderer = std::make_unique<Renderer>(app::makeRenderOptions(sc));
-    displacementScale = sc.look.displacementScale;
-  }
+  const double displacementScale = first->look.displacementScale;
+  if (opt.render) renderer = std::make_unique<Renderer>(app::makeRenderOptions(*first));
   app::CsvOutput csv(opt.csv, std::string("strategy,nodes,frames,median_ms,p95_ms,max_ms,"
                                           "removed_tets,rebuilds,rebuild_median_ms,waits") +
                                   (opt.render ? ",render_median_ms,render_p95_ms,"
