@@ -580,6 +580,11 @@ void Simulation::updateModel(const std::vector<int>& broken, FrameRecord& rec) {
     }
     part(2);
   } catch (const Error& e) {
+    // the alive set is edited already: the run's summary counts what it shows
+    removedTets_ += static_cast<int>(broken.size());
+    rebuildBuildMs_ +=
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    ++rebuilds_;
     throwRebuildError(e, state_.frame);
   }
   for (int e : broken) pending_[e] = 0;

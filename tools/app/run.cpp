@@ -436,6 +436,8 @@ void summaryStages(std::ostringstream& sum, const LoopResult& loop, const nlohma
 void summaryStructural(std::ostringstream& sum, const Simulation& sim, const LoopResult& loop) {
   double peakVm = 0;
   for (const FrameRecord& r : loop.records) peakVm = std::max(peakVm, r.maxVonMisesPa);
+  if (const std::vector<double>* vm = sim.vonMisesPa())  // a failed frame has no record
+    for (double v : *vm) peakVm = std::max(peakVm, v);
   sum << "  structural    peak von Mises " << peakVm << " Pa; " << sim.removedTets()
       << " tets removed in " << sim.rebuilds() << " frames (" << sim.mesh().numAlive() << " of "
       << sim.mesh().numTets() << " alive)\n";
