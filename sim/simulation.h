@@ -173,11 +173,11 @@ struct SimulationConfig {
   StructuralOptions structural;                                              // E, nu
   double vaporLiquidVolumeRatio = ExpansionParams{}.vaporLiquidVolumeRatio;  // v_gas / v_liq
   double maxVaporExpansion = ExpansionParams{}.maxExpansion;  // cap of dV/V (structural.h)
-  double clampBandM = 1e-4;          // clamp the nodes this close to the lowest z [m]
-  double criticalStressPa = 2.45e4;  // von Mises stress that breaks a tet (paper)
-  RebuildMode rebuildMode = RebuildMode::Synchronous;  // or on a thread ...
-  int rebuildLagFrames = 3;        // ... swapped in this many frames after rupture
-  bool recomputeLagFrames = true;  // ... then the lag frames again on the new model
+  double clampBandM = 1e-4;                       // clamp the nodes this close to the lowest z [m]
+  double criticalStressPa = 2.45e4;               // von Mises stress that breaks a tet (paper)
+  RebuildMode rebuildMode = RebuildMode::Update;  // or rebuilt in the frame, or on a thread ...
+  int rebuildLagFrames = 3;                       // ... swapped in this many frames after rupture
+  bool recomputeLagFrames = true;                 // ... then the lag frames again on the new model
 
   // the contact below the mesh's resolution (sim/subgrid_contact.h)
   SubgridContactOptions subgrid;
