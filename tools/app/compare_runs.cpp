@@ -6,6 +6,7 @@
 #include <iomanip>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <vector>
 
 #include "render/image_hash.h"
 #include "render/image_png.h"
@@ -34,6 +35,38 @@ std::string frameName(int f) {
   return name.str();
 }
 
+// a file an earlier report of compareRuns wrote: compare.json, diff_frame_NNNNN.png
+bool isReportFile(const fs::path& p) {
+  const std::string name = p.filename().string();
+  if (name == "compare.json") return true;
+  const std::string prefix = "diff_frame_", suffix = ".png";
+  if (name.size() != prefix.size() + 5 + suffix.size() || name.rfind(prefix, 0) != 0 ||
+      name.compare(name.size() - suffix.size(), suffix.size(), suffix) != 0)
+    return false;
+  for (size_t k = prefix.size(); k < prefix.size() + 5; ++k)
+    if (name[k] < '0' || name[k] > '9') return false;
+  return true;
+}
+
+// the report folder, new or emptied of an earlier report (only that: a folder holding
+// anything else is refused, nothing removed)
+void prepareReportFolder(const fs::path& dir) {
+  std::error_code ec;
+  if (fs::exists(dir, ec) && fs::is_directory(dir, ec)) {
+    std::vector<fs::path> earlier;
+    for (const fs::directory_entry& e : fs::directory_iterator(dir, ec)) {
+      ESIM_VERIFY(e.is_regular_file(ec) && isReportFile(e.path()),
+                  "--report: '" + dir.string() + "' holds '" + e.path().filename().string() +
+                      "', which is not a file of an esim compare report; give a new or empty "
+                      "folder (nothing was changed)");
+      earlier.push_back(e.path());
+    }
+    ESIM_VERIFY(!ec, "--report: cannot list '" + dir.string() + "': " + ec.message());
+    for (const fs::path& p : earlier) fs::remove(p, ec);  // the earlier report replaced
+  }
+  createOutputFolder(dir, "--report");
+}
+
 }  // namespace
 
 CompareResult compareRuns(const std::string& runA, const std::string& runB,
@@ -52,7 +85,7 @@ CompareResult compareRuns(const std::string& runA, const std::string& runB,
   r.framesA = static_cast<int>(fa.size());
   r.framesB = static_cast<int>(fb.size());
   const int n = std::min(r.framesA, r.framesB);
-  if (writeDiffs && !reportDir.empty()) createOutputFolder(reportDir, "--report");
+  if (!reportDir.empty()) prepareReportFolder(reportDir);
   nlohmann::json frames = nlohmann::json::array();
   for (int f = 0; f < n; ++f) {
     if (fa[f].at("xxh3") == fb[f].at("xxh3")) continue;
@@ -84,8 +117,7 @@ CompareResult compareRuns(const std::string& runA, const std::string& runB,
                       {"max_diff", d.hasImages ? nlohmann::json(d.maxDiff) : nlohmann::json()},
                       {"within_tolerance", d.withinTolerance}});
   }
-  if (!reportDir.empty()) {
-    createOutputFolder(reportDir, "--report");
+  if (!reportDir.empty()) {  // written last: a report without it is incomplete
     nlohmann::json rep = {{"run_a", runA},
                           {"run_b", runB},
                           {"frames_a", r.framesA},
@@ -97,7 +129,7 @@ CompareResult compareRuns(const std::string& runA, const std::string& runB,
                             {"min_psnr_db", kMinPsnrDb},
                             {"max_off_share", kMaxOffShare}}},
                           {"differing_frames", frames}};
-    std::ofstream(fs::path(reportDir) / "compare.json") << rep.dump(2) << "\n";
+    writeFileAtomic(fs::path(reportDir) / "compare.json", rep.dump(2) + "\n");
   }
   return r;
 }

@@ -24,8 +24,10 @@ struct CompareResult {
   bool withinTolerance() const;
 };
 
-// compares runA (reference) with runB; writes compare.json (and diff PNGs when writeDiffs)
-// into reportDir unless it is empty; throws esim::Error on unreadable runs
+// compares runA (reference) with runB; unless reportDir is empty, writes compare.json (and
+// diff PNGs when writeDiffs) into it: a new folder, or one holding only an earlier report,
+// which is replaced (any other file there: esim::Error, nothing changed). Throws esim::Error
+// on unreadable runs.
 CompareResult compareRuns(const std::string& runA, const std::string& runB,
                           const std::string& reportDir, bool writeDiffs);
 

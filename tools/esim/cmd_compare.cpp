@@ -5,9 +5,10 @@
 // 3. For frames that differ and have a PNG in both runs (output.png_every), a tolerant
 //    comparison: PSNR and the share of pixels off by more than 16 levels (thresholds and
 //    why: render/image_hash.h), and a diff image.
-// 4. Write a report (compare.json and diff PNGs) into --report DIR (default RUN_B/compare)
-//    and print a summary. Exit 0 when all frames are identical or within tolerance
-//    (--exact: identical only), 3 otherwise.
+// 4. Print a summary and, with --report DIR, write a report there (compare.json and a diff
+//    PNG per differing frame with PNGs in both runs); nothing is written into either run
+//    (a sweep's run would no longer match its manifest). Exit 0 when all frames are
+//    identical or within tolerance (--exact: identical only), 3 otherwise.
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -32,12 +33,19 @@ struct CompareOptions {
 };
 
 int runCompare(const CompareOptions& o) {
-  const std::string report = o.report.empty() ? (fs::path(o.runB) / "compare").string() : o.report;
+  const std::string& report = o.report;
   const CompareResult r = compareRuns(o.runA, o.runB, report, true);
   std::cout << "esim compare " << o.runA << " " << o.runB << "\n";
   std::cout << "  frames        " << r.framesA << " vs " << r.framesB << "\n";
   std::cout << "  renderer/libs " << (r.sameRenderer ? "same" : "DIFFERENT") << "\n";
+  const auto printReport = [&] {
+    if (report.empty())
+      std::cout << "  report        none (--report DIR writes compare.json and the diff PNGs)\n";
+    else
+      std::cout << "  report        " << (fs::path(report) / "compare.json").string() << "\n";
+  };
   if (r.identical()) {
+    printReport();
     std::cout << "  result        identical (every frame hash equal)\n";
     return kExitOk;
   }
@@ -56,7 +64,7 @@ int runCompare(const CompareOptions& o) {
       std::cout << " (no PNG in both runs: set output.png_every for a tolerant comparison)";
     std::cout << "\n";
   }
-  std::cout << "  report        " << report << "/compare.json\n";
+  printReport();
   if (!o.exact && r.withinTolerance()) {
     std::cout << "  result        within tolerance\n";
     return kExitOk;
@@ -70,7 +78,9 @@ Registrar reg({"compare"}, "Compare two runs' frames: exact hashes, then a toler
                 auto o = std::make_shared<CompareOptions>();
                 app.add_option("run_a", o->runA, "reference run folder")->required();
                 app.add_option("run_b", o->runB, "run folder to check")->required();
-                app.add_option("--report", o->report, "report folder (default RUN_B/compare)");
+                app.add_option("--report", o->report,
+                               "write compare.json and the diff PNGs into this folder (new, "
+                               "or holding an earlier report, which is replaced)");
                 app.add_flag("--exact", o->exact, "fail on any hash difference");
                 return [o] { return runCompare(*o); };
               });

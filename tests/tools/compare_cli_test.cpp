@@ -1,0 +1,156 @@
+// `esim compare RUN_A RUN_B [--report DIR]` end to end (tools/esim/cmd_compare.cpp): two
+// identical runs and a run at another voltage, every frame kept as PNG. Nothing is ever
+// written into either run (a sweep's run would no longer match its manifest: `esim
+// compare` used to write RUN_B/compare/ by default); a report folder holds one report (an
+// earlier one replaced whole) and a folder holding anything else is refused. Uses
+// /tmp/esim_compare_test_<pid>_* folders (ctest runs each test in a process of its own).
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "tests/tools/cli_test_util.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using esim::cli_test::readFile;
+using esim::cli_test::Result;
+using esim::cli_test::shell;
+
+Result esim(const std::string& args) { return shell(std::string(ESIM_EXE) + " " + args); }
+
+fs::path temp(const std::string& name) {
+  const fs::path p = fs::temp_directory_path() /
+                     ("esim_compare_test_" + std::to_string(::getpid()) + "_" + name);
+  fs::remove_all(p);
+  return p;
+}
+
+// every path under dir with its size: what "nothing written" compares
+std::vector<std::string> listing(const fs::path& dir) {
+  std::vector<std::string> out;
+  for (const auto& e : fs::recursive_directory_iterator(dir)) {
+    std::string line = e.path().string();
+    line += e.is_regular_file() ? ' ' : '/';
+    if (e.is_regular_file()) line += std::to_string(e.file_size());
+    out.push_back(line);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+int countFiles(const fs::path& dir, const std::string& prefix) {
+  int n = 0;
+  for (const auto& e : fs::directory_iterator(dir))
+    n += e.path().filename().string().rfind(prefix, 0) == 0;
+  return n;
+}
+
+// three short runs of paper_slab, every frame as PNG: a, b = a, c at another voltage
+class CompareCli : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    const std::string args =
+        "run scenarios/paper_slab.yaml --frames 4 --no-video -q --set look.width=160 --set "
+        "look.height=90 --set output.png_every=1 ";
+    for (const auto& [name, extra] :
+         std::vector<std::pair<std::string, std::string>>{{"a", ""},
+                                                          {"b", ""},
+                                                          {"c", "--set tool.voltage_v=150 "}}) {
+      const Result r = esim(args + extra + "-o " + temp(name).string());
+      ASSERT_EQ(r.exitCode, 0) << r.output;
+    }
+  }
+  static void TearDownTestSuite() {
+    for (const char* name : {"a", "b", "c"}) fs::remove_all(temp(name));
+  }
+  static fs::path run(const char* name) {
+    return fs::temp_directory_path() /
+           ("esim_compare_test_" + std::to_string(::getpid()) + "_" + name);
+  }
+  const fs::path a_ = run("a"), b_ = run("b"), c_ = run("c");
+};
+
+TEST_F(CompareCli, WritesNothingIntoEitherRun) {
+  const auto beforeA = listing(a_), beforeB = listing(b_), beforeC = listing(c_);
+  const Result same = esim("compare " + a_.string() + " " + b_.string());
+  EXPECT_EQ(same.exitCode, 0) << same.output;
+  EXPECT_NE(same.output.find("identical (every frame hash equal)"), std::string::npos)
+      << same.output;
+  const Result differ = esim("compare " + a_.string() + " " + c_.string());
+  EXPECT_EQ(differ.exitCode, 3) << differ.output;
+  EXPECT_NE(differ.output.find("differing     4 frames"), std::string::npos) << differ.output;
+  EXPECT_NE(differ.output.find("report        none (--report DIR"), std::string::npos)
+      << differ.output;
+  EXPECT_EQ(listing(a_), beforeA);
+  EXPECT_EQ(listing(b_), beforeB);
+  EXPECT_EQ(listing(c_), beforeC) << "the run checked gained a compare/ folder";
+}
+
+TEST_F(CompareCli, AReportFolderHoldsOneReportAndAnEarlierOneIsReplaced) {
+  const fs::path report = temp("report");
+  const Result differ =
+      esim("compare " + a_.string() + " " + c_.string() + " --report " + report.string());
+  EXPECT_EQ(differ.exitCode, 3) << differ.output;
+  ASSERT_TRUE(fs::exists(report / "compare.json")) << differ.output;
+  auto json = nlohmann::json::parse(readFile(report / "compare.json"));
+  EXPECT_FALSE(json["identical"].get<bool>());
+  ASSERT_EQ(json["differing_frames"].size(), 4u);
+  for (const auto& f : json["differing_frames"]) {
+    EXPECT_FALSE(f["within_tolerance"].get<bool>()) << f.dump();  // 150 V against 72 V
+    EXPECT_GT(f["max_diff"].get<int>(), 16) << f.dump();
+  }
+  EXPECT_EQ(countFiles(report, "diff_frame_"), 4);
+  // the same folder again, for two identical runs: the earlier diffs go with their report
+  const Result same =
+      esim("compare " + a_.string() + " " + b_.string() + " --report " + report.string());
+  EXPECT_EQ(same.exitCode, 0) << same.output;
+  json = nlohmann::json::parse(readFile(report / "compare.json"));
+  EXPECT_TRUE(json["identical"].get<bool>());
+  EXPECT_EQ(countFiles(report, "diff_frame_"), 0) << "a stale diff of the earlier report";
+  EXPECT_EQ(countFiles(report, ""), 1);
+  fs::remove_all(report);
+}
+
+TEST_F(CompareCli, AReportFolderHoldingOtherFilesIsRefusedUntouched) {
+  const fs::path report = temp("busy");
+  fs::create_directories(report);
+  std::ofstream(report / "notes.txt") << "mine\n";
+  std::ofstream(report / "compare.json") << "{}\n";
+  const Result r =
+      esim("compare " + a_.string() + " " + c_.string() + " --report " + report.string());
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_NE(r.output.find("--report: '" + report.string() + "' holds 'notes.txt'"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(readFile(report / "notes.txt"), "mine\n");
+  EXPECT_EQ(readFile(report / "compare.json"), "{}\n") << "nothing changed when refused";
+  EXPECT_EQ(countFiles(report, ""), 2);
+  // a run folder as the report folder is one such
+  const auto beforeC = listing(c_);
+  const Result intoRun =
+      esim("compare " + a_.string() + " " + c_.string() + " --report " + c_.string());
+  EXPECT_EQ(intoRun.exitCode, 2) << intoRun.output;
+  EXPECT_EQ(listing(c_), beforeC);
+  // a file
+  const Result file = esim("compare " + a_.string() + " " + c_.string() + " --report " +
+                           (report / "notes.txt").string());
+  EXPECT_EQ(file.exitCode, 2) << file.output;
+  EXPECT_NE(file.output.find("is a file; expected a folder"), std::string::npos) << file.output;
+  fs::remove_all(report);
+}
+
+TEST_F(CompareCli, AMissingRunIsNamed) {
+  const Result r = esim("compare " + a_.string() + " /nonexistent/run");
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_NE(r.output.find("/nonexistent/run/hashes.json: not found"), std::string::npos)
+      << r.output;
+}
+
+}  // namespace
