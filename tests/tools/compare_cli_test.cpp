@@ -26,8 +26,8 @@ using esim::cli_test::shell;
 Result esim(const std::string& args) { return shell(std::string(ESIM_EXE) + " " + args); }
 
 fs::path temp(const std::string& name) {
-  const fs::path p = fs::temp_directory_path() /
-                     ("esim_compare_test_" + std::to_string(::getpid()) + "_" + name);
+  const fs::path p =
+      fs::temp_directory_path() / ("esim_compare_test_" + std::to_string(::getpid()) + "_" + name);
   fs::remove_all(p);
   return p;
 }
@@ -59,10 +59,8 @@ class CompareCli : public ::testing::Test {
     const std::string args =
         "run scenarios/paper_slab.yaml --frames 4 --no-video -q --set look.width=160 --set "
         "look.height=90 --set output.png_every=1 ";
-    for (const auto& [name, extra] :
-         std::vector<std::pair<std::string, std::string>>{{"a", ""},
-                                                          {"b", ""},
-                                                          {"c", "--set tool.voltage_v=150 "}}) {
+    for (const auto& [name, extra] : std::vector<std::pair<std::string, std::string>>{
+             {"a", ""}, {"b", ""}, {"c", "--set tool.voltage_v=150 "}}) {
       const Result r = esim(args + extra + "-o " + temp(name).string());
       ASSERT_EQ(r.exitCode, 0) << r.output;
     }
