@@ -125,6 +125,31 @@ TEST(PlotCli, CutReportsAndEsimPlot) {
   fs::remove_all(out);
 }
 
+// a sweep's run (DIR/runs/<id>/run) lists its files in DIR/manifest.jsonl: `esim plot` of it
+// needs -o (a timing.png written into it failed `esim dataset verify`); refused before python
+// runs, nothing written
+TEST(PlotCli, ASweepsRunNeedsAnOutputOutsideIt) {
+  const fs::path sweep = tempOut("sweep");
+  const fs::path run = sweep / "runs" / "v0000" / "run";
+  fs::create_directories(run);
+  std::ofstream(sweep / "manifest.jsonl") << "{}\n";
+  std::ofstream(run / "timing.csv") << "frame,time_s\n0,0\n";
+  for (const std::string& arg : {run.string(), run.string() + "/", run.string() + "/."}) {
+    const Result r = esim("plot " + arg);
+    EXPECT_EQ(r.exitCode, 2) << arg << "\n" << r.output;
+    EXPECT_NE(r.output.find("is a run of the sweep '" + sweep.string() + "'"), std::string::npos)
+        << arg << "\n"
+        << r.output;
+    EXPECT_NE(r.output.find("give -o PNG outside it"), std::string::npos) << r.output;
+  }
+  EXPECT_FALSE(fs::exists(run / "timing.png"));
+  // the same layout without a manifest is a plain folder: not refused as a sweep's run
+  fs::remove(sweep / "manifest.jsonl");
+  const Result plain = esim("plot " + run.string());
+  EXPECT_EQ(plain.output.find("is a run of the sweep"), std::string::npos) << plain.output;
+  fs::remove_all(sweep);
+}
+
 // no python3, or a python3 without matplotlib: the run completes (exit 0), says why there is
 // no plot, writes none; `esim plot` fails with the reason (1), a folder that is no run is bad
 // input (2)

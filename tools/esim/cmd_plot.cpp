@@ -3,7 +3,9 @@
 // the end of a run).
 //
 // 1. Check RUN_DIR holds a run's timing.csv, and -o names a .png in a folder that exists
-//    (else bad input, exit 2).
+//    (else bad input, exit 2). A sweep's run (DIR/runs/<id>/run of `esim sweep`) needs -o:
+//    its files are in DIR/manifest.jsonl, and a timing.png added to it would fail
+//    `esim dataset verify DIR`.
 // 2. Run the script; exit 0 when the PNG is written, 1 with the reason when it cannot be
 //    (python3 or matplotlib missing, a failing script).
 #include <cctype>
@@ -29,7 +31,18 @@ int plotRun(const PlotOptions& opt) {
   ESIM_VERIFY(fs::is_regular_file(fs::path(opt.runDir) / "timing.csv", ec),
               "esim plot: '" + opt.runDir +
                   "' holds no timing.csv (expected the folder of an esim run, e.g. out/demo)");
-  if (!opt.png.empty()) {  // a PNG file in a folder that exists (matplotlib would add .png)
+  if (opt.png.empty()) {
+    fs::path run = fs::absolute(opt.runDir, ec).lexically_normal();
+    if (run.filename().empty()) run = run.parent_path();  // "run/"
+    const fs::path sweep = run.parent_path().parent_path().parent_path();
+    const bool ofSweep = run.filename() == "run" &&
+                         run.parent_path().parent_path().filename() == "runs" &&
+                         fs::is_regular_file(sweep / "manifest.jsonl", ec);
+    ESIM_VERIFY(!ofSweep, "esim plot: '" + opt.runDir + "' is a run of the sweep '" +
+                              sweep.string() +
+                              "' (manifest.jsonl lists its files: a timing.png added there "
+                              "would fail esim dataset verify); give -o PNG outside it");
+  } else {  // a PNG file in a folder that exists (matplotlib would add .png)
     const fs::path png = opt.png;
     std::string ext = png.extension().string();
     for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
