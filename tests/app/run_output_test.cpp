@@ -148,5 +148,27 @@ TEST_F(RunOutputTest, AResultsFolderIsCreatedOrRefusedWithoutTouchingAFile) {
   EXPECT_EQ(read(file), "user data\n");
 }
 
+// the scenario's name is free text (a title): the default folder is always one folder in out/
+// (it was out/<name> as given: "/abs/path" wrote there, "../escape" beside out/, "." into
+// out/ itself)
+TEST(DefaultRunFolder, IsOneFolderInsideOutWhateverTheName) {
+  EXPECT_EQ(defaultRunFolder("slab_cut"), fs::path("out/slab_cut"));
+  EXPECT_EQ(defaultRunFolder("paper_slab-506.v2"), fs::path("out/paper_slab-506.v2"));
+  EXPECT_EQ(defaultRunFolder("x: y"), fs::path("out/x__y"));
+  EXPECT_EQ(defaultRunFolder("../escape"), fs::path("out/___escape"));
+  EXPECT_EQ(defaultRunFolder("/abs/path"), fs::path("out/_abs_path"));
+  EXPECT_EQ(defaultRunFolder("."), fs::path("out/_"));
+  EXPECT_EQ(defaultRunFolder(".."), fs::path("out/__"));
+  EXPECT_EQ(defaultRunFolder(".hidden"), fs::path("out/_hidden"));
+  EXPECT_EQ(defaultRunFolder(""), fs::path("out/unnamed"));
+  EXPECT_EQ(defaultRunFolder("caf\xc3\xa9\nline"), fs::path("out/caf___line"));
+  for (const std::string name : {"../escape", "/abs/path", ".", "..", "", "a/../../b", "~"}) {
+    const fs::path p = defaultRunFolder(name);
+    EXPECT_EQ(p.parent_path(), fs::path("out")) << name;
+    EXPECT_NE(p.filename(), fs::path(".")) << name;
+    EXPECT_NE(p.filename(), fs::path("..")) << name;
+  }
+}
+
 }  // namespace
 }  // namespace esim::app

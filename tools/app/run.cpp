@@ -612,7 +612,7 @@ int runScenario(const RunOptions& opt) {
   std::signal(SIGTERM, onSignal);
   // ---- 1. scenario and output folder (checked before anything is built) ----
   Scenario scenario = loadScenario(opt.scenario, opt.sets);
-  RunOutput output(opt.outDir.empty() ? fs::path("out") / scenario.name : fs::path(opt.outDir),
+  RunOutput output(opt.outDir.empty() ? defaultRunFolder(scenario.name) : fs::path(opt.outDir),
                    opt.overwrite);
   // ---- 2. mesh, physics, renderer ----
   Setup s = setUp(opt, std::move(scenario));

@@ -102,6 +102,20 @@ void RunOutput::discard() {
   if (isEsimRunFolder(partial_)) fs::remove_all(partial_, ec);
 }
 
+std::filesystem::path defaultRunFolder(const std::string& scenarioName) {
+  std::string folder;
+  for (const char c : scenarioName) {
+    const bool keep = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+                      c == '-' || c == '_' || c == '.';
+    folder += keep ? c : '_';
+  }
+  for (char& c : folder) {  // leading dots: ".", ".." or a hidden folder
+    if (c != '.') break;
+    c = '_';
+  }
+  return fs::path("out") / (folder.empty() ? std::string("unnamed") : folder);
+}
+
 void createOutputFolder(const fs::path& dir, const std::string& option) {
   std::error_code ec;
   ESIM_VERIFY(!fs::exists(dir, ec) || fs::is_directory(dir, ec),

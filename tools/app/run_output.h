@@ -46,6 +46,12 @@ class RunOutput {
 // true when the folder holds an ESim run (complete or partial)
 bool isEsimRunFolder(const std::filesystem::path& dir);
 
+// `esim run`'s folder without -o: out/<name>, the scenario's name (free text, a title) made a
+// single folder name: every character but letters, digits, '-', '_' and '.' becomes '_', so
+// do leading dots ("", "." and ".." included: never out/ itself, a parent, or an absolute
+// path; "unnamed" when empty)
+std::filesystem::path defaultRunFolder(const std::string& scenarioName);
+
 // A folder of results that a command writes its named files into, replacing them (esim bench
 // accuracy --out, render-sample --out, compare --report): created with its parents when
 // missing; throws Error (Input) naming `option` and the path when it is a file or cannot be
