@@ -211,6 +211,19 @@ TEST(SweepCli, BadSweepsExitTwoWithNothingWritten) {
             std::string::npos)
       << opt.output;
   EXPECT_FALSE(fs::exists(dir));
+  // the sweep's own options, refused as in run_options (with -o, every variant failed on
+  // "--out: At Most 1 required but received 2" and the sweep exited 1)
+  for (const std::string own : {"-o /tmp/elsewhere", "--out=/tmp/elsewhere", "-o/tmp/elsewhere",
+                                "--overwrite", "-q", "--quiet", "--set tool.voltage_v=60"}) {
+    const Result o = esim("sweep " + kTiny + " -o " + dir.string() + " --run-args='" + own + "'");
+    EXPECT_EQ(o.exitCode, 2) << own << "\n" << o.output;
+    EXPECT_NE(o.output.find("--run-args: "), std::string::npos) << own << "\n" << o.output;
+    EXPECT_TRUE(o.output.find("is the sweep's to give") != std::string::npos ||
+                o.output.find("put the key under set:") != std::string::npos)
+        << own << "\n"
+        << o.output;
+    EXPECT_FALSE(fs::exists(dir)) << own;
+  }
   // an option the chosen kind of sweep would ignore is refused
   for (const auto& [args, message] : std::vector<std::pair<std::string, std::string>>{
            {"--mem-mb 100", "sweep: --mem-mb is a Slurm option; it goes with --slurm"},

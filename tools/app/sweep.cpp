@@ -877,6 +877,9 @@ int runSweep(const SweepOptions& opt, const RunOptionsCheck& checkRunOptions) {
   // ---- 1. the sweep file, every variant, the run options ----
   const SweepSpec spec = loadSweepSpec(opt.spec);
   const std::vector<std::string> runOptions = allRunOptions(spec, opt);
+  for (const std::string& a : opt.runArgs)  // as run_options (every variant failed on -o)
+    if (const std::string why = sweepOwnedRunOption(a); !why.empty())
+      throw Error("--run-args: " + why);
   if (checkRunOptions) {
     try {
       checkRunOptions(runOptions);

@@ -374,16 +374,8 @@ class SpecReader {
       if (!o.IsScalar())
         fail(o.Mark(), "run_options: expected options as text, got a " + describe(o));
       const std::string s = o.Scalar();
-      for (const char* own : {"-o", "--out", "--overwrite", "-q", "--quiet"})
-        if (s == own || s.rfind(std::string(own) + "=", 0) == 0 ||
-            (std::string(own) == "-o" && s.rfind("-o", 0) == 0 && s.size() > 2 && s[2] != '-'))
-          fail(o.Mark(), "run_options: " + s +
-                             " is the sweep's to give (each run goes to "
-                             "DIR/runs/<id>/run, quiet)");
-      if (s == "--set" || s.rfind("--set=", 0) == 0)
-        fail(o.Mark(),
-             "run_options: --set: put the key under set: (it is then checked and "
-             "recorded)");
+      if (const std::string why = sweepOwnedRunOption(s); !why.empty())
+        fail(o.Mark(), "run_options: " + why);
       spec.runOptions.push_back(s);
     }
   }
@@ -721,6 +713,17 @@ SweepSpec parseSweepSpec(const std::string& text, const std::string& sourceName)
   } catch (const YAML::Exception& e) {  // defensive: yaml-cpp errors not caught above
     throw Error(where(sourceName, e.mark) + ": " + e.msg);
   }
+}
+
+std::string sweepOwnedRunOption(const std::string& s) {
+  for (const char* own : {"-o", "--out", "--overwrite", "-q", "--quiet"})
+    if (s == own || s.rfind(std::string(own) + "=", 0) == 0 ||
+        (std::string(own) == "-o" && s.rfind("-o", 0) == 0 && s.size() > 2 && s[2] != '-') ||
+        (std::string(own) == "-q" && s.rfind("-q", 0) == 0 && s.size() > 2 && s[2] != '-'))
+      return s + " is the sweep's to give (each run goes to DIR/runs/<id>/run, quiet)";
+  if (s == "--set" || s.rfind("--set=", 0) == 0)
+    return "--set: put the key under set: (it is then checked and recorded)";
+  return "";
 }
 
 SweepSpec loadSweepSpec(const std::string& path) {
