@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <memory>
 
 #include "sim/core_error.h"
 #include "tests/scratch_dir_util.h"
@@ -105,6 +106,36 @@ TEST_F(RunOutputTest, AnEarlierPartialRunIsReplaced) {
   EXPECT_FALSE(fs::exists(root_ / "run.partial" / "timing.json"));
   again.discard();
   EXPECT_FALSE(fs::exists(root_ / "run.partial"));
+}
+
+// one run at a time per folder (two used to write the same DIR.partial/ together: one
+// committed a video that did not play, the other failed at its end)
+TEST_F(RunOutputTest, ASecondRunIntoTheSameFolderIsRefusedWhileTheFirstWrites) {
+  const std::string busy = "another esim run is writing this folder";
+  auto first = std::make_unique<RunOutput>(root_ / "run", false);
+  RunOutput early(root_ / "run", false);  // checked before the first locked its folder
+  first->create();
+  touch(first->partial() / "timing.json", "first\n");
+  expectInputError([&] { RunOutput(root_ / "run", true); }, busy);  // at once
+  expectInputError([&] { early.create(); }, busy);                  // or at its create()
+  EXPECT_EQ(read(root_ / "run.partial" / "timing.json"), "first\n");
+  // the first completes: a run checked before that finds it there, under its own lock
+  first->commit();
+  expectInputError([&] { early.create(); }, "holds an earlier ESim run; add --overwrite");
+  EXPECT_FALSE(fs::exists(root_ / "run.partial")) << "the refused run's empty folder stays";
+  first.reset();
+  // a run that stopped (its lock gone with it, its partial output kept): the next replaces
+  // that output; while it held the lock, the probe of a new run only looked
+  auto stopped = std::make_unique<RunOutput>(root_ / "other", false);
+  stopped->create();
+  touch(stopped->partial() / "timing.json", "old\n");
+  expectInputError([&] { RunOutput(root_ / "other", false); }, busy);
+  stopped.reset();
+  EXPECT_EQ(read(root_ / "other.partial" / "timing.json"), "old\n");
+  RunOutput next(root_ / "other", false);
+  next.create();
+  EXPECT_FALSE(fs::exists(root_ / "other.partial" / "timing.json"));
+  EXPECT_TRUE(fs::exists(root_ / "other.partial" / ".esim-run"));
 }
 
 TEST_F(RunOutputTest, AnUnwritableLocationIsRefused) {

@@ -285,6 +285,44 @@ Result failingRun(const std::string& name, const std::string& args) {
   return r;
 }
 
+// two runs started together into one folder: one writes it, the other is refused (exit 2),
+// whichever comes second; the folder is the first's, its video whole (both used to write
+// the same DIR.partial/: the run that completed committed a video without its moov atom,
+// the other failed at its end)
+TEST(RunCli, TwoRunsIntoOneFolderAtOnceOneIsRefused) {
+  const fs::path out = tempOut("twice");
+  fs::remove_all(out.string() + ".partial");
+  const std::string run = std::string(ESIM_EXE) +
+                          " run scenarios/paper_slab.yaml --frames 20 -q --set look.width=160 "
+                          "--set look.height=90 -o " +
+                          out.string();
+  const Result r =
+      shell("(" + run + "; echo \"exit=$?\") & (" + run + "; echo \"exit=$?\") & wait");
+  const auto count = [&](const std::string& part) {
+    int n = 0;
+    for (size_t at = r.output.find(part); at != std::string::npos; at = r.output.find(part, at + 1))
+      ++n;
+    return n;
+  };
+  EXPECT_EQ(count("exit=0"), 1) << r.output;
+  EXPECT_EQ(count("exit=2"), 1) << r.output;
+  EXPECT_EQ(count("another esim run is writing this folder") +
+                count("holds an earlier ESim run; add --overwrite"),
+            1)
+      << r.output;
+  EXPECT_FALSE(fs::exists(out.string() + ".partial"));
+  const std::string probe =
+      "ffprobe -v error -count_frames -select_streams v:0 -show_entries "
+      "stream=nb_read_frames -of csv=p=0 " +
+      (out / "video.mp4").string();
+  FILE* p = popen(probe.c_str(), "r");
+  char frames[64] = {0};
+  ASSERT_NE(fgets(frames, sizeof frames, p), nullptr);
+  EXPECT_EQ(pclose(p), 0);
+  EXPECT_EQ(std::atoi(frames), 20);
+  fs::remove_all(out);
+}
+
 TEST(RunCli, AFailedRunExitsOneAndKeepsItsFramesMarkedPartial) {
   const fs::path out = tempOut("failed");
   // pcg capped at 2 iterations cannot reach 1e-12: the first solve fails

@@ -12,6 +12,11 @@
 // A run that fails or is interrupted stays DIR.partial/ with what it wrote (its reports say
 // "complete": false); a set-up that fails before the first frame removes DIR.partial/, which
 // it created itself.
+// One run at a time: create() holds an exclusive flock on DIR.partial/ until the RunOutput
+// goes (the kernel releases it if the process dies), and checks DIR again under it. A second
+// run into the same folder is refused (Input error), at once when it starts while the first
+// writes, else at its create(); two runs used to write the same DIR.partial/ together, one
+// committing a video that did not play.
 #pragma once
 
 #include <filesystem>
@@ -24,7 +29,9 @@ class RunOutput {
   // checks the location (see above); throws Error naming the folder and the remedy
   RunOutput(std::filesystem::path dir, bool overwrite);
 
-  // creates DIR.partial/ with its marker (after a DIR.partial of an earlier run is removed)
+  // creates DIR.partial/ with its marker, locked (an earlier run's DIR.partial/ emptied);
+  // throws Error when another run holds it, or when DIR changed since the constructor's
+  // checks (another run completed there)
   void create();
 
   // the folder being written (DIR.partial/)
@@ -38,9 +45,16 @@ class RunOutput {
   // set-up failed before the first frame: remove DIR.partial/ (ours)
   void discard();
 
+  ~RunOutput();
+  RunOutput(const RunOutput&) = delete;
+  RunOutput& operator=(const RunOutput&) = delete;
+
  private:
+  void checkFinal() const;  // DIR: a new or empty folder, or an earlier run with overwrite
+
   std::filesystem::path dir_, partial_;
   bool overwrite_ = false;
+  int lockFd_ = -1;  // DIR.partial/ opened and flocked by create()
 };
 
 // true when the folder holds an ESim run (complete or partial)
