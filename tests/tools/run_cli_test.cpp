@@ -494,6 +494,30 @@ TEST(RunCli, OutOfMemoryMidRunKeepsTheFramesMarkedPartial) {
   fs::remove_all(partial);
 }
 
+// a video that cannot be finished after the last frame (a disk that fills at the end,
+// injected): the run failed, exit 1, its reports in DIR.partial marked incomplete with the
+// reason (it escaped as bad input, exit 2, with no reports)
+TEST(RunCli, AVideoThatCannotBeFinishedFailsTheRunWithItsReports) {
+  const fs::path out = tempOut("video_close");
+  const fs::path partial = out.string() + ".partial";
+  fs::remove_all(partial);
+  const Result r =
+      shell(std::string("ESIM_FAULT=video_close@0 ") + ESIM_EXE +
+            " run scenarios/paper_slab.yaml --frames 5" + kSmall + " -o " + out.string());
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  EXPECT_NE(r.output.find("esim: error: closing the outputs: video: finishing"), std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(out));
+  ASSERT_TRUE(fs::exists(partial / "timing.json")) << r.output;
+  const auto timing = nlohmann::json::parse(readFile(partial / "timing.json"));
+  EXPECT_FALSE(timing["complete"].get<bool>());
+  EXPECT_EQ(timing["frames"].get<int>(), 5);
+  EXPECT_NE(timing["failure"].get<std::string>().find("No space left on device"),
+            std::string::npos);
+  EXPECT_NE(readFile(partial / "summary.txt").find("FAILED: partial"), std::string::npos);
+  fs::remove_all(partial);
+}
+
 std::string probe(const std::string& args) {
   FILE* p = popen(("ffprobe -v error " + args + " 2>&1").c_str(), "r");
   std::string out;

@@ -137,6 +137,18 @@ Setup setUp(const RunOptions& opt, Scenario scenario) {
 
 // ---- frame outputs ----
 
+// Fault injection for the tests of the loop's failure paths, which a real fault reaches
+// only by chance (memory running out in the middle of a run): ESIM_FAULT=bad_alloc@N makes
+// frame N throw std::bad_alloc after its physics, as if an allocation had failed;
+// ESIM_FAULT=video_close@0 makes closing the video fail (a disk that fills at the end).
+// -1: none.
+int injectedFaultFrame(const char* kind) {
+  const char* spec = std::getenv("ESIM_FAULT");
+  const std::string prefix = std::string(kind) + "@";
+  if (!spec || std::string(spec).rfind(prefix, 0) != 0) return -1;
+  return std::atoi(spec + prefix.size());
+}
+
 class FrameOutputs {
  public:
   FrameOutputs(const Setup& s, const fs::path& dir) : s_(s), dir_(dir) {
@@ -204,6 +216,9 @@ class FrameOutputs {
   void close() {
     if (labels_) labels_->close();
     if (!encoder_) return;
+    if (injectedFaultFrame("video_close") >= 0)
+      throw Error("video: finishing '" + (dir_ / "video.mp4.partial").string() +
+                  "' failed: No space left on device (injected: ESIM_FAULT)");  // its kind
     encoder_->close();
     encodeS_ = encoder_->encodeSeconds();
     codec_ = encoder_->codecName();
@@ -536,16 +551,6 @@ std::string writeReports(const Setup& s, const FrameOutputs& out, const LoopResu
 
 // ---- the frame loop ----
 
-// Fault injection for the tests of the loop's failure paths, which a real fault reaches
-// only by chance (memory running out in the middle of a run): ESIM_FAULT=bad_alloc@N makes
-// frame N throw std::bad_alloc after its physics, as if an allocation had failed. -1: none.
-int injectedFaultFrame(const char* kind) {
-  const char* spec = std::getenv("ESIM_FAULT");
-  const std::string prefix = std::string(kind) + "@";
-  if (!spec || std::string(spec).rfind(prefix, 0) != 0) return -1;
-  return std::atoi(spec + prefix.size());
-}
-
 LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet) {
   LoopResult loop;
   loop.maxTemperatureSeenC = loop.temperatureNowC = s.sim->temperatureC().maxCoeff();
@@ -626,9 +631,24 @@ int runScenario(const RunOptions& opt) {
     throw;
   }
   // ---- 4. frames ----
-  const LoopResult loop = frameLoop(s, *out, opt.quiet);
+  LoopResult loop = frameLoop(s, *out, opt.quiet);
   // ---- 5. close the video, write the reports, rename when complete ----
-  out->close();
+  // (a video that cannot be finished, a disk full at the end, fails the run: exit 1, its
+  // reports in DIR.partial; it escaped as a bad input, exit 2, without them)
+  const auto closeFailed = [&loop](const std::string& what, ErrorKind kind) {
+    if (!loop.failure.empty()) return;  // the first failure is the run's
+    loop.failure = "closing the outputs: " + what;
+    loop.failureKind = kind == ErrorKind::Internal ? kind : ErrorKind::Run;
+  };
+  try {
+    out->close();
+  } catch (const Error& e) {
+    closeFailed(e.what(), e.kind());
+  } catch (const fs::filesystem_error& e) {
+    closeFailed(e.what(), ErrorKind::Run);
+  } catch (const std::bad_alloc&) {
+    closeFailed("out of memory", ErrorKind::Run);
+  }
   const fs::path where = loop.complete() ? output.final() : output.partial();
   const std::string summary = writeReports(s, *out, loop, output.partial(), where, opt.plots);
   if (loop.complete()) output.commit();
