@@ -108,6 +108,30 @@ TEST(SweepCli, LocalSweepRecordsResumesAndVerifies) {
   fs::remove_all(dir);
 }
 
+// two sweeps started together into one folder: one runs it, the other is refused (exit 2)
+// with nothing run; every variant complete (both used to run the same variants, leaving
+// variants marked failed that the other had completed, or a misleading "holds other files")
+TEST(SweepCli, TwoSweepsIntoOneFolderAtOnceOneIsRefused) {
+  const fs::path dir = tempDir("twice");
+  const std::string sweep = std::string(ESIM_EXE) + " sweep " + kTiny + " -o " + dir.string();
+  const Result r = shell("(" + sweep + "; echo \"exit=$?\") & (sleep 0.2; " + sweep +
+                         "; echo \"exit=$?\") & wait");
+  EXPECT_NE(r.output.find("exit=0"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("exit=2"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("another esim sweep is running in this folder"), std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find(" failed: "), std::string::npos) << r.output;  // a variant
+  const auto lines = manifest(dir);
+  ASSERT_EQ(lines.size(), 4u);
+  for (const json& l : lines) EXPECT_EQ(l["status"], "complete") << l.dump();
+  EXPECT_EQ(esim("dataset verify " + dir.string()).exitCode, 0);
+  // once it ended, the folder is resumed as before
+  const Result again = esim("sweep " + kTiny + " -o " + dir.string());
+  EXPECT_EQ(again.exitCode, 0) << again.output;
+  EXPECT_NE(again.output.find("4 complete before, 0 to run"), std::string::npos) << again.output;
+  fs::remove_all(dir);
+}
+
 TEST(SweepCli, AFailedVariantIsRecordedAndTheOthersGoOn) {
   const fs::path dir = tempDir("failed");
   const fs::path spec = tempDir("failed_spec.yaml");
