@@ -83,6 +83,12 @@ SurfaceMesh readSurface(const std::string& path, double scaleToMetres) {
   ESIM_VERIFY(std::isfinite(scaleToMetres) && scaleToMetres > 0,
               path + ": scale to metres must be a positive number");
 
+  std::string ext = fs::path(path).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  ESIM_VERIFY(ext != ".vtu", path +
+                                 ": a tet mesh (.vtu, e.g. the fields of esim run --fields) is "
+                                 "not a surface; expected a closed surface (OBJ, STL, PLY, OFF, "
+                                 "glTF), which is meshed with CGAL (esim mesh-info reads .vtu)");
   checkPlyHeader(path);
   // import only, then our checks, then the post-processing: assimp's loaders can hand on
   // faces of 0 indices, indices past the vertices and primitive-type flags that disagree

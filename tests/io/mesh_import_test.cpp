@@ -453,6 +453,21 @@ TEST(MeshImport, GarbageFileIsReported) {
   fs::remove_all(dir);
 }
 
+// a tet mesh (the .vtu fields of esim run --fields) given as a scene's surface: said so,
+// with what is expected (assimp said "No suitable reader found for the file format")
+TEST(MeshImport, ATetMeshFileIsNotASurface) {
+  const fs::path dir = tempDir();
+  for (const char* name : {"frame_00030.vtu", "CUT.VTU"}) {
+    const std::string path = (dir / name).string();
+    std::ofstream(path) << "<VTKFile type=\"UnstructuredGrid\"></VTKFile>\n";
+    const std::string msg = errorOf([&] { readSurface(path); });
+    EXPECT_EQ(msg.rfind(path + ": a tet mesh (.vtu", 0), 0u) << msg;
+    EXPECT_NE(msg.find("expected a closed surface (OBJ, STL, PLY, OFF, glTF)"), std::string::npos)
+        << msg;
+  }
+  fs::remove_all(dir);
+}
+
 TEST(MeshImport, SurfaceWithoutTrianglesIsReported) {
   const fs::path dir = tempDir();
   const std::string path = (dir / "lines.obj").string();
