@@ -599,6 +599,24 @@ TEST(RunCli, ExitCodesOfEachKind) {
   EXPECT_EQ(WEXITSTATUS(status), 2);
 }
 
+// a command word that is no command is named, with the commands there are (CLI11 said "A
+// subcommand is required"); a command's own arguments are not mistaken for one
+TEST(RunCli, AnUnknownCommandIsNamed) {
+  const Result top = shell(std::string(ESIM_EXE) + " rnu scenarios/paper_slab.yaml");
+  EXPECT_EQ(top.exitCode, 2) << top.output;
+  EXPECT_NE(top.output.find("esim: error: esim: unknown command 'rnu'; expected one of: run, "),
+            std::string::npos)
+      << top.output;
+  const Result bench = shell(std::string(ESIM_EXE) + " bench cuts");
+  EXPECT_EQ(bench.exitCode, 2) << bench.output;
+  EXPECT_NE(bench.output.find("esim bench: unknown command 'cuts'; expected one of: "),
+            std::string::npos)
+      << bench.output;
+  EXPECT_NE(bench.output.find("cut"), std::string::npos) << bench.output;
+  const Result own = shell(std::string(ESIM_EXE) + " validate scenarios/paper_slab.yaml");
+  EXPECT_EQ(own.exitCode, 0) << own.output;
+}
+
 // ---- labels (esim run --labels) ----
 
 // the acceptance run, shortened: every label file, one per frame of the video, pixel-aligned

@@ -99,7 +99,30 @@ int main(int argc, char** argv) {
     runners[sub] = spec.setup(*sub);
   }
 
-  // 2. parse
+  // 2. parse (an unknown command word first: CLI11 says "A subcommand is required")
+  {
+    CLI::App* level = &app;
+    std::string path = "esim";
+    for (int i = 1; i < argc && level != nullptr; ++i) {
+      const std::string word = argv[i];
+      if (word.empty() || word[0] == '-') break;  // an option: CLI11's to judge
+      const auto subs = level->get_subcommands([](CLI::App*) { return true; });
+      if (subs.empty()) break;  // a command's own arguments
+      CLI::App* next = nullptr;
+      std::string names;
+      for (CLI::App* sub : subs) {
+        if (sub->get_name() == word) next = sub;
+        names += (names.empty() ? "" : ", ") + sub->get_name();
+      }
+      if (next == nullptr) {
+        std::cerr << "esim: error: " << path << ": unknown command '" << word
+                  << "'; expected one of: " << names << " (" << path << " --help)\n";
+        return kExitBadInput;
+      }
+      path += " " + word;
+      level = next;
+    }
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
