@@ -6,6 +6,8 @@
 
 #include <fstream>
 #include <memory>
+#include <utility>
+#include <vector>
 
 #include "sim/core_error.h"
 #include "tests/scratch_dir_util.h"
@@ -86,6 +88,87 @@ TEST_F(RunOutputTest, AnEarlierRunNeedsOverwrite) {
   touch(second.partial() / "summary.txt", "second\n");
   second.commit();
   EXPECT_EQ(read(root_ / "run" / "summary.txt"), "second\n");
+}
+
+// what esim run writes, and only that, is recognised as a run's (foreignEntry)
+TEST_F(RunOutputTest, ARunsOwnFilesAreKnownAndAnythingElseIsNamed) {
+  const fs::path run = root_ / "run";
+  fs::create_directories(run);
+  for (const char* f :
+       {".esim-run", "video.mp4", "timing.csv", "timing.json", "trace.json", "scenario.yaml",
+        "hashes.json", "summary.txt", "timing.png", "timing.png.tmp4242"})
+    touch(run / f);
+  for (const auto& [dir, file] :
+       std::vector<std::pair<std::string, std::string>>{{"frames", "frame_00000.png"},
+                                                        {"frames", "frame_123456.png"},
+                                                        {"fields", "frame_00030.vtu"},
+                                                        {"labels", "coco.json"},
+                                                        {"labels", "frames.jsonl"},
+                                                        {"labels", "preview.mp4"},
+                                                        {"labels", "depth_00002.png"},
+                                                        {"labels", "mask_00002.png"},
+                                                        {"compare", "compare.json"},
+                                                        {"compare", "diff_frame_00001.png"}}) {
+    fs::create_directories(run / dir);
+    touch(run / dir / file);
+  }
+  EXPECT_EQ(foreignEntry(run), "");
+  for (const auto& [extra, named] : std::vector<std::pair<fs::path, std::string>>{
+           {"notes.txt", "notes.txt"},
+           {"plots/fig.png", "plots/"},
+           {"frames/notes.txt", "frames/notes.txt"},
+           {"frames/frame_1.png", "frames/frame_1.png"},
+           {"labels/mask_00002.png.bak", "labels/mask_00002.png.bak"},
+           {"video.mp4.tmpx", "video.mp4.tmpx"}}) {
+    fs::create_directories((run / extra).parent_path());
+    touch(run / extra);
+    EXPECT_EQ(foreignEntry(run), named) << extra;
+    fs::remove(run / extra);
+    if (extra.has_parent_path() && fs::is_empty(run / extra.parent_path()))
+      fs::remove(run / extra.parent_path());
+  }
+  fs::create_symlink(root_ / "elsewhere", run / "video.mp4.partial");
+  EXPECT_EQ(foreignEntry(run), "video.mp4.partial") << "a link is not a file the run wrote";
+}
+
+// --overwrite replaces an earlier run, never a file the user put into its folder (it deleted
+// notes.txt and plots/ with the earlier run)
+TEST_F(RunOutputTest, OverwriteNeverDeletesAFileTheRunsDidNotWrite) {
+  {
+    RunOutput first(root_ / "run", false);
+    first.create();
+    touch(first.partial() / "summary.txt", "first\n");
+    first.commit();
+  }
+  touch(root_ / "run" / "notes.txt", "mine\n");
+  expectInputError([&] { RunOutput(root_ / "run", true); },
+                   "--overwrite would delete 'notes.txt', which no ESim run writes");
+  EXPECT_EQ(read(root_ / "run" / "notes.txt"), "mine\n");
+  fs::remove(root_ / "run" / "notes.txt");
+  // ... nor one put there while the new run ran: the run stays in DIR.partial, a run error
+  auto second = std::make_unique<RunOutput>(root_ / "run", true);
+  second->create();
+  touch(second->partial() / "summary.txt", "second\n");
+  touch(root_ / "run" / "late.txt", "mine\n");
+  try {
+    second->commit();
+    ADD_FAILURE() << "committed over late.txt";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Run);
+    EXPECT_NE(std::string(e.what()).find("'late.txt' appeared in it during the run"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(read(root_ / "run" / "late.txt"), "mine\n");
+  EXPECT_EQ(read(root_ / "run" / "summary.txt"), "first\n");
+  EXPECT_EQ(read(root_ / "run.partial" / "summary.txt"), "second\n");
+  // an earlier partial output with a user's file in it is not replaced either
+  second.reset();  // that run ended (its lock with it)
+  fs::remove(root_ / "run" / "late.txt");
+  touch(root_ / "run.partial" / "draft.md", "mine\n");
+  expectInputError([&] { RunOutput(root_ / "run", true); },
+                   "is not an ESim run's partial output (it holds 'draft.md')");
+  EXPECT_EQ(read(root_ / "run.partial" / "draft.md"), "mine\n");
 }
 
 TEST_F(RunOutputTest, APartialFolderOfUserFilesIsRefused) {

@@ -651,7 +651,15 @@ int runScenario(const RunOptions& opt) {
   }
   const fs::path where = loop.complete() ? output.final() : output.partial();
   const std::string summary = writeReports(s, *out, loop, output.partial(), where, opt.plots);
-  if (loop.complete()) output.commit();
+  if (loop.complete()) {
+    try {
+      output.commit();
+    } catch (const Error& e) {  // a file put into DIR since the checks: the run stays partial
+      std::cout << summary;
+      std::cerr << "esim: error: " << e.what() << "\n";
+      return kExitFailure;
+    }
+  }
   std::cout << summary;
   if (!loop.failure.empty()) std::cerr << "esim: error: " << loop.failure << "\n";
   if (loop.complete()) return kExitOk;

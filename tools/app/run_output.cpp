@@ -37,7 +37,65 @@ fs::path existingAncestor(fs::path p) {
   return p;
 }
 
+// a name with a run of at least 5 digits between prefix and suffix (frame_00030.png)
+bool numberedName(const std::string& name, const std::string& prefix, const std::string& suffix) {
+  if (name.size() < prefix.size() + 5 + suffix.size() || name.rfind(prefix, 0) != 0 ||
+      name.compare(name.size() - suffix.size(), suffix.size(), suffix) != 0)
+    return false;
+  for (size_t k = prefix.size(); k < name.size() - suffix.size(); ++k)
+    if (name[k] < '0' || name[k] > '9') return false;
+  return true;
+}
+
+// name, or name.tmp<digits> (an atomic write cut short)
+std::string withoutTmp(const std::string& name) {
+  const size_t at = name.rfind(".tmp");
+  if (at == std::string::npos || at + 4 == name.size()) return name;
+  for (size_t k = at + 4; k < name.size(); ++k)
+    if (name[k] < '0' || name[k] > '9') return name;
+  return name.substr(0, at);
+}
+
+// true for a file `esim run` writes in the folder `sub` of its output ("" = the top)
+bool runFile(const std::string& sub, const std::string& file) {
+  const std::string name = withoutTmp(file);
+  if (sub.empty())
+    for (const char* n :
+         {".esim-run", "video.mp4", "video.mp4.partial", "timing.csv", "timing.json", "trace.json",
+          "scenario.yaml", "hashes.json", "summary.txt", "timing.png"})
+      if (name == n) return true;
+  if (sub == "frames") return numberedName(name, "frame_", ".png");
+  if (sub == "fields") return numberedName(name, "frame_", ".vtu");
+  if (sub == "labels") {
+    for (const char* n : {"camera.json", "classes.json", "coco.json", "frames.jsonl", "preview.mp4",
+                          "preview.mp4.partial"})
+      if (name == n) return true;
+    return numberedName(name, "depth_", ".png") || numberedName(name, "mask_", ".png");
+  }
+  if (sub == "compare")  // esim compare's report, its default folder until this session
+    return name == "compare.json" || numberedName(name, "diff_frame_", ".png");
+  return false;
+}
+
 }  // namespace
+
+std::string foreignEntry(const fs::path& dir) {
+  std::error_code ec;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir, ec)) {
+    const std::string name = e.path().filename().string();
+    if (e.is_directory(ec) && !e.is_symlink(ec)) {
+      if (name != "frames" && name != "fields" && name != "labels" && name != "compare")
+        return name + "/";
+      for (const fs::directory_entry& f : fs::directory_iterator(e.path(), ec))
+        if (!f.is_regular_file(ec) || f.is_symlink(ec) ||
+            !runFile(name, f.path().filename().string()))
+          return name + "/" + f.path().filename().string();
+    } else if (!e.is_regular_file(ec) || e.is_symlink(ec) || !runFile("", name)) {
+      return name;
+    }
+  }
+  return ec ? std::string("(cannot list: ") + ec.message() + ")" : std::string();
+}
 
 bool isEsimRunFolder(const fs::path& dir) {
   std::error_code ec;
@@ -75,10 +133,11 @@ RunOutput::RunOutput(fs::path dir, bool overwrite) : dir_(std::move(dir)), overw
   ESIM_VERIFY(!lockedByAnother(partial_), anotherRunMessage(dir_));
   checkFinal();
   if (fs::exists(partial_, ec))
-    ESIM_VERIFY(isEsimRunFolder(partial_) || isEmptyFolder(partial_),
-                partial_.string() +
-                    ": exists and is not an ESim run's partial output; move it "
-                    "away or give another -o folder (nothing was changed)");
+    ESIM_VERIFY(
+        (isEsimRunFolder(partial_) && foreignEntry(partial_).empty()) || isEmptyFolder(partial_),
+        partial_.string() + ": exists and is not an ESim run's partial output (it holds '" +
+            foreignEntry(partial_) +
+            "'); move it away or give another -o folder (nothing was changed)");
   const fs::path anchor = existingAncestor(dir_.parent_path());
   ESIM_VERIFY(fs::is_directory(anchor, ec),
               "-o " + dir_.string() + ": " + anchor.string() + " is not a folder");
@@ -102,6 +161,11 @@ void RunOutput::checkFinal() const {
       ESIM_VERIFY(overwrite_, "-o " + dir_.string() +
                                   ": holds an earlier ESim run; add --overwrite to replace it, "
                                   "or give another folder (nothing was changed)");
+      const std::string foreign = foreignEntry(dir_);
+      ESIM_VERIFY(foreign.empty(), "-o " + dir_.string() + ": --overwrite would delete '" +
+                                       foreign +
+                                       "', which no ESim run writes; move it away, or give "
+                                       "another folder (nothing was changed)");
     }
   }
 }
@@ -138,10 +202,11 @@ void RunOutput::create() {
   }
   try {
     checkFinal();  // again, under the lock: a run may have completed there since
-    ESIM_VERIFY(isEsimRunFolder(partial_) || isEmptyFolder(partial_),
-                partial_.string() +
-                    ": exists and is not an ESim run's partial output; move it "
-                    "away or give another -o folder (nothing was changed)");
+    ESIM_VERIFY(
+        (isEsimRunFolder(partial_) && foreignEntry(partial_).empty()) || isEmptyFolder(partial_),
+        partial_.string() + ": exists and is not an ESim run's partial output (it holds '" +
+            foreignEntry(partial_) +
+            "'); move it away or give another -o folder (nothing was changed)");
   } catch (...) {
     if (made) {
       std::error_code ec;
@@ -163,8 +228,17 @@ RunOutput::~RunOutput() {
 void RunOutput::commit() {
   std::error_code ec;
   if (fs::exists(dir_, ec)) {
-    // checked in the constructor: empty, or an earlier ESim run with overwrite
+    // checked in the constructor and create(): empty, or an earlier ESim run with overwrite
     ESIM_CHECK(isEmptyFolder(dir_) || (overwrite_ && isEsimRunFolder(dir_)));
+    // only what a run writes goes: a file put there since the checks stays, and so does
+    // this run, as DIR.partial
+    const std::string foreign = foreignEntry(dir_);
+    if (!foreign.empty())
+      throw Error("-o " + dir_.string() + ": '" + foreign +
+                      "' appeared in it during the run and is no ESim run's; the run is "
+                      "complete in " +
+                      partial_.string() + " (nothing of " + dir_.string() + " was deleted)",
+                  ErrorKind::Run);
     fs::remove_all(dir_);
   }
   fs::rename(partial_, dir_);

@@ -60,6 +60,12 @@ class RunOutput {
 // true when the folder holds an ESim run (complete or partial)
 bool isEsimRunFolder(const std::filesystem::path& dir);
 
+// the first entry of a run's folder that `esim run` does not write (its files, frames/,
+// fields/, labels/, and compare/ of esim compare's former default report), as a relative
+// path ("notes.txt", "plots/"); "" when there is none. --overwrite and an earlier partial
+// output are replaced only without one: a user's file put into a run folder is never deleted.
+std::string foreignEntry(const std::filesystem::path& dir);
+
 // `esim run`'s folder without -o: out/<name>, the scenario's name (free text, a title) made a
 // single folder name: every character but letters, digits, '-', '_' and '.' becomes '_', so
 // do leading dots ("", "." and ".." included: never out/ itself, a parent, or an absolute
