@@ -37,6 +37,15 @@ fs::path tempOut(const std::string& name) {
 
 const char* kSmall = " --set look.width=160 --set look.height=90 -q";
 
+// the frames ffprobe decodes from a video (-1 when it cannot read it)
+int videoFrames(const fs::path& video) {
+  const Result r = shell(
+      "ffprobe -v error -count_frames -select_streams v:0 -show_entries "
+      "stream=nb_read_frames -of csv=p=0 " +
+      video.string());
+  return r.exitCode == 0 && !r.output.empty() ? std::atoi(r.output.c_str()) : -1;
+}
+
 TEST(RunCli, EveryShippedScenarioRuns) {
   for (const auto& entry : fs::directory_iterator(fs::path(ESIM_SOURCE_DIR) / "scenarios")) {
     if (entry.path().extension() != ".yaml") continue;
@@ -311,15 +320,7 @@ TEST(RunCli, TwoRunsIntoOneFolderAtOnceOneIsRefused) {
             1)
       << r.output;
   EXPECT_FALSE(fs::exists(out.string() + ".partial"));
-  const std::string probe =
-      "ffprobe -v error -count_frames -select_streams v:0 -show_entries "
-      "stream=nb_read_frames -of csv=p=0 " +
-      (out / "video.mp4").string();
-  FILE* p = popen(probe.c_str(), "r");
-  char frames[64] = {0};
-  ASSERT_NE(fgets(frames, sizeof frames, p), nullptr);
-  EXPECT_EQ(pclose(p), 0);
-  EXPECT_EQ(std::atoi(frames), 20);
+  EXPECT_EQ(videoFrames(out / "video.mp4"), 20);
   fs::remove_all(out);
 }
 
@@ -396,15 +397,7 @@ TEST(RunCli, AnInterruptedRunStaysPartialWithAPlayableVideo) {
   EXPECT_FALSE(timing["complete"].get<bool>());
   const int frames = timing["frames"].get<int>();
   // the video holds the frames done and is playable
-  const std::string probe =
-      "ffprobe -v error -count_frames -select_streams v:0 -show_entries "
-      "stream=nb_read_frames -of csv=p=0 " +
-      (partial / "video.mp4").string();
-  FILE* p = popen(probe.c_str(), "r");
-  char count[64] = {0};
-  ASSERT_NE(fgets(count, sizeof count, p), nullptr);
-  EXPECT_EQ(pclose(p), 0);
-  EXPECT_EQ(std::atoi(count), frames);
+  EXPECT_EQ(videoFrames(partial / "video.mp4"), frames);
   EXPECT_GT(frames, 0);
   fs::remove_all(partial);
 }
@@ -467,16 +460,21 @@ TEST(RunCli, OutOfMemoryAtSetUpExitsOneAndWritesNothing) {
   EXPECT_FALSE(fs::exists(out.string() + ".partial"));
 }
 
+// paper_slab for `frames` small frames into out, with the fault ESIM_FAULT injects (its
+// earlier partial output removed first)
+Result runWithFault(const std::string& fault, int frames, const fs::path& out) {
+  fs::remove_all(out.string() + ".partial");
+  return shell("ESIM_FAULT=" + fault + " " + ESIM_EXE + " run scenarios/paper_slab.yaml --frames " +
+               std::to_string(frames) + kSmall + " -o " + out.string());
+}
+
 // memory that runs out in the middle of a run (injected, ESIM_FAULT: a real one comes only
 // by chance): exit 1, the frames before it kept in DIR.partial, marked incomplete with the
 // reason, and a playable video of those frames
 TEST(RunCli, OutOfMemoryMidRunKeepsTheFramesMarkedPartial) {
   const fs::path out = tempOut("oom_run");
   const fs::path partial = out.string() + ".partial";
-  fs::remove_all(partial);
-  const Result r =
-      shell(std::string("ESIM_FAULT=bad_alloc@4 ") + ESIM_EXE +
-            " run scenarios/paper_slab.yaml --frames 10" + kSmall + " -o " + out.string());
+  const Result r = runWithFault("bad_alloc@4", 10, out);
   EXPECT_EQ(r.exitCode, 1) << r.output;
   EXPECT_NE(r.output.find("frame 4: out of memory"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(out));
@@ -484,13 +482,7 @@ TEST(RunCli, OutOfMemoryMidRunKeepsTheFramesMarkedPartial) {
   const auto timing = nlohmann::json::parse(readFile(partial / "timing.json"));
   EXPECT_FALSE(timing["complete"].get<bool>());
   EXPECT_EQ(timing["frames"].get<int>(), 4);
-  const std::string probe =
-      "ffprobe -v error -count_frames -select_streams v:0 -show_entries "
-      "stream=nb_read_frames -of csv=p=0 " +
-      (partial / "video.mp4").string();
-  const Result frames = shell(probe);
-  EXPECT_EQ(frames.exitCode, 0) << frames.output;
-  EXPECT_EQ(std::atoi(frames.output.c_str()), 4);
+  EXPECT_EQ(videoFrames(partial / "video.mp4"), 4);
   fs::remove_all(partial);
 }
 
@@ -500,10 +492,7 @@ TEST(RunCli, OutOfMemoryMidRunKeepsTheFramesMarkedPartial) {
 TEST(RunCli, AVideoThatCannotBeFinishedFailsTheRunWithItsReports) {
   const fs::path out = tempOut("video_close");
   const fs::path partial = out.string() + ".partial";
-  fs::remove_all(partial);
-  const Result r =
-      shell(std::string("ESIM_FAULT=video_close@0 ") + ESIM_EXE +
-            " run scenarios/paper_slab.yaml --frames 5" + kSmall + " -o " + out.string());
+  const Result r = runWithFault("video_close@0", 5, out);
   EXPECT_EQ(r.exitCode, 1) << r.output;
   EXPECT_NE(r.output.find("esim: error: closing the outputs: video: finishing"), std::string::npos)
       << r.output;

@@ -39,19 +39,19 @@ nlohmann::json readJson(const fs::path& p) {
 }
 
 // holds an exclusive flock on DIR/.lock while alive (flock works on NFS since Linux 2.6.12)
-class FolderLock {
+class ManifestLock {
  public:
-  explicit FolderLock(const fs::path& dir) {
+  explicit ManifestLock(const fs::path& dir) {
     fd_ = ::open((dir / ".lock").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     if (fd_ >= 0)
       while (::flock(fd_, LOCK_EX) != 0 && errno == EINTR) {
       }
   }
-  ~FolderLock() {
+  ~ManifestLock() {
     if (fd_ >= 0) ::close(fd_);
   }
-  FolderLock(const FolderLock&) = delete;
-  FolderLock& operator=(const FolderLock&) = delete;
+  ManifestLock(const ManifestLock&) = delete;
+  ManifestLock& operator=(const ManifestLock&) = delete;
 
  private:
   int fd_ = -1;
@@ -132,7 +132,7 @@ std::vector<nlohmann::json> manifestLines(const fs::path& dir) {
 }
 
 void writeManifest(const fs::path& dir) {
-  FolderLock lock(dir);
+  ManifestLock lock(dir);
   std::string text;
   for (const auto& line : manifestLines(dir)) text += line.dump() + "\n";
   writeFileAtomic(dir / "manifest.jsonl", text);

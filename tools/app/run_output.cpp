@@ -97,6 +97,23 @@ std::string foreignEntry(const fs::path& dir) {
   return ec ? std::string("(cannot list: ") + ec.message() + ")" : std::string();
 }
 
+bool FolderLock::tryLock(const fs::path& dir, const std::string& what) {
+  release();
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  ESIM_VERIFY(fd >= 0, what + ": cannot open " + dir.string() + ": " + std::strerror(errno));
+  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    ::close(fd);
+    return false;
+  }
+  fd_ = fd;
+  return true;
+}
+
+void FolderLock::release() {
+  if (fd_ >= 0) ::close(fd_);
+  fd_ = -1;
+}
+
 bool isEsimRunFolder(const fs::path& dir) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) return false;
@@ -107,11 +124,10 @@ bool isEsimRunFolder(const fs::path& dir) {
 
 // true when another process holds the flock of the folder (an esim run writing it)
 bool lockedByAnother(const fs::path& dir) {
-  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) return false;
-  const bool locked = ::flock(fd, LOCK_EX | LOCK_NB) != 0 && errno == EWOULDBLOCK;
-  ::close(fd);  // releases the probe's own lock, if it got one
-  return locked;
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) return false;
+  FolderLock probe;  // released at once
+  return !probe.tryLock(dir, "-o");
 }
 
 std::string anotherRunMessage(const fs::path& dir) {
@@ -171,34 +187,26 @@ void RunOutput::checkFinal() const {
 }
 
 void RunOutput::create() {
-  ESIM_CHECK(lockFd_ < 0);
+  ESIM_CHECK(lock_.fd() < 0);
   fs::create_directories(partial_.parent_path());
   bool made = false;  // DIR.partial/ created here (removed again if refused)
-  for (int attempt = 0; lockFd_ < 0; ++attempt) {
+  for (int attempt = 0; lock_.fd() < 0; ++attempt) {
+    ESIM_VERIFY(attempt < 100, "-o " + dir_.string() + ": " + partial_.string() +
+                                   " keeps changing; is another run using it?");
     if (::mkdir(partial_.c_str(), 0777) == 0)
       made = true;
     else
       ESIM_VERIFY(errno == EEXIST, "-o " + dir_.string() + ": cannot create " + partial_.string() +
                                        ": " + std::strerror(errno));
-    const int fd = ::open(partial_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-    if (fd < 0 && errno == ENOENT && attempt < 100) continue;  // renamed away meanwhile
-    ESIM_VERIFY(fd >= 0, "-o " + dir_.string() + ": cannot open " + partial_.string() + ": " +
-                             std::strerror(errno));
-    if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
-      ::close(fd);
-      throw Error(anotherRunMessage(dir_));
-    }
+    std::error_code ec;
+    if (!fs::is_directory(partial_, ec)) continue;  // renamed away meanwhile
+    if (!lock_.tryLock(partial_, "-o " + dir_.string())) throw Error(anotherRunMessage(dir_));
     // still DIR.partial (a run completing renames its own to DIR): else try again
-    struct stat locked {
-    }, named{};
-    if (::fstat(fd, &locked) == 0 && ::stat(partial_.c_str(), &named) == 0 &&
-        locked.st_dev == named.st_dev && locked.st_ino == named.st_ino) {
-      lockFd_ = fd;
-    } else {
-      ::close(fd);
-      ESIM_VERIFY(attempt < 100, "-o " + dir_.string() + ": " + partial_.string() +
-                                     " keeps changing; is another run using it?");
-    }
+    struct stat locked {};
+    struct stat named {};
+    if (!(::fstat(lock_.fd(), &locked) == 0 && ::stat(partial_.c_str(), &named) == 0 &&
+          locked.st_dev == named.st_dev && locked.st_ino == named.st_ino))
+      lock_.release();
   }
   try {
     checkFinal();  // again, under the lock: a run may have completed there since
@@ -212,17 +220,12 @@ void RunOutput::create() {
       std::error_code ec;
       fs::remove(partial_, ec);  // empty, ours
     }
-    ::close(lockFd_);
-    lockFd_ = -1;
+    lock_.release();
     throw;
   }
   // an earlier run's partial output goes; the folder itself stays (it carries the lock)
   for (const fs::directory_entry& e : fs::directory_iterator(partial_)) fs::remove_all(e.path());
   std::ofstream(partial_ / kMarker) << "esim run output (partial until renamed)\n";
-}
-
-RunOutput::~RunOutput() {
-  if (lockFd_ >= 0) ::close(lockFd_);
 }
 
 void RunOutput::commit() {

@@ -24,6 +24,24 @@
 
 namespace esim::app {
 
+// An exclusive flock on a folder, held while the object lives (the kernel drops it when the
+// process dies): one esim run per output folder, one esim sweep per sweep folder.
+class FolderLock {
+ public:
+  FolderLock() = default;
+  // locks the existing folder dir; false when another process holds it; throws Error (Input)
+  // naming `what` when it cannot be opened
+  bool tryLock(const std::filesystem::path& dir, const std::string& what);
+  int fd() const { return fd_; }  // -1 when none is held
+  void release();
+  ~FolderLock() { release(); }
+  FolderLock(const FolderLock&) = delete;
+  FolderLock& operator=(const FolderLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
+
 class RunOutput {
  public:
   // checks the location (see above); throws Error naming the folder and the remedy
@@ -45,7 +63,6 @@ class RunOutput {
   // set-up failed before the first frame: remove DIR.partial/ (ours)
   void discard();
 
-  ~RunOutput();
   RunOutput(const RunOutput&) = delete;
   RunOutput& operator=(const RunOutput&) = delete;
 
@@ -54,7 +71,7 @@ class RunOutput {
 
   std::filesystem::path dir_, partial_;
   bool overwrite_ = false;
-  int lockFd_ = -1;  // DIR.partial/ opened and flocked by create()
+  FolderLock lock_;  // on DIR.partial/, taken by create()
 };
 
 // true when the folder holds an ESim run (complete or partial)

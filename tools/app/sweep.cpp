@@ -10,7 +10,6 @@
 
 #include <fcntl.h>
 #include <spawn.h>
-#include <sys/file.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -378,37 +377,18 @@ std::string variantYaml(const SweepVariant& v) {
 
 // checks DIR (new, empty, or this sweep's earlier folder) before anything is written;
 // throws Error (bad input) naming what differs
-// The sweep's folder held by one `esim sweep` while it runs: an exclusive flock on the folder
-// itself (DIR/.lock is the manifest's, held only while it is rewritten; the kernel drops both
-// if the process dies). Two sweeps into one folder ran the same variants at once and left
-// variants marked failed that the other had completed.
-class SweepFolderLock {
- public:
-  explicit SweepFolderLock(const fs::path& dir) {
-    std::error_code ec;
-    if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) return;  // checkFolder says why
-    fs::create_directories(dir, ec);
-    ESIM_VERIFY(!ec, dir.string() + ": cannot create the sweep's folder: " + ec.message());
-    fd_ = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-    ESIM_VERIFY(fd_ >= 0,
-                dir.string() + ": cannot open the sweep's folder: " + std::strerror(errno));
-    if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
-      ::close(fd_);
-      fd_ = -1;
-      throw Error(dir.string() +
-                  ": another esim sweep is running in this folder; resume it once that one "
-                  "ends (nothing was changed)");
-    }
-  }
-  ~SweepFolderLock() {
-    if (fd_ >= 0) ::close(fd_);
-  }
-  SweepFolderLock(const SweepFolderLock&) = delete;
-  SweepFolderLock& operator=(const SweepFolderLock&) = delete;
-
- private:
-  int fd_ = -1;
-};
+// The sweep's folder held by one `esim sweep` while it runs (FolderLock; DIR/.lock is the
+// manifest's, held only while it is rewritten). Two sweeps into one folder ran the same
+// variants at once and left variants marked failed that the other had completed.
+void lockSweepFolder(const fs::path& dir, FolderLock& lock) {
+  std::error_code ec;
+  if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) return;  // checkFolder says why
+  fs::create_directories(dir, ec);
+  ESIM_VERIFY(!ec, dir.string() + ": cannot create the sweep's folder: " + ec.message());
+  ESIM_VERIFY(lock.tryLock(dir, "-o"), dir.string() +
+                                           ": another esim sweep is running in this folder; "
+                                           "resume it once that one ends (nothing was changed)");
+}
 
 void checkFolder(const fs::path& dir, const SweepSpec& spec, const std::vector<SweepVariant>& vs,
                  const std::vector<std::string>& runOptions) {
@@ -931,7 +911,8 @@ int runSweep(const SweepOptions& opt, const RunOptionsCheck& checkRunOptions) {
   if (opt.outDir.empty()) throw Error("-o DIR: the sweep's folder is required");
   const fs::path dir(opt.outDir);
   // ---- 2. the folder (this sweep's alone until it ends) ----
-  const SweepFolderLock lock(dir);
+  FolderLock lock;
+  lockSweepFolder(dir, lock);
   checkFolder(dir, spec, vs, runOptions);
   const std::string exe = esimExecutable();
   writeFolder(dir, spec, vs, runOptions, exe);
