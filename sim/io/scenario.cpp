@@ -16,6 +16,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -86,7 +87,22 @@ Scenario parseScenario(const std::string& yamlText, const std::string& sourceNam
   return s;
 }
 
+std::string quoteInMessage(const std::string& text) {
+  constexpr size_t kMax = 60;
+  const size_t line = std::min(text.find('\n'), text.size());
+  std::string out = "'";
+  if (line == text.size() && text.size() <= kMax) return out.append(text).append("'");
+  out.append(text, 0, std::min(line, kMax));
+  out += " ...' (";
+  out += std::to_string(text.size());
+  out += " characters)";
+  return out;
+}
+
 Scenario loadScenario(const std::string& path, const std::vector<std::string>& overrides) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec))
+    throw Error(path + ": is a folder; expected a scenario file (YAML, e.g. scenarios/*.yaml)");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error(path + ": cannot open the scenario file");
   std::stringstream buffer;

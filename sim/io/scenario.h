@@ -307,8 +307,14 @@ struct Scenario {
 
 // ---- loading ----
 
-// reads, overrides (`key.path=value`, value parsed as YAML) and validates a scenario file
+// reads, overrides (`key.path=value`, value parsed as YAML) and validates a scenario file;
+// a folder or an unreadable file is an Error naming it
 Scenario loadScenario(const std::string& path, const std::vector<std::string>& overrides = {});
+
+// a value as quoted in an error message: 'text', or its first line cut at 60 characters with
+// its length ("'v -0.0175 0.0417 ...' (511234 characters)": a whole OBJ file read as a
+// scenario was quoted whole)
+std::string quoteInMessage(const std::string& text);
 
 // same from text; sourceName is used in messages and to resolve relative asset paths
 Scenario parseScenario(const std::string& yamlText, const std::string& sourceName,

@@ -137,7 +137,7 @@ std::string Reader::describe(const YAML::Node& n) {
   if (!n.IsDefined() || n.IsNull()) return "nothing";
   if (n.IsSequence()) return "a list";
   if (n.IsMap()) return "a mapping";
-  return "'" + n.Scalar() + "'";
+  return quoteInMessage(n.Scalar());
 }
 
 // a null value has no useful mark: point at its key

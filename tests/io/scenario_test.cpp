@@ -629,6 +629,15 @@ TEST(Scenario, CommittedReferenceIsUpToDate) {
 }
 
 // a blank key (found by fuzz_set_override: it indexed an empty key list) is refused
+TEST(Scenario, LongValuesAreQuotedShortInMessages) {
+  EXPECT_EQ(quoteInMessage("high"), "'high'");
+  EXPECT_EQ(quoteInMessage(""), "''");
+  EXPECT_EQ(quoteInMessage(std::string(60, 'x')), "'" + std::string(60, 'x') + "'");
+  EXPECT_EQ(quoteInMessage(std::string(61, 'x')),
+            "'" + std::string(60, 'x') + " ...' (61 characters)");
+  EXPECT_EQ(quoteInMessage("first line\nsecond"), "'first line ...' (17 characters)");
+}
+
 TEST(Scenario, ABlankOverrideKeyIsRefused) {
   for (const char* text : {" =1", "\t=x", "  = "}) {
     try {

@@ -97,6 +97,20 @@ TEST(ValidateCli, BadInputExitsTwoWithTheMessage) {
   const Result missing = runEsim("validate /nonexistent/x.yaml");
   EXPECT_EQ(missing.exitCode, 2) << missing.output;
   EXPECT_NE(missing.output.find("/nonexistent/x.yaml: cannot open"), std::string::npos);
+
+  // a folder was read as an empty scenario and said "ok"
+  const Result folder = runEsim("validate \"" + (kRoot / "scenarios").string() + "\"");
+  EXPECT_EQ(folder.exitCode, 2) << folder.output;
+  EXPECT_NE(folder.output.find("scenarios: is a folder; expected a scenario file"),
+            std::string::npos)
+      << folder.output;
+  // a mesh given for a scenario: its text was quoted whole (263 kB for the liver)
+  const Result mesh = runEsim("validate \"" + (kRoot / "assets/liver.obj").string() + "\"");
+  EXPECT_EQ(mesh.exitCode, 2) << mesh.output;
+  EXPECT_NE(mesh.output.find("the scenario: expected a mapping with keys"), std::string::npos)
+      << mesh.output.substr(0, 1000);
+  EXPECT_NE(mesh.output.find(" characters)"), std::string::npos) << mesh.output.substr(0, 1000);
+  EXPECT_LT(mesh.output.size(), 1000u);
 }
 
 TEST(ValidateCli, ReferenceIsTheCommittedPage) {

@@ -187,7 +187,7 @@ class SpecReader {
     if (!n.IsDefined() || n.IsNull()) return "nothing";
     if (n.IsSequence()) return "a list";
     if (n.IsMap()) return "a mapping";
-    return "'" + n.Scalar() + "'";
+    return quoteInMessage(n.Scalar());
   }
 
   // the key of set:, grid: or random:: a scenario key path (a field or a group) or a path
