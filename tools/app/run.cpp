@@ -17,6 +17,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -212,17 +213,29 @@ class FrameOutputs {
       writeFields((dir_ / "fields" / numbered("frame_", f, ".vtu")).string(), sim);
   }
 
-  // closes the video (playable however many frames it has) and the label files
+  // closes the video (playable however many frames it has) and the label files, each even
+  // when the other fails; the first error is rethrown
   void close() {
-    if (labels_) labels_->close();
-    if (!encoder_) return;
-    if (injectedFaultFrame("video_close") >= 0)
-      throw Error("video: finishing '" + (dir_ / "video.mp4.partial").string() +
-                  "' failed: No space left on device (injected: ESIM_FAULT)");  // its kind
-    encoder_->close();
-    encodeS_ = encoder_->encodeSeconds();
-    codec_ = encoder_->codecName();
-    encoder_.reset();
+    std::exception_ptr first;
+    try {
+      if (labels_) labels_->close();
+    } catch (...) {
+      first = std::current_exception();
+    }
+    try {
+      if (encoder_) {
+        if (injectedFaultFrame("video_close") >= 0)
+          throw Error("video: finishing '" + (dir_ / "video.mp4.partial").string() +
+                      "' failed: No space left on device (injected: ESIM_FAULT)");  // its kind
+        encoder_->close();
+        encodeS_ = encoder_->encodeSeconds();
+        codec_ = encoder_->codecName();
+        encoder_.reset();
+      }
+    } catch (...) {
+      if (!first) first = std::current_exception();
+    }
+    if (first) std::rethrow_exception(first);
   }
 
   double encodeSeconds() const { return encodeS_; }
