@@ -228,6 +228,13 @@ TEST(SweepCli, BadSweepsExitTwoWithNothingWritten) {
             std::string::npos)
       << r.output;
   EXPECT_FALSE(fs::exists(dir));
+  // a folder for the sweep file is named as one
+  const Result folder = esim("sweep scenarios/sweeps -o " + dir.string());
+  EXPECT_EQ(folder.exitCode, 2) << folder.output;
+  EXPECT_NE(folder.output.find("scenarios/sweeps: is a folder; expected a sweep file"),
+            std::string::npos)
+      << folder.output;
+  EXPECT_FALSE(fs::exists(dir));
   // run options are checked with esim run's own definition
   const Result opt = esim("sweep " + kTiny + " -o " + dir.string() + " --run-args=--bogus");
   EXPECT_EQ(opt.exitCode, 2) << opt.output;

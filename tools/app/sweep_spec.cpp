@@ -727,6 +727,9 @@ std::string sweepOwnedRunOption(const std::string& s) {
 }
 
 SweepSpec loadSweepSpec(const std::string& path) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec))
+    throw Error(path + ": is a folder; expected a sweep file (YAML, e.g. scenarios/sweeps/*.yaml)");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error(path + ": cannot open the sweep file");
   std::stringstream buffer;
