@@ -38,14 +38,7 @@ std::string frameName(int f) {
 // a file an earlier report of compareRuns wrote: compare.json, diff_frame_NNNNN.png
 bool isReportFile(const fs::path& p) {
   const std::string name = p.filename().string();
-  if (name == "compare.json") return true;
-  const std::string prefix = "diff_frame_", suffix = ".png";
-  if (name.size() != prefix.size() + 5 + suffix.size() || name.rfind(prefix, 0) != 0 ||
-      name.compare(name.size() - suffix.size(), suffix.size(), suffix) != 0)
-    return false;
-  for (size_t k = prefix.size(); k < prefix.size() + 5; ++k)
-    if (name[k] < '0' || name[k] > '9') return false;
-  return true;
+  return name == "compare.json" || isNumberedName(name, "diff_frame_", ".png");
 }
 
 // the report folder, new or emptied of an earlier report (only that: a folder holding

@@ -36,6 +36,18 @@ inline std::filesystem::path variantDir(const std::filesystem::path& dir, const 
 inline std::filesystem::path runDir(const std::filesystem::path& dir, const std::string& id) {
   return variantDir(dir, id) / "run";
 }
+// the sweep folder DIR when run is DIR/runs/<id>/run of a sweep (DIR holds manifest.jsonl),
+// else ""
+inline std::filesystem::path sweepOfRun(const std::filesystem::path& run) {
+  std::error_code ec;
+  std::filesystem::path p = std::filesystem::absolute(run, ec).lexically_normal();
+  if (p.filename().empty()) p = p.parent_path();  // "run/"
+  const std::filesystem::path dir = p.parent_path().parent_path().parent_path();
+  if (p.filename() != "run" || p.parent_path().parent_path().filename() != "runs" ||
+      !std::filesystem::is_regular_file(dir / "manifest.jsonl", ec))
+    return {};
+  return dir;
+}
 }  // namespace dataset
 
 // xxh3-64 (seed 0) of a file's bytes as 16 hex digits; throws Error if it cannot be read

@@ -37,16 +37,6 @@ fs::path existingAncestor(fs::path p) {
   return p;
 }
 
-// a name with a run of at least 5 digits between prefix and suffix (frame_00030.png)
-bool numberedName(const std::string& name, const std::string& prefix, const std::string& suffix) {
-  if (name.size() < prefix.size() + 5 + suffix.size() || name.rfind(prefix, 0) != 0 ||
-      name.compare(name.size() - suffix.size(), suffix.size(), suffix) != 0)
-    return false;
-  for (size_t k = prefix.size(); k < name.size() - suffix.size(); ++k)
-    if (name[k] < '0' || name[k] > '9') return false;
-  return true;
-}
-
 // name, or name.tmp<digits> (an atomic write cut short)
 std::string withoutTmp(const std::string& name) {
   const size_t at = name.rfind(".tmp");
@@ -64,20 +54,43 @@ bool runFile(const std::string& sub, const std::string& file) {
          {".esim-run", "video.mp4", "video.mp4.partial", "timing.csv", "timing.json", "trace.json",
           "scenario.yaml", "hashes.json", "summary.txt", "timing.png"})
       if (name == n) return true;
-  if (sub == "frames") return numberedName(name, "frame_", ".png");
-  if (sub == "fields") return numberedName(name, "frame_", ".vtu");
+  if (sub == "frames") return isNumberedName(name, "frame_", ".png");
+  if (sub == "fields") return isNumberedName(name, "frame_", ".vtu");
   if (sub == "labels") {
     for (const char* n : {"camera.json", "classes.json", "coco.json", "frames.jsonl", "preview.mp4",
                           "preview.mp4.partial"})
       if (name == n) return true;
-    return numberedName(name, "depth_", ".png") || numberedName(name, "mask_", ".png");
+    return isNumberedName(name, "depth_", ".png") || isNumberedName(name, "mask_", ".png");
   }
   if (sub == "compare")  // esim compare's report, its default folder until this session
-    return name == "compare.json" || numberedName(name, "diff_frame_", ".png");
+    return name == "compare.json" || isNumberedName(name, "diff_frame_", ".png");
   return false;
 }
 
+// true when another process holds the flock of the folder (an esim run writing it)
+bool lockedByAnother(const fs::path& dir) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) return false;
+  FolderLock probe;  // released at once
+  return !probe.tryLock(dir, "-o");
+}
+
+std::string anotherRunMessage(const fs::path& dir) {
+  return "-o " + dir.string() +
+         ": another esim run is writing this folder (its .partial is locked); wait for it to "
+         "end or give another folder (nothing was changed)";
+}
+
 }  // namespace
+
+bool isNumberedName(const std::string& name, const std::string& prefix, const std::string& suffix) {
+  if (name.size() < prefix.size() + 5 + suffix.size() || name.rfind(prefix, 0) != 0 ||
+      name.compare(name.size() - suffix.size(), suffix.size(), suffix) != 0)
+    return false;
+  for (size_t k = prefix.size(); k < name.size() - suffix.size(); ++k)
+    if (name[k] < '0' || name[k] > '9') return false;
+  return true;
+}
 
 std::string foreignEntry(const fs::path& dir) {
   std::error_code ec;
@@ -122,20 +135,6 @@ bool isEsimRunFolder(const fs::path& dir) {
          fs::exists(dir / "summary.txt", ec);
 }
 
-// true when another process holds the flock of the folder (an esim run writing it)
-bool lockedByAnother(const fs::path& dir) {
-  std::error_code ec;
-  if (!fs::is_directory(dir, ec)) return false;
-  FolderLock probe;  // released at once
-  return !probe.tryLock(dir, "-o");
-}
-
-std::string anotherRunMessage(const fs::path& dir) {
-  return "-o " + dir.string() +
-         ": another esim run is writing this folder (its .partial is locked); wait for it to "
-         "end or give another folder (nothing was changed)";
-}
-
 RunOutput::RunOutput(fs::path dir, bool overwrite) : dir_(std::move(dir)), overwrite_(overwrite) {
   ESIM_VERIFY(!dir_.empty(), "-o: the output folder is empty");
   // "out/x/" -> "out/x", "." -> the working folder: the partial folder is a sibling
@@ -148,12 +147,7 @@ RunOutput::RunOutput(fs::path dir, bool overwrite) : dir_(std::move(dir)), overw
   std::error_code ec;
   ESIM_VERIFY(!lockedByAnother(partial_), anotherRunMessage(dir_));
   checkFinal();
-  if (fs::exists(partial_, ec))
-    ESIM_VERIFY(
-        (isEsimRunFolder(partial_) && foreignEntry(partial_).empty()) || isEmptyFolder(partial_),
-        partial_.string() + ": exists and is not an ESim run's partial output (it holds '" +
-            foreignEntry(partial_) +
-            "'); move it away or give another -o folder (nothing was changed)");
+  if (fs::exists(partial_, ec)) checkPartial();
   const fs::path anchor = existingAncestor(dir_.parent_path());
   ESIM_VERIFY(fs::is_directory(anchor, ec),
               "-o " + dir_.string() + ": " + anchor.string() + " is not a folder");
@@ -186,6 +180,16 @@ void RunOutput::checkFinal() const {
   }
 }
 
+void RunOutput::checkPartial() const {
+  if (isEmptyFolder(partial_)) return;
+  const bool ours = isEsimRunFolder(partial_);
+  const std::string foreign = ours ? foreignEntry(partial_) : std::string();
+  ESIM_VERIFY(ours && foreign.empty(),
+              partial_.string() + ": exists and is not an ESim run's partial output" +
+                  (foreign.empty() ? "" : " (it holds '" + foreign + "')") +
+                  "; move it away or give another -o folder (nothing was changed)");
+}
+
 void RunOutput::create() {
   ESIM_CHECK(lock_.fd() < 0);
   fs::create_directories(partial_.parent_path());
@@ -210,11 +214,7 @@ void RunOutput::create() {
   }
   try {
     checkFinal();  // again, under the lock: a run may have completed there since
-    ESIM_VERIFY(
-        (isEsimRunFolder(partial_) && foreignEntry(partial_).empty()) || isEmptyFolder(partial_),
-        partial_.string() + ": exists and is not an ESim run's partial output (it holds '" +
-            foreignEntry(partial_) +
-            "'); move it away or give another -o folder (nothing was changed)");
+    checkPartial();
   } catch (...) {
     if (made) {
       std::error_code ec;

@@ -67,7 +67,8 @@ class RunOutput {
   RunOutput& operator=(const RunOutput&) = delete;
 
  private:
-  void checkFinal() const;  // DIR: a new or empty folder, or an earlier run with overwrite
+  void checkFinal() const;    // DIR: a new or empty folder, or an earlier run with overwrite
+  void checkPartial() const;  // DIR.partial: empty, or an earlier run's output and nothing else
 
   std::filesystem::path dir_, partial_;
   bool overwrite_ = false;
@@ -76,6 +77,10 @@ class RunOutput {
 
 // true when the folder holds an ESim run (complete or partial)
 bool isEsimRunFolder(const std::filesystem::path& dir);
+
+// true for prefix + 5 or more digits + suffix: the numbered files of runs and reports
+// (frame_00030.png, diff_frame_00004.png)
+bool isNumberedName(const std::string& name, const std::string& prefix, const std::string& suffix);
 
 // the first entry of a run's folder that `esim run` does not write (its files, frames/,
 // fields/, labels/, and compare/ of esim compare's former default report), as a relative

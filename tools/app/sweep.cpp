@@ -375,8 +375,6 @@ std::string variantYaml(const SweepVariant& v) {
   return scenarioToYaml(s);
 }
 
-// checks DIR (new, empty, or this sweep's earlier folder) before anything is written;
-// throws Error (bad input) naming what differs
 // The sweep's folder held by one `esim sweep` while it runs (FolderLock; DIR/.lock is the
 // manifest's, held only while it is rewritten). Two sweeps into one folder ran the same
 // variants at once and left variants marked failed that the other had completed.
@@ -390,6 +388,8 @@ void lockSweepFolder(const fs::path& dir, FolderLock& lock) {
                                            "resume it once that one ends (nothing was changed)");
 }
 
+// checks DIR (new, empty, or this sweep's earlier folder) before anything is written;
+// throws Error (bad input) naming what differs
 void checkFolder(const fs::path& dir, const SweepSpec& spec, const std::vector<SweepVariant>& vs,
                  const std::vector<std::string>& runOptions) {
   std::error_code ec;

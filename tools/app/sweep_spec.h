@@ -83,12 +83,12 @@ struct SweepVariant {
   Scenario scenario;                   // loaded and checked
 };
 
-// reads and checks a sweep file (not its variants); throws Error "file:line:col: ..."
 // why an `esim run` option is the sweep's own to give (-o/--out, --overwrite, -q/--quiet:
 // each run goes to DIR/runs/<id>/run, quiet; --set: a key under set:, checked and
 // recorded), or "" when a sweep may pass it; run_options and --run-args both obey it
 std::string sweepOwnedRunOption(const std::string& option);
 
+// reads and checks a sweep file (not its variants); throws Error "file:line:col: ..."
 SweepSpec loadSweepSpec(const std::string& path);
 SweepSpec parseSweepSpec(const std::string& text, const std::string& sourceName);
 

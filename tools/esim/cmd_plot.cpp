@@ -14,6 +14,7 @@
 #include <memory>
 
 #include "sim/core_error.h"
+#include "tools/app/dataset.h"
 #include "tools/app/plot_script.h"
 #include "tools/esim/command.h"
 
@@ -32,16 +33,11 @@ int plotRun(const PlotOptions& opt) {
               "esim plot: '" + opt.runDir +
                   "' holds no timing.csv (expected the folder of an esim run, e.g. out/demo)");
   if (opt.png.empty()) {
-    fs::path run = fs::absolute(opt.runDir, ec).lexically_normal();
-    if (run.filename().empty()) run = run.parent_path();  // "run/"
-    const fs::path sweep = run.parent_path().parent_path().parent_path();
-    const bool ofSweep = run.filename() == "run" &&
-                         run.parent_path().parent_path().filename() == "runs" &&
-                         fs::is_regular_file(sweep / "manifest.jsonl", ec);
-    ESIM_VERIFY(!ofSweep, "esim plot: '" + opt.runDir + "' is a run of the sweep '" +
-                              sweep.string() +
-                              "' (manifest.jsonl lists its files: a timing.png added there "
-                              "would fail esim dataset verify); give -o PNG outside it");
+    const fs::path sweep = app::dataset::sweepOfRun(opt.runDir);
+    ESIM_VERIFY(sweep.empty(), "esim plot: '" + opt.runDir + "' is a run of the sweep '" +
+                                   sweep.string() +
+                                   "' (manifest.jsonl lists its files: a timing.png added there "
+                                   "would fail esim dataset verify); give -o PNG outside it");
   } else {  // a PNG file in a folder that exists (matplotlib would add .png)
     const fs::path png = opt.png;
     std::string ext = png.extension().string();

@@ -103,7 +103,7 @@ int main(int argc, char** argv) {
   {
     CLI::App* level = &app;
     std::string path = "esim";
-    for (int i = 1; i < argc && level != nullptr; ++i) {
+    for (int i = 1; i < argc; ++i) {
       const std::string word = argv[i];
       if (word.empty() || word[0] == '-') break;  // an option: CLI11's to judge
       const auto subs = level->get_subcommands([](CLI::App*) { return true; });
