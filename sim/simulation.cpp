@@ -761,6 +761,8 @@ const FrameRecord& Simulation::step() {
   rec = FrameRecord{};
   advance(rec);
   if (rec.contactByTet) ++framesContactByTet_;
+  if (rec.generatorOn) ++framesGeneratorOn_;
+  if (rec.contactNodes > 0) ++framesInContact_;
   if (rec.toolSwept) ++framesToolSwept_;
   if (rec.subgridActive) ++framesSubgrid_;
   if (config_.phases.rupture) ruptureAndRebuild(rec);
@@ -1062,9 +1064,42 @@ void Simulation::checkMaximumPrinciple(double highBeforeC, bool heated, FrameRec
   worstMaxPrincipleK_ = std::max(worstMaxPrincipleK_, violation);
 }
 
+// a scene whose tool never touched the tissue ran without current: say so, with the tool's
+// closest approach to the surface nodes over the frames with the generator on
+std::string Simulation::noContactWarning() const {
+  if (!model_->electric || state_.frame == 0 || framesInContact_ > 0) return "";
+  if (framesGeneratorOn_ == 0)
+    return "the generator was off in every frame (" + std::to_string(state_.frame) +
+           "; tool.generator_on): no current flowed";
+  const SimModel& m = *model_;
+  double closestM = INFINITY, atS = 0;
+  for (int f = 0; f < state_.frame; ++f) {
+    const double t = f * config_.frameDtS;
+    if (!config_.toolPath.generatorOnAt(t)) continue;
+    const ToolPose pose = config_.toolPath.poseAt(t);
+    for (int v : m.surfaceNodes) {
+      const double d = electrodeDistance(config_.electrode, pose, m.mesh.nodes[v]);
+      if (d < closestM) closestM = d, atS = t;
+    }
+  }
+  Eigen::AlignedBox3d box;
+  for (int v : m.surfaceNodes) box.extend(m.mesh.nodes[v]);
+  char w[400];
+  std::snprintf(w, sizeof w,
+                "the tool touched the tissue in none of the frames with the generator on (%d): no "
+                "current flowed. Its closest approach to a surface node was %.2f mm (t = %.3f s), "
+                "beyond tool.contact_distance_m = %.2f mm; the tissue spans x [%.4f, %.4f], y "
+                "[%.4f, %.4f], z [%.4f, %.4f] m: check tool.path",
+                framesGeneratorOn_, closestM * 1e3, atS, config_.contactDistanceM * 1e3,
+                box.min().x(), box.max().x(), box.min().y(), box.max().y(), box.min().z(),
+                box.max().z());
+  return w;
+}
+
 std::vector<std::string> Simulation::warnings() const {
   std::vector<std::string> w;
   const auto frames = [](int n) { return std::to_string(n) + (n == 1 ? " frame" : " frames"); };
+  if (std::string nc = noContactWarning(); !nc.empty()) w.push_back(std::move(nc));
   if (framesContactByTet_ > 0)
     w.push_back(frames(framesContactByTet_) +
                 ": the tool was inside the tissue with no node within tool.contact_distance_m; "

@@ -486,10 +486,46 @@ TEST(SimulationGuards, ABuriedElectrodeDeliversCurrentAndSaysHow) {
   EXPECT_NEAR(r.returnCurrentA, r.toolCurrentA, 1e-9 * r.toolCurrentA);
   ASSERT_EQ(sim.warnings().size(), 1u);
   EXPECT_NE(sim.warnings()[0].find("tool.contact_distance_m"), std::string::npos);
-  // above the tissue: no contact, no fallback, no warning
+  // above the tissue: no contact, no fallback
   Simulation air(smallSlab(), sphereAt(Vec3(0.0013, 0.0013, 0.02)));
   EXPECT_EQ(air.step().contactNodes, 0);
-  EXPECT_TRUE(air.warnings().empty());
+  ASSERT_EQ(air.warnings().size(), 1u);
+  EXPECT_NE(air.warnings()[0].find("touched the tissue in none"), std::string::npos);
+}
+
+TEST(SimulationGuards, AToolThatNeverTouchesTheTissueSaysHowCloseItCame) {
+  // the ball (radius 0.5 mm) 10 mm above a node of the slab's top face (z = 10 mm)
+  SimulationConfig c = sphereAt(Vec3(0, 0, 0.02));
+  c.toolPath.keys.push_back(c.toolPath.keys[0]);
+  c.toolPath.keys[1].timeS = 0.1;  // then down 2 mm a frame (less than an element)
+  c.toolPath.keys[1].positionM.z() = 0.014;
+  Simulation sim(smallSlab(), c);
+  for (int f = 0; f < 3; ++f) EXPECT_EQ(sim.step().contactNodes, 0);
+  ASSERT_EQ(sim.warnings().size(), 1u);
+  const std::string w = sim.warnings()[0];
+  EXPECT_NE(w.find("none of the frames with the generator on (3)"), std::string::npos) << w;
+  // frame 2 (t = 1/15 s) is the closest, at 16 mm: 16 - 10 - 0.5 = 5.5 mm
+  EXPECT_NE(w.find("closest approach to a surface node was 5.50 mm (t = 0.067 s)"),
+            std::string::npos)
+      << w;
+  EXPECT_NE(w.find("z [0.0000, 0.0100] m"), std::string::npos) << w;
+  // the generator off throughout: that is the reason given
+  c.toolPath.generatorOnS.clear();
+  Simulation off(smallSlab(), c);
+  off.step();
+  ASSERT_EQ(off.warnings().size(), 1u);
+  EXPECT_EQ(off.warnings()[0],
+            "the generator was off in every frame (1; tool.generator_on): no current flowed");
+  // a tool that touches in one frame of many: no warning
+  c = sphereAt(Vec3(0, 0, 0.02));
+  c.toolPath.keys.push_back(c.toolPath.keys[0]);
+  c.toolPath.keys[1].timeS = 0.1;
+  c.toolPath.keys[1].positionM.z() = 0.0098;
+  Simulation touch(smallSlab(), c);
+  int touched = 0;
+  for (int f = 0; f < 4; ++f) touched += touch.step().contactNodes > 0;
+  EXPECT_EQ(touched, 1);  // frame 3 only (t = 0.1 s)
+  EXPECT_TRUE(touch.warnings().empty());
 }
 
 TEST(SimulationGuards, AToolCrossingTheTissueInOneFrameKeepsItsContacts) {
