@@ -114,11 +114,11 @@ TEST(BenchOptions, ListsAndNodeCounts) {
   EXPECT_EQ(splitList("a,,b,c"), (std::vector<std::string>{"a", "b", "c"}));
   EXPECT_EQ(parseNodeCounts("1013,50000", "bench cut"), (std::vector<int>{1013, 50000}));
   try {
-    parseNodeCounts("1013,7", "bench cut");
+    parseNodeCounts("1013,26", "bench cut");
     FAIL();
   } catch (const Error& e) {
     EXPECT_EQ(std::string(e.what()),
-              "bench cut: --sizes: '7' is not a node count in [8, 5000000] (expected e.g. "
+              "bench cut: --sizes: '26' is not a node count in [27, 5000000] (expected e.g. "
               "1013,20000,50000)");
   }
   EXPECT_THROW(parseNodeCounts(",", "bench cut"), Error);

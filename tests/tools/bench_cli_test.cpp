@@ -77,6 +77,20 @@ TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
   }
 }
 
+// every size --sizes accepts runs: the smallest slab has a node on the return electrode (8
+// to 26 nodes had none), and the electric bench's blade, whose reach is one grid spacing,
+// no longer touches it through a coarse slab (a short circuit from 26 to 400 nodes)
+TEST_F(BenchCli, EverySlabBenchRunsAtTheSmallestSizeItAccepts) {
+  for (const std::string& args :
+       {"bench electric --frames 5 --sizes 27,400", "bench cut --frames 3 --sizes 27,400",
+        "bench structural --sizes 27", "bench thermal --sizes 27"}) {
+    const auto r = shell(esim(args));
+    EXPECT_EQ(r.exitCode, 0) << args << "\n" << r.output;
+    EXPECT_TRUE(fs::is_regular_file(csv_)) << args;
+    fs::remove(csv_);
+  }
+}
+
 TEST_F(BenchCli, AResultsFolderThatIsAFileIsRefusedBeforeAnythingRuns) {
   std::ofstream(csv_) << "an earlier table\n";
   for (const std::string& args :

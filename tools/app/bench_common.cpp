@@ -29,9 +29,9 @@ std::vector<int> parseNodeCounts(const std::string& text, const std::string& com
   for (const std::string& item : splitList(text)) {
     char* end = nullptr;
     const long v = std::strtol(item.c_str(), &end, 10);
-    ESIM_VERIFY(end != item.c_str() && *end == '\0' && v >= 8 && v <= 5000000,
+    ESIM_VERIFY(end != item.c_str() && *end == '\0' && v >= 27 && v <= 5000000,
                 command + ": --sizes: '" + item +
-                    "' is not a node count in [8, 5000000] (expected e.g. 1013,20000,50000)");
+                    "' is not a node count in [27, 5000000] (expected e.g. 1013,20000,50000)");
     out.push_back(static_cast<int>(v));
   }
   ESIM_VERIFY(!out.empty(), command + ": --sizes is empty");

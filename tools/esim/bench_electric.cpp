@@ -31,6 +31,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <iterator>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -118,13 +119,22 @@ Scene buildScene(int targetNodes) {
   return s;
 }
 
+// the blade's contact without the return electrode's nodes: on a coarse slab the contact
+// distance (one grid spacing) reaches through the slab to its bottom
+std::vector<int> bladeContact(const Scene& s, const ContactFinder& finder, const ToolPose& pose) {
+  std::vector<int> c = finder.find(ElectrodeShape{}, pose, s.spacingM), out;
+  std::set_difference(c.begin(), c.end(), s.grounded.begin(), s.grounded.end(),
+                      std::back_inserter(out));
+  return out;
+}
+
 // blade cutting left to right, one grid spacing per frame (so a few contact nodes
 // change every frame), in parallel passes 3 spacings apart (serpentine) when a pass
 // reaches x = +/-40 mm
 void sweepContacts(Scene& s, int frames) {
   const auto surface = boundaryNodes(s.mesh, boundaryFaces(s.mesh));
   const ContactFinder finder(s.mesh, surface);
-  const ElectrodeShape blade;  // 3 mm wide, 0.5 mm thick, 20 mm long
+  // the blade: 3 mm wide, 0.5 mm thick, 20 mm long (ElectrodeShape's defaults)
   const double top = s.mesh.nodes[s.mesh.nodeSets.at("top").front()].z();
   const double h = s.spacingM;
   const int perPass = std::max(2, static_cast<int>(0.08 / h) + 1);
@@ -135,7 +145,7 @@ void sweepContacts(Scene& s, int frames) {
     const double x = pass % 2 == 0 ? along : -along;
     const double y = std::fmod(0.3 * h + pass * 3 * h + 0.04, 0.08) - 0.04;
     const ToolPose pose{Vec3(x, y, top - 0.0005), Eigen::Quaterniond::Identity()};
-    s.contacts.push_back(finder.find(blade, pose, s.spacingM));
+    s.contacts.push_back(bladeContact(s, finder, pose));
   }
 }
 
@@ -143,7 +153,6 @@ void sweepContacts(Scene& s, int frames) {
 void jumpingContacts(Scene& s, int frames) {
   const auto surface = boundaryNodes(s.mesh, boundaryFaces(s.mesh));
   const ContactFinder finder(s.mesh, surface);
-  const ElectrodeShape blade;
   const double top = s.mesh.nodes[s.mesh.nodeSets.at("top").front()].z();
   unsigned state = 12345;
   const auto next = [&] {
@@ -154,7 +163,7 @@ void jumpingContacts(Scene& s, int frames) {
   for (int f = 0; f < frames; ++f) {
     const ToolPose pose{Vec3(-0.04 + 0.08 * next(), -0.04 + 0.08 * next(), top - 0.0005),
                         Eigen::Quaterniond::Identity()};
-    s.contacts.push_back(finder.find(blade, pose, s.spacingM));
+    s.contacts.push_back(bladeContact(s, finder, pose));
   }
 }
 
