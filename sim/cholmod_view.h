@@ -6,10 +6,18 @@
 #include <cholmod.h>
 
 #include <algorithm>
+#include <new>
 
 #include "sim/fem_p1.h"
 
 namespace esim {
+
+// after a CHOLMOD call that failed: memory that ran out is std::bad_alloc, as an allocation
+// of ours would be (the run's "out of memory" with its remedy, exit 1); other failures are the
+// caller's to name
+inline void throwIfOutOfMemory(const cholmod_common& c) {
+  if (c.status == CHOLMOD_OUT_OF_MEMORY) throw std::bad_alloc();
+}
 
 // ncol sparse columns of nrow rows (compressed: p[0..ncol] offsets into i, rows ascending in
 // each column, and x, the values) as an unsymmetric CHOLMOD matrix, e.g. the columns of a

@@ -337,7 +337,7 @@ TetMesh tetrahedralize(const SurfaceMesh& surface, const MeshingOptions& options
                            4.0 / 3.0 * std::numbers::pi * rr * rr * rr;
     expectedTets += std::min(capsule, volume) / (regularTetPerR3 * std::pow(ref.cellSizeM, 3));
   }
-  if (expectedTets > 2e7) {
+  if (expectedTets > kMaxSceneTets) {
     std::ostringstream msg;
     msg << sourceName << ": cell size " << opt.cellSizeM << " m";
     if (ref.enabled) msg << " (" << ref.cellSizeM << " m near the refinement segment)";

@@ -69,6 +69,11 @@ struct MeshingOptions {
   Refinement refinement;
 };
 
+// The most tetrahedra a scene's mesh may have (a file's predicted count, a slab's grid):
+// beyond, meshing and the solvers' factors take hours and more memory than a workstation has,
+// so the scene is refused up front (a unit mix-up, or a node count off by a factor).
+inline constexpr double kMaxSceneTets = 2e7;
+
 // Reads a surface with assimp. Throws "<path>: file not found",
 // "<path>: cannot read surface mesh: <reason>" or "<path>: ... no triangles".
 SurfaceMesh readSurface(const std::string& path, double scaleToMetres = 1.0);

@@ -11,12 +11,14 @@
 #include <functional>
 #include <iostream>
 #include <limits>
+#include <new>
 #include <random>
 #include <set>
 
 #include "sim/core_error.h"
 #include "sim/electrode.h"
 #include "sim/mesh_slab.h"
+#include "tests/sim/suitesparse_fault_util.h"
 
 namespace esim {
 namespace {
@@ -179,6 +181,17 @@ TEST(ElectricSolver, EmptyContactGivesZeroPotential) {
     solver->solve({}, kVolt, u);
     ASSERT_EQ(u.size(), p.mesh.numNodes());
     EXPECT_EQ(u.cwiseAbs().maxCoeff(), 0.0) << electricStrategyName(s);
+  }
+}
+
+// memory that runs out inside CHOLMOD is std::bad_alloc, the run's "out of memory" (it was
+// "symbolic analysis failed (out of memory?)" or "not positive definite (CHOLMOD status -2)")
+TEST(ElectricSolver, MemoryThatRunsOutInCholmodIsBadAlloc) {
+  const Problem p = paperSlab(200);
+  for (ElectricStrategy s : {ElectricStrategy::Refactor, ElectricStrategy::Capacitance}) {
+    auto solver = makeElectricSolver({.strategy = s});
+    test::FailingSuiteSparseMalloc noMemory;
+    EXPECT_THROW(solver->setMatrix(p.K, p.grounded), std::bad_alloc) << electricStrategyName(s);
   }
 }
 

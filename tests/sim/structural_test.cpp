@@ -14,12 +14,14 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <new>
 #include <string>
 #include <thread>
 
 #include "sim/core_error.h"
 #include "sim/fem_p1.h"
 #include "sim/mesh_slab.h"
+#include "tests/sim/suitesparse_fault_util.h"
 
 namespace esim {
 namespace {
@@ -77,6 +79,18 @@ TEST(Structural, ClampedBodyIsHydrostatic) {
     EXPECT_LT(phase.vonMisesPa()[t], 1e-8 * std::abs(sigma));
   }
   EXPECT_LT(phase.displacementM().cwiseAbs().maxCoeff(), 1e-15);
+}
+
+// memory that runs out inside CHOLMOD is std::bad_alloc, the run's "out of memory" (it was
+// "CHOLMOD analysis failed (out of memory?)"), for the factor built for updates too
+TEST(Structural, MemoryThatRunsOutInCholmodIsBadAlloc) {
+  const TetMesh mesh = distortedSlab();
+  for (bool forUpdates : {false, true}) {
+    StructuralOptions o = paper();
+    o.prepareForUpdates = forUpdates;
+    test::FailingSuiteSparseMalloc noMemory;
+    EXPECT_THROW(StructuralPhase(mesh, o, hold(mesh, onBoundary, {0, 1, 2})), std::bad_alloc);
+  }
 }
 
 TEST(Structural, LaterallyConstrainedLayer) {

@@ -124,6 +124,10 @@ Setup setUp(const RunOptions& opt, Scenario scenario) {
     s.meshS = secondsSince(t0);
     s.nodes = mesh.numNodes();
     s.tets = mesh.numTets();
+    // a large mesh's set-up (the solvers' factorizations) takes minutes: say what it does
+    if (!opt.quiet && (s.meshS > 1.0 || s.nodes >= 20000))
+      std::fprintf(stderr, "esim: mesh of %d nodes, %d tets in %.1f s; setting up the phases\n",
+                   s.nodes, s.tets, s.meshS);
     const auto t1 = Clock::now();
     s.sim = std::make_unique<Simulation>(std::move(mesh), config);
     s.setupS = secondsSince(t1);
