@@ -211,6 +211,12 @@ TEST(SweepSpec, ErrorsNameTheSweepFileLineAndKey) {
        file + ":3:8: tool.voltage_v: also given at " + file + ":2:7"},
       {"base: ../paper_slab_506.yaml\ngrid: {tool.path.offset: [1]}\n",
        file + ":2:8: grid.tool.path.offset: unknown scenario key"},
+      // a repeated value ran the same variants twice
+      {"base: ../paper_slab_506.yaml\ngrid: {tool.voltage_v: [60, 80, 6e1]}\n",
+       file + ":2:33: grid.tool.voltage_v[2] = 6e1 repeats grid.tool.voltage_v[0]; give each "
+              "value once"},
+      {"base: ../paper_slab_506.yaml\ngrid: {look.style: [tissue, tissue]}\n",
+       file + ":2:29: grid.look.style[1] = tissue repeats grid.look.style[0]"},
       {"base: ../paper_slab_506.yaml\nrandom: {look.style: {jitter: 1}}\n",
        file + ":2:10: random.look.style: jitter needs a number or a vector"},
   };

@@ -13,6 +13,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -63,6 +64,15 @@ std::string flowText(const YAML::Node& n) {
   e.SetMapFormat(YAML::Flow);
   e << n;
   return e.c_str();
+}
+
+// two flow texts that give a scenario key the same value: equal text, or equal numbers
+// (10, 10.0 and 1e1)
+bool sameValue(const std::string& a, const std::string& b) {
+  if (a == b) return true;
+  char *endA = nullptr, *endB = nullptr;
+  const double x = std::strtod(a.c_str(), &endA), y = std::strtod(b.c_str(), &endB);
+  return endA != a.c_str() && *endA == '\0' && endB != b.c_str() && *endB == '\0' && x == y;
 }
 
 std::string where(const std::string& file, const YAML::Mark& m) {
@@ -272,7 +282,14 @@ class SpecReader {
       for (std::size_t i = 0; i < list.size(); ++i) {
         if (isPathKnob(k.key))
           checkPathValue(k.key, list[i], "grid." + k.key + "[" + std::to_string(i) + "]");
-        k.values.push_back(flowText(list[i]));
+        const std::string value = flowText(list[i]);
+        for (std::size_t j = 0; j < i; ++j)
+          if (sameValue(k.values[j], value))
+            fail(list[i].Mark(), "grid." + k.key + "[" + std::to_string(i) + "] = " + value +
+                                     " repeats grid." + k.key + "[" + std::to_string(j) +
+                                     "]; give each value once (a repeated value runs the same "
+                                     "variants twice)");
+        k.values.push_back(value);
         k.valueWhere.push_back(at(list[i].Mark()));
       }
       spec.knobs.push_back(k);
