@@ -91,6 +91,24 @@ TEST_F(CompareCli, WritesNothingIntoEitherRun) {
   EXPECT_EQ(listing(c_), beforeC) << "the run checked gained a compare/ folder";
 }
 
+// runs of different lengths are a mismatch that says why (it said "differing 0 frames",
+// "MISMATCH" and nothing more)
+TEST_F(CompareCli, RunsOfDifferentLengthsSayWhyTheyDiffer) {
+  const fs::path shorter = temp("shorter");
+  const Result r = esim(
+      "run scenarios/paper_slab.yaml --frames 3 --no-video -q --set look.width=160 --set "
+      "look.height=90 --set output.png_every=1 -o " +
+      shorter.string());
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  const Result differ = esim("compare " + a_.string() + " " + shorter.string());
+  EXPECT_EQ(differ.exitCode, 3) << differ.output;
+  EXPECT_NE(differ.output.find("result        MISMATCH (the runs have 4 and 3 frames; the 3 "
+                               "frames of both are identical)"),
+            std::string::npos)
+      << differ.output;
+  fs::remove_all(shorter);
+}
+
 TEST_F(CompareCli, AReportFolderHoldsOneReportAndAnEarlierOneIsReplaced) {
   const fs::path report = temp("report");
   const Result differ =

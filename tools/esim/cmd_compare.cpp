@@ -9,6 +9,7 @@
 //    PNG per differing frame with PNGs in both runs); nothing is written into either run
 //    (a sweep's run would no longer match its manifest). Exit 0 when all frames are
 //    identical or within tolerance (--exact: identical only), 3 otherwise.
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -69,7 +70,14 @@ int runCompare(const CompareOptions& o) {
     std::cout << "  result        within tolerance\n";
     return kExitOk;
   }
-  std::cout << "  result        MISMATCH\n";
+  std::cout << "  result        MISMATCH";
+  // the reason, when it is not a frame of both runs
+  if (r.framesA != r.framesB)
+    std::cout << " (the runs have " << r.framesA << " and " << r.framesB << " frames"
+              << (r.diffs.empty() ? "; the " + std::to_string(std::min(r.framesA, r.framesB)) +
+                                        " frames of both are identical)"
+                                  : ")");
+  std::cout << "\n";
   return kExitMismatch;
 }
 
