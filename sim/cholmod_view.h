@@ -8,15 +8,21 @@
 #include <algorithm>
 #include <new>
 
+#include "sim/core_error.h"
 #include "sim/fem_p1.h"
 
 namespace esim {
 
-// after a CHOLMOD call that failed: memory that ran out is std::bad_alloc, as an allocation
-// of ours would be (the run's "out of memory" with its remedy, exit 1); other failures are the
-// caller's to name
-inline void throwIfOutOfMemory(const cholmod_common& c) {
+// after a CHOLMOD call that failed for want of resources: memory that ran out is
+// std::bad_alloc, as an allocation of ours would be (the run's "out of memory" with its
+// remedy, exit 1); a factor beyond CHOLMOD's 32-bit indices (more than 2^31 entries) is a run
+// error saying so; other failures are the caller's to name
+inline void throwIfOutOfResources(const cholmod_common& c) {
   if (c.status == CHOLMOD_OUT_OF_MEMORY) throw std::bad_alloc();
+  if (c.status == CHOLMOD_TOO_LARGE)
+    throw RunError(
+        "the mesh is too large for the direct solvers: the factor of its matrix would hold more "
+        "than 2^31 entries, beyond CHOLMOD's 32-bit indices; use a smaller mesh");
 }
 
 // ncol sparse columns of nrow rows (compressed: p[0..ncol] offsets into i, rows ascending in

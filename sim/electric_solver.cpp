@@ -338,7 +338,7 @@ void CholmodFactor::analyze(const SparseMatrix& A, const std::vector<int>& order
   cholmod_sparse s = cholmodViewLower(A);
   std::vector<int> perm(ordering);  // CHOLMOD takes a non-const pointer
   impl_->factor = perm.empty() ? cholmod_analyze(&s, c) : cholmodAnalyzeGiven(&s, perm.data(), c);
-  if (impl_->factor == nullptr) throwIfOutOfMemory(*c);
+  if (impl_->factor == nullptr) throwIfOutOfResources(*c);
   ESIM_RUN_CHECK(impl_->factor != nullptr, "electric solver: CHOLMOD symbolic analysis failed");
   factorizeFlops_ = c->fl;
 }
@@ -354,7 +354,7 @@ void CholmodFactor::factorize(const SparseMatrix& A, const char* what) {
   cholmod_common* c = &impl_->common;
   cholmod_sparse s = cholmodViewLower(A);
   const int ok = cholmod_factorize(&s, impl_->factor, c);
-  throwIfOutOfMemory(*c);
+  throwIfOutOfResources(*c);
   factorized_ = ok && c->status == CHOLMOD_OK && impl_->factor->minor == impl_->factor->n;
   ESIM_RUN_CHECK(factorized_, std::string(what) +
                                   ": the matrix is not positive definite (CHOLMOD status " +
@@ -377,7 +377,7 @@ void CholmodFactor::solve(const double* b, double* x, int ncols) {
   bd.dtype = CHOLMOD_DOUBLE;
   const int ok = cholmod_solve2(CHOLMOD_A, impl_->factor, &bd, nullptr, &impl_->x, nullptr,
                                 &impl_->y, &impl_->e, c);
-  if (!ok) throwIfOutOfMemory(*c);
+  if (!ok) throwIfOutOfResources(*c);
   ESIM_RUN_CHECK(ok, "electric solver: CHOLMOD solve failed");
   std::copy_n(static_cast<const double*>(impl_->x->x), static_cast<size_t>(n) * ncols, x);
 }
@@ -388,7 +388,7 @@ void CholmodFactor::toSimplicial() {
   if (!f->is_super && !f->is_ll) return;
   // simplicial LDL', not packed (room for fill), not monotonic
   const int ok = cholmod_change_factor(CHOLMOD_REAL, false, false, false, false, f, &impl_->common);
-  throwIfOutOfMemory(impl_->common);
+  throwIfOutOfResources(impl_->common);
   ESIM_RUN_CHECK(ok && !f->is_super && !f->is_ll,
                  "electric solver: CHOLMOD could not convert the factor to LDL'");
 }
@@ -403,7 +403,7 @@ void CholmodFactor::deleteRow(int i) {
   while (k < static_cast<int>(f->n) && perm[k] != i) ++k;
   ESIM_CHECK(k < static_cast<int>(f->n));
   const int ok = cholmod_rowdel(k, nullptr, f, &impl_->common);
-  if (!ok) throwIfOutOfMemory(impl_->common);
+  if (!ok) throwIfOutOfResources(impl_->common);
   ESIM_RUN_CHECK(ok, "electric solver: CHOLMOD rowdel failed (status " +
                          std::to_string(impl_->common.status) + ")");
 }
@@ -428,7 +428,7 @@ void CholmodFactor::updateDowndate(bool update, const SparseMatrix& C) {
   cholmod_sparse cs = cholmodViewLower(permuted);
   cs.stype = 0;  // unsymmetric n x r
   const int ok = cholmod_updown(update, &cs, f, &impl_->common);
-  if (!ok) throwIfOutOfMemory(impl_->common);
+  if (!ok) throwIfOutOfResources(impl_->common);
   ESIM_RUN_CHECK(ok, "electric solver: CHOLMOD update/downdate failed (status " +
                          std::to_string(impl_->common.status) + ")");
 }

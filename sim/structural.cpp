@@ -591,7 +591,7 @@ void StructuralPhase::Impl::factorize(cholmod_common& c, const StateView& s) {
       c.method[0].ordering = ordering;
     }
     if (!symbolic) symbolic = cholmod_analyze(&view, &c);  // (or METIS unavailable)
-    if (symbolic == nullptr) throwIfOutOfMemory(c);
+    if (symbolic == nullptr) throwIfOutOfResources(c);
     ESIM_RUN_CHECK(symbolic != nullptr, "structural: CHOLMOD analysis failed");
     refactorFlops = c.fl;
     const int* perm = static_cast<const int*>(symbolic->Perm);
@@ -603,7 +603,7 @@ void StructuralPhase::Impl::factorize(cholmod_common& c, const StateView& s) {
   if (factor == nullptr) throw std::bad_alloc();  // (copying fails only so)
   openblas_set_num_threads(1);                    // see the header: BLAS threads only spin here
   const int ok = cholmod_factorize(&view, factor, &c);
-  throwIfOutOfMemory(c);
+  throwIfOutOfResources(c);
   ESIM_RUN_CHECK(ok && c.status == CHOLMOD_OK && factor->minor == factor->n,
                  "structural: the stiffness matrix is not positive definite (degenerate tets, or "
                  "supports that leave part of the body free)");
@@ -614,7 +614,7 @@ void StructuralPhase::Impl::factorize(cholmod_common& c, const StateView& s) {
 void StructuralPhase::Impl::toSimplicial(cholmod_common& c, cholmod_factor* f) {
   if (!f->is_super && !f->is_ll) return;
   const int ok = cholmod_change_factor(CHOLMOD_REAL, false, false, false, false, f, &c);
-  if (!ok) throwIfOutOfMemory(c);
+  if (!ok) throwIfOutOfResources(c);
   ESIM_RUN_CHECK(ok, "structural: CHOLMOD could not convert the factor");
 }
 
@@ -755,7 +755,7 @@ void StructuralPhase::Impl::fullDisplacement(const std::vector<double>& ev, cons
   b.xtype = CHOLMOD_REAL;
   b.dtype = CHOLMOD_DOUBLE;
   const int ok = cholmod_solve2(CHOLMOD_A, factor, &b, nullptr, &wx, nullptr, &wy, &we, &c);
-  if (!ok) throwIfOutOfMemory(c);
+  if (!ok) throwIfOutOfResources(c);
   ESIM_RUN_CHECK(ok, "structural: CHOLMOD solve failed");
   const double* xs = static_cast<const double*>(wx->x);
   for (int dof = 0; dof < numDofs(); ++dof)
@@ -978,7 +978,7 @@ bool StructuralPhase::Impl::localSolve(const std::vector<double>& ev) {
   openblas_set_num_threads(1);
   const int ok =
       cholmod_solve2(CHOLMOD_A, regionFactor, &b, nullptr, &rx, nullptr, &ry, &re, &common);
-  if (!ok) throwIfOutOfMemory(common);
+  if (!ok) throwIfOutOfResources(common);
   ESIM_RUN_CHECK(ok, "structural: CHOLMOD solve failed");
   for (int dof : appliedDofs) u(dof) = refU(dof);
   const double* correction = static_cast<const double*>(rx->x);
@@ -1054,11 +1054,11 @@ bool StructuralPhase::Impl::buildRegion(const Eigen::AlignedBox3d& box) {
   std::sort(order.begin(), order.end(),
             [&](int a, int b) { return rowOfDof[regionDofs[a]] < rowOfDof[regionDofs[b]]; });
   regionFactor = cholmodAnalyzeGiven(&view, order.data(), &common);
-  if (regionFactor == nullptr) throwIfOutOfMemory(common);
+  if (regionFactor == nullptr) throwIfOutOfResources(common);
   ESIM_RUN_CHECK(regionFactor != nullptr, "structural: CHOLMOD analysis failed");
   regionFlops = common.fl;
   const int ok = cholmod_factorize(&view, regionFactor, &common);
-  throwIfOutOfMemory(common);
+  throwIfOutOfResources(common);
   ESIM_RUN_CHECK(ok && common.status == CHOLMOD_OK && regionFactor->minor == regionFactor->n,
                  "structural: the region's stiffness matrix is not positive definite");
   // simplicial LDL', so that removals update it (cholmod_updown) rather than refactorize it

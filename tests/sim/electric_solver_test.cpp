@@ -15,6 +15,7 @@
 #include <random>
 #include <set>
 
+#include "sim/cholmod_view.h"
 #include "sim/core_error.h"
 #include "sim/electrode.h"
 #include "sim/mesh_slab.h"
@@ -193,6 +194,23 @@ TEST(ElectricSolver, MemoryThatRunsOutInCholmodIsBadAlloc) {
     test::FailingSuiteSparseMalloc noMemory;
     EXPECT_THROW(solver->setMatrix(p.K, p.grounded), std::bad_alloc) << electricStrategyName(s);
   }
+}
+
+// what a failed CHOLMOD call's status becomes: memory, the 32-bit index bound, or the caller's
+TEST(ElectricSolver, CholmodOutOfResourcesIsNamed) {
+  cholmod_common c{};
+  c.status = CHOLMOD_OUT_OF_MEMORY;
+  EXPECT_THROW(throwIfOutOfResources(c), std::bad_alloc);
+  c.status = CHOLMOD_TOO_LARGE;
+  try {
+    throwIfOutOfResources(c);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Run);
+    EXPECT_NE(std::string(e.what()).find("more than 2^31 entries"), std::string::npos);
+  }
+  c.status = CHOLMOD_NOT_POSDEF;
+  EXPECT_NO_THROW(throwIfOutOfResources(c));
 }
 
 TEST(ElectricSolver, ShortCircuitNoGroundAndBadIdsAreErrors) {
