@@ -71,7 +71,12 @@ void encodePng(const std::string& path, AVPixelFormat format, const std::uint8_t
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     ESIM_VERIFY(out.good(), "writePng(" + path + "): cannot open " + tmp + " for writing");
     out.write(reinterpret_cast<const char*>(pkt->data), pkt->size);
-    ESIM_VERIFY(out.good(), "writePng(" + path + "): write failed");
+    out.close();  // what is still buffered fails here when the disk is full
+    if (!out) {   // (a cut PNG was renamed as whole, the temporary file was left behind)
+      std::error_code ec;
+      std::filesystem::remove(tmp, ec);
+      throw Error("writePng(" + path + "): write failed (disk full?)", ErrorKind::Run);
+    }
   }
   std::error_code ec;
   std::filesystem::rename(tmp, path, ec);

@@ -74,5 +74,30 @@ TEST(ImagePng, ErrorsNameThePath) {
   EXPECT_THROW(readPng("/nonexistent-dir/y.png"), Error);
 }
 
+// a disk that fills: the PNG is not renamed cut short as whole, no temporary file is left,
+// and the error is a run's (the frame loop keeps the frames before it); /dev/full stands for
+// the disk (its writes fail with ENOSPC), reached through the temporary file's name
+TEST(ImagePng, ADiskThatFillsLeavesNoFileAndFailsTheRun) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / "esim_image_png_test_full";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::filesystem::path png = dir / "frame.png";
+  std::filesystem::create_symlink("/dev/full", png.string() + ".tmp");
+  std::vector<std::uint8_t> img(64 * 64 * 3);
+  for (size_t i = 0; i < img.size(); ++i) img[i] = static_cast<std::uint8_t>(i * 7919 % 251);
+  try {
+    writePng(png.string(), img, 64, 64);
+    FAIL() << "the write to a full disk succeeded";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Run);
+    EXPECT_NE(std::string(e.what()).find("write failed (disk full?)"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_FALSE(std::filesystem::exists(png));
+  EXPECT_FALSE(std::filesystem::is_symlink(png.string() + ".tmp"));
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace esim

@@ -490,6 +490,30 @@ TEST(RunCli, TheAddressSpaceIsBoundedByTheMemoryThereIs) {
   fs::remove_all(out.string() + ".partial");
 }
 
+// a disk that fills while the reports are written (a file size limit stands for it: trace.json
+// of 60 frames is 40 kB): exit 1, the run kept in DIR.partial, the failure named, and no
+// report cut short (timing.csv was left empty, and the message was only "write failed")
+TEST(RunCli, ReportsThatCannotBeWrittenFailTheRunAndLeaveNoCutFile) {
+  const fs::path out = tempOut("reports_full");
+  fs::remove_all(out.string() + ".partial");
+  const Result r = shell("bash -c \"trap '' XFSZ; ulimit -f 20; " + std::string(ESIM_EXE) +
+                         " run scenarios/paper_slab.yaml -q --frames 60 --no-video -o " +
+                         out.string() + kSmall + "\"");
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  EXPECT_NE(r.output.find("esim: error: the run's reports could not be written: " + out.string() +
+                          ".partial/trace.json: write failed (disk full?)"),
+            std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(out));
+  for (const auto& e : fs::directory_iterator(out.string() + ".partial")) {
+    const std::string name = e.path().filename().string();
+    EXPECT_EQ(name.find(".tmp"), std::string::npos) << name;
+    if (e.is_regular_file()) EXPECT_GT(fs::file_size(e.path()), 0u) << name;
+  }
+  EXPECT_FALSE(fs::exists(out.string() + ".partial/trace.json"));
+  fs::remove_all(out.string() + ".partial");
+}
+
 // paper_slab for `frames` small frames into out, with the fault ESIM_FAULT injects (its
 // earlier partial output removed first)
 Result runWithFault(const std::string& fault, int frames, const fs::path& out) {

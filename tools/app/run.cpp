@@ -69,11 +69,8 @@ double secondsSince(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-void writeText(const fs::path& path, const std::string& text) {
-  std::ofstream os(path, std::ios::binary);
-  os << text;
-  ESIM_RUN_CHECK(os.good(), path.string() + ": write failed (disk full?)");
-}
+// a report, whole or not at all (a disk that fills leaves no empty or cut file)
+void writeText(const fs::path& path, const std::string& text) { writeFileAtomic(path, text); }
 
 // peak resident memory of this process so far [MB]
 double peakRssMb() {
@@ -667,7 +664,16 @@ int runScenario(const RunOptions& opt) {
     closeFailed("out of memory", ErrorKind::Run);
   }
   const fs::path where = loop.complete() ? output.final() : output.partial();
-  const std::string summary = writeReports(s, *out, loop, output.partial(), where, opt.plots);
+  std::string summary;
+  try {
+    summary = writeReports(s, *out, loop, output.partial(), where, opt.plots);
+  } catch (const Error& e) {
+    // a disk that filled: the run's own failure first (often the same cause), then the reports'
+    // (it said only "timing.csv: write failed"); the run stays in DIR.partial
+    if (!loop.failure.empty()) std::cerr << "esim: error: " << loop.failure << "\n";
+    std::cerr << "esim: error: the run's reports could not be written: " << e.what() << "\n";
+    return e.kind() == ErrorKind::Internal ? kExitInternal : kExitFailure;
+  }
   if (loop.complete()) {
     try {
       output.commit();

@@ -10,6 +10,7 @@
 
 #include "render/image_png.h"
 #include "sim/core_error.h"
+#include "tools/app/run_output.h"
 
 namespace esim::app {
 
@@ -24,10 +25,9 @@ std::string numberedName(const char* prefix, int frame, const char* ext) {
 }
 
 // indent -1: one line (coco.json's run lengths would take a line each)
+// (whole or not at all: a disk that fills leaves no cut file)
 void writeJson(const fs::path& path, const nlohmann::json& j, int indent = 2) {
-  std::ofstream os(path, std::ios::binary);
-  os << j.dump(indent) << "\n";
-  ESIM_RUN_CHECK(os.good(), path.string() + ": write failed (disk full?)");
+  writeFileAtomic(path, j.dump(indent) + "\n");
 }
 
 // the tool's pose, and its tip in the image (projection; visible: the tip's pixel shows it)
