@@ -361,6 +361,7 @@ class Simulation {
   void checkFinite(Stage stage, const char* what, const double* values, int count,
                    const char* unit) const;
   void checkMaximumPrinciple(double highBeforeC, bool heated, FrameRecord& record);
+  std::string noContactWarning() const;  // the tool never touched the tissue ("" if it did)
   void refreshConductivity();
   void computeEigenstrain();
   struct SubgridFrame;
@@ -405,10 +406,10 @@ class Simulation {
   std::unique_ptr<SimState> checkpoint_;  // state when the rebuild in flight started
   int recomputedFrames_ = 0;              // frames computed again after swaps
   int framesContactByTet_ = 0, framesToolSwept_ = 0, framesBoilingUnconverged_ = 0;
-  int framesGeneratorOn_ = 0, framesInContact_ = 0;  // electric: the tool's frames
-  std::string noContactWarning() const;  // the tool never touched the tissue ("" if it did)
-  int framesMaxPrinciple_ = 0;           // frames whose temperature left its bounds
-  int framesSubgrid_ = 0;                // frames the sub-grid contact model carried the contact
+  int framesMaxPrinciple_ = 0;  // frames whose temperature left its bounds
+  int framesSubgrid_ = 0;       // frames the sub-grid contact model carried the contact
+  // electric: frames with the generator on, and with the tool in contact
+  int framesGeneratorOn_ = 0, framesInContact_ = 0;
   std::vector<SurfaceSample> electrodeSamples_;  // sub-grid contact: the electrode's surface
   std::unique_ptr<SubgridFrame> subgridFrame_;   // ... this frame's contact (solve -> heat)
   std::vector<std::uint8_t> contactMark_;        // ... scratch: per node, in contact

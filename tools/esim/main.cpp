@@ -62,10 +62,8 @@ void useFastBlasKernels(char** argv) {
   execv("/proc/self/exe", argv);
 }
 
-}  // namespace
-
 // a "Key:   N kB" line of a /proc file, in bytes (-1 if absent)
-double procKilobytes(const char* file, const std::string& key) {
+double procBytes(const char* file, const std::string& key) {
   std::ifstream in(file);
   std::string line;
   while (std::getline(in, line))
@@ -87,9 +85,9 @@ double procKilobytes(const char* file, const std::string& key) {
 // Not under the sanitizers, which reserve terabytes of address space.
 void boundAddressSpace() {
 #if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
-  const double mapped = procKilobytes("/proc/self/status", "VmSize");
-  const double available = procKilobytes("/proc/meminfo", "MemAvailable");
-  const double swap = procKilobytes("/proc/meminfo", "SwapFree");
+  const double mapped = procBytes("/proc/self/status", "VmSize");
+  const double available = procBytes("/proc/meminfo", "MemAvailable");
+  const double swap = procBytes("/proc/meminfo", "SwapFree");
   if (mapped < 0 || available < 0) return;  // not Linux's /proc: leave it
   const double bound = mapped + available + std::max(swap, 0.0) + 4.0 * (1 << 30);
   rlimit limit{};
@@ -100,6 +98,8 @@ void boundAddressSpace() {
   setrlimit(RLIMIT_AS, &limit);
 #endif
 }
+
+}  // namespace
 
 int main(int argc, char** argv) {
   useFastBlasKernels(argv);
