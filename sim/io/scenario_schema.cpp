@@ -68,13 +68,15 @@ const std::vector<Field>& schema() {
     f.push_back(vector("mesh.slab.size_m", ESIM_REF(mesh.slab.sizeM), "m", positive(10.0),
                        "slab size Lx, Ly, Lz; x, y centred on 0, z from 0 (bottom) to Lz (top)"));
     f.push_back(integer("mesh.slab.nodes", ESIM_REF(mesh.slab.nodes), "", closed(8, 1e7),
-                        "target node count (paper: 506, 643, 1013); ignored with nodes_per_axis"));
+                        "target node count (paper: 506, 643, 1013); ignored with nodes_per_axis; "
+                        "the grid holds at most 2e7 tets (6 a cell)"));
     f.push_back({"mesh.slab.nodes_per_axis",
                  Kind::IntTriple,
                  "",
                  closed(0, 1000),
                  {},
-                 "explicit grid nodes px, py, pz (each >= 2); [0, 0, 0] = derive from nodes",
+                 "explicit grid nodes px, py, pz (each >= 2; at most 2e7 tets, 6 a cell); "
+                 "[0, 0, 0] = derive from nodes",
                  ESIM_REF(mesh.slab.nodesPerAxis)});
     f.push_back(boolean("mesh.slab.grading.enabled", ESIM_REF(mesh.slab.grading.enabled),
                         "refine the grid around a planned cut segment"));
