@@ -55,13 +55,17 @@ int countFiles(const fs::path& dir, const std::string& prefix) {
 // three short runs of paper_slab, every frame as PNG: a, b = a, c at another voltage
 class CompareCli : public ::testing::Test {
  protected:
+  // `frames` small frames of paper_slab, each as PNG, into temp(name)
+  static Result runSlab(const std::string& name, int frames, const std::string& extra = "") {
+    return esim("run scenarios/paper_slab.yaml --frames " + std::to_string(frames) +
+                " --no-video -q --set look.width=160 --set look.height=90 --set "
+                "output.png_every=1 " +
+                extra + "-o " + temp(name).string());
+  }
   static void SetUpTestSuite() {
-    const std::string args =
-        "run scenarios/paper_slab.yaml --frames 4 --no-video -q --set look.width=160 --set "
-        "look.height=90 --set output.png_every=1 ";
     for (const auto& [name, extra] : std::vector<std::pair<std::string, std::string>>{
              {"a", ""}, {"b", ""}, {"c", "--set tool.voltage_v=150 "}}) {
-      const Result r = esim(args + extra + "-o " + temp(name).string());
+      const Result r = runSlab(name, 4, extra);
       ASSERT_EQ(r.exitCode, 0) << r.output;
     }
   }
@@ -94,12 +98,9 @@ TEST_F(CompareCli, WritesNothingIntoEitherRun) {
 // runs of different lengths are a mismatch that says why (it said "differing 0 frames",
 // "MISMATCH" and nothing more)
 TEST_F(CompareCli, RunsOfDifferentLengthsSayWhyTheyDiffer) {
-  const fs::path shorter = temp("shorter");
-  const Result r = esim(
-      "run scenarios/paper_slab.yaml --frames 3 --no-video -q --set look.width=160 --set "
-      "look.height=90 --set output.png_every=1 -o " +
-      shorter.string());
+  const Result r = runSlab("shorter", 3);
   ASSERT_EQ(r.exitCode, 0) << r.output;
+  const fs::path shorter = run("shorter");
   const Result differ = esim("compare " + a_.string() + " " + shorter.string());
   EXPECT_EQ(differ.exitCode, 3) << differ.output;
   EXPECT_NE(differ.output.find("result        MISMATCH (the runs have 4 and 3 frames; the 3 "
