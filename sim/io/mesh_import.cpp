@@ -289,6 +289,19 @@ void orientOutward(SurfaceMesh& surface) {
 }
 
 // ---- meshing ----
+std::string slabTooLarge(const SlabSpec& spec) {
+  const std::array<int, 3> p = slabNodesPerAxis(spec);
+  const double tets = 6.0 * (p[0] - 1) * (p[1] - 1) * (p[2] - 1);
+  if (tets <= kMaxSceneTets) return "";
+  std::ostringstream msg;
+  msg << "gives a grid of " << p[0] << " x " << p[1] << " x " << p[2] << " nodes, "
+      << static_cast<long long>(tets) << " tetrahedra; at most "
+      << static_cast<long long>(kMaxSceneTets)
+      << " (a scene's bound: meshing and factorizing more takes hours and more memory than a "
+         "workstation has)";
+  return msg.str();
+}
+
 TetMesh tetrahedralize(const SurfaceMesh& surface, const MeshingOptions& options,
                        const std::string& sourceName) {
   // 1. options, derived sizes

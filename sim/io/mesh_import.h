@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "sim/mesh_slab.h"
 #include "sim/mesh_tet.h"
 
 namespace esim {
@@ -73,6 +74,11 @@ struct MeshingOptions {
 // beyond, meshing and the solvers' factors take hours and more memory than a workstation has,
 // so the scene is refused up front (a unit mix-up, or a node count off by a factor).
 inline constexpr double kMaxSceneTets = 2e7;
+
+// "" if the slab's grid (6 tets a cell) holds at most kMaxSceneTets, else what it would hold
+// ("gives a grid of A x B x C nodes, T tetrahedra; at most ..."), for the caller to prefix
+// with the option or scenario key at fault
+std::string slabTooLarge(const SlabSpec& spec);
 
 // Reads a surface with assimp. Throws "<path>: file not found",
 // "<path>: cannot read surface mesh: <reason>" or "<path>: ... no triangles".

@@ -15,7 +15,6 @@
 #include "sim/io/mesh_import.h"
 #include "sim/io/scenario.h"
 #include "sim/io/scenario_format.h"
-#include "sim/mesh_slab.h"
 
 namespace esim::scenario_detail {
 
@@ -128,16 +127,10 @@ void checkMesh(Scenario& s, const Reader& r) {
                " m; the refined cells must be at most the global size");
   if (s.mesh.source == MeshSource::Slab &&
       (allZero || (npa[0] >= 2 && npa[1] >= 2 && npa[2] >= 2))) {
-    // the grid's tets (6 a cell), bounded like a file's predicted count
-    const std::array<int, 3> p = slabNodesPerAxis(makeSlabSpec(s));
-    const double tets = 6.0 * (p[0] - 1) * (p[1] - 1) * (p[2] - 1);
-    if (tets > kMaxSceneTets) {
+    // the grid's tets, bounded like a file's predicted count
+    if (const std::string problem = slabTooLarge(makeSlabSpec(s)); !problem.empty()) {
       const std::string key = allZero ? "mesh.slab.nodes" : "mesh.slab.nodes_per_axis";
-      r.fail(key, key + " gives a grid of " + std::to_string(p[0]) + " x " + std::to_string(p[1]) +
-                      " x " + std::to_string(p[2]) + " nodes, " + formatNumber(tets) +
-                      " tetrahedra; at most " + formatNumber(kMaxSceneTets) +
-                      " (a scene's bound: meshing and factorizing more takes hours and more "
-                      "memory than a workstation has)");
+      r.fail(key, key + " " + problem);
     }
   }
   if (s.mesh.source == MeshSource::File) {

@@ -41,6 +41,10 @@ TEST_F(MeshInfoCli, AnOptionTheModeWouldIgnoreIsRefused) {
       {"--slab-nodes 500 --lloyd",
        "mesh-info: --lloyd is an option of meshing a surface file, and the slab is built"},
       {"slab --cell-size 0.002", "mesh-info: --cell-size is an option of meshing a surface file"},
+      // a slab past the scene's tet bound (it built 1e8 nodes for minutes)
+      {"--slab-nodes 100000000",
+       "mesh-info: --slab-nodes 100000000 gives a grid of 1000 x 1000 x 100 nodes, 592812594 "
+       "tetrahedra; at most 20000000"},
       {"\"" + vtu + "\" --refine-size 0.001",
        "--refine-size is an option of meshing a surface file, and a .vtu tet mesh is read as it "
        "is"},

@@ -74,6 +74,21 @@ TEST(ValidateCli, BadInputExitsTwoWithTheMessage) {
             std::string::npos)
       << o.output;
 
+  // a slab past the scene's tet bound is refused at once (a 1e7-node slab ran 287 s until the
+  // kernel killed it)
+  const Result big = runEsim("validate \"" + good.string() + "\" --set mesh.slab.nodes=10000000");
+  EXPECT_EQ(big.exitCode, 2) << big.output;
+  EXPECT_NE(big.output.find("--set mesh.slab.nodes=10000000: mesh.slab.nodes gives a grid of 457 "
+                            "x 456 x 48 nodes, 58509360 tetrahedra; at most 20000000"),
+            std::string::npos)
+      << big.output;
+  const Result axes = runEsim("validate \"" + good.string() +
+                              "\" --set \"mesh.slab.nodes_per_axis=[1000,1000,30]\"");
+  EXPECT_EQ(axes.exitCode, 2) << axes.output;
+  EXPECT_NE(axes.output.find("mesh.slab.nodes_per_axis gives a grid of 1000 x 1000 x 30 nodes"),
+            std::string::npos)
+      << axes.output;
+
   // what only the run's set-up checks (here the mesh) find names the file too
   const Result pad =
       runEsim("validate \"" + good.string() + "\" --set \"return_electrode.center_m=[0,0,-0.5]\"");

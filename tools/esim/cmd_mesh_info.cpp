@@ -52,6 +52,9 @@ int runMeshInfo(const MeshInfoOptions& opt) {
   if (opt.slabNodes > 0 || opt.file == "slab") {
     SlabSpec spec;
     if (opt.slabNodes > 0) spec.targetNodes = opt.slabNodes;
+    const std::string problem = slabTooLarge(spec);
+    ESIM_VERIFY(problem.empty(),
+                "mesh-info: --slab-nodes " + std::to_string(spec.targetNodes) + " " + problem);
     source = "slab (" + std::to_string(spec.targetNodes) + " nodes requested)";
     mesh = makeSlab(spec);
     meshingS = std::chrono::duration<double>(Clock::now() - t0).count();
