@@ -69,9 +69,6 @@ double secondsSince(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-// a report, whole or not at all (a disk that fills leaves no empty or cut file)
-void writeText(const fs::path& path, const std::string& text) { writeFileAtomic(path, text); }
-
 // peak resident memory of this process so far [MB]
 double peakRssMb() {
   rusage u{};
@@ -541,17 +538,18 @@ std::string summaryText(const Setup& s, const FrameOutputs& out, const LoopResul
 }
 
 // every report of the frames done (complete or not) into dir; returns the summary. With
-// plots, timing.png too: a missing python3/matplotlib is a warning, never the run's failure
+// plots, timing.png too: a missing python3/matplotlib is a warning, never the run's failure. Each
+// report is written whole or not at all (a disk that fills leaves no cut file)
 std::string writeReports(const Setup& s, const FrameOutputs& out, const LoopResult& loop,
                          const fs::path& dir, const fs::path& finalDir, bool plots) {
   const nlohmann::json extra = timingExtra(s, out, loop);
   const nlohmann::json timing = timingJson(loop.records, extra);
-  writeText(dir / "timing.json", timing.dump(2) + "\n");
-  writeText(dir / "timing.csv", timingCsv(loop.records));
-  writeText(dir / "trace.json", chromeTrace(loop.records, loop.frameStartUs).dump() + "\n");
-  writeText(dir / "scenario.yaml", scenarioToYaml(s.scenario));
+  writeFileAtomic(dir / "timing.json", timing.dump(2) + "\n");
+  writeFileAtomic(dir / "timing.csv", timingCsv(loop.records));
+  writeFileAtomic(dir / "trace.json", chromeTrace(loop.records, loop.frameStartUs).dump() + "\n");
+  writeFileAtomic(dir / "scenario.yaml", scenarioToYaml(s.scenario));
   if (s.renderer && s.scenario.output.hashes)
-    writeText(dir / "hashes.json", hashesJson(s, out, extra).dump(2) + "\n");
+    writeFileAtomic(dir / "hashes.json", hashesJson(s, out, extra).dump(2) + "\n");
   bool plotted = false;
   if (plots) {
     const PlotResult p = plotTiming(dir);
@@ -559,7 +557,7 @@ std::string writeReports(const Setup& s, const FrameOutputs& out, const LoopResu
     if (!plotted) std::cerr << "esim: warning: no timing.png: " << p.message << "\n";
   }
   const std::string summary = summaryText(s, out, loop, timing, finalDir, plotted);
-  writeText(dir / "summary.txt", summary);
+  writeFileAtomic(dir / "summary.txt", summary);
   return summary;
 }
 
