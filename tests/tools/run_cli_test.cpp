@@ -2,6 +2,7 @@
 // fields hold only the phases the scene has, idle stages say "skipped", and bad input
 // exits 2 with nothing written.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -489,6 +490,77 @@ TEST(RunCli, TheAddressSpaceIsBoundedByTheMemoryThereIs) {
   ASSERT_FALSE(limit.empty()) << r.output;
   ASSERT_NE(limit, "unlimited") << r.output;
   EXPECT_GE(std::stod(limit), availableKb * 1024.0) << r.output;
+  fs::remove_all(out.string() + ".partial");
+}
+
+// A memory cgroup of its own (cgroup v1 or v2, no swap) limited to `bytes`, and the shell
+// words that move a command into it ("" where this machine gives none: not root, no
+// writable cgroup file system). Removed by the destructor.
+struct OwnMemoryCgroup {
+  fs::path dir;
+  std::string enter;  // "echo $$ > DIR/tasks && exec "
+  explicit OwnMemoryCgroup(const std::string& bytes) {
+    const std::string name = "esim_test_" + std::to_string(::getpid());
+    std::error_code ec;
+    const auto put = [](const fs::path& f, const std::string& v) {
+      std::ofstream o(f);
+      o << v;
+      o.close();
+      return static_cast<bool>(o);
+    };
+    if (fs::is_directory("/sys/fs/cgroup/memory") &&
+        fs::create_directory("/sys/fs/cgroup/memory/" + name, ec)) {
+      dir = "/sys/fs/cgroup/memory/" + name;
+      put(dir / "memory.swappiness", "0");
+      if (!put(dir / "memory.limit_in_bytes", bytes)) return;
+      enter = "echo $$ > " + (dir / "tasks").string() + " && exec ";
+    } else if (readFile("/sys/fs/cgroup/cgroup.controllers").find("memory") != std::string::npos &&
+               fs::create_directory("/sys/fs/cgroup/" + name, ec)) {
+      dir = "/sys/fs/cgroup/" + name;
+      put(dir / "memory.swap.max", "0");
+      if (!put(dir / "memory.max", bytes)) return;
+      enter = "echo $$ > " + (dir / "cgroup.procs").string() + " && exec ";
+    }
+  }
+  ~OwnMemoryCgroup() {
+    // (its processes are gone a moment after the command: the watcher leaves last)
+    for (int i = 0; i < 50 && !dir.empty() && ::rmdir(dir.c_str()) != 0; ++i) ::usleep(20000);
+  }
+};
+
+// Under a memory cgroup's limit (a Slurm job's --mem, a container's --memory) a run whose
+// memory grows past it was killed by the kernel with no word ("Killed", exit 137): the
+// address-space bound takes the machine's memory and the cgroup's room only as a whole,
+// while the run grows an allocation at a time. The watcher names the kill and the limit.
+TEST(RunCli, AKillByTheOutOfMemoryKillerIsNamedWithTheLimit) {
+  const OwnMemoryCgroup group("400000000");
+  if (group.enter.empty()) GTEST_SKIP() << "no memory cgroup of our own here (root, cgroupfs)";
+  const fs::path out = tempOut("oom_killed");
+  fs::remove_all(out.string() + ".partial");
+  const Result r = shell("sh -c '" + group.enter + ESIM_EXE +
+                         " run scenarios/slab_cut.yaml --frames 2 --no-video -q -o " +
+                         out.string() + " --set mesh.slab.nodes=100000'");
+  if (r.exitCode != 128 + 9) GTEST_SKIP() << "not killed here: " << r.output;
+  EXPECT_NE(r.output.find("esim: error: the kernel's out-of-memory killer ended esim (signal 9): "
+                          "its memory cgroup " +
+                          group.dir.string() +
+                          " allows 0.40 GB. It needed more: a coarser mesh (mesh.slab.nodes,"),
+            std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(out));
+  fs::remove_all(out.string() + ".partial");
+}
+
+// ... and a run that ends by itself, or by another signal, gets no such line
+TEST(RunCli, TheOutOfMemoryWatcherIsSilentOtherwise) {
+  const fs::path out = tempOut("oom_silent");
+  Result r = esimRun("scenarios/paper_slab.yaml --frames 2 --no-video -o " + out.string() + kSmall);
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+  r = shell(std::string(ESIM_EXE) + " run scenarios/slab_cut.yaml --no-video -q --overwrite -o " +
+            out.string() + " & pid=$!; sleep 1; kill -9 $pid; wait $pid; echo status $?");
+  EXPECT_NE(r.output.find("status 137"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("out-of-memory"), std::string::npos) << r.output;
+  fs::remove_all(out);
   fs::remove_all(out.string() + ".partial");
 }
 

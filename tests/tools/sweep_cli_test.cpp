@@ -70,6 +70,15 @@ TEST(SweepCli, LocalSweepRecordsResumesAndVerifies) {
     EXPECT_EQ(l["frames_xxh3"],
               json::parse(readFile(dir / "runs" / id / "run" / "hashes.json"))["all_frames_xxh3"]);
     EXPECT_TRUE(fs::exists(dir / "runs" / id / "log.txt"));
+    // two runs at once each bound themselves to half the memory (memory_room.h); not under
+    // the sanitizers, where esim sets no bound
+#if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
+    const json timing = json::parse(readFile(dir / "runs" / id / "run" / "timing.json"));
+    const std::string bound = timing["machine"].value("memory_bound", "");
+    if (!bound.empty()) {  // (empty where a lower ulimit -v was set already)
+      EXPECT_NE(bound.find("; one of 2 sweep workers, "), std::string::npos) << bound;
+    }
+#endif
   }
   EXPECT_EQ(lines[0]["values"]["tool.voltage_v"], 60);
   EXPECT_EQ(lines[3]["values"]["tool.voltage_v"], 80);

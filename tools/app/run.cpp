@@ -36,6 +36,7 @@
 #include "sim/io/vtu.h"
 #include "sim/simulation.h"
 #include "tools/app/exit_codes.h"
+#include "tools/app/memory_room.h"
 #include "tools/app/plot_script.h"
 #include "tools/app/run_config.h"
 #include "tools/app/run_labels.h"
@@ -589,7 +590,8 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet) {
       loop.failureKind = ErrorKind::Run;
       loop.failure = "frame " + std::to_string(f) +
                      ": out of memory (a smaller mesh, or another electric strategy: see "
-                     "timing.json's electric_memory_mb)";
+                     "timing.json's electric_memory_mb)" +
+                     (addressSpaceBound().empty() ? "" : "; " + addressSpaceBound());
       loop.frameStartUs.pop_back();
       break;
     } catch (const fs::filesystem_error& e) {

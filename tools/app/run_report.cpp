@@ -10,6 +10,8 @@
 #include <sstream>
 #include <thread>
 
+#include "tools/app/memory_room.h"
+
 namespace esim::app {
 
 namespace {
@@ -179,6 +181,7 @@ nlohmann::json machineInfo() {
   j["LP_NUM_THREADS"] = lp ? lp : "";
   const char* core = openblas_get_corename();
   j["openblas_core"] = core ? core : "";
+  j["memory_bound"] = addressSpaceBound();  // empty: none set (tools/app/memory_room.h)
   return j;
 }
 

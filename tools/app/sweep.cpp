@@ -301,8 +301,18 @@ json variantResult(const fs::path& dir, const std::string& id, int index, int st
   }
   if (status >= 0 && WIFSIGNALED(status)) {
     const int sig = WTERMSIG(status);
-    message = "ended by signal " + std::to_string(sig) + " (" + strsignal(sig) + ")" +
-              (sig == SIGKILL && !stopping ? ": out of memory?" : "");
+    message = "ended by signal " + std::to_string(sig) + " (" + strsignal(sig) + ")";
+    if (sig == SIGKILL && !stopping) {
+      // the run's out-of-memory watcher (memory_room.h) writes its line to the log once the
+      // run has ended: a moment after this wait returned
+      std::string oom;
+      for (int i = 0; i < 40 && oom.find("out-of-memory killer") == std::string::npos; ++i) {
+        if (i > 0) std::this_thread::sleep_for(std::chrono::milliseconds(25));
+        oom = lastErrorLine(vdir / "log.txt");
+      }
+      message += oom.find("out-of-memory killer") != std::string::npos ? ": " + oom.substr(7)
+                                                                       : ": out of memory?";
+    }
     interrupted = interrupted || sig == SIGINT || sig == SIGTERM;
   }
   if (message.empty()) message = "esim run exited with " + std::to_string(code) + " (see log.txt)";
@@ -590,6 +600,9 @@ void runLocal(const fs::path& dir, const std::string& name,
   double wallSum = 0;
   ProgressLine progress(name, total, quiet);
   const int nThreads = std::max(1, std::min<int>(workers, static_cast<int>(jobs.size())));
+  // the runs at once share the memory there is: each bounds itself to its share
+  // (memory_room.h; they inherit the environment, set before any thread of ours starts)
+  if (nThreads > 1) ::setenv("ESIM_MEMORY_SHARE", std::to_string(nThreads).c_str(), 1);
   std::vector<std::thread> threads;
   for (int w = 0; w < nThreads; ++w) {
     ++active;

@@ -5,20 +5,18 @@
 // 3. Run the chosen command; an esim::Error becomes a message and the exit code of its kind
 //    (input 2, run 1, internal 4: command.h).
 // Before all that, OpenBLAS's kernels (useFastBlasKernels) and the memory bound
-// (boundAddressSpace).
-#include <sys/resource.h>
+// (boundAddressSpace, tools/app/memory_room.h).
 #include <unistd.h>
 
 #include <algorithm>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <map>
-#include <sstream>
 
 #include "sim/core_error.h"
+#include "tools/app/memory_room.h"
 #include "tools/esim/command.h"
 
 namespace esim::cli {
@@ -62,48 +60,12 @@ void useFastBlasKernels(char** argv) {
   execv("/proc/self/exe", argv);
 }
 
-// a "Key:   N kB" line of a /proc file, in bytes (-1 if absent)
-double procBytes(const char* file, const std::string& key) {
-  std::ifstream in(file);
-  std::string line;
-  while (std::getline(in, line))
-    if (line.rfind(key + ":", 0) == 0) {
-      std::istringstream fields(line.substr(key.size() + 1));
-      double kb = -1;
-      fields >> kb;
-      return kb * 1024.0;
-    }
-  return -1;
-}
-
-// Linux overcommits memory: a scene too large for the machine is not refused an allocation
-// but killed by the kernel once it touches more than there is (signal 9 after minutes, no
-// message). Bounding the address space by the memory there is makes such an allocation throw
-// std::bad_alloc instead: "out of memory", exit 1, as its message promises. The bound: what is
-// mapped now, the memory available and the free swap, and 4 GiB for reservations that are
-// never touched (thread stacks, malloc arenas). A lower bound already set (ulimit -v) stays.
-// Not under the sanitizers, which reserve terabytes of address space.
-void boundAddressSpace() {
-#if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
-  const double mapped = procBytes("/proc/self/status", "VmSize");
-  const double available = procBytes("/proc/meminfo", "MemAvailable");
-  const double swap = procBytes("/proc/meminfo", "SwapFree");
-  if (mapped < 0 || available < 0) return;  // not Linux's /proc: leave it
-  const double bound = mapped + available + std::max(swap, 0.0) + 4.0 * (1 << 30);
-  rlimit limit{};
-  if (getrlimit(RLIMIT_AS, &limit) != 0) return;
-  if (limit.rlim_cur != RLIM_INFINITY && static_cast<double>(limit.rlim_cur) <= bound) return;
-  limit.rlim_cur = static_cast<rlim_t>(bound);
-  if (limit.rlim_max != RLIM_INFINITY) limit.rlim_cur = std::min(limit.rlim_cur, limit.rlim_max);
-  setrlimit(RLIMIT_AS, &limit);
-#endif
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
   useFastBlasKernels(argv);
-  boundAddressSpace();
+  esim::app::boundAddressSpace();
+  esim::app::watchOutOfMemory();  // after the exec of useFastBlasKernels, before any thread
   using namespace esim::cli;
   CLI::App app{
       "esim - physics-based electrosurgery simulation rendered to video, headless.\n"
@@ -190,7 +152,10 @@ int main(int argc, char** argv) {
   } catch (const std::bad_alloc&) {
     // (a run's frames report theirs in its summary; this is the set-up's, or another command's)
     std::cerr << "esim: error: out of memory (a smaller mesh, fewer phases, or another electric "
-                 "strategy: solvers.electric.strategy)\n";
+                 "strategy: solvers.electric.strategy)";
+    if (!esim::app::addressSpaceBound().empty())
+      std::cerr << "; " << esim::app::addressSpaceBound();
+    std::cerr << "\n";
     return kExitFailure;
   } catch (const std::filesystem::filesystem_error& e) {
     std::cerr << "esim: error: " << e.what() << "\n";

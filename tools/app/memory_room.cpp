@@ -1,0 +1,256 @@
+// memory_room.cpp - see memory_room.h
+#include "tools/app/memory_room.h"
+
+#include <fcntl.h>
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <csignal>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <vector>
+
+namespace esim::app {
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+// v1 writes "no limit" as PAGE_COUNTER_MAX pages (9223372036854771712 with 4 KiB pages)
+constexpr double kUnlimitedV1 = 1e18;
+
+// a "Key:   N kB" line of a /proc file, in bytes (-1 if absent)
+double procBytes(const fs::path& file, const std::string& key) {
+  std::ifstream in(file);
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind(key + ":", 0) == 0) {
+      std::istringstream fields(line.substr(key.size() + 1));
+      double kb = -1;
+      fields >> kb;
+      return kb * 1024.0;
+    }
+  return -1;
+}
+
+// the first word of a cgroup file as bytes: "max" is +inf; NaN when absent or unreadable
+double cgroupValue(const fs::path& file) {
+  std::ifstream in(file);
+  std::string word;
+  if (!(in >> word)) return std::nan("");
+  if (word == "max") return kInf;
+  char* end = nullptr;
+  const double v = std::strtod(word.c_str(), &end);
+  return end && *end == '\0' ? v : std::nan("");
+}
+
+// "key N" in a memory.stat file (0 if absent)
+double statValue(const fs::path& file, const std::string& key) {
+  std::ifstream in(file);
+  std::string k;
+  double v = 0;
+  while (in >> k >> v)
+    if (k == key) return v;
+  return 0;
+}
+
+std::string gigabytes(double bytes) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.2f GB", bytes / 1e9);
+  return b;
+}
+
+struct CgroupRoom {
+  double bytes = kInf;
+  fs::path dir;       // the group whose limit leaves the least
+  double limit = -1;  // its limit
+};
+
+// the least room left by the memory limits of the group at rel under mount and of every
+// group above it (a namespaced container sees its own group as mount's root: rel is then
+// not under mount, and the walk starts at the root)
+void walkGroups(const fs::path& mount, const std::string& rel, bool v2, CgroupRoom& best) {
+  std::error_code ec;
+  if (!fs::is_directory(mount, ec)) return;
+  fs::path dir = mount / fs::path(rel).relative_path();
+  if (!fs::is_directory(dir, ec)) dir = mount;
+  for (;;) {
+    const double limit =
+        cgroupValue(dir / (v2 ? "memory.max" : "memory.limit_in_bytes"));
+    if (std::isfinite(limit) && (v2 || limit < kUnlimitedV1)) {
+      double used = cgroupValue(dir / (v2 ? "memory.current" : "memory.usage_in_bytes"));
+      if (std::isnan(used)) used = 0;
+      // page cache the kernel reclaims before it kills counts as room
+      used -= statValue(dir / "memory.stat", v2 ? "inactive_file" : "total_inactive_file");
+      const double room = std::max(0.0, limit - std::max(0.0, used));
+      if (room < best.bytes) best = {room, dir, limit};
+    }
+    if (dir == mount || !dir.has_relative_path()) break;
+    const fs::path up = dir.parent_path();
+    if (up.string().size() < mount.string().size()) break;
+    dir = up;
+  }
+}
+
+}  // namespace
+
+MemoryRoom memoryRoom(const fs::path& root, int share) {
+  MemoryRoom r;
+  const double available = procBytes(root / "proc/meminfo", "MemAvailable");
+  if (available < 0) return r;  // not Linux's /proc
+  const double swap = std::max(0.0, procBytes(root / "proc/meminfo", "SwapFree"));
+  r.bytes = available + swap;
+  r.boundBy = "the machine has " + gigabytes(r.bytes) + " available (MemAvailable + SwapFree)";
+  // /proc/self/cgroup: "0::/path" (v2), "N:memory:/path" or "N:cpu,memory:/path" (v1)
+  CgroupRoom best;
+  std::ifstream groups(root / "proc/self/cgroup");
+  std::string line;
+  while (std::getline(groups, line)) {
+    const size_t a = line.find(':'), b = a == std::string::npos ? a : line.find(':', a + 1);
+    if (b == std::string::npos) continue;
+    const std::string controllers = line.substr(a + 1, b - a - 1), rel = line.substr(b + 1);
+    if (controllers.empty()) {
+      walkGroups(root / "sys/fs/cgroup", rel, true, best);
+    } else {
+      std::istringstream list(controllers);
+      std::string c;
+      while (std::getline(list, c, ','))
+        if (c == "memory") walkGroups(root / "sys/fs/cgroup/memory", rel, false, best);
+    }
+  }
+  if (best.bytes < r.bytes) {
+    r.bytes = best.bytes;
+    r.boundBy = "its memory cgroup " + best.dir.string() + " has " + gigabytes(r.bytes) + " left";
+    r.cgroup = best.dir;
+    r.cgroupLimitBytes = best.limit;
+  }
+  if (share > 1) {
+    r.bytes /= share;
+    r.boundBy += "; one of " + std::to_string(share) + " sweep workers, " +
+                 gigabytes(r.bytes) + " each";
+  }
+  return r;
+}
+
+int memoryShareFromEnvironment() {
+  const char* v = std::getenv("ESIM_MEMORY_SHARE");
+  if (!v) return 1;
+  char* end = nullptr;
+  const long n = std::strtol(v, &end, 10);
+  return end != v && *end == '\0' && n >= 1 && n <= 4096 ? static_cast<int>(n) : 1;
+}
+
+namespace {
+std::string& boundText() {
+  static std::string text;
+  return text;
+}
+}  // namespace
+
+void boundAddressSpace() {
+#if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
+  const double mapped = procBytes("/proc/self/status", "VmSize");
+  const MemoryRoom room = memoryRoom("/", memoryShareFromEnvironment());
+  if (mapped < 0 || room.bytes < 0) return;  // not Linux's /proc: leave it
+  const double bound = mapped + room.bytes + 4.0 * (1 << 30);
+  rlimit limit{};
+  if (getrlimit(RLIMIT_AS, &limit) != 0) return;
+  if (limit.rlim_cur != RLIM_INFINITY && static_cast<double>(limit.rlim_cur) <= bound) return;
+  limit.rlim_cur = static_cast<rlim_t>(bound);
+  if (limit.rlim_max != RLIM_INFINITY) limit.rlim_cur = std::min(limit.rlim_cur, limit.rlim_max);
+  if (setrlimit(RLIMIT_AS, &limit) != 0) return;
+  boundText() = "esim bounded itself to " + gigabytes(static_cast<double>(limit.rlim_cur)) +
+                " of address space: " + room.boundBy;
+#endif
+}
+
+const std::string& addressSpaceBound() { return boundText(); }
+
+namespace {
+
+int gWatcherPipe = -1;  // the write end, held by the watched process
+
+void markNormalExit() {
+  if (gWatcherPipe < 0) return;
+  const char mark = 'x';
+  while (::write(gWatcherPipe, &mark, 1) < 0 && errno == EINTR) {
+  }
+}
+
+// /proc/vmstat's oom_kill: the kills of the out-of-memory killer since boot, any cgroup (-1
+// if absent)
+double oomKills() {
+  std::ifstream in("/proc/vmstat");
+  std::string key;
+  double v = 0;
+  while (in >> key >> v)
+    if (key == "oom_kill") return v;
+  return -1;
+}
+
+// the message of the watcher: what ended the process and the memory it could have had
+std::string oomMessage() {
+  const MemoryRoom room = memoryRoom("/", 1);
+  std::string what = "esim: error: the kernel's out-of-memory killer ended esim (signal 9)";
+  const double total = procBytes("/proc/meminfo", "MemTotal");
+  if (!room.cgroup.empty())
+    what += ": its memory cgroup " + room.cgroup.string() + " allows " +
+            gigabytes(room.cgroupLimitBytes);
+  else if (total > 0)
+    what += ": the machine has " + gigabytes(total) + " of memory";
+  return what +
+         ". It needed more: a coarser mesh (mesh.slab.nodes, mesh.file.cell_size_m), fewer "
+         "phases, another electric strategy, or more memory (Slurm --mem, docker --memory). A "
+         "run keeps what it wrote so far in DIR.partial.\n";
+}
+
+}  // namespace
+
+void watchOutOfMemory() {
+  const char* off = std::getenv("ESIM_NO_WATCHER");
+  if (off && *off && std::string(off) != "0") return;
+  const double kills = oomKills();
+  if (kills < 0) return;
+  int fds[2];
+  if (::pipe2(fds, O_CLOEXEC) != 0) return;
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    ::close(fds[0]);
+    ::close(fds[1]);
+    return;
+  }
+  if (pid > 0) {  // the watched process: keeps the write end, marks a normal exit
+    ::close(fds[0]);
+    gWatcherPipe = fds[1];
+    std::atexit(markNormalExit);
+    return;
+  }
+  // the watcher: no signal of the group, no stdin/stdout, only the read end
+  std::signal(SIGINT, SIG_IGN);
+  std::signal(SIGTERM, SIG_IGN);
+  std::signal(SIGHUP, SIG_IGN);
+  ::close(fds[1]);
+  const int null = ::open("/dev/null", O_RDWR);
+  if (null >= 0) {
+    ::dup2(null, 0);
+    ::dup2(null, 1);
+    ::close(null);
+  }
+  char mark = 0;
+  ssize_t n = 0;
+  while ((n = ::read(fds[0], &mark, 1)) < 0 && errno == EINTR) {
+  }
+  if (n == 0 && oomKills() > kills) {
+    const std::string message = oomMessage();
+    [[maybe_unused]] const ssize_t w = ::write(2, message.data(), message.size());
+  }
+  ::_exit(0);
+}
+
+}  // namespace esim::app

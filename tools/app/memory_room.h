@@ -1,0 +1,67 @@
+// memory_room.h - how much memory a run may still take, and esim's bound on its own
+// address space.
+//
+// Linux overcommits memory: a scene too large for the machine is not refused an allocation
+// but killed by the kernel once it touches more than there is (signal 9, no message). The
+// same happens, sooner, under a memory cgroup's limit: a Slurm job's --mem, a container's
+// --memory, systemd-run -p MemoryMax, where /proc/meminfo still shows the whole machine
+// (measured: `esim run scenarios/slab_cut.yaml --set mesh.slab.nodes=100000` in a cgroup
+// v1 group limited to 700 MB was killed by signal 9 after 5 s, no message). Bounding the
+// address space by the room there is makes such an allocation throw std::bad_alloc instead:
+// "out of memory", exit 1, as the messages promise.
+//
+// The room: MemAvailable + SwapFree (/proc/meminfo), at most what every memory cgroup
+// above this process has left (v2: memory.max - memory.current + inactive file pages, the
+// page cache the kernel reclaims before it kills; v1: memory.limit_in_bytes -
+// memory.usage_in_bytes + total_inactive_file), divided among the workers of a sweep
+// (ESIM_MEMORY_SHARE=N, set by esim sweep for its children: N runs at once each see the
+// whole machine's memory at their start).
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+namespace esim::app {
+
+struct MemoryRoom {
+  double bytes = -1;    // < 0: unknown (no /proc/meminfo)
+  std::string boundBy;  // what set it, for messages: "the machine has 24.16 GB available
+                        // (MemAvailable + SwapFree)" or "its memory cgroup DIR has 0.70 GB
+                        // left", then the sweep's share
+  std::filesystem::path cgroup;  // the memory cgroup that set it (empty: the machine)
+  double cgroupLimitBytes = -1;  // its limit
+};
+
+// the room under root (the file system root; tests pass a folder holding proc/meminfo,
+// proc/self/cgroup and sys/fs/cgroup/...), divided by share (>= 1)
+MemoryRoom memoryRoom(const std::filesystem::path& root, int share);
+
+// the share esim sweep gives its children: ESIM_MEMORY_SHARE as a positive integer, else 1
+int memoryShareFromEnvironment();
+
+// Bounds this process's address space (RLIMIT_AS) by what is mapped now, the room
+// (memoryRoom("/", memoryShareFromEnvironment())) and 4 GiB for reservations that are never
+// touched (thread stacks, malloc arenas). A lower bound already set (ulimit -v) stays. Not
+// under the sanitizers, which reserve terabytes of address space. Called once, at start.
+void boundAddressSpace();
+
+// The kernel's out-of-memory killer ends a process with SIGKILL, which it cannot catch: a
+// run whose memory grows a little at a time past what its cgroup allows (each allocation
+// under the address-space bound) ended with no word ("Killed", exit 137). This forks a
+// watcher that waits, on a pipe, for this process to end: an end without watchOutOfMemory's
+// mark (written by markNormalExit, at any exit through exit() or a return from main) while
+// the kernel's count of such kills (/proc/vmstat oom_kill) grew prints to stderr what ended
+// it and what memory it had ("esim: error: the kernel's out-of-memory killer ended esim
+// ..."). The exit status stays the kill's (137): a caller sees what happened, esim sweep
+// reads the message from the variant's log. The watcher ignores SIGINT and SIGTERM (a
+// Ctrl-C reaches the process group), holds no file of the run, and leaves with this
+// process. Call once, at start, before any thread or file; ESIM_NO_WATCHER=1 turns it off
+// (a debugger following the parent sees no difference either way).
+void watchOutOfMemory();
+
+// what boundAddressSpace set, for the out-of-memory messages and timing.json: e.g. "esim
+// bounded itself to 1.4 GB of address space: its memory cgroup
+// /sys/fs/cgroup/memory/job_12/ has 0.7 GB left"; empty when it set nothing
+const std::string& addressSpaceBound();
+
+}  // namespace esim::app
