@@ -121,9 +121,8 @@ TEST_F(MemoryRoomTest, UnreadableFilesLeaveItUnknownOrUnbounded) {
 TEST(MemoryShare, OnlyAPositiveCountIsAShare) {
   const char* before = std::getenv("ESIM_MEMORY_SHARE");
   const std::string saved = before ? before : "";
-  for (const auto& [value, share] :
-       std::vector<std::pair<std::string, int>>{{"3", 3}, {"1", 1}, {"0", 1}, {"-2", 1},
-                                                {"2x", 1}, {"", 1}, {"99999", 1}}) {
+  for (const auto& [value, share] : std::vector<std::pair<std::string, int>>{
+           {"3", 3}, {"1", 1}, {"0", 1}, {"-2", 1}, {"2x", 1}, {"", 1}, {"99999", 1}}) {
     ::setenv("ESIM_MEMORY_SHARE", value.c_str(), 1);
     EXPECT_EQ(memoryShareFromEnvironment(), share) << "'" << value << "'";
   }

@@ -5,10 +5,9 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
-#include <csignal>
-
 #include <algorithm>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -81,8 +80,7 @@ void walkGroups(const fs::path& mount, const std::string& rel, bool v2, CgroupRo
   fs::path dir = mount / fs::path(rel).relative_path();
   if (!fs::is_directory(dir, ec)) dir = mount;
   for (;;) {
-    const double limit =
-        cgroupValue(dir / (v2 ? "memory.max" : "memory.limit_in_bytes"));
+    const double limit = cgroupValue(dir / (v2 ? "memory.max" : "memory.limit_in_bytes"));
     if (std::isfinite(limit) && (v2 || limit < kUnlimitedV1)) {
       double used = cgroupValue(dir / (v2 ? "memory.current" : "memory.usage_in_bytes"));
       if (std::isnan(used)) used = 0;
@@ -132,8 +130,8 @@ MemoryRoom memoryRoom(const fs::path& root, int share) {
   }
   if (share > 1) {
     r.bytes /= share;
-    r.boundBy += "; one of " + std::to_string(share) + " sweep workers, " +
-                 gigabytes(r.bytes) + " each";
+    r.boundBy +=
+        "; one of " + std::to_string(share) + " sweep workers, " + gigabytes(r.bytes) + " each";
   }
   return r;
 }

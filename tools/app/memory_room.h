@@ -24,10 +24,10 @@
 namespace esim::app {
 
 struct MemoryRoom {
-  double bytes = -1;    // < 0: unknown (no /proc/meminfo)
-  std::string boundBy;  // what set it, for messages: "the machine has 24.16 GB available
-                        // (MemAvailable + SwapFree)" or "its memory cgroup DIR has 0.70 GB
-                        // left", then the sweep's share
+  double bytes = -1;             // < 0: unknown (no /proc/meminfo)
+  std::string boundBy;           // what set it, for messages: "the machine has 24.16 GB available
+                                 // (MemAvailable + SwapFree)" or "its memory cgroup DIR has 0.70 GB
+                                 // left", then the sweep's share
   std::filesystem::path cgroup;  // the memory cgroup that set it (empty: the machine)
   double cgroupLimitBytes = -1;  // its limit
 };
