@@ -3,7 +3,10 @@
 // verify` passes and then catches a changed, a missing and an added file; a failed variant
 // is recorded and the others go on; bad sweeps exit 2 with nothing written; --slurm
 // without --submit writes the job-array script (no Slurm needed).
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/file.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <filesystem>
@@ -138,6 +141,44 @@ TEST(SweepCli, TwoSweepsIntoOneFolderAtOnceOneIsRefused) {
   const Result again = esim("sweep " + kTiny + " -o " + dir.string());
   EXPECT_EQ(again.exitCode, 0) << again.output;
   EXPECT_NE(again.output.find("4 complete before, 0 to run"), std::string::npos) << again.output;
+  fs::remove_all(dir);
+}
+
+// One variant run by two processes at once (esim dataset run by hand beside a Slurm task
+// or a local sweep): each deleted the other's run folder and the manifest kept the last to
+// end (a failure over a complete run). The variant's folder is held while it runs: here
+// held by the test, dataset run is refused (exit 2) and a sweep leaves the variant alone.
+TEST(SweepCli, AVariantAnotherProcessRunsIsLeftToIt) {
+  const fs::path dir = tempDir("busy");
+  // the folder, v0000 run to measure the scene (no Slurm needed)
+  ASSERT_EQ(esim("sweep " + kTiny + " -o " + dir.string() + " --slurm").exitCode, 0);
+  const fs::path held = dir / "runs" / "v0001";
+  const int fd = ::open(held.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  ASSERT_GE(fd, 0);
+  ASSERT_EQ(::flock(fd, LOCK_EX | LOCK_NB), 0);
+  const std::string before = readFile(dir / "manifest.jsonl");
+  Result r = esim("dataset run " + dir.string() + " v0001");
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_NE(r.output.find("esim: error: " + held.string() +
+                          ": another esim is running this variant; nothing was changed"),
+            std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(held / "result.json"));
+  EXPECT_FALSE(fs::exists(held / "log.txt"));
+  EXPECT_EQ(readFile(dir / "manifest.jsonl"), before);
+  // a local sweep runs the others and says which it left
+  r = esim("sweep " + kTiny + " -o " + dir.string() + " -q");
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  EXPECT_NE(r.output.find("sweep: v0001: another esim was running this variant"), std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(held / "result.json"));
+  for (const json& l : manifest(dir))
+    EXPECT_EQ(l["status"], l["id"] == "v0001" ? "pending" : "complete") << l.dump();
+  ::close(fd);
+  r = esim("sweep " + kTiny + " -o " + dir.string() + " -q");
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+  for (const json& l : manifest(dir)) EXPECT_EQ(l["status"], "complete") << l.dump();
+  EXPECT_EQ(esim("dataset verify " + dir.string()).exitCode, 0);
   fs::remove_all(dir);
 }
 

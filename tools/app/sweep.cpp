@@ -330,12 +330,22 @@ struct VariantJob {
   bool ownGroup = false;
 };
 
-// runs one variant to its end; records its result and the manifest; returns the result
+// what runVariant returns when another process runs the variant (nothing was touched)
+constexpr const char* kBusy = "busy";
+
+// runs one variant to its end; records its result and the manifest; returns the result.
+// The variant's folder is held (flock) from before its earlier outputs go until its result is
+// recorded: two processes running one variant (esim dataset run by hand beside a Slurm task or
+// a local sweep) deleted each other's run folder, and the manifest kept the last to end (a
+// failure, over a complete run). Held by another: returns {"status": "busy"}, changes nothing.
 json runVariant(const VariantJob& job, const std::function<void(pid_t)>& started,
                 const std::function<void(pid_t)>& ended) {
   const fs::path vdir = dataset::variantDir(job.dir, job.id);
   const fs::path run = dataset::runDir(job.dir, job.id);
   std::error_code ec;
+  fs::create_directories(vdir, ec);
+  FolderLock held;
+  if (!held.tryLock(vdir, job.id)) return json{{"id", job.id}, {"status", kBusy}};
   fs::remove(vdir / "result.json", ec);
   json result;
   if (fs::is_regular_file(run / "timing.json", ec) &&
@@ -596,6 +606,7 @@ void runLocal(const fs::path& dir, const std::string& name,
   std::condition_variable cv;
   std::size_t next = 0;
   std::set<pid_t> running;
+  std::vector<std::string> busy;  // variants another process was running (not touched)
   int complete = 0, failed = 0, active = 0;
   double wallSum = 0;
   ProgressLine progress(name, total, quiet);
@@ -628,6 +639,10 @@ void runLocal(const fs::path& dir, const std::string& name,
               running.erase(pid);
             });
         std::lock_guard<std::mutex> lock(mu);
+        if (r.value("status", "") == kBusy) {
+          busy.push_back(v->id);
+          continue;
+        }
         (r.value("status", "") == "complete" ? complete : failed)++;
         wallSum += r.value("wall_s", 0.0);
         cv.notify_all();
@@ -659,6 +674,15 @@ void runLocal(const fs::path& dir, const std::string& name,
   progress.show(complete, failed, 0, earlier, 0, nThreads, true);
   lock.unlock();
   for (auto& t : threads) t.join();
+  if (!busy.empty()) {  // (even with -q: these were not run)
+    std::sort(busy.begin(), busy.end());
+    std::string ids;
+    for (const auto& id : busy) ids += (ids.empty() ? "" : ", ") + id;
+    std::fprintf(stderr,
+                 "sweep: %s: another esim was running %s (esim dataset run?); left to it, "
+                 "not run here: resume the sweep once it ends\n",
+                 ids.c_str(), busy.size() == 1 ? "this variant" : "these variants");
+  }
 }
 
 // ---- Slurm ----
@@ -972,6 +996,9 @@ int runSweepVariant(const std::string& dirText, const std::string& variant, bool
       sweep.value("run_options", std::vector<std::string>{});
   VariantJob job{dir, id, found->at("index").get<int>(), runOptions, esimExecutable(), false};
   const json r = runVariant(job, nullptr, nullptr);
+  if (r.value("status", "") == kBusy)
+    throw Error(dataset::variantDir(dir, id).string() +
+                ": another esim is running this variant; nothing was changed");
   std::cout << id << ": " << r.value("status", "") << " in " << r.value("wall_s", 0.0) << " s"
             << (r.value("message", "").empty() ? "" : ": " + r.value("message", "")) << "\n";
   return r.value("status", "") == "complete" ? 0 : 1;
