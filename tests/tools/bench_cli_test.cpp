@@ -41,7 +41,7 @@ TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
       // an empty list ran nothing and exited 0
       {"bench cut --sizes 50 --strategy ,", "--strategy is empty; expected synchronous"},
       {"bench cut --sizes 50 --structural ''",
-       "--structural is empty; expected full, local or full,local"},
+       "--structural (solvers.structural.method values, comma separated (full,local"},
       {"bench cut --sizes 50 --scenario /nonexistent/cut.yaml",
        "/nonexistent/cut.yaml: cannot open the scenario file"},
       // the second size's run is checked before the first one runs

@@ -734,6 +734,36 @@ TEST(RunCli, AnUnknownCommandIsNamed) {
   EXPECT_EQ(own.exitCode, 0) << own.output;
 }
 
+// An option or argument given an empty value, as an unset shell variable gives it (-o "$OUT"):
+// -o "" ran into the default folder out/<name>, --csv "" and --report "" wrote nothing, all
+// with exit 0; validate "" said "error: : cannot open the scenario file"
+TEST(RunCli, AnEmptyValueIsRefusedAndNamed) {
+  const fs::path defaultFolder = fs::path(ESIM_SOURCE_DIR) / "out" / "empty_value_test";
+  fs::remove_all(defaultFolder);
+  const std::vector<std::pair<std::string, std::string>> cases{
+      {"run scenarios/paper_slab.yaml --frames 1 --no-video -q --set name=empty_value_test -o ''",
+       "esim: error: --out (output folder"},
+      {"run ''", "esim: error: scenario (scenario YAML file"},
+      {"validate ''", "esim: error: scenarios (scenario YAML files"},
+      {"bench cut --sizes 1013 --frames 2 --csv ''", "esim: error: --csv (write the table to FILE"},
+      {"compare out out --report ''", "esim: error: --report (write compare.json"},
+      {"sweep scenarios/sweeps/paper_slab_tiny_4.yaml -o ''", "esim: error: --out ("}};
+  for (const auto& [args, message] : cases) {
+    const Result r = shell(std::string(ESIM_EXE) + " " + args);
+    EXPECT_EQ(r.exitCode, 2) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find(message + ""), std::string::npos) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find("): an empty value (an unset shell variable?)"), std::string::npos)
+        << args << "\n"
+        << r.output;
+  }
+  EXPECT_FALSE(fs::exists(defaultFolder));
+  // an empty --run-args is no run option at all: allowed
+  const Result dry =
+      shell(std::string(ESIM_EXE) +
+            " sweep scenarios/sweeps/paper_slab_tiny_4.yaml --run-args '' --dry-run");
+  EXPECT_EQ(dry.exitCode, 0) << dry.output;
+}
+
 // ---- labels (esim run --labels) ----
 
 // the acceptance run, shortened: every label file, one per frame of the video, pixel-aligned

@@ -137,9 +137,23 @@ int main(int argc, char** argv) {
     return reportError(e);
   }
 
-  // 3. run the deepest chosen sub-command
+  // 3. run the deepest chosen sub-command; an option or argument given an empty value (an
+  // unset shell variable: -o "$OUT") is refused, where -o "" ran into the default folder and
+  // --csv "" or --report "" wrote nothing, all without a word
   CLI::App* chosen = &app;
-  while (!chosen->get_subcommands().empty()) chosen = chosen->get_subcommands().front();
+  for (;;) {
+    for (const CLI::Option* o : chosen->get_options()) {
+      const std::string name = o->get_name();
+      if (name == "--run-args") continue;  // (no more run options: allowed)
+      for (const std::string& value : o->results())
+        if (value.empty())
+          return reportError(esim::Error(
+              name + (o->get_description().empty() ? "" : " (" + o->get_description() + ")") +
+              ": an empty value (an unset shell variable?)"));
+    }
+    if (chosen->get_subcommands().empty()) break;
+    chosen = chosen->get_subcommands().front();
+  }
   auto it = runners.find(chosen);
   if (it == runners.end()) {
     std::cerr << app.help();
