@@ -181,9 +181,33 @@ void markNormalExit() {
   }
 }
 
-// /proc/vmstat's oom_kill: the kills of the out-of-memory killer since boot, any cgroup (-1
-// if absent)
+// The kills of the out-of-memory killer among this process's memory cgroup and the groups
+// below it (v2 memory.events, v1 memory.oom_control: "oom_kill N"), else since boot in any
+// group (/proc/vmstat), so that a kill elsewhere on the machine is not taken for ours. -1
+// when none of these can be read.
 double oomKills() {
+  const auto read = [](const fs::path& file) {
+    std::ifstream in(file);
+    std::string key;
+    double v = 0;
+    while (in >> key >> v)
+      if (key == "oom_kill") return v;
+    return -1.0;
+  };
+  std::ifstream groups("/proc/self/cgroup");
+  std::string line;
+  while (std::getline(groups, line)) {
+    const size_t a = line.find(':'), b = a == std::string::npos ? a : line.find(':', a + 1);
+    if (b == std::string::npos) continue;
+    const std::string controllers = line.substr(a + 1, b - a - 1);
+    const fs::path rel = fs::path(line.substr(b + 1)).relative_path();
+    double v = -1;
+    if (controllers.empty())
+      v = read(fs::path("/sys/fs/cgroup") / rel / "memory.events");
+    else if (("," + controllers + ",").find(",memory,") != std::string::npos)
+      v = read(fs::path("/sys/fs/cgroup/memory") / rel / "memory.oom_control");
+    if (v >= 0) return v;
+  }
   std::ifstream in("/proc/vmstat");
   std::string key;
   double v = 0;

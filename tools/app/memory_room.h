@@ -48,15 +48,14 @@ void boundAddressSpace();
 // The kernel's out-of-memory killer ends a process with SIGKILL, which it cannot catch: a
 // run whose memory grows a little at a time past what its cgroup allows (each allocation
 // under the address-space bound) ended with no word ("Killed", exit 137). This forks a
-// watcher that waits, on a pipe, for this process to end: an end without watchOutOfMemory's
-// mark (written by markNormalExit, at any exit through exit() or a return from main) while
-// the kernel's count of such kills (/proc/vmstat oom_kill) grew prints to stderr what ended
-// it and what memory it had ("esim: error: the kernel's out-of-memory killer ended esim
-// ..."). The exit status stays the kill's (137): a caller sees what happened, esim sweep
-// reads the message from the variant's log. The watcher ignores SIGINT and SIGTERM (a
-// Ctrl-C reaches the process group), holds no file of the run, and leaves with this
-// process. Call once, at start, before any thread or file; ESIM_NO_WATCHER=1 turns it off
-// (a debugger following the parent sees no difference either way).
+// watcher that waits, on a pipe, for this process to end. An end without the mark written at
+// exit() (or a return from main), while the kernel's count of such kills grew (in this
+// process's memory cgroup and the groups below it, else /proc/vmstat), is reported on stderr:
+// what ended it and the memory it had ("esim: error: the kernel's out-of-memory killer ended
+// esim ..."). The exit status stays the kill's (137); esim sweep reads the line from the
+// variant's log. The watcher ignores SIGINT, SIGTERM and SIGHUP (a Ctrl-C reaches the whole
+// process group), holds no file of the run, and leaves with this process. Call once, at
+// start, before any thread or file is opened; ESIM_NO_WATCHER=1 turns it off.
 void watchOutOfMemory();
 
 // what boundAddressSpace set, for the out-of-memory messages and timing.json: e.g. "esim
