@@ -236,13 +236,29 @@ TEST_F(RunOutputTest, AnUnwritableLocationIsRefused) {
 
 TEST_F(RunOutputTest, AResultsFolderIsCreatedOrRefusedWithoutTouchingAFile) {
   const fs::path nested = root_ / "a" / "b";
-  createOutputFolder(nested, "--out");
+  FolderLock lock;
+  createOutputFolder(nested, "--out", lock);
   EXPECT_TRUE(fs::is_directory(nested));
-  createOutputFolder(nested, "--out");  // an existing folder is fine
+  lock.release();
+  createOutputFolder(nested, "--out", lock);  // an existing folder is fine
+  // held: a second command into it is refused (bench accuracy --out, render-sample --out and
+  // compare --report into one folder interleaved their files)
+  FolderLock second;
+  try {
+    createOutputFolder(nested, "--out", second);
+    FAIL() << "a folder another command writes was taken";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), "--out: another esim is writing '" + nested.string() +
+                                         "'; give another folder, or wait for it to end "
+                                         "(nothing was changed)");
+    EXPECT_EQ(e.kind(), ErrorKind::Input);
+  }
+  lock.release();
+  createOutputFolder(nested, "--out", second);
   const fs::path file = root_ / "f";
   touch(file);
   try {
-    createOutputFolder(file, "--report");
+    createOutputFolder(file, "--report", lock);
     FAIL() << "a file was taken for a folder";
   } catch (const Error& e) {
     EXPECT_EQ(std::string(e.what()),
@@ -251,7 +267,7 @@ TEST_F(RunOutputTest, AResultsFolderIsCreatedOrRefusedWithoutTouchingAFile) {
   }
   EXPECT_EQ(read(file), "user data\n");
   try {
-    createOutputFolder(file / "under", "--out");
+    createOutputFolder(file / "under", "--out", lock);
     FAIL() << "a folder under a file was created";
   } catch (const Error& e) {
     EXPECT_EQ(std::string(e.what()).rfind(

@@ -2,7 +2,10 @@
 // --csv tables (timings are never asserted: the benches are measurements, not tests). A bench
 // given bad input exits 2 naming it and leaves an earlier table as it was; one that runs
 // writes its whole table.
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/file.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -81,7 +84,7 @@ TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
 // to 26 nodes had none), and the electric bench's blade, whose reach is one grid spacing,
 // no longer touches it through a coarse slab (a short circuit from 26 to 400 nodes)
 TEST_F(BenchCli, EverySlabBenchRunsAtTheSmallestSizeItAccepts) {
-  for (const std::string& args :
+  for (const char* args :
        {"bench electric --frames 5 --sizes 27,400", "bench cut --frames 3 --sizes 27,400",
         "bench structural --sizes 27", "bench thermal --sizes 27"}) {
     const auto r = shell(esim(args));
@@ -105,6 +108,31 @@ TEST_F(BenchCli, AResultsFolderThatIsAFileIsRefusedBeforeAnythingRuns) {
         << r.output;
     EXPECT_EQ(readFile(csv_), "an earlier table\n") << args;
   }
+}
+
+// a results folder another command is writing (held here by the test, as esim holds it):
+// refused before anything runs, nothing in it changed (two commands into one folder
+// interleaved their files; bench accuracy's tables were written in place, unchecked)
+TEST_F(BenchCli, AResultsFolderAnotherCommandWritesIsRefused) {
+  const fs::path out = root_ / "busy";
+  fs::create_directories(out);
+  std::ofstream(out / "sample_tissue.png") << "an earlier sample\n";
+  const int fd = ::open(out.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  ASSERT_GE(fd, 0);
+  ASSERT_EQ(::flock(fd, LOCK_EX | LOCK_NB), 0);
+  for (const std::string& args :
+       {std::string("bench accuracy --quick --only mesh_graded:1013 --out"),
+        std::string("render-sample --out")}) {
+    const auto r = shell(std::string("\"") + ESIM_EXE + "\" " + args + " \"" + out.string() + "\"");
+    EXPECT_EQ(r.exitCode, 2) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find("--out: another esim is writing '" + out.string() + "'"),
+              std::string::npos)
+        << args << "\n"
+        << r.output;
+  }
+  ::close(fd);
+  EXPECT_EQ(readFile(out / "sample_tissue.png"), "an earlier sample\n");
+  EXPECT_EQ(std::distance(fs::directory_iterator(out), fs::directory_iterator()), 1);
 }
 
 TEST_F(BenchCli, RenderSampleChecksItsOptionsBeforeMakingItsFolder) {

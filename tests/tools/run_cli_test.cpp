@@ -582,7 +582,9 @@ TEST(RunCli, ReportsThatCannotBeWrittenFailTheRunAndLeaveNoCutFile) {
   for (const auto& e : fs::directory_iterator(out.string() + ".partial")) {
     const std::string name = e.path().filename().string();
     EXPECT_EQ(name.find(".tmp"), std::string::npos) << name;
-    if (e.is_regular_file()) EXPECT_GT(fs::file_size(e.path()), 0u) << name;
+    if (e.is_regular_file()) {
+      EXPECT_GT(fs::file_size(e.path()), 0u) << name;
+    }
   }
   EXPECT_FALSE(fs::exists(out.string() + ".partial/trace.json"));
   fs::remove_all(out.string() + ".partial");

@@ -43,9 +43,10 @@ bool isReportFile(const fs::path& p) {
 
 // the report folder, new or emptied of an earlier report (only that: a folder holding
 // anything else is refused, nothing removed)
-void prepareReportFolder(const fs::path& dir) {
+void prepareReportFolder(const fs::path& dir, FolderLock& lock) {
   std::error_code ec;
-  if (fs::exists(dir, ec) && fs::is_directory(dir, ec)) {
+  createOutputFolder(dir, "--report", lock);  // (held before anything in it is judged)
+  {
     std::vector<fs::path> earlier;
     for (const fs::directory_entry& e : fs::directory_iterator(dir, ec)) {
       ESIM_VERIFY(e.is_regular_file(ec) && isReportFile(e.path()),
@@ -57,7 +58,6 @@ void prepareReportFolder(const fs::path& dir) {
     ESIM_VERIFY(!ec, "--report: cannot list '" + dir.string() + "': " + ec.message());
     for (const fs::path& p : earlier) fs::remove(p, ec);  // the earlier report replaced
   }
-  createOutputFolder(dir, "--report");
 }
 
 }  // namespace
@@ -78,7 +78,8 @@ CompareResult compareRuns(const std::string& runA, const std::string& runB,
   r.framesA = static_cast<int>(fa.size());
   r.framesB = static_cast<int>(fb.size());
   const int n = std::min(r.framesA, r.framesB);
-  if (!reportDir.empty()) prepareReportFolder(reportDir);
+  FolderLock reportLock;
+  if (!reportDir.empty()) prepareReportFolder(reportDir, reportLock);
   nlohmann::json frames = nlohmann::json::array();
   for (int f = 0; f < n; ++f) {
     if (fa[f].at("xxh3") == fb[f].at("xxh3")) continue;

@@ -266,12 +266,15 @@ std::filesystem::path defaultRunFolder(const std::string& scenarioName) {
   return fs::path("out") / (folder.empty() ? std::string("unnamed") : folder);
 }
 
-void createOutputFolder(const fs::path& dir, const std::string& option) {
+void createOutputFolder(const fs::path& dir, const std::string& option, FolderLock& lock) {
   std::error_code ec;
   ESIM_VERIFY(!fs::exists(dir, ec) || fs::is_directory(dir, ec),
               option + ": '" + dir.string() + "' is a file; expected a folder");
   fs::create_directories(dir, ec);
   ESIM_VERIFY(!ec, option + ": cannot create the folder '" + dir.string() + "': " + ec.message());
+  ESIM_VERIFY(lock.tryLock(dir, option), option + ": another esim is writing '" + dir.string() +
+                                             "'; give another folder, or wait for it to end "
+                                             "(nothing was changed)");
 }
 
 void writeFileAtomic(const fs::path& path, const std::string& text) {

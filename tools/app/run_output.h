@@ -96,9 +96,11 @@ std::filesystem::path defaultRunFolder(const std::string& scenarioName);
 
 // A folder of results that a command writes its named files into, replacing them (esim bench
 // accuracy --out, render-sample --out, compare --report): created with its parents when
-// missing; throws Error (Input) naming `option` and the path when it is a file or cannot be
-// created, before anything is computed
-void createOutputFolder(const std::filesystem::path& dir, const std::string& option);
+// missing, and held in `lock` (flock) while the command writes it: two commands into one
+// folder interleaved their files. Throws Error (Input) naming `option` and the path when it
+// is a file, cannot be created or another esim holds it, before anything is computed.
+void createOutputFolder(const std::filesystem::path& dir, const std::string& option,
+                        FolderLock& lock);
 
 // writes text to path whole: through a temporary file beside it (PATH.tmp<pid>), renamed into
 // place; throws Error (Run kind) when that fails, path untouched and the temporary removed

@@ -25,7 +25,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <functional>
 #include <iomanip>
 #include <iostream>
@@ -390,7 +389,8 @@ int benchAccuracy(const AccuracyOptions& opt) {
     }
     sw.points = kept;
   }
-  app::createOutputFolder(opt.out, "--out");
+  app::FolderLock outLock;
+  app::createOutputFolder(opt.out, "--out", outLock);
   std::printf(
       "esim bench accuracy%s: %s, %.2f s of the cut, %zu points + the reference, "
       "images %dx%d every %d frames\n",
@@ -444,8 +444,7 @@ int benchAccuracy(const AccuracyOptions& opt) {
                           frontEnergy = onFront(energyErr);
   // ---- 5. accuracy.csv ----
   const fs::path csvPath = fs::path(opt.out) / "accuracy.csv";
-  std::ofstream csv(csvPath);
-  ESIM_VERIFY(csv.good(), "--out: cannot write " + csvPath.string());
+  std::ostringstream csv;  // (each file written whole, or not at all: writeFileAtomic)
   csv << "name,knob,value,mark,baseline,nodes,tets,frames,fps,setup_s,physics_median_ms,physics_"
          "p95_ms,"
          "render_median_ms,render_p95_ms,frame_ms,energy_j,energy_err,probe_rms_k,probe_err,"
@@ -481,10 +480,10 @@ int benchAccuracy(const AccuracyOptions& opt) {
   row(sw.reference, ref, refErr, false, false, false);
   for (size_t i = 0; i < results.size(); ++i)
     row(sw.points[i], results[i], errors[i], frontDepth[i], frontIou[i], frontEnergy[i]);
-  csv.close();
+  app::writeFileAtomic(csvPath, csv.str());
   // ---- 6. accuracy.md ----
   const fs::path mdPath = fs::path(opt.out) / "accuracy.md";
-  std::ofstream md(mdPath);
+  std::ostringstream md;
   md << "`esim bench accuracy" << (opt.quick ? " --quick" : "") << "`: " << opt.scenario << ", "
      << num(seconds) << " s of the cut; reference " << ref.nodes << " nodes (graded), "
      << num(ref.fps) << " fps, capacitance, pixel shading + 4x MSAA: energy " << num(ref.energyJ)
@@ -563,7 +562,7 @@ int benchAccuracy(const AccuracyOptions& opt) {
        << num(exact)
        << " ohm (tools/app/analytic_disc.h), h = a / m:\n\n| m | nodes | R ohm | "
           "error | order | ms (assembly + factorization + solve) |\n|---|---|---|---|---|---|\n";
-    std::ofstream dcsv(fs::path(opt.out) / "analytic_disc.csv");
+    std::ostringstream dcsv;
     dcsv << "m,h_m,nodes,resistance_ohm,exact_ohm,error,order,ms\n";
     double prevErr = kNaN;
     int prevM = 0;
@@ -583,10 +582,11 @@ int benchAccuracy(const AccuracyOptions& opt) {
       prevErr = err;
       prevM = m;
     }
+    app::writeFileAtomic(fs::path(opt.out) / "analytic_disc.csv", dcsv.str());
   }
   md << "\nRerun a row: the `rerun` column of accuracy.csv (`esim bench accuracy --only NAME`); "
         "the `run_command` column is the same physics as an `esim run`.\n";
-  md.close();
+  app::writeFileAtomic(mdPath, md.str());
   std::printf("wrote %s, %s\n", csvPath.string().c_str(), mdPath.string().c_str());
   // ---- 7. accuracy_vs_time.png ----
   if (!opt.noPlot) {

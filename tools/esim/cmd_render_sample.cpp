@@ -60,7 +60,8 @@ int runRenderSample(const RenderSampleOptions& opt) {
     return ro;
   };
   validateRenderOptions(options("tissue"));  // before the folder is made: nothing left behind
-  app::createOutputFolder(opt.out, "--out");
+  app::FolderLock outLock;
+  app::createOutputFolder(opt.out, "--out", outLock);
   // 2-3. both looks
   for (const std::string look : {"temperature", "tissue"}) {
     const RenderOptions ro = options(look);
