@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <random>
 
 #include "sim/mesh_slab.h"
@@ -95,6 +96,41 @@ TEST(FemP1, RemovedTetsContributeNothing) {
   const double full = lumpedMass(m, geo, c).sum();
   m.alive[0] = 0;
   EXPECT_NEAR(lumpedMass(m, geo, c).sum(), full - geo[0].volume, 1e-18);
+}
+
+// the direct assembly equals the triplet assembly it replaced, bitwise (the sign of a zero
+// included), pattern and values, with dead tets and coefficients spanning 1e6
+TEST(FemP1, StiffnessIsBitwiseTheTripletAssembly) {
+  TetMesh m = jitteredSlab();
+  const auto geo = tetGeometry(m);
+  std::vector<double> c(m.numTets());
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(0.0, 6.0);
+  for (double& x : c) x = std::pow(10.0, u(rng) - 3.0);
+  for (int e = 0; e < m.numTets(); e += 7) m.alive[e] = 0;
+  for (int e : {1, 2, 3, 4, 5, 6}) m.alive[e] = 0;  // a node left with no alive tet
+  std::vector<Eigen::Triplet<double>> trip;
+  for (int e = 0; e < m.numTets(); ++e) {
+    if (!m.isAlive(e)) continue;
+    const Eigen::Matrix4d ke = c[e] * geo[e].volume * geo[e].grad * geo[e].grad.transpose();
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 4; ++b) trip.emplace_back(m.tets[e][a], m.tets[e][b], ke(a, b));
+  }
+  SparseMatrix expected(m.numNodes(), m.numNodes());
+  expected.setFromTriplets(trip.begin(), trip.end());
+  const SparseMatrix k = assembleStiffness(m, geo, c);
+  ASSERT_TRUE(k.isCompressed());
+  ASSERT_EQ(k.nonZeros(), expected.nonZeros());
+  for (int j = 0; j <= m.numNodes(); ++j)
+    ASSERT_EQ(k.outerIndexPtr()[j], expected.outerIndexPtr()[j]) << j;
+  for (Eigen::Index p = 0; p < k.nonZeros(); ++p) {
+    ASSERT_EQ(k.innerIndexPtr()[p], expected.innerIndexPtr()[p]) << p;
+    ASSERT_EQ(std::memcmp(k.valuePtr() + p, expected.valuePtr() + p, sizeof(double)), 0)
+        << p << ": " << k.valuePtr()[p] << " vs " << expected.valuePtr()[p];
+  }
+  // every tet dead: no entry
+  m.alive.assign(m.numTets(), 0);
+  EXPECT_EQ(assembleStiffness(m, geo, c).nonZeros(), 0);
 }
 
 // removeFromStiffness after three removals (a cluster, a lone tet, the cluster's
