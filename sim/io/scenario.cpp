@@ -18,6 +18,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <sstream>
 
 #include "sim/core_error.h"
@@ -100,6 +101,16 @@ std::string quoteInMessage(const std::string& text) {
 }
 
 Scenario loadScenario(const std::string& path, const std::vector<std::string>& overrides) {
+  if (path == "-") {
+    // standard input, read once (stdin cannot be read again: a bench that loads the scene
+    // per size got an empty scenario, i.e. the defaults, the second time)
+    static const std::string text = [] {
+      std::stringstream buffer;
+      buffer << std::cin.rdbuf();
+      return buffer.str();
+    }();
+    return parseScenario(text, "<stdin>", overrides);
+  }
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec))
     throw Error(path + ": is a folder; expected a scenario file (YAML, e.g. scenarios/*.yaml)");

@@ -308,7 +308,8 @@ struct Scenario {
 // ---- loading ----
 
 // reads, overrides (`key.path=value`, value parsed as YAML) and validates a scenario file;
-// a folder or an unreadable file is an Error naming it
+// a folder or an unreadable file is an Error naming it. "-" is standard input (read once;
+// named "<stdin>" in messages; relative asset paths from the working folder)
 Scenario loadScenario(const std::string& path, const std::vector<std::string>& overrides = {});
 
 // a value as quoted in an error message: 'text', or its first line cut at 60 characters with

@@ -12,6 +12,8 @@
 #include <string>
 #include <vector>
 
+#include "tests/tools/cli_test_util.h"
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -126,6 +128,25 @@ TEST(ValidateCli, BadInputExitsTwoWithTheMessage) {
       << mesh.output.substr(0, 1000);
   EXPECT_NE(mesh.output.find(" characters)"), std::string::npos) << mesh.output.substr(0, 1000);
   EXPECT_LT(mesh.output.size(), 1000u);
+}
+
+// "-" is standard input, read once, named <stdin> (it said "-: cannot open the scenario
+// file"); a bench that loads its scene per size gets the same scene each time
+TEST(ValidateCli, AScenarioFromStandardInput) {
+  using esim::cli_test::shell;
+  const std::string exe = std::string(ESIM_EXE);
+  esim::cli_test::Result r = shell("cat scenarios/paper_slab.yaml | " + exe + " validate -");
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_EQ(r.output.rfind("ok <stdin>: 120 frames (4 s at 30 fps)", 0), 0u) << r.output;
+  r = shell("printf 'time: {fps: 0}\\n' | " + exe + " validate -");
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_NE(r.output.find("error: <stdin>:1:13: time.fps = 0 is outside (0, 1000]"),
+            std::string::npos)
+      << r.output;
+  r = shell("cat scenarios/slab_cut.yaml | " + exe +
+            " bench cut --scenario - --sizes 27,400 --frames 2 --strategy update");
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_NE(r.output.find("update           405      2"), std::string::npos) << r.output;
 }
 
 TEST(ValidateCli, ReferenceIsTheCommittedPage) {

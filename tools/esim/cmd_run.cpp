@@ -34,7 +34,8 @@ Registrar reg(
       auto opt = std::make_shared<app::RunOptions>();
       // required, checked by the runner: `--labels SCENARIO` takes the scenario as
       // the label mode (an option with an optional value), which the runner undoes
-      app.add_option("scenario", opt->scenario, "scenario YAML file (required)");
+      app.add_option("scenario", opt->scenario,
+                     "scenario YAML file (required; - reads standard input)");
       app.add_option("-o,--out", opt->outDir,
                      "output folder (default out/<name>); never a folder of other "
                      "files, an earlier run only with --overwrite");

@@ -36,7 +36,7 @@ int runValidate(const ValidateOptions& opt) {
     try {
       const esim::Scenario s = esim::loadScenario(file, opt.overrides);
       esim::app::checkRunnable(s);
-      std::cout << "ok " << file << ": " << esim::scenarioSummary(s) << "\n";
+      std::cout << "ok " << s.sourceName << ": " << esim::scenarioSummary(s) << "\n";
     } catch (const esim::Error& e) {
       std::cerr << "error: " << e.what() << "\n";
       ++invalid;
@@ -62,7 +62,7 @@ const esim::cli::Registrar registerValidate(
           "  esim validate --reference > docs/scenario-reference.md\n"
           "Prints 'ok FILE: summary' or 'error: FILE:LINE:COL: field: message' per file.\n"
           "Exit codes: 0 all valid, 2 some file invalid (or bad options).");
-      app.add_option("scenarios", opt->files, "scenario YAML files");
+      app.add_option("scenarios", opt->files, "scenario YAML files (- reads standard input)");
       app.add_option("--set", opt->overrides,
                      "override a field: key.path=value (YAML value), repeatable")
           ->allow_extra_args(false);
