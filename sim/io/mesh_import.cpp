@@ -302,8 +302,8 @@ std::string slabTooLarge(const SlabSpec& spec) {
   return msg.str();
 }
 
-TetMesh tetrahedralize(const SurfaceMesh& surface, const MeshingOptions& options,
-                       const std::string& sourceName) {
+MeshingOptions checkMeshing(const SurfaceMesh& surface, const MeshingOptions& options,
+                            const std::string& sourceName) {
   // 1. options, derived sizes
   MeshingOptions opt = options;
   auto positive = [](double x) { return std::isfinite(x) && x > 0; };
@@ -359,7 +359,12 @@ TetMesh tetrahedralize(const SurfaceMesh& surface, const MeshingOptions& options
         << " m^3; check the units (the surface must be in metres) or use a larger cell size";
     throw Error(msg.str());
   }
+  return opt;
+}
 
+TetMesh tetrahedralize(const SurfaceMesh& surface, const MeshingOptions& options,
+                       const std::string& sourceName) {
+  const MeshingOptions opt = checkMeshing(surface, options, sourceName);  // 1-2
   // 3. Mesh_3, then checks
   TetMesh mesh;
   try {
@@ -377,6 +382,14 @@ TetMesh loadTetMesh(const std::string& path, const MeshingOptions& options, doub
   checkSurface(surface, path);
   orientOutward(surface);
   return tetrahedralize(surface, options, path);
+}
+
+void checkTetMeshSource(const std::string& path, const MeshingOptions& options,
+                        double scaleToMetres) {
+  SurfaceMesh surface = readSurface(path, scaleToMetres);
+  checkSurface(surface, path);
+  orientOutward(surface);
+  checkMeshing(surface, options, path);
 }
 
 }  // namespace esim

@@ -94,6 +94,13 @@ void checkSurface(const SurfaceMesh& surface, const std::string& source);
 // Flips every triangle if the enclosed volume is negative (surface already checked).
 void orientOutward(SurfaceMesh& surface);
 
+// Steps 1-2 of tetrahedralize, without Mesh_3: the options checked (derived sizes filled in,
+// returned) and the predicted tet count bounded by kMaxSceneTets (a unit mix-up, millimetres
+// read as metres, would mesh for hours). Throws esim::Error "<sourceName>: ..." as
+// tetrahedralize does.
+MeshingOptions checkMeshing(const SurfaceMesh& surface, const MeshingOptions& options,
+                            const std::string& sourceName);
+
 // Tetrahedralizes a checked closed surface with Mesh_3; the result is validated.
 // Throws esim::Error "<sourceName>: ..." on bad options or a failed meshing.
 TetMesh tetrahedralize(const SurfaceMesh& surface, const MeshingOptions& options,
@@ -102,5 +109,11 @@ TetMesh tetrahedralize(const SurfaceMesh& surface, const MeshingOptions& options
 // readSurface(path) -> checkSurface -> orientOutward -> tetrahedralize.
 TetMesh loadTetMesh(const std::string& path, const MeshingOptions& options,
                     double scaleToMetres = 1.0);
+
+// loadTetMesh up to Mesh_3 (checkMeshing): what esim validate checks of a file mesh, in a
+// fraction of a second, so that a file that validates is not refused at set-up for them
+// (a surface in millimetres validated "ok" and was refused by esim run)
+void checkTetMeshSource(const std::string& path, const MeshingOptions& options,
+                        double scaleToMetres = 1.0);
 
 }  // namespace esim

@@ -130,6 +130,38 @@ TEST(ValidateCli, BadInputExitsTwoWithTheMessage) {
   EXPECT_LT(mesh.output.size(), 1000u);
 }
 
+// A file mesh in millimetres (a 100 mm cube read as 100 m): validate said "ok" and esim run
+// refused it at set-up; validate now runs every check of the file mesh but Mesh_3 itself
+TEST(ValidateCli, ASurfaceInMillimetresIsRefusedAsTheRunRefusesIt) {
+  const fs::path dir = fs::temp_directory_path() / "esim_validate_cli_mm";
+  fs::create_directories(dir);
+  std::ofstream obj(dir / "cube_mm.obj");
+  for (int v = 0; v < 8; ++v)
+    obj << "v " << (v & 1) * 100 << " " << (v >> 1 & 1) * 100 << " " << (v >> 2 & 1) * 100 << "\n";
+  // 12 outward triangles (1-based)
+  obj << "f 1 3 2\nf 2 3 4\nf 5 6 7\nf 6 8 7\nf 1 2 5\nf 2 6 5\nf 3 7 4\nf 4 7 8\n"
+         "f 1 5 3\nf 3 5 7\nf 2 4 6\nf 4 8 6\n";
+  obj.close();
+  std::ofstream(dir / "mm.yaml") << "mesh:\n  source: file\n  file:\n    path: cube_mm.obj\n";
+  std::ofstream(dir / "m.yaml")
+      << "mesh:\n  source: file\n  file:\n    path: cube_mm.obj\n    scale_to_m: 0.001\n";
+  const Result mm = runEsim("validate \"" + (dir / "mm.yaml").string() + "\"");
+  EXPECT_EQ(mm.exitCode, 2) << mm.output;
+  EXPECT_NE(
+      mm.output.find("error: " + (dir / "mm.yaml").string() + ": " +
+                     (dir / "cube_mm.obj").string() + ": cell size 0.004 m would give about "),
+      std::string::npos)
+      << mm.output;
+  EXPECT_NE(mm.output.find("for an enclosed volume of 1e+06 m^3; check the units (the surface "
+                           "must be in metres)"),
+            std::string::npos)
+      << mm.output;
+  // the same surface scaled to metres validates
+  const Result m = runEsim("validate \"" + (dir / "m.yaml").string() + "\"");
+  EXPECT_EQ(m.exitCode, 0) << m.output;
+  fs::remove_all(dir);
+}
+
 // "-" is standard input, read once, named <stdin> (it said "-: cannot open the scenario
 // file"); a bench that loads its scene per size gets the same scene each time
 TEST(ValidateCli, AScenarioFromStandardInput) {

@@ -142,6 +142,11 @@ void checkRunnable(const Scenario& s, bool withMesh, bool noVideo) {
       validateRenderOptions(makeRenderOptions(s));
     if (s.output.video && !noVideo) validateVideoRate(s.time.fps);
     if (withMesh && s.mesh.source == MeshSource::Slab) validateSimulationMesh(buildMesh(s), config);
+    if (withMesh && s.mesh.source == MeshSource::File) {  // all but Mesh_3 itself
+      const ScenarioMeshFile& f = s.mesh.file;
+      checkTetMeshSource(f.resolvedPath.empty() ? f.path : f.resolvedPath, makeMeshingOptions(s),
+                         f.scaleToM);
+    }
   } catch (const Error& e) {
     rethrowNamingScenario(e, s);
   }
