@@ -29,6 +29,15 @@ TetMesh jitteredSlab() {
   return m;
 }
 
+// one coefficient a tet, log-uniform over 1e-3..1e3 (a spread of 1e6)
+std::vector<double> spreadCoefficients(const TetMesh& m, unsigned seed) {
+  std::vector<double> c(m.numTets());
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 6.0);
+  for (double& x : c) x = std::pow(10.0, u(rng) - 3.0);
+  return c;
+}
+
 TEST(FemP1, StiffnessIsSymmetricWithZeroRowSums) {
   const TetMesh m = jitteredSlab();
   const auto geo = tetGeometry(m);
@@ -103,10 +112,7 @@ TEST(FemP1, RemovedTetsContributeNothing) {
 TEST(FemP1, StiffnessIsBitwiseTheTripletAssembly) {
   TetMesh m = jitteredSlab();
   const auto geo = tetGeometry(m);
-  std::vector<double> c(m.numTets());
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<double> u(0.0, 6.0);
-  for (double& x : c) x = std::pow(10.0, u(rng) - 3.0);
+  const std::vector<double> c = spreadCoefficients(m, 5);
   for (int e = 0; e < m.numTets(); e += 7) m.alive[e] = 0;
   for (int e : {1, 2, 3, 4, 5, 6}) m.alive[e] = 0;  // a node left with no alive tet
   std::vector<Eigen::Triplet<double>> trip;
@@ -139,10 +145,7 @@ TEST(FemP1, StiffnessIsBitwiseTheTripletAssembly) {
 TEST(FemP1, RemoveFromStiffnessEqualsAFreshAssemblyBitwise) {
   TetMesh m = jitteredSlab();
   const auto geo = tetGeometry(m);
-  std::vector<double> c(m.numTets());
-  std::mt19937 rng(3);
-  std::uniform_real_distribution<double> u(0.0, 6.0);
-  for (double& x : c) x = std::pow(10.0, u(rng) - 3.0);
+  const std::vector<double> c = spreadCoefficients(m, 3);
   const Adjacency nt = nodeTets(m);
   SparseMatrix k = assembleStiffness(m, geo, c);
   const std::vector<std::vector<int>> removals{{0, 1, 2, 3, 4, 5}, {m.numTets() / 2}, {6, 7, 8, 9}};
