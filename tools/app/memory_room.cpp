@@ -49,14 +49,15 @@ double cgroupValue(const fs::path& file) {
   return end && *end == '\0' ? v : std::nan("");
 }
 
-// "key N" in a memory.stat file (0 if absent)
-double statValue(const fs::path& file, const std::string& key) {
+// N of a "key N" line (memory.stat, memory.events, memory.oom_control, /proc/vmstat), or
+// `absent`
+double keyedValue(const fs::path& file, const std::string& key, double absent) {
   std::ifstream in(file);
   std::string k;
   double v = 0;
   while (in >> k >> v)
     if (k == key) return v;
-  return 0;
+  return absent;
 }
 
 std::string gigabytes(double bytes) {
@@ -70,6 +71,24 @@ struct CgroupRoom {
   fs::path dir;       // the group whose limit leaves the least
   double limit = -1;  // its limit
 };
+
+// the memory hierarchies of a /proc/PID/cgroup file: {v2, path}, from "0::/path" (v2) and
+// "N:memory:/path" or "N:cpu,memory:/path" (v1)
+std::vector<std::pair<bool, std::string>> memoryHierarchies(const fs::path& cgroupFile) {
+  std::vector<std::pair<bool, std::string>> found;
+  std::ifstream groups(cgroupFile);
+  std::string line;
+  while (std::getline(groups, line)) {
+    const size_t a = line.find(':'), b = a == std::string::npos ? a : line.find(':', a + 1);
+    if (b == std::string::npos) continue;
+    const std::string controllers = line.substr(a + 1, b - a - 1), rel = line.substr(b + 1);
+    if (controllers.empty())
+      found.emplace_back(true, rel);
+    else if (("," + controllers + ",").find(",memory,") != std::string::npos)
+      found.emplace_back(false, rel);
+  }
+  return found;
+}
 
 // the least room left by the memory limits of the group at rel under mount and of every
 // group above it (a namespaced container sees its own group as mount's root: rel is then
@@ -85,7 +104,7 @@ void walkGroups(const fs::path& mount, const std::string& rel, bool v2, CgroupRo
       double used = cgroupValue(dir / (v2 ? "memory.current" : "memory.usage_in_bytes"));
       if (std::isnan(used)) used = 0;
       // page cache the kernel reclaims before it kills counts as room
-      used -= statValue(dir / "memory.stat", v2 ? "inactive_file" : "total_inactive_file");
+      used -= keyedValue(dir / "memory.stat", v2 ? "inactive_file" : "total_inactive_file", 0);
       const double room = std::max(0.0, limit - std::max(0.0, used));
       if (room < best.bytes) best = {room, dir, limit};
     }
@@ -105,23 +124,9 @@ MemoryRoom memoryRoom(const fs::path& root, int share) {
   const double swap = std::max(0.0, procBytes(root / "proc/meminfo", "SwapFree"));
   r.bytes = available + swap;
   r.boundBy = "the machine has " + gigabytes(r.bytes) + " available (MemAvailable + SwapFree)";
-  // /proc/self/cgroup: "0::/path" (v2), "N:memory:/path" or "N:cpu,memory:/path" (v1)
   CgroupRoom best;
-  std::ifstream groups(root / "proc/self/cgroup");
-  std::string line;
-  while (std::getline(groups, line)) {
-    const size_t a = line.find(':'), b = a == std::string::npos ? a : line.find(':', a + 1);
-    if (b == std::string::npos) continue;
-    const std::string controllers = line.substr(a + 1, b - a - 1), rel = line.substr(b + 1);
-    if (controllers.empty()) {
-      walkGroups(root / "sys/fs/cgroup", rel, true, best);
-    } else {
-      std::istringstream list(controllers);
-      std::string c;
-      while (std::getline(list, c, ','))
-        if (c == "memory") walkGroups(root / "sys/fs/cgroup/memory", rel, false, best);
-    }
-  }
+  for (const auto& [v2, rel] : memoryHierarchies(root / "proc/self/cgroup"))
+    walkGroups(root / (v2 ? "sys/fs/cgroup" : "sys/fs/cgroup/memory"), rel, v2, best);
   if (best.bytes < r.bytes) {
     r.bytes = best.bytes;
     r.boundBy = "its memory cgroup " + best.dir.string() + " has " + gigabytes(r.bytes) + " left";
@@ -186,34 +191,15 @@ void markNormalExit() {
 // group (/proc/vmstat), so that a kill elsewhere on the machine is not taken for ours. -1
 // when none of these can be read.
 double oomKills() {
-  const auto read = [](const fs::path& file) {
-    std::ifstream in(file);
-    std::string key;
-    double v = 0;
-    while (in >> key >> v)
-      if (key == "oom_kill") return v;
-    return -1.0;
-  };
-  std::ifstream groups("/proc/self/cgroup");
-  std::string line;
-  while (std::getline(groups, line)) {
-    const size_t a = line.find(':'), b = a == std::string::npos ? a : line.find(':', a + 1);
-    if (b == std::string::npos) continue;
-    const std::string controllers = line.substr(a + 1, b - a - 1);
-    const fs::path rel = fs::path(line.substr(b + 1)).relative_path();
-    double v = -1;
-    if (controllers.empty())
-      v = read(fs::path("/sys/fs/cgroup") / rel / "memory.events");
-    else if (("," + controllers + ",").find(",memory,") != std::string::npos)
-      v = read(fs::path("/sys/fs/cgroup/memory") / rel / "memory.oom_control");
+  for (const auto& [v2, path] : memoryHierarchies("/proc/self/cgroup")) {
+    const fs::path rel = fs::path(path).relative_path();
+    const double v =
+        v2 ? keyedValue(fs::path("/sys/fs/cgroup") / rel / "memory.events", "oom_kill", -1)
+           : keyedValue(fs::path("/sys/fs/cgroup/memory") / rel / "memory.oom_control", "oom_kill",
+                        -1);
     if (v >= 0) return v;
   }
-  std::ifstream in("/proc/vmstat");
-  std::string key;
-  double v = 0;
-  while (in >> key >> v)
-    if (key == "oom_kill") return v;
-  return -1;
+  return keyedValue("/proc/vmstat", "oom_kill", -1);
 }
 
 // the message of the watcher: what ended the process and the memory it could have had
