@@ -377,19 +377,23 @@ TetMesh tetrahedralize(const SurfaceMesh& surface, const MeshingOptions& options
   return mesh;
 }
 
-TetMesh loadTetMesh(const std::string& path, const MeshingOptions& options, double scaleToMetres) {
+namespace {
+// readSurface -> checkSurface -> orientOutward
+SurfaceMesh checkedSurface(const std::string& path, double scaleToMetres) {
   SurfaceMesh surface = readSurface(path, scaleToMetres);
   checkSurface(surface, path);
   orientOutward(surface);
-  return tetrahedralize(surface, options, path);
+  return surface;
+}
+}  // namespace
+
+TetMesh loadTetMesh(const std::string& path, const MeshingOptions& options, double scaleToMetres) {
+  return tetrahedralize(checkedSurface(path, scaleToMetres), options, path);
 }
 
 void checkTetMeshSource(const std::string& path, const MeshingOptions& options,
                         double scaleToMetres) {
-  SurfaceMesh surface = readSurface(path, scaleToMetres);
-  checkSurface(surface, path);
-  orientOutward(surface);
-  checkMeshing(surface, options, path);
+  checkMeshing(checkedSurface(path, scaleToMetres), options, path);
 }
 
 }  // namespace esim

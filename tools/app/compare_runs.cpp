@@ -44,20 +44,18 @@ bool isReportFile(const fs::path& p) {
 // the report folder, new or emptied of an earlier report (only that: a folder holding
 // anything else is refused, nothing removed)
 void prepareReportFolder(const fs::path& dir, FolderLock& lock) {
-  std::error_code ec;
   createOutputFolder(dir, "--report", lock);  // (held before anything in it is judged)
-  {
-    std::vector<fs::path> earlier;
-    for (const fs::directory_entry& e : fs::directory_iterator(dir, ec)) {
-      ESIM_VERIFY(e.is_regular_file(ec) && isReportFile(e.path()),
-                  "--report: '" + dir.string() + "' holds '" + e.path().filename().string() +
-                      "', which is not a file of an esim compare report; give a new or empty "
-                      "folder (nothing was changed)");
-      earlier.push_back(e.path());
-    }
-    ESIM_VERIFY(!ec, "--report: cannot list '" + dir.string() + "': " + ec.message());
-    for (const fs::path& p : earlier) fs::remove(p, ec);  // the earlier report replaced
+  std::error_code ec;
+  std::vector<fs::path> earlier;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir, ec)) {
+    ESIM_VERIFY(e.is_regular_file(ec) && isReportFile(e.path()),
+                "--report: '" + dir.string() + "' holds '" + e.path().filename().string() +
+                    "', which is not a file of an esim compare report; give a new or empty "
+                    "folder (nothing was changed)");
+    earlier.push_back(e.path());
   }
+  ESIM_VERIFY(!ec, "--report: cannot list '" + dir.string() + "': " + ec.message());
+  for (const fs::path& p : earlier) fs::remove(p, ec);  // the earlier report replaced
 }
 
 }  // namespace

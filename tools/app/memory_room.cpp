@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
@@ -13,6 +14,7 @@
 #include <fstream>
 #include <limits>
 #include <sstream>
+#include <utility>
 #include <vector>
 
 namespace esim::app {
@@ -23,6 +25,9 @@ namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 // v1 writes "no limit" as PAGE_COUNTER_MAX pages (9223372036854771712 with 4 KiB pages)
 constexpr double kUnlimitedV1 = 1e18;
+
+std::string gAddressSpaceBound;  // what boundAddressSpace set (addressSpaceBound)
+int gWatcherPipe = -1;           // watchOutOfMemory's write end, held by the watched process
 
 // a "Key:   N kB" line of a /proc file, in bytes (-1 if absent)
 double procBytes(const fs::path& file, const std::string& key) {
@@ -149,13 +154,6 @@ int memoryShareFromEnvironment() {
   return end != v && *end == '\0' && n >= 1 && n <= 4096 ? static_cast<int>(n) : 1;
 }
 
-namespace {
-std::string& boundText() {
-  static std::string text;
-  return text;
-}
-}  // namespace
-
 void boundAddressSpace() {
 #if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
   const double mapped = procBytes("/proc/self/status", "VmSize");
@@ -168,16 +166,14 @@ void boundAddressSpace() {
   limit.rlim_cur = static_cast<rlim_t>(bound);
   if (limit.rlim_max != RLIM_INFINITY) limit.rlim_cur = std::min(limit.rlim_cur, limit.rlim_max);
   if (setrlimit(RLIMIT_AS, &limit) != 0) return;
-  boundText() = "esim bounded itself to " + gigabytes(static_cast<double>(limit.rlim_cur)) +
-                " of address space: " + room.boundBy;
+  gAddressSpaceBound = "esim bounded itself to " + gigabytes(static_cast<double>(limit.rlim_cur)) +
+                       " of address space: " + room.boundBy;
 #endif
 }
 
-const std::string& addressSpaceBound() { return boundText(); }
+const std::string& addressSpaceBound() { return gAddressSpaceBound; }
 
 namespace {
-
-int gWatcherPipe = -1;  // the write end, held by the watched process
 
 void markNormalExit() {
   if (gWatcherPipe < 0) return;
