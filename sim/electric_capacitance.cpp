@@ -45,7 +45,7 @@
 //        the default. Its updates were also 1.5-2.5x slower than Woodbury's.
 //      Afterwards Y = K'^-1 I_:S (S: the changed rows staying free; Woodbury: from Y0
 //      without a solve) must satisfy ||K' Y - I||_F / sqrt(s) <= 1e-10
-//      (ElectricSolverOptions::capacitanceUpdateResidual; and, Downdate, every pivot > 0).
+//      (ElectricSolverOptions::updateResidual; and, Downdate, every pivot > 0).
 //      Woodbury: else Y takes one step of iterative refinement (s solves with the same
 //      operator), and so does every later solve with this term (stats.refined), until the
 //      next factor replaces the term, when its s solves cost under half a factorization
@@ -203,7 +203,7 @@ class CapacitanceSolver final : public ElectricSolver {
       if (!stats.refactored) {
         y = inverseColumns(rows);
         double residual = identityResidual(rows, y);
-        if (!(residual <= options_.capacitanceUpdateResidual) && !downdate &&
+        if (!(residual <= options_.updateResidual) && !downdate &&
             rowSolveFlops(rows.size()) <= kRefineShare * factor_.factorizeFlops()) {
           // one step of iterative refinement, here and in every later solve with this term
           // (see refine_), where it costs less than a refactorization in the frame
@@ -212,7 +212,7 @@ class CapacitanceSolver final : public ElectricSolver {
           refineIdentity(rows, y);
           residual = identityResidual(rows, y);
         }
-        if (!(residual <= options_.capacitanceUpdateResidual)) {
+        if (!(residual <= options_.updateResidual)) {
           if (downdate)
             return fallBack("the updated factor solves to a residual of " +
                             messageNumber(residual));

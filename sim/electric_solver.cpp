@@ -38,8 +38,9 @@ ElectricStrategy parseElectricStrategy(const std::string& name) {
   if (name == "dense-inverse") return ElectricStrategy::DenseInverse;
   if (name == "capacitance") return ElectricStrategy::Capacitance;
   if (name == "pcg") return ElectricStrategy::Pcg;
+  if (name == "auto") return ElectricStrategy::Auto;
   throw Error("electric solver: unknown strategy '" + name +
-              "'; valid names: refactor, dense-inverse, capacitance, pcg");
+              "'; valid names: refactor, dense-inverse, capacitance, pcg, auto");
 }
 
 const char* electricStrategyName(ElectricStrategy strategy) {
@@ -52,6 +53,8 @@ const char* electricStrategyName(ElectricStrategy strategy) {
       return "capacitance";
     case ElectricStrategy::Pcg:
       return "pcg";
+    case ElectricStrategy::Auto:
+      return "auto";
   }
   return "?";
 }
@@ -61,15 +64,22 @@ void validateElectricSolverOptions(const ElectricSolverOptions& options) {
   ESIM_VERIFY(options.pcgTolerance > 0 && std::isfinite(options.pcgTolerance),
               "solvers.electric.tolerance must be a positive number");
   ESIM_VERIFY(options.pcgMaxIterations >= 1, "solvers.electric.max_iterations must be >= 1");
-  ESIM_VERIFY(
-      options.capacitanceUpdateResidual > 0 && std::isfinite(options.capacitanceUpdateResidual),
-      "electric solver: capacitanceUpdateResidual must be a positive number");
+  ESIM_VERIFY(options.updateResidual > 0 && std::isfinite(options.updateResidual),
+              "electric solver: updateResidual must be a positive number");
   ESIM_VERIFY(options.denseMemoryLimitBytes > 0,
               "solvers.electric.dense_memory_limit_mb must be > 0");
 }
 
+ElectricStrategy resolveElectricStrategy(const ElectricSolverOptions& options, double freeNodes) {
+  if (options.strategy != ElectricStrategy::Auto) return options.strategy;
+  const bool denseFits = 8.0 * freeNodes * freeNodes <= options.denseMemoryLimitBytes;
+  return freeNodes <= kAutoDenseMaxFreeNodes && denseFits ? ElectricStrategy::DenseInverse
+                                                          : ElectricStrategy::Capacitance;
+}
+
 std::unique_ptr<ElectricSolver> makeElectricSolver(const ElectricSolverOptions& options) {
   validateElectricSolverOptions(options);
+  ESIM_CHECK(options.strategy != ElectricStrategy::Auto);  // resolveElectricStrategy first
   switch (options.strategy) {
     case ElectricStrategy::Refactor:
       return electric_detail::makeRefactorSolver(options);
@@ -79,6 +89,8 @@ std::unique_ptr<ElectricSolver> makeElectricSolver(const ElectricSolverOptions& 
       return electric_detail::makeCapacitanceSolver(options);
     case ElectricStrategy::Pcg:
       return electric_detail::makePcgSolver(options);
+    case ElectricStrategy::Auto:
+      break;
   }
   throw Error("electric solver: bad strategy value");
 }

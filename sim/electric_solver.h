@@ -106,7 +106,8 @@
 
 namespace esim {
 
-enum class ElectricStrategy { Refactor, DenseInverse, Capacitance, Pcg };
+// Auto is not a solver: resolveElectricStrategy turns it into one for a mesh's size
+enum class ElectricStrategy { Refactor, DenseInverse, Capacitance, Pcg, Auto };
 
 enum class PcgPreconditioner { Jacobi, IncompleteCholesky };
 
@@ -116,7 +117,8 @@ enum class CapacitanceUpdate {
   Downdate   // modify a simplicial LDL' factor (CHOLMOD rowdel, updown): slower solves
 };
 
-// "refactor", "dense-inverse", "capacitance", "pcg"; throws Error listing the valid names
+// "refactor", "dense-inverse", "capacitance", "pcg", "auto"; throws Error listing the valid
+// names
 ElectricStrategy parseElectricStrategy(const std::string& name);
 
 // the name parseElectricStrategy accepts
@@ -131,14 +133,26 @@ struct ElectricSolverOptions {
   double cacheMemoryLimitBytes = 1e9;                 // capacitance column cache cap (LRU eviction)
   int capacitancePatchNodes = 16;                     // capacitance: candidates solved together
   CapacitanceUpdate capacitanceUpdate = CapacitanceUpdate::Woodbury;  // capacitance updateMatrix
-  // capacitance updateMatrix: ||K' Y - I||_F / sqrt(s) the modified factor must reach on the
-  // s rows it changed (Y = K'^-1 I_:S); Woodbury refines once, then refactorizes, above it
-  double capacitanceUpdateResidual = 1e-10;
+  // updateMatrix (capacitance, dense-inverse): ||K' Y - I||_F / sqrt(s) the updated factor or
+  // inverse must reach on the s rows it changed (Y = K'^-1 I_:S); above it capacitance's
+  // Woodbury term refines once, then refactorizes, and dense-inverse recomputes
+  double updateResidual = 1e-10;
   int threads = 1;  // BLAS threads (CHOLMOD supernodal uses BLAS)
 };
 
 // Checks the options; throws Error naming the scenario key (solvers.electric.*).
 void validateElectricSolverOptions(const ElectricSolverOptions& options);
+
+// The strategy that solves fastest for freeNodes unknowns (nodes off the return electrode):
+// options.strategy unless it is Auto; then the paper's dense inverse up to
+// kAutoDenseMaxFreeNodes (and within denseMemoryLimitBytes), capacitance above.
+ElectricStrategy resolveElectricStrategy(const ElectricSolverOptions& options, double freeNodes);
+// Measured on the cut (esim bench cut --strategy update --set solvers.electric.strategy=S,
+// README "The cut"): at 1012 nodes (863 free) the dense inverse's update (one rank-s dgemm)
+// gave a frame p95 of 1.4-1.8 ms against 2.4-3.4 ms for capacitance (whose Woodbury term and
+// factor adoption cost 1-4 ms there); at 2002 nodes about even; at 3996 nodes capacitance's
+// median 8.3 ms against 12.9 ms.
+inline constexpr double kAutoDenseMaxFreeNodes = 1500;
 
 struct ElectricSolveStats {
   bool refactored = false;  // refactor: the matrix was factorized in this solve

@@ -190,13 +190,16 @@ void validateSimulationMesh(const TetMesh& meshIn, const SimulationConfig& confi
   validateMesh(mesh, "mesh");
   const std::vector<BoundaryFace> surface = boundaryFaces(mesh);
   const std::vector<int> surfaceNodes = boundaryNodes(mesh, surface);
+  const double ground =
+      config.phases.electric
+          ? static_cast<double>(
+                returnElectrodeNodes(mesh, surfaceNodes, config.returnElectrode).size())
+          : 0.0;
   if (config.phases.electric)
-    ESIM_VERIFY(!returnElectrodeNodes(mesh, surfaceNodes, config.returnElectrode).empty(),
-                returnElectrodeMessage(config.returnElectrode));
-  if (config.phases.electric && config.electricSolver.strategy == ElectricStrategy::DenseInverse) {
-    const double nf = mesh.numNodes() -
-                      static_cast<double>(
-                          returnElectrodeNodes(mesh, surfaceNodes, config.returnElectrode).size());
+    ESIM_VERIFY(ground > 0, returnElectrodeMessage(config.returnElectrode));
+  const double nf = mesh.numNodes() - ground;
+  if (config.phases.electric &&
+      resolveElectricStrategy(config.electricSolver, nf) == ElectricStrategy::DenseInverse) {
     const double need = 8.0 * nf * nf;
     ESIM_VERIFY(need <= config.electricSolver.denseMemoryLimitBytes,
                 "solvers.electric.strategy: dense-inverse needs " + std::to_string(need / 1e9) +
@@ -245,8 +248,11 @@ void Simulation::buildInitialModel(TetMesh mesh) {
   m.initialFaces = std::move(initialFaces);
   const PhaseSet& ph = config_.phases;
   if (ph.electric) {
-    ESIM_VERIFY(!returnElectrodeNodes(mesh, surfaceNodes, config_.returnElectrode).empty(),
-                returnElectrodeMessage(config_.returnElectrode));
+    const size_t ground = returnElectrodeNodes(mesh, surfaceNodes, config_.returnElectrode).size();
+    ESIM_VERIFY(ground > 0, returnElectrodeMessage(config_.returnElectrode));
+    // auto: one strategy for the whole run, from the initial mesh (a rebuild keeps it)
+    config_.electricSolver.strategy = resolveElectricStrategy(
+        config_.electricSolver, static_cast<double>(mesh.numNodes() - ground));
   }
   if (ph.thermal && config_.coolTopSurface && config_.thermal.convectionW_m2K > 0) {
     for (const auto& f : surface) {

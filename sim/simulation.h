@@ -152,7 +152,8 @@ struct SimulationConfig {
   ElectrodeShape electrode;
   ReturnElectrode returnElectrode;
   ToolPath toolPath;
-  ElectricSolverOptions electricSolver;
+  // auto: the dense inverse on small meshes, capacitance above (resolveElectricStrategy)
+  ElectricSolverOptions electricSolver{.strategy = ElectricStrategy::Auto};
   // pre-processing: the solver precomputes what the scripted tool path will touch in
   // [0, prefetchUntilS] (capacitance: the columns of those nodes), so that frames need no
   // new column; 0 disables it (a live, unscripted tool)

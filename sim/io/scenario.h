@@ -200,7 +200,7 @@ struct ScenarioSubgridContact {
 };
 
 struct ScenarioSolvers {
-  // refactor|dense-inverse|capacitance|pcg
+  // refactor|dense-inverse|capacitance|pcg|auto
   ElectricStrategy electricStrategy = scenario_detail::core().electricSolver.strategy;
   // pcg relative residual
   double electricTolerance = scenario_detail::core().electricSolver.pcgTolerance;

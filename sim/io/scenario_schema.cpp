@@ -261,9 +261,11 @@ const std::vector<Field>& schema() {
                        "that cuts')"));
     // solvers
     f.push_back(choice("solvers.electric.strategy", ESIM_ENUM_REF(solvers.electricStrategy),
-                       {"refactor", "dense-inverse", "capacitance", "pcg"},
+                       {"refactor", "dense-inverse", "capacitance", "pcg", "auto"},
                        "electric solver: refactor per contact change, the paper's dense inverse, "
-                       "cached sparse columns, or warm-started CG"));
+                       "cached sparse columns, warm-started CG, or auto: the dense inverse up "
+                       "to 1500 nodes off the return electrode, capacitance above (the faster "
+                       "on the cut, measured: README 'The cut')"));
     f.push_back(number("solvers.electric.tolerance", ESIM_REF(solvers.electricTolerance), "",
                        {0.0, 1.0, true, true}, "relative residual for pcg"));
     f.push_back(integer("solvers.electric.max_iterations", ESIM_REF(solvers.electricMaxIterations),

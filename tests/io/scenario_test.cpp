@@ -77,7 +77,7 @@ TEST(Scenario, DefaultsAreThePapersValues) {
   ASSERT_EQ(s.tool.generatorOnS.size(), 1u);
   EXPECT_EQ(s.tool.generatorOnS[0][0], 0.0);
   EXPECT_TRUE(std::isinf(s.tool.generatorOnS[0][1]));
-  EXPECT_EQ(s.solvers.electricStrategy, ElectricStrategy::Capacitance);
+  EXPECT_EQ(s.solvers.electricStrategy, ElectricStrategy::Auto);
   EXPECT_EQ(s.look.width, 1280);
   EXPECT_EQ(s.look.height, 720);
 }

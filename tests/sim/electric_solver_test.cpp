@@ -111,8 +111,32 @@ TEST(ElectricSolver, StrategyNamesRoundTripAndUnknownNameIsAnError) {
   } catch (const Error& e) {
     const std::string msg = e.what();
     EXPECT_NE(msg.find("cholesky"), std::string::npos);
-    for (const char* name : {"refactor", "dense-inverse", "capacitance", "pcg"})
+    for (const char* name : {"refactor", "dense-inverse", "capacitance", "pcg", "auto"})
       EXPECT_NE(msg.find(name), std::string::npos) << msg;
+  }
+}
+
+// auto is resolved by the mesh's size: the dense inverse up to kAutoDenseMaxFreeNodes free
+// nodes (and within its memory limit), capacitance above; explicit strategies stay as they
+// are; a solver is never made for auto itself
+TEST(ElectricSolver, AutoPicksTheDenseInverseOnSmallMeshesAndCapacitanceAbove) {
+  EXPECT_EQ(parseElectricStrategy("auto"), ElectricStrategy::Auto);
+  EXPECT_STREQ(electricStrategyName(ElectricStrategy::Auto), "auto");
+  ElectricSolverOptions o{.strategy = ElectricStrategy::Auto};
+  EXPECT_EQ(resolveElectricStrategy(o, 863), ElectricStrategy::DenseInverse);
+  EXPECT_EQ(resolveElectricStrategy(o, kAutoDenseMaxFreeNodes), ElectricStrategy::DenseInverse);
+  EXPECT_EQ(resolveElectricStrategy(o, kAutoDenseMaxFreeNodes + 1), ElectricStrategy::Capacitance);
+  EXPECT_EQ(resolveElectricStrategy(o, 49966), ElectricStrategy::Capacitance);
+  o.denseMemoryLimitBytes = 8.0 * 863 * 863 - 1;  // 863 free nodes no longer fit
+  EXPECT_EQ(resolveElectricStrategy(o, 863), ElectricStrategy::Capacitance);
+  EXPECT_EQ(resolveElectricStrategy(o, 862), ElectricStrategy::DenseInverse);
+  for (ElectricStrategy s : kAll)
+    EXPECT_EQ(resolveElectricStrategy({.strategy = s}, 1e6), s) << electricStrategyName(s);
+  try {
+    makeElectricSolver({.strategy = ElectricStrategy::Auto});
+    ADD_FAILURE() << "a solver was made for auto";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Internal) << e.what();
   }
 }
 
@@ -840,7 +864,7 @@ TEST(ElectricSolverUpdate, CapacitanceWoodburyTermMissingItsCheckIsRefinedWhereT
     const auto sets = sampleContacts(p);
     CutSlab cut(nodes);
     ElectricSolverOptions strict{.strategy = ElectricStrategy::Capacitance};
-    strict.capacitanceUpdateResidual = 5e-14;
+    strict.updateResidual = 5e-14;
     auto solver = makeElectricSolver(strict);
     solver->setContactCandidates(cut.surface);
     solver->setMatrix(cut.K, cut.grounded);
@@ -862,14 +886,51 @@ TEST(ElectricSolverUpdate, CapacitanceWoodburyTermMissingItsCheckIsRefinedWhereT
     }
   }
   ElectricSolverOptions bad{.strategy = ElectricStrategy::Capacitance};
-  bad.capacitanceUpdateResidual = 0;
+  bad.updateResidual = 0;
   try {
     makeElectricSolver(bad);
-    ADD_FAILURE() << "a zero capacitanceUpdateResidual was accepted";
+    ADD_FAILURE() << "a zero updateResidual was accepted";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("capacitanceUpdateResidual must be a positive"),
-              std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("updateResidual must be a positive"), std::string::npos)
         << e.what();
+  }
+}
+
+// dense-inverse: an update whose inverse misses the accuracy check on the rows it changed
+// is recomputed (a fallback that names the residual), so no error stays in the inverse;
+// with the default check the cuts along the line are all updated in place. Either way
+// every contact set's potential is within 1e-9 of a fresh solver's.
+TEST(ElectricSolverUpdate, DenseInverseUpdateMissingItsCheckIsRecomputed) {
+  const Problem p = paperSlab(1013);
+  const auto sets = sampleContacts(p);
+  for (const double check : {1e-10, 1e-30}) {
+    SCOPED_TRACE("check " + messageNumber(check));
+    CutSlab cut(1013);
+    ElectricSolverOptions o{.strategy = ElectricStrategy::DenseInverse};
+    o.updateResidual = check;
+    auto solver = makeElectricSolver(o);
+    solver->setMatrix(cut.K, cut.grounded);
+    int recomputed = 0;
+    for (int k = 0; k < 6; ++k) {
+      cut.remove(cut.aliveTetsWith(cut.nearestNode(Vec3(-0.04 + 0.006 * k, -0.03, 0.01))));
+      const ElectricUpdateStats st = solver->updateMatrix(cut.K, cut.grounded);
+      EXPECT_GT(st.rank, 0);
+      if (st.fellBack) {
+        ++recomputed;
+        EXPECT_NE(st.fallbackReason.find("the updated inverse solves to a residual of"),
+                  std::string::npos)
+            << st.fallbackReason;
+      }
+      auto fresh = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
+      fresh->setMatrix(cut.K, cut.grounded);
+      Eigen::VectorXd u, uf;
+      for (const auto& contact : sets) {
+        solver->solve(contact, kVolt, u);
+        fresh->solve(contact, kVolt, uf);
+        EXPECT_LT(relError(u, uf), 1e-9) << "cut " << k;
+      }
+    }
+    EXPECT_EQ(recomputed, check < 1e-20 ? 6 : 0);
   }
 }
 

@@ -55,6 +55,26 @@ TEST(Simulation, ElectricOnlyBuildsNoThermalStage) {
   EXPECT_GT(r.powerW, 0.0);
 }
 
+// the default electric strategy, auto, is resolved once from the initial mesh: the paper's
+// dense inverse on a small slab, capacitance on a larger one; an explicit one is kept
+TEST(Simulation, AutoElectricStrategyFollowsTheMeshSize) {
+  SlabSpec small;
+  small.sizeM = Vec3(0.06, 0.06, 0.01);
+  small.nodesPerAxis = {10, 10, 5};
+  EXPECT_EQ(Simulation(makeSlab(small), cutConfig(false)).electricSolverName(), "dense-inverse");
+  EXPECT_EQ(Simulation(smallSlab(), cutConfig(false)).electricSolverName(), "capacitance");
+  SimulationConfig pcg = cutConfig(false);
+  pcg.electricSolver.strategy = ElectricStrategy::Pcg;
+  EXPECT_EQ(Simulation(makeSlab(small), pcg).electricSolverName(), "pcg");
+  // the same potential either way
+  SimulationConfig cap = cutConfig(false);
+  cap.electricSolver.strategy = ElectricStrategy::Capacitance;
+  Simulation a(makeSlab(small), cutConfig(false)), b(makeSlab(small), cap);
+  const double ia = a.step().toolCurrentA, ib = b.step().toolCurrentA;
+  EXPECT_GT(ia, 0.0);
+  EXPECT_NEAR(ia, ib, 1e-12 * ib);
+}
+
 TEST(Simulation, CurrentIsConservedAndPowerIsVoltageTimesCurrent) {
   Simulation sim(smallSlab(), cutConfig(false));
   for (int f = 0; f < 5; ++f) {
