@@ -147,12 +147,14 @@ void validateElectricSolverOptions(const ElectricSolverOptions& options);
 // options.strategy unless it is Auto; then the paper's dense inverse up to
 // kAutoDenseMaxFreeNodes (and within denseMemoryLimitBytes), capacitance above.
 ElectricStrategy resolveElectricStrategy(const ElectricSolverOptions& options, double freeNodes);
-// Measured on the cut (esim bench cut --strategy update --set solvers.electric.strategy=S,
-// README "The cut"): at 1012 nodes (863 free) the dense inverse's update (one rank-s dgemm)
-// gave a frame p95 of 1.4-1.8 ms against 2.4-3.4 ms for capacitance (whose Woodbury term and
-// factor adoption cost 1-4 ms there); at 2002 nodes about even; at 3996 nodes capacitance's
-// median 8.3 ms against 12.9 ms.
-inline constexpr double kAutoDenseMaxFreeNodes = 1500;
+// Measured on the cut, physics per frame (esim bench cut --strategy update --set
+// solvers.electric.strategy=S, README "The cut"): at 1012 nodes (863 free) the dense
+// inverse's update (one rank-s dgemm) gave a p95 of 1.9-2.4 ms against 2.4-3.9 ms for
+// capacitance (five alternating pairs; its Woodbury term and factor adoption cost 1-4 ms
+// there); at 1500, 2002 and 2976 nodes the dense inverse was ahead in median and p95 (2976:
+// 3.5 / 9.3-9.8 ms against 3.7-4.0 / 11.2-12.2 ms); at 3996 nodes its update (2 n_f^2 s
+// flops at every removal) made the median 16-17 ms against 9.5-9.8 ms.
+inline constexpr double kAutoDenseMaxFreeNodes = 3000;
 
 struct ElectricSolveStats {
   bool refactored = false;  // refactor: the matrix was factorized in this solve

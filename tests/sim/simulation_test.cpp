@@ -62,7 +62,9 @@ TEST(Simulation, AutoElectricStrategyFollowsTheMeshSize) {
   small.sizeM = Vec3(0.06, 0.06, 0.01);
   small.nodesPerAxis = {10, 10, 5};
   EXPECT_EQ(Simulation(makeSlab(small), cutConfig(false)).electricSolverName(), "dense-inverse");
-  EXPECT_EQ(Simulation(smallSlab(), cutConfig(false)).electricSolverName(), "capacitance");
+  SlabSpec large = small;
+  large.nodesPerAxis = {30, 30, 5};  // 4500 nodes, ~490 on the return electrode
+  EXPECT_EQ(Simulation(makeSlab(large), cutConfig(false)).electricSolverName(), "capacitance");
   SimulationConfig pcg = cutConfig(false);
   pcg.electricSolver.strategy = ElectricStrategy::Pcg;
   EXPECT_EQ(Simulation(makeSlab(small), pcg).electricSolverName(), "pcg");
