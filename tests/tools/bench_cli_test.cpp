@@ -61,6 +61,13 @@ TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
        "bench structural: --csv is not an option of --local"},
       {"bench thermal --sizes 100 --solver foo", "--solver 'foo': expected auto, direct or cg"},
       {"bench electric --sizes 100 --frames 0", "bench electric: --frames must be >= 1"},
+      // auto chooses between two solvers; it was an internal error (exit 4)
+      {"bench electric --sizes 100 --strategies capacitance,auto",
+       "bench electric: --strategies: 'auto' is not a solver of its own: it takes "
+       "dense-inverse up to 3000 free nodes and capacitance above"},
+      // checked before the blade-sweep table runs, not after it
+      {"bench electric --sizes 100 --update --update-strategies auto",
+       "bench electric: --update-strategies: 'auto' is not a solver of its own"},
       // --only-update skips the table these options (and the fixture's --csv) are for
       {"bench electric --only-update",
        "bench electric: --csv is an option of the blade-sweep "

@@ -77,11 +77,22 @@ double seconds(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();
 }
 
+// a solver to bench: auto is a choice between two of them, not one
+ElectricStrategy parseBenchStrategy(const std::string& item, const char* option) {
+  const ElectricStrategy s = parseElectricStrategy(item);
+  if (s == ElectricStrategy::Auto)
+    throw Error(std::string("bench electric: ") + option +
+                ": 'auto' is not a solver of its own: it takes dense-inverse up to " +
+                messageNumber(kAutoDenseMaxFreeNodes) +
+                " free nodes and capacitance above; list those to compare them");
+  return s;
+}
+
 std::vector<ElectricStrategy> parseStrategies(const std::string& text) {
   std::vector<ElectricStrategy> out;
   std::stringstream ss(text);
   std::string item;
-  while (std::getline(ss, item, ',')) out.push_back(parseElectricStrategy(item));
+  while (std::getline(ss, item, ',')) out.push_back(parseBenchStrategy(item, "--strategies"));
   return out;
 }
 
@@ -394,16 +405,23 @@ UpdateTiming timeUpdate(const Scene& s, ElectricStrategy strategy, const BenchEl
   return t;
 }
 
-void runUpdate(const BenchElectricOptions& opt) {
-  const std::vector<int> sizes = app::parseNodeCounts(opt.updateSizes, "bench electric");
-  // strategies, and "capacitance-downdate" (capacitance with CapacitanceUpdate::Downdate)
+// --update-strategies: strategies, and "capacitance-downdate" (capacitance with
+// CapacitanceUpdate::Downdate)
+std::vector<std::pair<ElectricStrategy, bool>> parseUpdateStrategies(const std::string& text) {
   std::vector<std::pair<ElectricStrategy, bool>> strategies;
-  for (const std::string& item : app::splitList(opt.updateStrategies)) {
+  for (const std::string& item : app::splitList(text)) {
     if (item == "capacitance-downdate")
       strategies.emplace_back(ElectricStrategy::Capacitance, true);
     else
-      strategies.emplace_back(parseElectricStrategy(item), false);
+      strategies.emplace_back(parseBenchStrategy(item, "--update-strategies"), false);
   }
+  return strategies;
+}
+
+void runUpdate(const BenchElectricOptions& opt) {
+  const std::vector<int> sizes = app::parseNodeCounts(opt.updateSizes, "bench electric");
+  const std::vector<std::pair<ElectricStrategy, bool>> strategies =
+      parseUpdateStrategies(opt.updateStrategies);
   std::vector<int> tetCounts;
   for (const std::string& item : app::splitList(opt.updateTets))
     tetCounts.push_back(std::stoi(item));
@@ -473,6 +491,7 @@ int benchElectric(const BenchElectricOptions& opt) {
   // 1. options
   const std::vector<int> sizes = app::parseNodeCounts(opt.sizes, "bench electric");
   const std::vector<ElectricStrategy> strategies = parseStrategies(opt.strategies);
+  if (opt.update) parseUpdateStrategies(opt.updateStrategies);  // checked before the first run
   ESIM_VERIFY(opt.frames >= 1, "bench electric: --frames must be >= 1");
   ESIM_VERIFY(opt.threads >= 1, "bench electric: --threads must be >= 1");
   app::CsvOutput csv(opt.csv,
