@@ -73,6 +73,12 @@ TEST(RunCli, VideoAndSummary) {
   ASSERT_TRUE(fs::exists(out / "video.mp4"));
   EXPECT_GT(fs::file_size(out / "video.mp4"), 1000u);
   EXPECT_NE(r.output.find("frames      15 of 15"), std::string::npos) << r.output;
+  // the solver the default (auto) took for the paper's 1026 nodes, in the summary and report
+  EXPECT_NE(r.output.find("electric    dense-inverse (solvers.electric.strategy auto)"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(nlohmann::json::parse(readFile(out / "timing.json"))["electric_solver"],
+            "dense-inverse");
   EXPECT_NE(r.output.find("energy"), std::string::npos);
   EXPECT_NE(r.output.find("over 33.3 ms"), std::string::npos);
   fs::remove_all(out);

@@ -494,6 +494,12 @@ std::string summaryText(const Setup& s, const FrameOutputs& out, const LoopResul
   if (!loop.failure.empty()) sum << "  error         " << loop.failure << "\n";
   sum << "  mesh        " << s.nodes << " nodes, " << s.tets << " tets (built in " << s.meshS
       << " s), setup " << s.setupS << " s\n";
+  if (const std::string electric = sim.electricSolverName(); !electric.empty())
+    sum << "  electric    " << electric
+        << (sc.solvers.electricStrategy == ElectricStrategy::Auto
+                ? " (solvers.electric.strategy auto)"
+                : "")
+        << "\n";
   sum << "  frames      " << loop.records.size() << " of " << s.frames << ", simulated "
       << sim.timeS() << " s at " << sc.time.fps << " fps, wall " << loop.loopS << " s\n";
   summaryStages(sum, loop, timing);
