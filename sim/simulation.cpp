@@ -253,6 +253,9 @@ void Simulation::buildInitialModel(TetMesh mesh) {
     // auto: one strategy for the whole run, from the initial mesh (a rebuild keeps it)
     config_.electricSolver.strategy = resolveElectricStrategy(
         config_.electricSolver, static_cast<double>(mesh.numNodes() - ground));
+    // only capacitance caches what the tool will touch: the others get no scripted contacts
+    if (config_.electricSolver.strategy != ElectricStrategy::Capacitance)
+      config_.prefetchUntilS = 0;
   }
   if (ph.thermal && config_.coolTopSurface && config_.thermal.convectionW_m2K > 0) {
     for (const auto& f : surface) {
