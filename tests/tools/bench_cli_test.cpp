@@ -175,6 +175,8 @@ TEST_F(BenchCli, CutWritesTheIssuesColumns) {
       << table;
   EXPECT_NE(table.find("\nsynchronous,"), std::string::npos) << table;
   EXPECT_EQ(std::count(table.begin(), table.end(), '\n'), 3) << table;
+  // the printed rows name the electric solver auto took for the size
+  EXPECT_NE(r.output.find("  electric dense-inverse\n"), std::string::npos) << r.output;
 }
 
 // --render draws each frame (timed apart): four more columns, physics + render at least the

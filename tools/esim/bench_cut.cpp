@@ -215,6 +215,9 @@ int benchCut(const BenchCutOptions& opt) {
                       quantile(renderMs, 0.95), quantile(frameMs, 0.5), quantile(frameMs, 0.95));
         if (differ >= 0) std::printf("  (%d tets removed by one of full/local only)", differ);
         if (opt.paceHz > 0) std::printf("  (%d frames ended after their tick)", late);
+        // which solver the scene's electric strategy (auto: by the mesh's size) took
+        if (const std::string electric = sim.electricSolverName(); !electric.empty())
+          std::printf("  electric %s", electric.c_str());
         std::printf("\n");
         if (opt.stages)
           for (int s = 0; s < kStageCount; ++s)
