@@ -202,7 +202,7 @@ class CapacitanceSolver final : public ElectricSolver {
       rows = stayingRows(change);
       if (!stats.refactored) {
         y = inverseColumns(rows);
-        double residual = identityResidual(rows, y);
+        double residual = free_.identityResidual(rows, y);
         if (!(residual <= options_.updateResidual) && !downdate &&
             rowSolveFlops(rows.size()) <= kRefineShare * factor_.factorizeFlops()) {
           // one step of iterative refinement, here and in every later solve with this term
@@ -210,7 +210,7 @@ class CapacitanceSolver final : public ElectricSolver {
           refine_ = true;
           stats.refined = true;
           refineIdentity(rows, y);
-          residual = identityResidual(rows, y);
+          residual = free_.identityResidual(rows, y);
         }
         if (!(residual <= options_.updateResidual)) {
           if (downdate)
@@ -627,14 +627,6 @@ class CapacitanceSolver final : public ElectricSolver {
     for (int k = 0; k < s; ++k) rhs(rows[k], k) = 1.0;
     solveBlock(rhs.data(), y.data(), s);
     return y;
-  }
-
-  // ||K' Y - I_:rows||_F / sqrt(s): the relative residual of the s unit right-hand sides
-  double identityResidual(const std::vector<int>& rows, const Eigen::MatrixXd& y) const {
-    if (rows.empty()) return 0.0;
-    Eigen::MatrixXd r = free_.matrix * y;
-    for (size_t k = 0; k < rows.size(); ++k) r(rows[k], k) -= 1.0;
-    return r.norm() / std::sqrt(static_cast<double>(rows.size()));
   }
 
   // z' = z - Y (E z)_S for every cached column still free (see the file comment), on

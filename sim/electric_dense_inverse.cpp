@@ -24,7 +24,6 @@
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
 #include <algorithm>
-#include <cmath>
 #include <cstdio>
 
 #include "sim/core_error.h"
@@ -141,15 +140,11 @@ class DenseInverseSolver final : public ElectricSolver {
     std::vector<int> staying;
     for (int i : rows)
       if (free_.active[i]) staying.push_back(i);
-    if (!staying.empty()) {
-      Eigen::MatrixXd r(nf, static_cast<Eigen::Index>(staying.size()));
-      for (size_t k = 0; k < staying.size(); ++k) r.col(k) = inverse_.col(staying[k]);
-      r = (free_.matrix * r).eval();
-      for (size_t k = 0; k < staying.size(); ++k) r(staying[k], k) -= 1.0;
-      const double residual = r.norm() / std::sqrt(static_cast<double>(staying.size()));
-      if (!(residual <= options_.updateResidual))
-        return fallBack("the updated inverse solves to a residual of " + messageNumber(residual));
-    }
+    Eigen::MatrixXd ys(nf, static_cast<Eigen::Index>(staying.size()));
+    for (size_t k = 0; k < staying.size(); ++k) ys.col(k) = inverse_.col(staying[k]);
+    const double residual = free_.identityResidual(staying, ys);
+    if (!(residual <= options_.updateResidual))
+      return fallBack("the updated inverse solves to a residual of " + messageNumber(residual));
     return stats;
   }
 

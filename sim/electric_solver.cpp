@@ -259,6 +259,13 @@ BaseChange FreeBase::diff(const SparseMatrix& K, const std::vector<int>& grounde
   return ch;
 }
 
+double FreeBase::identityResidual(const std::vector<int>& rows, const Eigen::MatrixXd& y) const {
+  if (rows.empty()) return 0.0;
+  Eigen::MatrixXd r = matrix * y;
+  for (size_t k = 0; k < rows.size(); ++k) r(rows[k], k) -= 1.0;
+  return r.norm() / std::sqrt(static_cast<double>(rows.size()));
+}
+
 void FreeBase::apply(const BaseChange& change) {
   ESIM_CHECK(change.fallback.empty() && change.values.size() == size_t(matrix.nonZeros()));
   current = change.classes;

@@ -295,6 +295,9 @@ struct FreeBase {
   void scatter(const Eigen::VectorXd& baseValues, const std::vector<int>& contactBase,
                double voltageV, Eigen::VectorXd& potential) const;
   int size() const { return base.numFree(); }
+  // ||K' Y - I_:rows||_F / sqrt(s), K' the current matrix: the relative residual of Y as the
+  // solutions of the s unit right-hand sides on `rows` (the check after updateMatrix)
+  double identityResidual(const std::vector<int>& rows, const Eigen::MatrixXd& y) const;
 };
 
 // scatters free values into a full-size potential (fixed and floating nodes: 0,
