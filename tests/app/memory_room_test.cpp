@@ -118,6 +118,79 @@ TEST_F(MemoryRoomTest, UnreadableFilesLeaveItUnknownOrUnbounded) {
   EXPECT_DOUBLE_EQ(memoryRoom(root_, 1).bytes, kMachine);
 }
 
+// A run in a v1 group limited to 1 GB whose usage grows between frames: the guard stops it
+// once the room left is under 32 MB + 1.5 x the largest growth of a frame + the largest
+// transient (a new peak's height above the resident memory after the frame)
+class MemoryGuardTest : public MemoryRoomTest {
+ protected:
+  void SetUp() override {
+    MemoryRoomTest::SetUp();
+    machine();
+    write("proc/self/cgroup", "4:memory:/job\n");
+    write(kJob + "memory.limit_in_bytes", "1000000000\n");
+  }
+  // the group's usage [bytes], the process's resident memory and its peak [kB]
+  void used(double bytes, long residentKb, long peakKb) {
+    write(kJob + "memory.usage_in_bytes", std::to_string(static_cast<long long>(bytes)) + "\n");
+    write("proc/self/status", "VmHWM:\t" + std::to_string(peakKb) + " kB\nVmRSS:\t" +
+                                  std::to_string(residentKb) + " kB\n");
+  }
+  const std::string kJob = "sys/fs/cgroup/memory/job/";
+};
+
+TEST_F(MemoryGuardTest, StopsWhenTheRoomLeftIsUnderWhatTheNextFrameMayTake) {
+  MemoryGuard guard(root_);
+  used(500e6, 400000, 450000);  // the start: the set-up's own peak is not a frame's transient
+  EXPECT_EQ(guard.check(), "");
+  EXPECT_DOUBLE_EQ(guard.reserveBytes(), 32e6);
+  used(600e6, 500000, 500000);  // a frame took 100 MB
+  EXPECT_EQ(guard.check(), "");
+  EXPECT_DOUBLE_EQ(guard.reserveBytes(), 32e6 + 150e6);
+  used(650e6, 550000, 560000);  // 50 MB, and a new peak 10.24 MB above the resident one
+  EXPECT_EQ(guard.check(), "");
+  EXPECT_NEAR(guard.reserveBytes(), 32e6 + 150e6 + 10.24e6, 1);
+  used(700e6, 600000, 560000);  // 300 MB left, 192 MB reserve
+  EXPECT_EQ(guard.check(), "");
+  used(810e6, 710000, 710000);  // 190 MB left, under 32 + 1.5 x 110 + 10 = 207 MB
+  const std::string why = guard.check();
+  EXPECT_EQ(why.rfind("memory: its memory cgroup " + (root_ / "sys/fs/cgroup/memory/job").string() +
+                          " has 190 MB left of 1000 MB, under the 207 MB this run keeps in "
+                          "reserve (32 MB, 1.5 times the 110 MB the hungriest frame took, and 10 "
+                          "MB a frame held only for a while); it stopped here",
+                      0),
+            0u)
+      << why;
+  EXPECT_NE(why.find("more memory (Slurm --mem"), std::string::npos) << why;
+  EXPECT_DOUBLE_EQ(guard.minRoomBytes(), 190e6);
+}
+
+TEST_F(MemoryGuardTest, ReclaimablePageCacheAndFreedMemoryCountAsRoom) {
+  MemoryGuard guard(root_);
+  used(900e6, 400000, 400000);
+  write(kJob + "memory.stat", "total_inactive_file 300000000\n");  // 400 MB left
+  EXPECT_EQ(guard.check(), "");
+  used(700e6, 400000, 400000);  // memory freed: no growth, the reserve stays 32 MB
+  EXPECT_EQ(guard.check(), "");
+  EXPECT_DOUBLE_EQ(guard.reserveBytes(), 32e6);
+  used(1000e6, 400000, 400000);  // 300 MB taken, 300 MB of cache left to reclaim: 300 < 482
+  EXPECT_NE(guard.check(), "");
+}
+
+TEST_F(MemoryGuardTest, WithoutAnyLimitItIsTheMachinesMemoryAndUnknownNeverStops) {
+  MemoryGuard none(root_ / "nothing");  // no /proc: the room is unknown
+  EXPECT_EQ(none.check(), "");
+  EXPECT_EQ(none.check(), "");
+  EXPECT_LT(none.minRoomBytes(), 0);
+  write("proc/self/cgroup", "0::/\n");
+  MemoryGuard machineOnly(root_);
+  fs::remove(root_ / kJob / "memory.limit_in_bytes");
+  EXPECT_EQ(machineOnly.check(), "");
+  EXPECT_DOUBLE_EQ(machineOnly.minRoomBytes(), kMachine);
+  write("proc/meminfo", "MemAvailable:   20000 kB\nSwapFree:       0 kB\n");  // 20.48 MB
+  const std::string why = machineOnly.check();
+  EXPECT_EQ(why.rfind("memory: the machine has 20 MB available, under the ", 0), 0u) << why;
+}
+
 TEST(MemoryShare, OnlyAPositiveCountIsAShare) {
   const char* before = std::getenv("ESIM_MEMORY_SHARE");
   const std::string saved = before ? before : "";

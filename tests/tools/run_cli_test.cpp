@@ -622,6 +622,53 @@ TEST(RunCli, OutOfMemoryMidRunKeepsTheFramesMarkedPartial) {
   fs::remove_all(partial);
 }
 
+// a run whose memory cgroup has almost nothing left (ESIM_MEMORY_ROOT: a folder standing for
+// "/", whose v1 group has 20 MB left of 1 GB, under the guard's 32 MB reserve) stops after a
+// whole frame with its reports, exit 1, instead of being killed by the kernel with none; with
+// 100 MB left the same run completes and reports the least room it saw
+TEST(RunCli, ARunNearItsMemoryLimitStopsWithItsReports) {
+  const fs::path root = tempOut("memory_root");
+  const auto write = [&root](const std::string& rel, const std::string& text) {
+    fs::create_directories((root / rel).parent_path());
+    std::ofstream(root / rel) << text;
+  };
+  write("proc/meminfo", "MemAvailable:   9765625 kB\nSwapFree:       0 kB\n");
+  write("proc/self/cgroup", "4:memory:/job\n");
+  write("sys/fs/cgroup/memory/job/memory.limit_in_bytes", "1000000000\n");
+  write("sys/fs/cgroup/memory/job/memory.usage_in_bytes", "980000000\n");
+  const fs::path out = tempOut("memory_low");
+  const fs::path partial = out.string() + ".partial";
+  fs::remove_all(partial);
+  const std::string run = "ESIM_MEMORY_ROOT=" + root.string() + " " + ESIM_EXE +
+                          " run scenarios/paper_slab.yaml --frames 5" + kSmall + " -o " +
+                          out.string();
+  Result r = shell(run);
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  EXPECT_NE(r.output.find("esim: error: after frame 0: memory: its memory cgroup " +
+                          (root / "sys/fs/cgroup/memory/job").string() +
+                          " has 20 MB left of 1000 MB, under the 32 MB this run keeps in reserve"),
+            std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(out));
+  ASSERT_TRUE(fs::exists(partial / "timing.json")) << r.output;
+  auto timing = nlohmann::json::parse(readFile(partial / "timing.json"));
+  EXPECT_FALSE(timing["complete"].get<bool>());
+  EXPECT_EQ(timing["frames"].get<int>(), 1);
+  EXPECT_DOUBLE_EQ(timing["memory_left_min_mb"].get<double>(), 20.0);
+  EXPECT_EQ(videoFrames(partial / "video.mp4"), 1);
+  fs::remove_all(partial);
+
+  write("sys/fs/cgroup/memory/job/memory.usage_in_bytes", "900000000\n");
+  r = shell(run);
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_NE(r.output.find("at least 100 MB left between frames"), std::string::npos) << r.output;
+  timing = nlohmann::json::parse(readFile(out / "timing.json"));
+  EXPECT_EQ(timing["frames"].get<int>(), 5);
+  EXPECT_DOUBLE_EQ(timing["memory_left_min_mb"].get<double>(), 100.0);
+  fs::remove_all(out);
+  fs::remove_all(root);
+}
+
 // a video that cannot be finished after the last frame (a disk that fills at the end,
 // injected): the run failed, exit 1, its reports in DIR.partial marked incomplete with the
 // reason (it escaped as bad input, exit 2, with no reports)

@@ -146,6 +146,51 @@ MemoryRoom memoryRoom(const fs::path& root, int share) {
   return r;
 }
 
+MemoryGuard::MemoryGuard(fs::path root) : root_(std::move(root)) {}
+
+namespace {
+constexpr double kGuardMarginBytes = 32e6;  // the reports and the video's end
+constexpr double kGuardDropFactor = 1.5;    // the next frame may take more than any before
+}  // namespace
+
+double MemoryGuard::reserveBytes() const {
+  return kGuardMarginBytes + kGuardDropFactor * maxDrop_ + maxTransient_;
+}
+
+std::string MemoryGuard::check() {
+  const MemoryRoom room = memoryRoom(root_, 1);
+  if (room.bytes < 0) return "";
+  if (lastRoom_ >= 0) maxDrop_ = std::max(maxDrop_, lastRoom_ - room.bytes);
+  lastRoom_ = room.bytes;
+  minRoom_ = minRoom_ < 0 ? room.bytes : std::min(minRoom_, room.bytes);
+  const double peak = procBytes(root_ / "proc/self/status", "VmHWM");
+  const double resident = procBytes(root_ / "proc/self/status", "VmRSS");
+  if (peak >= 0 && resident >= 0) {
+    if (lastPeak_ >= 0 && peak > lastPeak_)
+      maxTransient_ = std::max(maxTransient_, peak - resident);
+    lastPeak_ = peak;
+  }
+  const double reserve = reserveBytes();
+  if (room.bytes >= reserve) return "";
+  const auto mb = [](double bytes) { return std::to_string(std::lround(bytes / 1e6)) + " MB"; };
+  const std::string where = room.cgroup.empty()
+                                ? "the machine has " + mb(room.bytes) + " available"
+                                : "its memory cgroup " + room.cgroup.string() + " has " +
+                                      mb(room.bytes) + " left of " + mb(room.cgroupLimitBytes);
+  return "memory: " + where + ", under the " + mb(reserve) + " this run keeps in reserve (" +
+         mb(kGuardMarginBytes) + ", 1.5 times the " + mb(maxDrop_) +
+         " the hungriest frame took, and " + mb(maxTransient_) +
+         " a frame held only for a while); it stopped here, before the kernel's out-of-memory "
+         "killer would end it without its reports. It needs more: a coarser mesh "
+         "(mesh.slab.nodes, mesh.file.cell_size_m), fewer phases, another electric strategy, or "
+         "more memory (Slurm --mem, docker --memory)";
+}
+
+fs::path memoryRootFromEnvironment() {
+  const char* v = std::getenv("ESIM_MEMORY_ROOT");
+  return v && *v ? fs::path(v) : fs::path("/");
+}
+
 int memoryShareFromEnvironment() {
   const char* v = std::getenv("ESIM_MEMORY_SHARE");
   if (!v) return 1;

@@ -58,6 +58,42 @@ void boundAddressSpace();
 // start, before any thread or file is opened; ESIM_NO_WATCHER=1 turns it off.
 void watchOutOfMemory();
 
+// Between frames, the room a run has left (memoryRoom(root, 1)) against what its frames take.
+// A run whose memory grows a frame at a time (the electric column cache, a factor's fill, the
+// encoder's buffers) under a memory cgroup passes the address-space bound allocation by
+// allocation and is then killed by the kernel, with no reports (measured: `esim run
+// scenarios/slab_cut.yaml` in a cgroup v1 group limited to 550 MB, exit 137). check() says when
+// the room left is under the reserve
+//   32 MB + 1.5 x (the largest drop of the room from one frame to the next) + (the largest
+//   transient: how far a frame's new peak resident memory rose above its resident memory
+//   after it),
+// so the run can stop after a whole frame and write its reports (exit 1) while it still can.
+// A share of the machine or of a group that other processes take counts too: the room is
+// what is left, not what this run used.
+class MemoryGuard {
+ public:
+  // root: "/" (tests pass a folder holding proc/meminfo, proc/self/status, proc/self/cgroup
+  // and sys/fs/cgroup/...). The first check() takes the room it finds as its start.
+  explicit MemoryGuard(std::filesystem::path root = "/");
+  // after a frame: "" while the room is known and over the reserve (or unknown), else why the
+  // run stops: "memory: its memory cgroup DIR has 0.05 GB left of 0.55 GB, under the 0.16 GB
+  // this run keeps in reserve (...)"
+  std::string check();
+  double reserveBytes() const;                      // as of the last check
+  double minRoomBytes() const { return minRoom_; }  // the least room seen (< 0: unknown)
+
+ private:
+  std::filesystem::path root_;
+  double lastRoom_ = -1;  // the room at the last check (< 0: none yet)
+  double minRoom_ = -1;
+  double maxDrop_ = 0;       // largest drop of the room between two checks [bytes]
+  double lastPeak_ = -1;     // peak resident memory (VmHWM) at the last check [bytes]
+  double maxTransient_ = 0;  // largest VmHWM - VmRSS when a check found a new peak [bytes]
+};
+
+// the root ESIM_MEMORY_ROOT names (a test's folder standing for "/"), else "/"
+std::filesystem::path memoryRootFromEnvironment();
+
 // what boundAddressSpace set, for the out-of-memory messages and timing.json: e.g. "esim
 // bounded itself to 1.4 GB of address space: its memory cgroup
 // /sys/fs/cgroup/memory/job_12/ has 0.7 GB left"; empty when it set nothing

@@ -337,6 +337,7 @@ struct LoopResult {
   double energyJ = 0, maxTemperatureSeenC = 0, temperatureNowC = 0;
   std::string failure;  // the error that stopped the loop ("" = none)
   ErrorKind failureKind = ErrorKind::Run;
+  double memoryRoomMinBytes = -1;  // the least memory left between frames (< 0: unknown)
   bool complete() const { return !interrupted && failure.empty(); }
 };
 
@@ -386,6 +387,7 @@ nlohmann::json timingExtra(const Setup& s, const FrameOutputs& out, const LoopRe
   extra["setup_s"] = s.setupS;
   extra["peak_rss_mb"] = peakRssMb();
   extra["peak_rss_after_setup_mb"] = s.rssAfterSetupMb;
+  if (loop.memoryRoomMinBytes >= 0) extra["memory_left_min_mb"] = loop.memoryRoomMinBytes / 1e6;
   extra["frame_loop_s"] = loop.loopS;
   extra["offline"] = {{"encode_s", out.encodeSeconds()},
                       {"codec", out.codec()},
@@ -505,7 +507,10 @@ std::string summaryText(const Setup& s, const FrameOutputs& out, const LoopResul
   summaryStages(sum, loop, timing);
   sum << "  encode        " << out.encodeSeconds() << " s offline (own thread)\n";
   sum << "  memory        peak " << peakRssMb() << " MB resident (" << s.rssAfterSetupMb
-      << " MB after setup)\n";
+      << " MB after setup)";
+  if (loop.memoryRoomMinBytes >= 0)
+    sum << ", at least " << std::lround(loop.memoryRoomMinBytes / 1e6) << " MB left between frames";
+  sum << "\n";
   sum.precision(1);
   sum << "  temperature   max " << loop.maxTemperatureSeenC << " C (now " << loop.temperatureNowC
       << " C)\n";
@@ -575,6 +580,10 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet) {
   loop.maxTemperatureSeenC = loop.temperatureNowC = s.sim->temperatureC().maxCoeff();
   Progress progress(s.frames, quiet);
   const int badAllocFrame = injectedFaultFrame("bad_alloc");
+  // memory left between frames: the run stops after a whole frame, reports written, rather
+  // than be killed in the next one (memory_room.h)
+  MemoryGuard memory(memoryRootFromEnvironment());
+  memory.check();  // the room at the start
   const auto t0 = Clock::now();
   for (int f = 0; f < s.frames && !gStop; ++f) {
     loop.frameStartUs.push_back(
@@ -618,7 +627,14 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet) {
       break;
     }
     progress.update(f + 1, s.sim->timeS());
+    if (f + 1 == s.frames) break;  // the last frame: nothing left to keep room for
+    if (std::string low = memory.check(); !low.empty()) {
+      loop.failureKind = ErrorKind::Run;
+      loop.failure = "after frame " + std::to_string(f) + ": " + low;
+      break;
+    }
   }
+  loop.memoryRoomMinBytes = memory.minRoomBytes();
   loop.interrupted = gStop.load();
   loop.loopS = secondsSince(t0);
   return loop;
