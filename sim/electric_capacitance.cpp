@@ -13,10 +13,13 @@
 // BLAS 3, a few times the cost of one column for 16 of them), so the nodes the tool
 // reaches next are usually cached already. A block's composition never depends on
 // history, so every column has the same bits whoever asked for it first: results
-// are bit-reproducible whatever the cache size, eviction or prefetching.
+// are bit-reproducible whatever the cache size, eviction or prefetching (after an
+// updateMatrix, to round-off only: a column evicted and solved again with the Woodbury
+// term and one kept and corrected from the log differ in the last bits, ~1e-16 relative;
+// with the same cache size, runs stay bit-identical).
 // The cache holds at most cacheMemoryLimitBytes of columns (never fewer than the
 // current contact set needs); above it the least recently used column goes first
-// (ties: the lower node id).
+// (ties: the lower node id). limitCache lowers that cap later and evicts at once.
 // prefetch() fills the cache ahead of contact (e.g. the contact nodes along a
 // scripted tool path, at setup or a few frames ahead).
 // setMatrix refactorizes and empties the cache (the patches are rebuilt).
@@ -309,6 +312,41 @@ class CapacitanceSolver final : public ElectricSolver {
     return bytes;
   }
   const char* name() const override { return "capacitance"; }
+
+  double limitCache(double bytes) override {
+    options_.cacheMemoryLimitBytes = std::max(bytes, 8.0 * std::max(1, free_.size()));
+    const size_t keep = maxSlots();
+    // the occupied slots, most recently used first (ties: the lower node id), as acquireSlot
+    // evicts them
+    std::vector<int> order;
+    for (size_t slot = 0; slot < columns_.size(); ++slot)
+      if (slotNode_[slot] >= 0) order.push_back(static_cast<int>(slot));
+    if (order.size() <= keep && columns_.size() <= keep) return 0;
+    std::sort(order.begin(), order.end(), [this](int a, int b) {
+      return lastUsed_[a] != lastUsed_[b] ? lastUsed_[a] > lastUsed_[b]
+                                          : slotNode_[a] < slotNode_[b];
+    });
+    if (order.size() > keep) order.resize(keep);
+    std::sort(order.begin(), order.end());  // the kept slots in their old order
+    const double before = 8.0 * static_cast<double>(columns_.size()) * free_.size();
+    std::vector<Eigen::VectorXd> columns;
+    std::vector<int> slotNode;
+    std::vector<long> lastUsed, slotVersion;
+    std::fill(slotOf_.begin(), slotOf_.end(), -1);
+    for (int slot : order) {
+      slotOf_[slotNode_[slot]] = static_cast<int>(columns.size());
+      columns.push_back(std::move(columns_[slot]));
+      slotNode.push_back(slotNode_[slot]);
+      lastUsed.push_back(lastUsed_[slot]);
+      slotVersion.push_back(slotVersion_[slot]);
+    }
+    columns_ = std::move(columns);
+    slotNode_ = std::move(slotNode);
+    lastUsed_ = std::move(lastUsed);
+    slotVersion_ = std::move(slotVersion);
+    trimLog();  // its budget is a quarter of the cache's
+    return before - 8.0 * static_cast<double>(columns_.size()) * free_.size();
+  }
 
  private:
   size_t maxSlots() const {

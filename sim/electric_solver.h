@@ -130,7 +130,7 @@ struct ElectricSolverOptions {
   int pcgMaxIterations = 5000;
   PcgPreconditioner pcgPreconditioner = PcgPreconditioner::Jacobi;  // or IncompleteCholesky
   double denseMemoryLimitBytes = 2048.0 * 1048576.0;  // dense-inverse refuses above (2 GiB)
-  double cacheMemoryLimitBytes = 1e9;                 // capacitance column cache cap (LRU eviction)
+  double cacheMemoryLimitBytes = 1024.0 * 1048576.0;  // capacitance column cache cap (LRU eviction)
   int capacitancePatchNodes = 16;                     // capacitance: candidates solved together
   CapacitanceUpdate capacitanceUpdate = CapacitanceUpdate::Woodbury;  // capacitance updateMatrix
   // updateMatrix (capacitance, dense-inverse): ||K' Y - I||_F / sqrt(s) the updated factor or
@@ -211,6 +211,11 @@ class ElectricSolver {
   virtual void setContactCandidates(const std::vector<int>& /*nodes*/) {}
   // bytes held by factorizations, inverses, caches
   virtual double memoryBytes() const = 0;
+  // caps the cache of solved data (capacitance's columns) at `bytes` from now on (at least
+  // one column), evicting the least recently used columns now; returns the bytes of columns
+  // given back (0 for solvers without a cache). The results do not change, only the time
+  // (columns evicted are solved again when the tool comes back).
+  virtual double limitCache(double /*bytes*/) { return 0; }
   virtual const char* name() const = 0;
 };
 

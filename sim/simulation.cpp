@@ -712,6 +712,14 @@ double Simulation::electricMemoryBytes() const {
   return model_->electric ? model_->electric->memoryBytes() : 0.0;
 }
 
+double Simulation::limitElectricCache(double bytes) {
+  joinPrefetch();
+  // a background rebuild's job reads config_ (its model keeps the cap it was built with)
+  if (job_.valid()) job_.wait();
+  config_.electricSolver.cacheMemoryLimitBytes = bytes;
+  return model_->electric ? model_->electric->limitCache(bytes) : 0.0;
+}
+
 std::string Simulation::electricSolverName() const {
   return model_->electric ? model_->electric->name() : "";
 }

@@ -334,6 +334,10 @@ class Simulation {
   const SubgridZone& subgridZone() const { return state_.subgridZone; }
   SubgridZoneParams subgridZoneParams() const;
   double electricMemoryBytes() const;
+  // caps the electric solver's cache (capacitance's columns) at `bytes`, now and in models
+  // rebuilt later, after the prefetch under way; returns the bytes given back (0: nothing
+  // to give). The fields do not change, only the time (see ElectricSolver::limitCache)
+  double limitElectricCache(double bytes);
   std::string electricSolverName() const;
   bool hasElectric() const { return model_->electric != nullptr; }
   const std::vector<double>* vonMisesPa() const {

@@ -208,6 +208,10 @@ struct ScenarioSolvers {
   // dense-inverse refuses above this
   int electricDenseMemoryLimitMb =
       static_cast<int>(scenario_detail::core().electricSolver.denseMemoryLimitBytes / 1048576.0);
+  // capacitance's column cache holds at most this (esim run: and a quarter of the memory left
+  // at its start)
+  int electricCacheMemoryLimitMb =
+      static_cast<int>(scenario_detail::core().electricSolver.cacheMemoryLimitBytes / 1048576.0);
   int electricThreads = scenario_detail::core().electricSolver.threads;
   bool electricPrefetchPath = true;  // precompute what the scripted tool path touches
   // explicit | backward-euler | crank-nicolson

@@ -8,6 +8,7 @@
 
 #include <cstdlib>
 #include <fstream>
+#include <iterator>
 #include <string>
 
 #include "tests/scratch_dir_util.h"
@@ -16,6 +17,11 @@ namespace esim::app {
 namespace {
 
 namespace fs = std::filesystem;
+
+std::string readFile(const fs::path& p) {
+  std::ifstream in(p);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
 
 class MemoryRoomTest : public test::ScratchDirTest {
  protected:
@@ -128,6 +134,7 @@ class MemoryGuardTest : public MemoryRoomTest {
     machine();
     write("proc/self/cgroup", "4:memory:/job\n");
     write(kJob + "memory.limit_in_bytes", "1000000000\n");
+    write("proc/self/clear_refs", "");  // the guard sets the peak back through it
   }
   // the group's usage [bytes], the process's resident memory and its peak [kB]
   void used(double bytes, long residentKb, long peakKb) {
@@ -162,6 +169,35 @@ TEST_F(MemoryGuardTest, StopsWhenTheRoomLeftIsUnderWhatTheNextFrameMayTake) {
       << why;
   EXPECT_NE(why.find("more memory (Slurm --mem"), std::string::npos) << why;
   EXPECT_DOUBLE_EQ(guard.minRoomBytes(), 190e6);
+  EXPECT_DOUBLE_EQ(guard.peakResidentBytes(), 710000 * 1024.0);
+  EXPECT_EQ(readFile(root_ / "proc/self/clear_refs"), "5");  // the peak set back each time
+}
+
+// memory given back after a check (a cache cut): the peak before it is no frame's transient,
+// and the next frame's growth counts from the room after it
+TEST_F(MemoryGuardTest, MemoryGivenBackIsNoTransientAndGrowthCountsFromAfterIt) {
+  MemoryGuard guard(root_);
+  used(800e6, 700000, 700000);  // 200 MB left
+  EXPECT_EQ(guard.check(), "");
+  used(500e6, 400000, 700000);  // 300 MB given back: the kernel's peak still says 700
+  guard.released();
+  EXPECT_EQ(readFile(root_ / "proc/self/clear_refs"), "5");
+  used(550e6, 450000, 450000);  // the next frame: 50 MB more, no transient
+  EXPECT_EQ(guard.check(), "");
+  EXPECT_DOUBLE_EQ(guard.reserveBytes(), 32e6 + 1.5 * 50e6);
+}
+
+// without /proc/self/clear_refs the peak cannot be set back: a peak from before memory was
+// given back is not taken for a frame's transient
+TEST_F(MemoryGuardTest, APeakThatCannotBeSetBackIsNoTransient) {
+  fs::remove(root_ / "proc/self/clear_refs");
+  MemoryGuard guard(root_);
+  used(500e6, 400000, 900000);
+  EXPECT_EQ(guard.check(), "");
+  used(500e6, 400000, 950000);
+  EXPECT_EQ(guard.check(), "");
+  EXPECT_DOUBLE_EQ(guard.reserveBytes(), 32e6);
+  EXPECT_FALSE(fs::exists(root_ / "proc/self/clear_refs"));  // never created
 }
 
 TEST_F(MemoryGuardTest, ReclaimablePageCacheAndFreedMemoryCountAsRoom) {

@@ -38,6 +38,14 @@ TEST(RunConfig, DenseMemoryLimitDefaultIsOne) {
   EXPECT_EQ(core, 2048.0 * 1048576.0);
 }
 
+TEST(RunConfig, ElectricCacheLimitIsAKeyInMegabytes) {
+  EXPECT_EQ(schemaDefault("solvers.electric.cache_memory_limit_mb"), "1024");
+  EXPECT_EQ(ElectricSolverOptions{}.cacheMemoryLimitBytes, 1024.0 * 1048576.0);
+  Scenario s = defaults();
+  s.solvers.electricCacheMemoryLimitMb = 64;
+  EXPECT_EQ(makeSimulationConfig(s).electricSolver.cacheMemoryLimitBytes, 64.0 * 1048576.0);
+}
+
 // every mapped field of a default scenario equals the core's default
 TEST(RunConfig, EveryDefaultComesFromTheCore) {
   const SimulationConfig& d = defaultSimulationConfig();
@@ -56,6 +64,7 @@ TEST(RunConfig, EveryDefaultComesFromTheCore) {
   EXPECT_EQ(c.electricSolver.pcgTolerance, d.electricSolver.pcgTolerance);
   EXPECT_EQ(c.electricSolver.pcgMaxIterations, d.electricSolver.pcgMaxIterations);
   EXPECT_EQ(c.electricSolver.threads, d.electricSolver.threads);
+  EXPECT_EQ(c.electricSolver.cacheMemoryLimitBytes, d.electricSolver.cacheMemoryLimitBytes);
   EXPECT_EQ(c.conductivityTempCoeffPerK, d.conductivityTempCoeffPerK);
   EXPECT_EQ(c.desiccatedConductivityFactor, d.desiccatedConductivityFactor);
   const ThermalParams &t = c.thermal, &dt = d.thermal;

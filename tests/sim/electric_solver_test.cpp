@@ -687,6 +687,79 @@ TEST(ElectricSolverUpdate, ColumnsUnusedOverSeveralCutsAreCorrectedOnTheirNextUs
   }
 }
 
+// a cache capped later (esim run gives memory back when its cgroup runs short): the least
+// recently used columns go at once and their bytes are counted; before a cut every solve has
+// the bits of a solver never capped; after one, a column solved again with the Woodbury
+// term and one corrected from the log agree to round-off, not bit for bit (so does any
+// cache size, capped later or not); a cap under the contact set's own columns still solves
+// it (solving them again)
+TEST(ElectricSolverUpdate, CapacitanceCacheCappedLaterGivesColumnsBack) {
+  const CutSlab initial(1013);
+  const Problem p = paperSlab(1013);
+  const std::vector<std::vector<int>> sets = sampleContacts(p);
+  const int orphan = initial.nearestNode(Vec3(0.0, 0.0, 0.01));
+  CutSlab cutA = initial, cutB = initial;
+  auto capped = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
+  auto whole = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
+  for (auto* solver : {capped.get(), whole.get()}) {
+    solver->setContactCandidates(initial.surface);
+    solver->setMatrix(initial.K, initial.grounded);
+  }
+  Eigen::VectorXd uc, uw;
+  for (const auto& contact : sets) {
+    capped->solve(contact, kVolt, uc);
+    whole->solve(contact, kVolt, uw);
+  }
+  const double column =
+      8.0 * (initial.mesh.numNodes() - static_cast<double>(initial.grounded.size()));
+  const double before = capped->memoryBytes();
+  EXPECT_EQ(capped->limitCache(1e12), 0.0);  // a cap over what it holds: nothing to give
+  const double freed = capped->limitCache(20 * column);  // 20 columns kept
+  EXPECT_GT(freed, 0.0);
+  EXPECT_NEAR(before - capped->memoryBytes(), freed, 1.0);
+  EXPECT_EQ(std::fmod(freed, column), 0.0);
+  EXPECT_EQ(capped->limitCache(20 * column), 0.0);  // already within it
+  int solvedAgain = 0;
+  for (const auto& contact : sets) {
+    solvedAgain += capped->solve(contact, kVolt, uc).newColumns;
+    whole->solve(contact, kVolt, uw);
+    EXPECT_EQ((uc - uw).cwiseAbs().maxCoeff(), 0.0);  // bit-identical
+  }
+  EXPECT_GT(solvedAgain, 0);
+  // a cut: the kept columns are corrected, the others solved again when touched
+  cutA.remove(initial.aliveTetsWith(orphan));
+  cutB.remove(initial.aliveTetsWith(orphan));
+  ASSERT_FALSE(capped->updateMatrix(cutA.K, cutA.grounded).fellBack);
+  ASSERT_FALSE(whole->updateMatrix(cutB.K, cutB.grounded).fellBack);
+  capped->setContactCandidates(cutA.surface);
+  whole->setContactCandidates(cutB.surface);
+  auto fresh = makeElectricSolver({.strategy = ElectricStrategy::Refactor});
+  fresh->setMatrix(cutA.K, cutA.grounded);
+  Eigen::VectorXd uf;
+  for (const auto& contact : sets) {
+    std::vector<int> c;
+    for (int n : contact)
+      if (n != orphan) c.push_back(n);
+    capped->solve(c, kVolt, uc);
+    EXPECT_EQ(whole->solve(c, kVolt, uw).newColumns, 0);
+    EXPECT_LT(relError(uc, uw), 1e-13);
+    fresh->solve(c, kVolt, uf);
+    EXPECT_LT(relError(uc, uf), 1e-9);
+  }
+  // a cap of one column: each contact set still solved, whole
+  capped->limitCache(1.0);
+  for (const auto& contact : sets) {
+    std::vector<int> c;
+    for (int n : contact)
+      if (n != orphan) c.push_back(n);
+    capped->solve(c, kVolt, uc);
+    whole->solve(c, kVolt, uw);
+    EXPECT_LT(relError(uc, uw), 1e-13);
+  }
+  // solvers without a cache give nothing back
+  EXPECT_EQ(fresh->limitCache(1.0), 0.0);
+}
+
 // the grounded set shrinks by a node that keeps its elements: it joins the free set,
 // which an in-place update cannot do: setMatrix, said in the stats, same answer
 TEST(ElectricSolverUpdate, ANodeJoiningTheFreeSetFallsBackToSetMatrix) {

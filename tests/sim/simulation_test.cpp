@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <tuple>
 
 #include "sim/core_error.h"
 #include "sim/mesh_slab.h"
@@ -344,6 +345,45 @@ TEST(Simulation, UpdateModeCutsLikeTheSynchronousRebuild) {
   // the surfaces are the same faces in the same order (removeFromBoundary)
   const SurfaceSnapshot sa = upd->snapshot(), sb = sync->snapshot();
   EXPECT_EQ(sa.triangles, sb.triangles);
+}
+
+// the electric column cache capped in the middle of a cut (esim run gives memory back when
+// its cgroup runs short): the cut removes the same tets in the same frames, the fields stay
+// within round-off of an uncapped twin, and a cap in a background rebuild waits for its job
+TEST(Simulation, AnElectricCacheCappedMidCutCutsTheSame) {
+  auto run = [](RebuildMode mode, bool cap) {
+    SimulationConfig c = cutConfig(true);
+    c.phases.structural = c.phases.rupture = true;
+    c.toolVoltageV = 400;
+    c.toolPath.keys[1].timeS = 2.0;
+    c.rebuildMode = mode;
+    c.electricSolver.strategy = ElectricStrategy::Capacitance;
+    c.prefetchUntilS = 2.0;
+    auto sim = std::make_unique<Simulation>(smallSlab(), c);
+    std::vector<int> removedPerFrame;
+    double freed = 0;
+    for (int f = 0; f < 45; ++f) {
+      removedPerFrame.push_back(sim->step().removedTets);
+      if (cap && f % 10 == 9) freed += sim->limitElectricCache(8.0 * 4 * sim->mesh().numNodes());
+    }
+    return std::make_tuple(std::move(sim), removedPerFrame, freed);
+  };
+  for (RebuildMode mode : {RebuildMode::Update, RebuildMode::Background}) {
+    SCOPED_TRACE(rebuildModeName(mode));
+    const auto [whole, wholeRemoved, none] = run(mode, false);
+    const auto [capped, cappedRemoved, freed] = run(mode, true);
+    ASSERT_GT(whole->removedTets(), 0) << "the scene does not cut";
+    EXPECT_EQ(none, 0.0);
+    EXPECT_GT(freed, 0.0);
+    EXPECT_DOUBLE_EQ(capped->config().electricSolver.cacheMemoryLimitBytes,
+                     8.0 * 4 * capped->mesh().numNodes());
+    EXPECT_EQ(cappedRemoved, wholeRemoved);
+    auto rel = [](const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+      return (a - b).norm() / std::max(b.norm(), 1e-300);
+    };
+    EXPECT_LT(rel(capped->potentialV(), whole->potentialV()), 1e-12);
+    EXPECT_LT(rel(capped->temperatureC(), whole->temperatureC()), 1e-12);
+  }
 }
 
 // solvers.structural.method: local through the whole cut (update mode): the removed set

@@ -166,9 +166,13 @@ std::string MemoryGuard::check() {
   const double peak = procBytes(root_ / "proc/self/status", "VmHWM");
   const double resident = procBytes(root_ / "proc/self/status", "VmRSS");
   if (peak >= 0 && resident >= 0) {
-    if (lastPeak_ >= 0 && peak > lastPeak_)
-      maxTransient_ = std::max(maxTransient_, peak - resident);
-    lastPeak_ = peak;
+    peakSeen_ = std::max(peakSeen_, peak);
+    // the peak since the last check above the resident memory now: what the frame held
+    // for a while (not at the first check, whose peak is the set-up's)
+    if (peakReset_) maxTransient_ = std::max(maxTransient_, peak - resident);
+    // the kernel's peak (VmHWM) set back to the resident memory, so that the next check
+    // sees the next frame's peak alone, not one from before memory was given back
+    resetPeak();
   }
   const double reserve = reserveBytes();
   if (room.bytes >= reserve) return "";
@@ -184,6 +188,18 @@ std::string MemoryGuard::check() {
          "killer would end it without its reports. It needs more: a coarser mesh "
          "(mesh.slab.nodes, mesh.file.cell_size_m), fewer phases, another electric strategy, or "
          "more memory (Slurm --mem, docker --memory)";
+}
+
+void MemoryGuard::resetPeak() {
+  const int fd = ::open((root_ / "proc/self/clear_refs").c_str(), O_WRONLY | O_CLOEXEC);
+  peakReset_ = fd >= 0 && ::write(fd, "5", 1) == 1;
+  if (fd >= 0) ::close(fd);
+}
+
+void MemoryGuard::released() {
+  const MemoryRoom room = memoryRoom(root_, 1);
+  if (room.bytes >= 0) lastRoom_ = room.bytes;
+  if (peakReset_) resetPeak();
 }
 
 fs::path memoryRootFromEnvironment() {

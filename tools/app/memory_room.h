@@ -65,30 +65,39 @@ void watchOutOfMemory();
 // scenarios/slab_cut.yaml` in a cgroup v1 group limited to 550 MB, exit 137). check() says when
 // the room left is under the reserve
 //   32 MB + 1.5 x (the largest drop of the room from one frame to the next) + (the largest
-//   transient: how far a frame's new peak resident memory rose above its resident memory
-//   after it),
-// so the run can stop after a whole frame and write its reports (exit 1) while it still can.
-// A share of the machine or of a group that other processes take counts too: the room is
-// what is left, not what this run used.
+//   transient: how far a frame's peak resident memory rose above its resident memory after
+//   it; the kernel's peak, VmHWM, is set back at each check through /proc/self/clear_refs),
+// so the run can give memory back or stop after a whole frame and write its reports (exit 1)
+// while it still can. A share of the machine or of a group that other processes take counts
+// too: the room is what is left, not what this run used.
 class MemoryGuard {
  public:
   // root: "/" (tests pass a folder holding proc/meminfo, proc/self/status, proc/self/cgroup
   // and sys/fs/cgroup/...). The first check() takes the room it finds as its start.
   explicit MemoryGuard(std::filesystem::path root = "/");
   // after a frame: "" while the room is known and over the reserve (or unknown), else why the
-  // run stops: "memory: its memory cgroup DIR has 0.05 GB left of 0.55 GB, under the 0.16 GB
-  // this run keeps in reserve (...)"
+  // run stops: "memory: its memory cgroup DIR has 50 MB left of 550 MB, under the 61 MB this
+  // run keeps in reserve (...)"
   std::string check();
+  // after the run gave memory back (a cache cut): the room and the kernel's peak are taken
+  // again, so that the next check measures the next frame from here (the peak before the
+  // release is no frame's transient)
+  void released();
   double reserveBytes() const;                      // as of the last check
   double minRoomBytes() const { return minRoom_; }  // the least room seen (< 0: unknown)
+  // the largest peak resident memory read (< 0: none). check() sets the kernel's peak back
+  // each time (getrusage's ru_maxrss with it), so a run's peak is the larger of the two
+  double peakResidentBytes() const { return peakSeen_; }
 
  private:
+  void resetPeak();  // the kernel's peak set back to the resident memory (clear_refs 5)
   std::filesystem::path root_;
   double lastRoom_ = -1;  // the room at the last check (< 0: none yet)
   double minRoom_ = -1;
   double maxDrop_ = 0;       // largest drop of the room between two checks [bytes]
-  double lastPeak_ = -1;     // peak resident memory (VmHWM) at the last check [bytes]
-  double maxTransient_ = 0;  // largest VmHWM - VmRSS when a check found a new peak [bytes]
+  bool peakReset_ = false;   // the last check set the kernel's peak back (clear_refs 5)
+  double maxTransient_ = 0;  // largest VmHWM - VmRSS since such a reset [bytes]
+  double peakSeen_ = -1;     // the largest VmHWM read [bytes]
 };
 
 // the root ESIM_MEMORY_ROOT names (a test's folder standing for "/"), else "/"

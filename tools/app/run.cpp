@@ -7,6 +7,7 @@
 //   ---- the run ----       runScenario: set-up, frame loop, reports, rename
 #include "tools/app/run.h"
 
+#include <malloc.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -93,6 +94,7 @@ struct Setup {
   LabelOutputOptions labels;
   int nodes = 0, tets = 0;
   double meshS = 0, setupS = 0, rssAfterSetupMb = 0;
+  double electricCacheLimitBytes = 0;  // the capacitance column cache's cap taken
   std::unique_ptr<Simulation> sim;
   std::unique_ptr<Renderer> renderer;  // null when nothing is drawn
 };
@@ -110,7 +112,15 @@ Setup setUp(const RunOptions& opt, Scenario scenario) {
   checkRunnable(sc, false, opt.noVideo);  // before the mesh, which can take seconds
   if (s.labels.enabled) validateRenderOptions(makeRenderOptions(sc));
   if (s.labels.preview) validateVideoRate(sc.time.fps);
-  const SimulationConfig config = makeSimulationConfig(sc);
+  SimulationConfig config = makeSimulationConfig(sc);
+  // the electric column cache takes at most a quarter of the memory left now (never under
+  // 64 MiB): under a tight memory cgroup it stays small rather than grow into the limit; the
+  // results do not depend on its size, only the time
+  const MemoryRoom room = memoryRoom(memoryRootFromEnvironment(), memoryShareFromEnvironment());
+  if (room.bytes >= 0)
+    config.electricSolver.cacheMemoryLimitBytes = std::min(
+        config.electricSolver.cacheMemoryLimitBytes, std::max(64.0 * 1048576.0, room.bytes / 4));
+  s.electricCacheLimitBytes = config.electricSolver.cacheMemoryLimitBytes;
   // what only the mesh shows (a return electrode off the tissue, a singular model) is the
   // scenario's: its errors name the file as the scenario checks do
   try {
@@ -338,8 +348,22 @@ struct LoopResult {
   std::string failure;  // the error that stopped the loop ("" = none)
   ErrorKind failureKind = ErrorKind::Run;
   double memoryRoomMinBytes = -1;  // the least memory left between frames (< 0: unknown)
+  double peakResidentBytes = -1;   // the memory guard's largest peak read (it resets the
+                                   // kernel's: see runPeakMb)
+  struct CacheCut {
+    int frame;
+    double limitBytes, freedBytes;
+  };
+  std::vector<CacheCut> cacheCuts;  // the electric column cache cut for memory, after frames
   bool complete() const { return !interrupted && failure.empty(); }
 };
+
+// the run's peak resident memory [MB]: the memory guard sets the kernel's peak back after
+// each frame (to see each frame's own), so it is the larger of what the guard read and what
+// the kernel has counted since
+double runPeakMb(const LoopResult& loop) {
+  return std::max(peakRssMb(), loop.peakResidentBytes / 1048576.0);
+}
 
 std::vector<std::string> runWarnings(const Simulation& sim, double maxTemperatureSeenC) {
   std::vector<std::string> warnings = sim.warnings();
@@ -385,7 +409,7 @@ nlohmann::json timingExtra(const Setup& s, const FrameOutputs& out, const LoopRe
   if (!loop.failure.empty()) extra["failure"] = loop.failure;
   extra["mesh"] = {{"nodes", s.nodes}, {"tets", s.tets}, {"build_s", s.meshS}};
   extra["setup_s"] = s.setupS;
-  extra["peak_rss_mb"] = peakRssMb();
+  extra["peak_rss_mb"] = runPeakMb(loop);
   extra["peak_rss_after_setup_mb"] = s.rssAfterSetupMb;
   if (loop.memoryRoomMinBytes >= 0) extra["memory_left_min_mb"] = loop.memoryRoomMinBytes / 1e6;
   extra["frame_loop_s"] = loop.loopS;
@@ -398,6 +422,13 @@ nlohmann::json timingExtra(const Setup& s, const FrameOutputs& out, const LoopRe
   extra["electric_solver"] = sim.electricSolverName();
   extra["build"] = {{"compiler", __VERSION__}, {"esim", "0.1.0"}};
   extra["electric_memory_mb"] = sim.electricMemoryBytes() / 1048576.0;
+  extra["electric_cache_limit_mb"] = s.electricCacheLimitBytes / 1048576.0;
+  nlohmann::json cuts = nlohmann::json::array();
+  for (const auto& c : loop.cacheCuts)
+    cuts.push_back({{"after_frame", c.frame},
+                    {"limit_mb", c.limitBytes / 1048576.0},
+                    {"freed_mb", c.freedBytes / 1048576.0}});
+  extra["electric_cache_cuts"] = cuts;
   extra["warnings"] = runWarnings(sim, loop.maxTemperatureSeenC);
   if (sim.config().phases.structural)
     extra["structural"] = {
@@ -506,10 +537,17 @@ std::string summaryText(const Setup& s, const FrameOutputs& out, const LoopResul
       << sim.timeS() << " s at " << sc.time.fps << " fps, wall " << loop.loopS << " s\n";
   summaryStages(sum, loop, timing);
   sum << "  encode        " << out.encodeSeconds() << " s offline (own thread)\n";
-  sum << "  memory        peak " << peakRssMb() << " MB resident (" << s.rssAfterSetupMb
+  sum << "  memory        peak " << runPeakMb(loop) << " MB resident (" << s.rssAfterSetupMb
       << " MB after setup)";
   if (loop.memoryRoomMinBytes >= 0)
     sum << ", at least " << std::lround(loop.memoryRoomMinBytes / 1e6) << " MB left between frames";
+  if (!loop.cacheCuts.empty()) {
+    const auto& last = loop.cacheCuts.back();
+    sum << "; electric column cache cut to " << std::lround(last.limitBytes / 1048576.0)
+        << " MB (memory short) after frame";
+    for (size_t i = 0; i < loop.cacheCuts.size(); ++i)
+      sum << (i ? ", " : " ") << loop.cacheCuts[i].frame;
+  }
   sum << "\n";
   sum.precision(1);
   sum << "  temperature   max " << loop.maxTemperatureSeenC << " C (now " << loop.temperatureNowC
@@ -575,6 +613,10 @@ std::string writeReports(const Setup& s, const FrameOutputs& out, const LoopResu
 
 // ---- the frame loop ----
 
+// the electric column cache is never cut below this for memory (a few hundred columns of a
+// 30 000-node mesh; the contact set's own columns stay whatever the cap)
+constexpr double kMinElectricCacheBytes = 64.0 * 1048576.0;
+
 LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet) {
   LoopResult loop;
   loop.maxTemperatureSeenC = loop.temperatureNowC = s.sim->temperatureC().maxCoeff();
@@ -629,12 +671,27 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet) {
     progress.update(f + 1, s.sim->timeS());
     if (f + 1 == s.frames) break;  // the last frame: nothing left to keep room for
     if (std::string low = memory.check(); !low.empty()) {
+      // first the electric column cache gives memory back (the fields stay the same, later
+      // frames solve again the columns it no longer holds): its cap halved until columns
+      // go, down to kMinElectricCacheBytes; the run stops only when none is left to give
+      double cap = s.sim->config().electricSolver.cacheMemoryLimitBytes, freed = 0;
+      while (freed <= 0 && cap > kMinElectricCacheBytes) {
+        cap = std::max(kMinElectricCacheBytes, cap / 2);
+        freed = s.sim->limitElectricCache(cap);
+      }
+      if (freed > 0) {
+        ::malloc_trim(0);  // the columns' pages back to the system, not kept by malloc
+        memory.released();
+        loop.cacheCuts.push_back({f, cap, freed});
+        continue;
+      }
       loop.failureKind = ErrorKind::Run;
       loop.failure = "after frame " + std::to_string(f) + ": " + low;
       break;
     }
   }
   loop.memoryRoomMinBytes = memory.minRoomBytes();
+  loop.peakResidentBytes = memory.peakResidentBytes();
   loop.interrupted = gStop.load();
   loop.loopS = secondsSince(t0);
   return loop;

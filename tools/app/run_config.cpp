@@ -31,6 +31,7 @@ void mapElectric(const Scenario& s, SimulationConfig& c) {
   c.electricSolver.pcgTolerance = s.solvers.electricTolerance;
   c.electricSolver.pcgMaxIterations = s.solvers.electricMaxIterations;
   c.electricSolver.denseMemoryLimitBytes = s.solvers.electricDenseMemoryLimitMb * 1048576.0;
+  c.electricSolver.cacheMemoryLimitBytes = s.solvers.electricCacheMemoryLimitMb * 1048576.0;
   c.electricSolver.threads = s.solvers.electricThreads;
   c.prefetchUntilS = s.solvers.electricPrefetchPath ? s.time.durationS : 0.0;
   c.temperatureDependentConductivity = s.effects.temperatureDependentConductivity;
