@@ -208,8 +208,7 @@ struct ScenarioSolvers {
   // dense-inverse refuses above this
   int electricDenseMemoryLimitMb =
       static_cast<int>(scenario_detail::core().electricSolver.denseMemoryLimitBytes / 1048576.0);
-  // capacitance's column cache holds at most this (esim run: and a quarter of the memory left
-  // at its start)
+  // capacitance's column cache holds at most this (esim run cuts it when memory runs short)
   int electricCacheMemoryLimitMb =
       static_cast<int>(scenario_detail::core().electricSolver.cacheMemoryLimitBytes / 1048576.0);
   int electricThreads = scenario_detail::core().electricSolver.threads;

@@ -276,8 +276,8 @@ const std::vector<Field>& schema() {
     f.push_back(integer("solvers.electric.cache_memory_limit_mb",
                         ESIM_REF(solvers.electricCacheMemoryLimitMb), "MB", closed(1, 1e7),
                         "capacitance keeps at most this of solved columns, the least recently "
-                        "used evicted (esim run: at most a quarter of the memory left at its "
-                        "start); results do not depend on it, only the time"));
+                        "used evicted (esim run halves it when memory runs short); the results "
+                        "do not depend on it (after a cut: to round-off), only the time"));
     f.push_back(integer("solvers.electric.threads", ESIM_REF(solvers.electricThreads), "",
                         closed(1, 256), "BLAS / solver threads (fixed for reproducibility)"));
     f.push_back(boolean("solvers.electric.prefetch_path", ESIM_REF(solvers.electricPrefetchPath),

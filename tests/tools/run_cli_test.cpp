@@ -665,16 +665,10 @@ TEST(RunCli, ARunNearItsMemoryLimitStopsWithItsReports) {
   timing = nlohmann::json::parse(readFile(out / "timing.json"));
   EXPECT_EQ(timing["frames"].get<int>(), 5);
   EXPECT_DOUBLE_EQ(timing["memory_left_min_mb"].get<double>(), 100.0);
-  // the electric column cache takes at most a quarter of the room at the start, never
-  // under 64 MiB
-  EXPECT_DOUBLE_EQ(timing["electric_cache_limit_mb"].get<double>(), 64.0);
+  // the electric column cache's cap is the scene's whatever the memory (the bits of a run
+  // after a cut depend on it at round-off); it is cut only when memory runs short
+  EXPECT_DOUBLE_EQ(timing["electric_cache_limit_mb"].get<double>(), 1024.0);
   EXPECT_TRUE(timing["electric_cache_cuts"].empty());
-  fs::remove_all(out);
-  write("sys/fs/cgroup/memory/job/memory.usage_in_bytes", "0\n");  // 1000 MB left
-  r = shell(run);
-  EXPECT_EQ(r.exitCode, 0) << r.output;
-  timing = nlohmann::json::parse(readFile(out / "timing.json"));
-  EXPECT_DOUBLE_EQ(timing["electric_cache_limit_mb"].get<double>(), 250e6 / 1048576.0);
   fs::remove_all(out);
   fs::remove_all(root);
 }

@@ -112,14 +112,7 @@ Setup setUp(const RunOptions& opt, Scenario scenario) {
   checkRunnable(sc, false, opt.noVideo);  // before the mesh, which can take seconds
   if (s.labels.enabled) validateRenderOptions(makeRenderOptions(sc));
   if (s.labels.preview) validateVideoRate(sc.time.fps);
-  SimulationConfig config = makeSimulationConfig(sc);
-  // the electric column cache takes at most a quarter of the memory left now (never under
-  // 64 MiB): under a tight memory cgroup it stays small rather than grow into the limit; the
-  // results do not depend on its size, only the time
-  const MemoryRoom room = memoryRoom(memoryRootFromEnvironment(), memoryShareFromEnvironment());
-  if (room.bytes >= 0)
-    config.electricSolver.cacheMemoryLimitBytes = std::min(
-        config.electricSolver.cacheMemoryLimitBytes, std::max(64.0 * 1048576.0, room.bytes / 4));
+  const SimulationConfig config = makeSimulationConfig(sc);
   s.electricCacheLimitBytes = config.electricSolver.cacheMemoryLimitBytes;
   // what only the mesh shows (a return electrode off the tissue, a singular model) is the
   // scenario's: its errors name the file as the scenario checks do
