@@ -657,6 +657,11 @@ TEST(RunCli, ARunNearItsMemoryLimitStopsWithItsReports) {
   EXPECT_DOUBLE_EQ(timing["memory_left_min_mb"].get<double>(), 20.0);
   EXPECT_EQ(videoFrames(partial / "video.mp4"), 1);
   fs::remove_all(partial);
+  // --no-memory-guard: the run goes on (here to its end)
+  r = shell(run + " --no-memory-guard");
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_EQ(r.output.find("left between frames"), std::string::npos) << r.output;
+  fs::remove_all(out);
 
   write("sys/fs/cgroup/memory/job/memory.usage_in_bytes", "900000000\n");
   r = shell(run);

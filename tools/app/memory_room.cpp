@@ -158,6 +158,7 @@ double MemoryGuard::reserveBytes() const {
 }
 
 std::string MemoryGuard::check() {
+  if (root_.empty()) return "";
   const MemoryRoom room = memoryRoom(root_, 1);
   if (room.bytes < 0) return "";
   if (lastRoom_ >= 0) maxDrop_ = std::max(maxDrop_, lastRoom_ - room.bytes);
@@ -197,6 +198,7 @@ void MemoryGuard::resetPeak() {
 }
 
 void MemoryGuard::released() {
+  if (root_.empty()) return;
   const MemoryRoom room = memoryRoom(root_, 1);
   if (room.bytes >= 0) lastRoom_ = room.bytes;
   if (peakReset_) resetPeak();

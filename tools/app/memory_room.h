@@ -73,7 +73,8 @@ void watchOutOfMemory();
 class MemoryGuard {
  public:
   // root: "/" (tests pass a folder holding proc/meminfo, proc/self/status, proc/self/cgroup
-  // and sys/fs/cgroup/...). The first check() takes the room it finds as its start.
+  // and sys/fs/cgroup/...); empty: no guard (check() reads nothing and says nothing). The
+  // first check() takes the room it finds as its start.
   explicit MemoryGuard(std::filesystem::path root = "/");
   // after a frame: "" while the room is known and over the reserve (or unknown), else why the
   // run stops: "memory: its memory cgroup DIR has 50 MB left of 550 MB, under the 61 MB this

@@ -610,14 +610,14 @@ std::string writeReports(const Setup& s, const FrameOutputs& out, const LoopResu
 // 30 000-node mesh; the contact set's own columns stay whatever the cap)
 constexpr double kMinElectricCacheBytes = 64.0 * 1048576.0;
 
-LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet) {
+LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) {
   LoopResult loop;
   loop.maxTemperatureSeenC = loop.temperatureNowC = s.sim->temperatureC().maxCoeff();
   Progress progress(s.frames, quiet);
   const int badAllocFrame = injectedFaultFrame("bad_alloc");
   // memory left between frames: the run stops after a whole frame, reports written, rather
   // than be killed in the next one (memory_room.h)
-  MemoryGuard memory(memoryRootFromEnvironment());
+  MemoryGuard memory(memoryGuard ? memoryRootFromEnvironment() : fs::path());
   memory.check();  // the room at the start
   const auto t0 = Clock::now();
   for (int f = 0; f < s.frames && !gStop; ++f) {
@@ -717,7 +717,7 @@ int runScenario(const RunOptions& opt) {
     throw;
   }
   // ---- 4. frames ----
-  LoopResult loop = frameLoop(s, *out, opt.quiet);
+  LoopResult loop = frameLoop(s, *out, opt.quiet, opt.memoryGuard);
   // ---- 5. close the video, write the reports, rename when complete ----
   // (a video that cannot be finished, a disk full at the end, fails the run: exit 1, its
   // reports in DIR.partial; it escaped as a bad input, exit 2, without them)

@@ -49,6 +49,10 @@ Registrar reg(
       app.add_flag("--overwrite", opt->overwrite,
                    "replace an earlier ESim run in the output folder");
       app.add_flag("-q,--quiet", opt->quiet, "no progress output");
+      app.add_flag("!--no-memory-guard", opt->memoryGuard,
+                   "run on when the memory left runs short (by default the electric column "
+                   "cache gives memory back, then the run stops with its reports, exit 1, "
+                   "before the kernel would kill it without them)");
       app.add_flag("--plots", opt->plots,
                    "also write timing.png (stage times per frame, power, temperature, removed "
                    "tets; needs python3-matplotlib, else a warning)");
