@@ -615,8 +615,9 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) 
   loop.maxTemperatureSeenC = loop.temperatureNowC = s.sim->temperatureC().maxCoeff();
   Progress progress(s.frames, quiet);
   const int badAllocFrame = injectedFaultFrame("bad_alloc");
-  // memory left between frames: the run stops after a whole frame, reports written, rather
-  // than be killed in the next one (memory_room.h)
+  // memory left between frames: under the reserve, the electric column cache gives memory
+  // back, else the run stops after a whole frame, reports written, rather than be killed in
+  // the next one (memory_room.h; off with --no-memory-guard)
   MemoryGuard memory(memoryGuard ? memoryRootFromEnvironment() : fs::path());
   memory.check();  // the room at the start
   const auto t0 = Clock::now();
