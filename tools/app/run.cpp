@@ -718,7 +718,7 @@ int runScenario(const RunOptions& opt) {
     throw;
   }
   // ---- 4. frames ----
-  LoopResult loop = frameLoop(s, *out, opt.quiet, opt.memoryGuard);
+  LoopResult loop = frameLoop(s, *out, opt.quiet, !opt.noMemoryGuard);
   // ---- 5. close the video, write the reports, rename when complete ----
   // (a video that cannot be finished, a disk full at the end, fails the run: exit 1, its
   // reports in DIR.partial; it escaped as a bad input, exit 2, without them)

@@ -30,10 +30,10 @@ struct RunOptions {
   bool labels = false;         // per-frame labels in DIR/labels/ (run_labels.h)
   bool labelsPreview = false;  // and labels/preview.mp4
   bool plots = false;  // also write timing.png (tools/plot_timing.py; a warning if it cannot)
-  // between frames, give the electric column cache back and then stop (exit 1, reports
-  // written) when the memory left runs under the run's reserve (memory_room.h MemoryGuard);
-  // false: run on, at the risk of the kernel's kill without reports
-  bool memoryGuard = true;
+  // false: between frames, give the electric column cache back and then stop (exit 1,
+  // reports written) when the memory left runs under the run's reserve (memory_room.h
+  // MemoryGuard); true: run on, at the risk of the kernel's kill without reports
+  bool noMemoryGuard = false;
 };
 
 // runs the scenario; returns the exit code (0 complete, 1 failed or interrupted, outputs

@@ -49,7 +49,7 @@ Registrar reg(
       app.add_flag("--overwrite", opt->overwrite,
                    "replace an earlier ESim run in the output folder");
       app.add_flag("-q,--quiet", opt->quiet, "no progress output");
-      app.add_flag("!--no-memory-guard", opt->memoryGuard,
+      app.add_flag("--no-memory-guard", opt->noMemoryGuard,
                    "run on when the memory left runs short (by default the electric column "
                    "cache gives memory back, then the run stops with its reports, exit 1, "
                    "before the kernel would kill it without them)");
