@@ -94,7 +94,6 @@ struct Setup {
   LabelOutputOptions labels;
   int nodes = 0, tets = 0;
   double meshS = 0, setupS = 0, rssAfterSetupMb = 0;
-  double electricCacheLimitBytes = 0;  // the capacitance column cache's cap taken
   std::unique_ptr<Simulation> sim;
   std::unique_ptr<Renderer> renderer;  // null when nothing is drawn
 };
@@ -113,7 +112,6 @@ Setup setUp(const RunOptions& opt, Scenario scenario) {
   if (s.labels.enabled) validateRenderOptions(makeRenderOptions(sc));
   if (s.labels.preview) validateVideoRate(sc.time.fps);
   const SimulationConfig config = makeSimulationConfig(sc);
-  s.electricCacheLimitBytes = config.electricSolver.cacheMemoryLimitBytes;
   // what only the mesh shows (a return electrode off the tissue, a singular model) is the
   // scenario's: its errors name the file as the scenario checks do
   try {
@@ -415,7 +413,7 @@ nlohmann::json timingExtra(const Setup& s, const FrameOutputs& out, const LoopRe
   extra["electric_solver"] = sim.electricSolverName();
   extra["build"] = {{"compiler", __VERSION__}, {"esim", "0.1.0"}};
   extra["electric_memory_mb"] = sim.electricMemoryBytes() / 1048576.0;
-  extra["electric_cache_limit_mb"] = s.electricCacheLimitBytes / 1048576.0;
+  extra["electric_cache_limit_mb"] = sc.solvers.electricCacheMemoryLimitMb;  // before any cut
   nlohmann::json cuts = nlohmann::json::array();
   for (const auto& c : loop.cacheCuts)
     cuts.push_back({{"after_frame", c.frame},
