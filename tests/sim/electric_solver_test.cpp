@@ -687,6 +687,59 @@ TEST(ElectricSolverUpdate, ColumnsUnusedOverSeveralCutsAreCorrectedOnTheirNextUs
   }
 }
 
+// columns behind by different numbers of cuts, used together in one solve, are corrected
+// together (one product a correction over the columns behind it, the furthest behind
+// first): set 0 cached before both cuts, set 2 between them, set 4 not at all; their union
+// solves as a fresh factor does, the cached columns corrected and only set 4's patches
+// solved, and the same calls give the same bits
+TEST(ElectricSolverUpdate, ColumnsBehindByDifferentCutsAreCorrectedTogether) {
+  const CutSlab initial(1013);
+  const Problem p = paperSlab(1013);
+  const std::vector<std::vector<int>> sets = sampleContacts(p);
+  const int orphan = initial.nearestNode(Vec3(0.0, 0.0, 0.01));
+  const std::vector<std::vector<int>> cuts = {initial.aliveTetsWith(orphan),
+                                              initial.tetsAcross(initial.cornerIsland())};
+  std::vector<int> all = sortedUnion(sortedUnion(sets[0], sets[2]), sets[4]);
+  std::erase(all, orphan);  // left the free set in the first cut
+  std::vector<Eigen::VectorXd> results;
+  for (int run = 0; run < 2; ++run) {
+    CutSlab cut = initial;
+    auto solver = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
+    solver->setContactCandidates(cut.surface);
+    solver->setMatrix(cut.K, cut.grounded);
+    Eigen::VectorXd u;
+    solver->solve(sets[0], kVolt, u);
+    for (int b = 0; b < 2; ++b) {
+      cut.remove(cuts[b]);
+      const ElectricUpdateStats st = solver->updateMatrix(cut.K, cut.grounded);
+      ASSERT_FALSE(st.fellBack) << st.fallbackReason;
+      ASSERT_GT(st.columnsCorrected, 0);  // the cache kept, to be corrected
+      solver->setContactCandidates(cut.surface);
+      if (b == 0) solver->solve(sets[2], kVolt, u);  // one cut behind at the end
+    }
+    const ElectricSolveStats st = solver->solve(all, kVolt, u);
+    auto fresh = makeElectricSolver({.strategy = ElectricStrategy::Refactor});
+    fresh->setMatrix(cut.K, cut.grounded);
+    Eigen::VectorXd uf;
+    fresh->solve(all, kVolt, uf);
+    EXPECT_LT(relError(u, uf), 1e-9);
+    // set 4's patches solved, sets 0 and 2 corrected: what a capacitance solver of the cut
+    // matrix holding sets 0 and 2 solves for the union
+    auto cachedFresh = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
+    cachedFresh->setContactCandidates(cut.surface);
+    cachedFresh->setMatrix(cut.K, cut.grounded);
+    std::vector<int> cached = sortedUnion(sets[0], sets[2]);
+    std::erase(cached, orphan);
+    const int solvedBefore = cachedFresh->solve(cached, kVolt, uf).newColumns;
+    const int only4 = cachedFresh->solve(all, kVolt, uf).newColumns;
+    EXPECT_GT(only4, 0);
+    EXPECT_GT(solvedBefore, 0);
+    EXPECT_EQ(st.newColumns, only4);
+    results.push_back(u);
+  }
+  EXPECT_EQ(results[0], results[1]);
+}
+
 // a cache capped later (esim run gives memory back when its cgroup runs short): the least
 // recently used columns go at once and their bytes are counted; before a cut every solve has
 // the bits of a solver never capped; after one, a column solved again with the Woodbury
