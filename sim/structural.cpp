@@ -16,6 +16,7 @@
 #include "sim/cholmod_view.h"
 #include "sim/core_error.h"
 #include "sim/fem_p1.h"
+#include "sim/ldl_updown.h"
 
 extern "C" void openblas_set_num_threads(int num_threads);
 
@@ -189,12 +190,14 @@ struct StructuralPhase::Impl {
   std::vector<int> rowOfDof;           // dof -> row of L (inverse of L->Perm)
   double refactorFlops = 0;            // CHOLMOD's flop count of one factorization
   double updateCostLimit = 1;          // StructuralOptions::updateCostLimit
+  bool vectorizedUpdate = true;        // StructuralOptions::vectorizedUpdate
   bool prepareForUpdates = false;      // StructuralOptions::prepareForUpdates
   cholmod_dense *x = nullptr, *y = nullptr, *e = nullptr;  // solve workspaces
   Eigen::VectorXd rhs, u;
   struct RowMarks {  // per row of L: etree walks of an update
     std::vector<int> mark;
     int stamp = 0;
+    LdlUpdownWork updown;     // the vectorized update's workspace for this factor
   } wholeMarks, regionMarks;  // the whole factor's (maybe on the refresh thread), the region's
   std::vector<int> tetMark;   // per tet: piece searches (in the frame, stamp)
   int stamp = 0;
@@ -701,6 +704,8 @@ bool StructuralPhase::Impl::deleteRows(const std::vector<int>& dofs, const Targe
   }
   if (wp.size() == 1) return true;
   cholmod_sparse w = cholmodViewColumns(f->n, wp.size() - 1, wp.data(), wi.data(), wx.data());
+  if (vectorizedUpdate) return ldlUpdown(true, w, *f, target.marks->updown, cm);
+  target.marks->updown.choleskyColumns += static_cast<long>(w.ncol);
   return cholmod_updown(true, &w, f, &cm);
 }
 
@@ -1312,7 +1317,15 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
   // each rank-1 term stays below rounding of G's largest entry / kPivotShare (for a
   // semidefinite G, g_a^2 / d <= G_aa), and C C' matched G to 3e-14 (Frobenius, relative) with
   // the same rank as the eigenpairs on all 2364 groups of structural_test, simulation_test
-  // and hard_removal_test (a temporary check). CHOLMOD's
+  // and hard_removal_test (a temporary check). kPivotShare is 1e-3 since the vectorized
+  // update (ldl_updown.h), which needs columns that do not fill in L: a pivot out of row
+  // order makes the columns after it fill in, and their group then goes tet by tet (below).
+  // Over 755 groups (esim bench cut --sizes 1013,8000 --frames 60 --strategy update,
+  // structural_test, hard_removal_test, simulation_test's cuts; a temporary check) C C' met G
+  // to 5.2e-13 at most (median 1.8e-16) against 2.9e-14 at 0.01 (2.3e-11 at 1e-4); on
+  // --sizes 8000 --frames 60 --stages, one run each, the work per removal was 7.0e7 at 1e-3
+  // against 9.7e7 at 0.01 (more groups tet by tet), the structural update's p95 35 against
+  // 84 ms. CHOLMOD's
   // summed work estimate over esim bench cut --strategy update (units of a
   // refactorization): 1013 nodes 6.0 with kPivotShare 1 (diagonal pivoting), 4.5 at 0.1, 3.1
   // at 0.01 and below; 8000 nodes (--frames 60) 5.9 at 1, 3.2 at 0.01. Timed, each against
@@ -1333,7 +1346,7 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
   // 1.24 s. With 96 -> 192 (eigenpairs, --sizes 8000): the 78- and 88-tet removals of frames
   // 5 and 7 took 432 and 402 columns with 96, 126 and 104 with 192
   constexpr int kMaxGroupDofs = 768;
-  constexpr double kPivotShare = 0.01;
+  constexpr double kPivotShare = 1e-3;
   std::vector<int> cp{0}, ci;
   std::vector<double> cx;
   std::vector<std::vector<int>> groups;
@@ -1421,15 +1434,20 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
       done[p] = 1;
     }
   };
+  std::vector<int> groupFrom;  // per group: its first column (and the end last)
+  std::vector<std::uint8_t> summed;
   for (const std::vector<int>& group : groups) {
+    groupFrom.push_back(static_cast<int>(cp.size()) - 1);
     const std::vector<std::pair<int, int>> free = freeDofs(group);
-    if (static_cast<int>(free.size()) <= kMaxGroupDofs) {
+    summed.push_back(static_cast<int>(free.size()) <= kMaxGroupDofs);
+    if (summed.back()) {
       addColumns(group, free);
     } else {  // too large to sum: per tet
+      ++stats.groupsByTet;
       for (int t : group) addColumns({t}, freeDofs({t}));
     }
   }
-  stats.rank = static_cast<int>(cp.size()) - 1;
+  groupFrom.push_back(static_cast<int>(cp.size()) - 1);
 
   // 5. L becomes simplicial LDL' (once after each factorization: only those can be updated)
   if (factor->is_super || factor->is_ll) {
@@ -1437,6 +1455,40 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
     toSimplicial(cm, factor);
     stats.convertSeconds = secondsSince(tc);
   }
+  // With the vectorized update (ldl_updown.h) the columns must not fill in L: the kernel
+  // leaves such columns to cholmod_updown, which grows L for them (190 ms for the 13 such
+  // columns of one 8000-node removal, the L grown for the rest of the run). A pivot taken
+  // out of row order gives the columns after it rows outside L's pattern, often: such a
+  // group goes tet by tet instead (a tet's dofs are all coupled in L: no order fills in),
+  // more columns but all of them vectorized.
+  if (vectorizedUpdate && ldlUpdownAvailable()) {
+    std::vector<std::uint8_t> byTet(groups.size(), 0);  // summed groups with a column that fills
+    bool any = false;
+    for (size_t k = 0; k < groups.size(); ++k)
+      for (int c = groupFrom[k]; summed[k] && !byTet[k] && c < groupFrom[k + 1]; ++c)
+        any |= byTet[k] =
+            ldlColumnFillsIn(*factor, ci.data() + cp[c], cp[c + 1] - cp[c], target.marks->updown);
+    if (any) {
+      const std::vector<int> oldP = std::move(cp), oldI = std::move(ci);
+      const std::vector<double> oldX = std::move(cx);
+      cp.assign(1, 0);
+      ci.clear();
+      cx.clear();
+      for (size_t k = 0; k < groups.size(); ++k) {
+        if (byTet[k]) {
+          ++stats.groupsByTet;
+          for (int t : groups[k]) addColumns({t}, freeDofs({t}));
+          continue;
+        }
+        for (int c = groupFrom[k]; c < groupFrom[k + 1]; ++c) {
+          ci.insert(ci.end(), oldI.begin() + oldP[c], oldI.begin() + oldP[c + 1]);
+          cx.insert(cx.end(), oldX.begin() + oldP[c], oldX.begin() + oldP[c + 1]);
+          cp.push_back(static_cast<int>(ci.size()));
+        }
+      }
+    }
+  }
+  stats.rank = static_cast<int>(cp.size()) - 1;
 
   // 6. the columns of L the update walks: up the elimination tree from each deleted or
   // added row and from the first row of each column of C; the work, those columns' lengths
@@ -1474,11 +1526,18 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
   // when that costs more
   stats.updateCost = kUpdownCostPerEntry * stats.updateWork / target.refactorFlops;
   bool updated = false;
+  const LdlUpdownWork& kernel = target.marks->updown;
+  const long vectorBefore = kernel.vectorColumns, choleskyBefore = kernel.choleskyColumns;
   if (stats.updateCost <= updateCostLimit) {
     bool ok = newlyHeld.empty() || deleteRows(newlyHeld, target, cm);
     if (ok && stats.rank > 0) {
       cholmod_sparse c = cholmodViewColumns(factor->n, stats.rank, cp.data(), ci.data(), cx.data());
-      ok = cholmod_updown(false, &c, factor, &cm);
+      if (vectorizedUpdate) {
+        ok = ldlUpdown(false, c, *factor, target.marks->updown, cm);
+      } else {
+        target.marks->updown.choleskyColumns += static_cast<long>(c.ncol);
+        ok = cholmod_updown(false, &c, factor, &cm);
+      }
     }
     for (size_t k = 0; ok && k < newlyFreed.size(); ++k) {
       // column of A at the dof: K over the alive tets, on the dofs free so far
@@ -1522,6 +1581,8 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
     updated = ok && cm.status == CHOLMOD_OK;
     stats.downdateFailed = !updated;
   }
+  stats.vectorColumns = kernel.vectorColumns - vectorBefore;
+  stats.choleskyColumns = kernel.choleskyColumns - choleskyBefore;
   if (!updated) {
     if (target.whole) factorize(cm, s);  // the region's caller builds it again
     stats.refactorized = true;
@@ -1568,6 +1629,7 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   ESIM_VERIFY(!(options.updateCostLimit < 0), "structural: updateCostLimit must be >= 0, got " +
                                                   messageNumber(options.updateCostLimit));
   m.updateCostLimit = options.updateCostLimit;
+  m.vectorizedUpdate = options.vectorizedUpdate;
   m.prepareForUpdates = options.prepareForUpdates;
   verifyLocalOptions(options.local);
   m.method = options.solveMethod;

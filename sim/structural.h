@@ -197,6 +197,10 @@ struct StructuralOptions {
   // that removes tets in its frame loop pays the conversion at set-up (solves are then ~1.3x
   // slower from the start; results equal to round-off)
   bool prepareForUpdates = false;
+  // a removal's updates of the simplicial factor (the downdate by its stiffness, the rows
+  // deleted) by the AVX-512 kernel of ldl_updown.h where the machine has it, else (false, or
+  // no AVX-512) by CHOLMOD's cholmod_updown: the same arithmetic, equal to round-off
+  bool vectorizedUpdate = true;
   StructuralSolveMethod solveMethod = StructuralSolveMethod::full;  // see LocalSolveOptions
   LocalSolveOptions local;
 };
@@ -207,6 +211,9 @@ struct StructuralUpdateStats {
   int dofsHeld = 0;             // components newly held: rows deleted from L
   int dofsFreed = 0;            // components of nodes no island holds any more: rows added
   int rank = 0;                 // columns of the downdate C (<= 6 per removed tet)
+  int groupsByTet = 0;          // clusters of removed tets whose columns went tet by tet
+  long vectorColumns = 0;       // columns (of C and of the rows deleted) by ldl_updown.h's kernel
+  long choleskyColumns = 0;     // ... and by cholmod_updown
   int piecesCutOff = 0;         // pieces split off the ones the removed tets belonged to
   double updateWork = 0;        // entries of L the update walks, times the columns passing
   double updateCost = 0;        // estimated cost of the update / a refactorization's

@@ -233,6 +233,8 @@ struct ScenarioSolvers {
   int structuralLocalRefreshEvery = scenario_detail::core().structural.local.refreshEvery;
   // local: that full solve on a thread of the phase, adopted refresh_every solves later
   bool structuralLocalRefreshOnThread = scenario_detail::core().structural.local.refreshOnThread;
+  // a removal's factor update by the vectorized kernel (else cholmod_updown)
+  bool structuralVectorizedUpdate = scenario_detail::core().structural.vectorizedUpdate;
   // synchronous | background | update
   RebuildMode rebuildMode = scenario_detail::core().rebuildMode;
   // background: frames until the swap

@@ -324,6 +324,12 @@ const std::vector<Field>& schema() {
                         "local: run that full solve on a thread of its own, adopted "
                         "local_refresh_every solves later (deterministic), instead of in the "
                         "frame"));
+    f.push_back(boolean("solvers.structural.vectorized_update",
+                        ESIM_REF(solvers.structuralVectorizedUpdate),
+                        "update mode: a removal's update of the structural factor by ESim's "
+                        "AVX-512 kernel where the CPU has it (else, or false: CHOLMOD's "
+                        "cholmod_updown, scalar code); the same result to round-off, 2-4x "
+                        "faster (README, \"The cut with the model updated in place\")"));
     f.push_back(choice("solvers.rebuild.mode", ESIM_ENUM_REF(solvers.rebuildMode),
                        {"synchronous", "background", "update"},
                        "after rupture: build the new model in the frame that breaks tets, or on "

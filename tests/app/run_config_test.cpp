@@ -101,6 +101,7 @@ TEST(RunConfig, EveryDefaultComesFromTheCore) {
   EXPECT_EQ(c.structural.local.maxRegionFraction, d.structural.local.maxRegionFraction);
   EXPECT_EQ(c.structural.local.refreshEvery, d.structural.local.refreshEvery);
   EXPECT_EQ(c.structural.local.refreshOnThread, d.structural.local.refreshOnThread);
+  EXPECT_EQ(c.structural.vectorizedUpdate, d.structural.vectorizedUpdate);
 }
 
 // solvers.structural.*: the local solve's keys reach the structural phase's options
@@ -108,7 +109,8 @@ TEST(RunConfig, StructuralLocalSolveKeysReachThePhase) {
   const Scenario s = parseScenario(
       "name: local\nsolvers:\n  structural:\n    method: local\n    local_margin_m: 0.004\n"
       "    local_refresh_every: 7\n    local_refresh_on_thread: true\n"
-      "    local_slack_m: 0.002\n    local_max_region_fraction: 0.8\n",
+      "    local_slack_m: 0.002\n    local_max_region_fraction: 0.8\n"
+      "    vectorized_update: false\n",
       "local.yaml");
   const SimulationConfig c = makeSimulationConfig(s);
   EXPECT_EQ(c.structural.solveMethod, StructuralSolveMethod::local);
@@ -117,6 +119,9 @@ TEST(RunConfig, StructuralLocalSolveKeysReachThePhase) {
   EXPECT_TRUE(c.structural.local.refreshOnThread);
   EXPECT_EQ(c.structural.local.slackM, 0.002);
   EXPECT_EQ(c.structural.local.maxRegionFraction, 0.8);
+  EXPECT_FALSE(c.structural.vectorizedUpdate);
+  EXPECT_TRUE(
+      makeSimulationConfig(parseScenario("name: d\n", "d.yaml")).structural.vectorizedUpdate);
   try {
     parseScenario("name: bad\nsolvers:\n  structural:\n    method: nearby\n", "bad.yaml");
     ADD_FAILURE() << "accepted method: nearby";

@@ -20,6 +20,7 @@
 
 #include "sim/core_error.h"
 #include "sim/fem_p1.h"
+#include "sim/ldl_updown.h"
 #include "sim/mesh_slab.h"
 #include "tests/sim/suitesparse_fault_util.h"
 
@@ -403,6 +404,49 @@ TEST(StructuralRemoval, OneFiveThenManyTetsEqualAFreshBuild) {
   }
   EXPECT_GT(removed, 200);
   expectSameAsFresh(phase, mesh, clamp, "many tets");
+}
+
+// StructuralOptions::vectorizedUpdate: the removals' updates by ldl_updown.h's kernel (where
+// the CPU has AVX-512) and by cholmod_updown alone give the same displacement to round-off,
+// batch after batch (downdates and rows deleted for the nodes left without tets); with the
+// kernel no column goes to cholmod_updown (a group whose columns would fill in L goes tet by
+// tet instead), without it every one does
+TEST(StructuralRemoval, VectorizedUpdateEqualsCholmodUpdown) {
+  TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralOptions scalar = alwaysUpdate();
+  scalar.vectorizedUpdate = false;
+  StructuralPhase vectorized(mesh, alwaysUpdate(), clamp), cholmod(mesh, scalar, clamp);
+  std::vector<int> upper;
+  for (int t = 0; t < mesh.numTets(); ++t)
+    if (centroidZ(mesh, t) > 0.4 * kLz) upper.push_back(t);
+  const std::vector<double> ev = unevenLoad(mesh);
+  long vectorColumns = 0, held = 0;
+  for (size_t k = 0, batch = 0; batch < 12; k += 17, ++batch) {
+    std::vector<int> tets;
+    for (size_t j = 0; j < 17; ++j) tets.push_back(upper[(k + j * 29) % upper.size()]);
+    for (int t : tets) mesh.alive[t] = 0;
+    const StructuralUpdateStats a = vectorized.removeTets(tets), b = cholmod.removeTets(tets);
+    ASSERT_FALSE(a.refactorized);
+    ASSERT_FALSE(b.refactorized);
+    EXPECT_EQ(a.dofsHeld, b.dofsHeld);
+    EXPECT_EQ(b.vectorColumns, 0);
+    EXPECT_GE(b.choleskyColumns, b.rank);
+    if (ldlUpdownAvailable()) {
+      EXPECT_EQ(a.choleskyColumns, 0);
+    }
+    vectorColumns += a.vectorColumns;
+    held += a.dofsHeld;
+    vectorized.solve(ev);
+    cholmod.solve(ev);
+    EXPECT_LT(relativeDifference(vectorized.displacementM(), cholmod.displacementM()), 1e-12)
+        << "batch " << batch;
+  }
+  EXPECT_GT(held, 0);  // rows deleted too
+  if (ldlUpdownAvailable()) {
+    EXPECT_GT(vectorColumns, 0);
+  }
+  expectSameAsFresh(vectorized, mesh, clamp, "vectorized");
 }
 
 // The star of an interior node (every tet at it): the node is held, and the star's summed

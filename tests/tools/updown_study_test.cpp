@@ -1,6 +1,7 @@
 // updown_study_test.cpp - tools/updown_study end to end on a small slab: it prints a row per
 // rank and checks what it times (the reach solves equal the block solve, the updated factor
-// solves the updated matrix); a bad node count exits 2 naming it. Times are never asserted.
+// solves the updated matrix, the vectorized kernel's factor equals cholmod_updown's); a bad
+// node count exits 2 naming it. Times are never asserted.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -23,13 +24,14 @@ TEST(UpdownStudy, PrintsARowPerRankAndItsMethodsAgree) {
   std::istringstream lines(r.output);
   std::string line;
   int rows = 0;
-  double reachVsBlock = -1, updated = -1;
+  double reachVsBlock = -1, updated = -1, vectorVsUpdown = -1;
   while (std::getline(lines, line)) {
     int rank = 0;
     long reachRows = 0;
-    double updown = 0, block = 0, reach = 0;
-    if (std::sscanf(line.c_str(), "%d %lf %lf %lf %ld", &rank, &updown, &block, &reach,
-                    &reachRows) == 5) {
+    double updown = 0, block = 0, reach = 0, vector = 0;
+    if (std::sscanf(line.c_str(), "%d %lf %lf %lf %ld %lf", &rank, &updown, &block, &reach,
+                    &reachRows, &vector) == 6) {
+      EXPECT_GT(vector, 0.0) << line;
       EXPECT_EQ(rank, 6 * (rows == 0) + 24 * (rows == 1) + 72 * (rows == 2) + 144 * (rows == 3))
           << line;
       EXPECT_GT(reachRows, 0) << line;
@@ -37,12 +39,15 @@ TEST(UpdownStudy, PrintsARowPerRankAndItsMethodsAgree) {
       ++rows;
     }
     std::sscanf(line.c_str(),
-                "checks: reach solves against the block solve %lf, updated factor's residual %lf",
-                &reachVsBlock, &updated);
+                "checks: reach solves against the block solve %lf, updated factor's residual %lf, "
+                "vector against updown %lf",
+                &reachVsBlock, &updated, &vectorVsUpdown);
   }
   EXPECT_EQ(rows, 4) << r.output;
   EXPECT_GE(reachVsBlock, 0.0) << r.output;
   EXPECT_LT(reachVsBlock, 1e-12) << r.output;
+  EXPECT_GE(vectorVsUpdown, 0.0) << r.output;
+  EXPECT_LT(vectorVsUpdown, 1e-12) << r.output;
   EXPECT_GE(updated, 0.0) << r.output;
   EXPECT_LT(updated, 1e-12) << r.output;
 }

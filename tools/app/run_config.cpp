@@ -86,6 +86,7 @@ void mapStructural(const Scenario& s, SimulationConfig& c) {
   c.structural.local.maxRegionFraction = s.solvers.structuralLocalMaxRegionFraction;
   c.structural.local.refreshEvery = s.solvers.structuralLocalRefreshEvery;
   c.structural.local.refreshOnThread = s.solvers.structuralLocalRefreshOnThread;
+  c.structural.vectorizedUpdate = s.solvers.structuralVectorizedUpdate;
   c.rebuildMode = s.solvers.rebuildMode;
   c.rebuildLagFrames = s.solvers.rebuildLagFrames;
   c.recomputeLagFrames = s.solvers.rebuildRecompute;

@@ -8,10 +8,13 @@
 //   block solve:   L^-1 P C with the supernodal factor and C dense (BLAS-3; the first half
 //                  of a Woodbury term on a kept factor);
 //   reach solves:  the same, one column at a time, only over each column's reach in L
-//                  (cholmod_solve2 with Bset, simplicial factor).
+//                  (cholmod_solve2 with Bset, simplicial factor);
+//   vector:        A + C C' by ESim's AVX-512 kernel (sim/ldl_updown.h) on a copy of the
+//                  simplicial factor (cholmod_updown where the CPU has no AVX-512).
 // Each is the best of three. The study checks what it times: the reach solves equal the
-// block solve (scaled by D^1/2: LDL' against LL'), and the updated factor solves the
-// updated matrix (relative residuals printed, exit 1 above 1e-8).
+// block solve (scaled by D^1/2: LDL' against LL'), the updated factor solves the updated
+// matrix, and the kernel's factor equals cholmod_updown's (relative differences printed,
+// exit 1 above 1e-8).
 // Usage: updown_study [NODES ...] (default 1013 8000)
 #include <cholmod.h>
 
@@ -25,6 +28,7 @@
 #include <vector>
 
 #include "sim/fem_p1.h"
+#include "sim/ldl_updown.h"
 #include "sim/mesh_slab.h"
 
 using namespace esim;
@@ -70,8 +74,9 @@ Matrix12 elementStiffness(const TetGeometry& g) {
 
 // the worst relative residuals over a study
 struct Checks {
-  double reachVsBlock = 0;  // max |Y_reach - D^1/2 Y_block| / max |Y_reach|
-  double updated = 0;       // ||(A + sum C C') x - b|| / ||b|| with the updated factor
+  double reachVsBlock = 0;    // max |Y_reach - D^1/2 Y_block| / max |Y_reach|
+  double updated = 0;         // ||(A + sum C C') x - b|| / ||b|| with the updated factor
+  double vectorVsUpdown = 0;  // max |L_vector - L_updown| / max |L_updown|
 };
 
 // returns the checks
@@ -133,6 +138,8 @@ Checks study(int targetNodes) {
   cholmod_change_factor(CHOLMOD_REAL, 0, 0, 1, 1, simplicial, &c);  // simplicial LDL'
   // the reach solves use A's factor, as the block solve does; `simplicial` takes the updates
   cholmod_factor* original = cholmod_copy_factor(simplicial, &c);
+  cholmod_factor* vec = cholmod_copy_factor(simplicial, &c);
+  LdlUpdownWork work;
 
   std::vector<std::pair<double, int>> byDistance;  // tets by centroid distance to the top middle
   for (int e = 0; e < mesh.numTets(); ++e) {
@@ -142,8 +149,8 @@ Checks study(int targetNodes) {
   }
   std::sort(byDistance.begin(), byDistance.end());
 
-  std::printf("%6s %12s %15s %15s %12s\n", "rank", "updown ms", "block solve ms", "reach solves ms",
-              "reach rows");
+  std::printf("%6s %12s %15s %15s %12s %10s\n", "rank", "updown ms", "block solve ms",
+              "reach solves ms", "reach rows", "vector ms");
   for (int r : {6, 24, 72, 144}) {
     // C in A's row order, then in L's (P C)
     cholmod_sparse* cols = cholmod_allocate_sparse(n, r, 12 * r, 1, 1, 0, CHOLMOD_REAL, &c);
@@ -179,7 +186,7 @@ Checks study(int targetNodes) {
     const Eigen::SparseMatrix<double> cct = colsEigen * colsEigen.transpose();
     Eigen::MatrixXd yBlock(n, r), yReach = Eigen::MatrixXd::Zero(n, r);
 
-    double block = 1e300, reach = 1e300, updown = 1e300;
+    double block = 1e300, reach = 1e300, updown = 1e300, vector = 1e300;
     long reachRows = 0;
     for (int rep = 0; rep < 3; ++rep) {
       double s = seconds();
@@ -236,6 +243,9 @@ Checks study(int targetNodes) {
       s = seconds();
       cholmod_updown(1, permuted, simplicial, &c);  // an update: the factor stays definite
       updown = std::min(updown, seconds() - s);
+      s = seconds();
+      ldlUpdown(true, *permuted, *vec, work, c);
+      vector = std::min(vector, seconds() - s);
       current += cct;
     }
     // the updated factor solves the updated matrix
@@ -246,20 +256,30 @@ Checks study(int targetNodes) {
                                                   std::sqrt(static_cast<double>(n)));
     cholmod_free_dense(&x, &c);
     cholmod_free_dense(&b, &c);
-    std::printf("%6d %12.2f %15.2f %15.2f %12ld\n", r, 1e3 * updown, 1e3 * block, 1e3 * reach,
-                reachRows / r);
+    double differ = 0, largest = 0;
+    for (size_t q = 0; q < simplicial->nzmax; ++q) {
+      differ = std::max(differ, std::abs(static_cast<double*>(simplicial->x)[q] -
+                                         static_cast<double*>(vec->x)[q]));
+      largest = std::max(largest, std::abs(static_cast<double*>(simplicial->x)[q]));
+    }
+    checks.vectorVsUpdown = std::max(checks.vectorVsUpdown, differ / largest);
+    std::printf("%6d %12.2f %15.2f %15.2f %12ld %10.2f\n", r, 1e3 * updown, 1e3 * block,
+                1e3 * reach, reachRows / r, 1e3 * vector);
     cholmod_free_dense(&dense, &c);
     cholmod_free_sparse(&permuted, &c);
     cholmod_free_sparse(&cols, &c);
   }
   cholmod_free_factor(&simplicial, &c);
   cholmod_free_factor(&original, &c);
+  cholmod_free_factor(&vec, &c);
   cholmod_free_factor(&super, &c);
   cholmod_free_sparse(&a, &c);
   cholmod_free_triplet(&t, &c);
   cholmod_finish(&c);
-  std::printf("checks: reach solves against the block solve %.1e, updated factor's residual %.1e\n",
-              checks.reachVsBlock, checks.updated);
+  std::printf(
+      "checks: reach solves against the block solve %.1e, updated factor's residual %.1e, "
+      "vector against updown %.1e\n",
+      checks.reachVsBlock, checks.updated, checks.vectorVsUpdown);
   return checks;
 }
 
@@ -279,7 +299,7 @@ int main(int argc, char** argv) {
   if (sizes.empty()) sizes = {1013, 8000};
   for (int nodes : sizes) {
     const Checks checks = study(nodes);
-    if (!(checks.reachVsBlock <= 1e-8 && checks.updated <= 1e-8)) {
+    if (!(checks.reachVsBlock <= 1e-8 && checks.updated <= 1e-8 && checks.vectorVsUpdown <= 1e-8)) {
       std::fprintf(stderr, "updown_study: %d nodes: the methods disagree (see the checks)\n",
                    nodes);
       return 1;

@@ -1,0 +1,243 @@
+// The multiple-rank LDL' update of ldl_updown.h. For each column j on a pass's paths (in
+// increasing order, so children before parents): D(j) and the pass's alpha/gamma from row
+// j of W (cholmod_updown's ALPHA_GAMMA), then every entry (i, j) below the diagonal:
+//   for k < 8: W(i, k) -= W(j, k) L(i, j);  L(i, j) -= gamma(k) W(i, k)
+// Eight entries at a time: their rows of W (8 doubles each) are loaded and transposed, so
+// that W(:, k) over the eight rows is one vector and the loop over k runs on vectors, then
+// transposed back and stored (the rows of one column of L are distinct: no conflicts).
+#include "sim/ldl_updown.h"
+
+// GCC 12's AVX-512 intrinsics warn of their own undefined vectors (_mm512_undefined_pd in
+// the shuffles) as maybe uninitialized: a false positive
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#include <immintrin.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+
+namespace esim {
+namespace {
+
+constexpr int kWidth = 8;  // columns of C a pass (one AVX-512 vector of doubles)
+
+// 8 x 8 transpose of r[0..7] in place
+__attribute__((target("avx512f,fma"))) inline void transpose8(__m512d* r) {
+  const __m512d t0 = _mm512_unpacklo_pd(r[0], r[1]), t1 = _mm512_unpackhi_pd(r[0], r[1]);
+  const __m512d t2 = _mm512_unpacklo_pd(r[2], r[3]), t3 = _mm512_unpackhi_pd(r[2], r[3]);
+  const __m512d t4 = _mm512_unpacklo_pd(r[4], r[5]), t5 = _mm512_unpackhi_pd(r[4], r[5]);
+  const __m512d t6 = _mm512_unpacklo_pd(r[6], r[7]), t7 = _mm512_unpackhi_pd(r[6], r[7]);
+  const __m512d u0 = _mm512_shuffle_f64x2(t0, t2, 0x88), u1 = _mm512_shuffle_f64x2(t0, t2, 0xdd);
+  const __m512d u2 = _mm512_shuffle_f64x2(t4, t6, 0x88), u3 = _mm512_shuffle_f64x2(t4, t6, 0xdd);
+  const __m512d u4 = _mm512_shuffle_f64x2(t1, t3, 0x88), u5 = _mm512_shuffle_f64x2(t1, t3, 0xdd);
+  const __m512d u6 = _mm512_shuffle_f64x2(t5, t7, 0x88), u7 = _mm512_shuffle_f64x2(t5, t7, 0xdd);
+  r[0] = _mm512_shuffle_f64x2(u0, u2, 0x88);
+  r[4] = _mm512_shuffle_f64x2(u0, u2, 0xdd);
+  r[2] = _mm512_shuffle_f64x2(u1, u3, 0x88);
+  r[6] = _mm512_shuffle_f64x2(u1, u3, 0xdd);
+  r[1] = _mm512_shuffle_f64x2(u4, u6, 0x88);
+  r[5] = _mm512_shuffle_f64x2(u4, u6, 0xdd);
+  r[3] = _mm512_shuffle_f64x2(u5, u7, 0x88);
+  r[7] = _mm512_shuffle_f64x2(u5, u7, 0xdd);
+}
+
+// the rows below G columns j_0 < ... < j_{G-1} of a chain in the elimination tree with
+// the same pattern there (rows li[0..count)): column m's values at lx[m][0..count), its
+// W row and gamma in z[m], g[m]; per row the columns in order, as G single columns would
+template <int G>
+__attribute__((target("avx512f,fma"))) void updateRows(const double (*z)[kWidth],
+                                                      const double (*g)[kWidth], const int* li,
+                                                      double* const* lx, int count, double* w) {
+  int q = 0;
+  for (; q + 8 <= count; q += 8) {
+    __m512d r[8];
+    for (int m = 0; m < 8; ++m) r[m] = _mm512_loadu_pd(w + kWidth * static_cast<long>(li[q + m]));
+    transpose8(r);  // r[k]: W(rows, k)
+    for (int c = 0; c < G; ++c) {
+      __m512d l = _mm512_loadu_pd(lx[c] + q);
+      for (int k = 0; k < kWidth; ++k) {
+        r[k] = _mm512_fnmadd_pd(_mm512_set1_pd(z[c][k]), l, r[k]);
+        l = _mm512_fnmadd_pd(_mm512_set1_pd(g[c][k]), r[k], l);
+      }
+      _mm512_storeu_pd(lx[c] + q, l);
+    }
+    transpose8(r);
+    for (int m = 0; m < 8; ++m) _mm512_storeu_pd(w + kWidth * static_cast<long>(li[q + m]), r[m]);
+  }
+  for (; q < count; ++q) {
+    double* wi = w + kWidth * static_cast<long>(li[q]);
+    for (int c = 0; c < G; ++c) {
+      double l = lx[c][q];
+      for (int k = 0; k < kWidth; ++k) {
+        wi[k] = std::fma(-z[c][k], l, wi[k]);
+        l = std::fma(-g[c][k], wi[k], l);
+      }
+      lx[c][q] = l;
+    }
+  }
+}
+
+int nextStamp(LdlUpdownWork& work) {
+  if (++work.stamp == 0x7fffffff) {
+    std::fill(work.mark.begin(), work.mark.end(), 0);
+    work.stamp = 1;
+  }
+  return work.stamp;
+}
+
+// the kernel's passes over the columns in work.cp, work.ci, work.cx (see ldlUpdown)
+void vectorPasses(bool update, int ncol, cholmod_factor& l, LdlUpdownWork& work) {
+  const int* lp = static_cast<const int*>(l.p);
+  const int* li = static_cast<const int*>(l.i);
+  const int* lnz = static_cast<const int*>(l.nz);
+  double* lx = static_cast<double*>(l.x);
+  const int* cp = work.cp.data();
+  const int* ci = work.ci.data();
+  const double* cx = work.cx.data();
+  double* w = work.w.data();
+  for (int k0 = 0; k0 < ncol; k0 += kWidth) {
+    const int rank = std::min(kWidth, ncol - k0);
+    const int s = nextStamp(work);
+    work.path.clear();
+    double alpha[kWidth];
+    for (int k = 0; k < kWidth; ++k) alpha[k] = 1.0;
+    for (int k = 0; k < rank; ++k) {
+      for (int p = cp[k0 + k]; p < cp[k0 + k + 1]; ++p) w[kWidth * static_cast<long>(ci[p]) + k] = cx[p];
+      if (cp[k0 + k] == cp[k0 + k + 1]) continue;
+      for (int j = ci[cp[k0 + k]]; j >= 0 && work.mark[j] != s;
+           j = lnz[j] > 1 ? li[lp[j] + 1] : -1) {
+        work.mark[j] = s;
+        work.path.push_back(j);
+      }
+    }
+    std::sort(work.path.begin(), work.path.end());
+    const std::vector<int>& path = work.path;
+    for (size_t at = 0; at < path.size();) {
+      // a group of 1, 2 or 4 columns: each the parent of the one before and the next on
+      // the path (so no other column of the path comes between), with the same pattern
+      // below the group (cholmod_updown's dual and quad columns)
+      const int j = path[at];
+      const int p0 = lp[j], n0 = lnz[j];
+      int group = 1;
+      const auto joins = [&](int t) {  // column at + t continues the chain
+        return at + t < path.size() && n0 > t && li[p0 + t] == path[at + t] &&
+               lnz[path[at + t]] == n0 - t;
+      };
+      if (joins(1)) group = joins(2) && joins(3) ? 4 : 2;
+      double z[4][kWidth], g[4][kWidth];
+      double* lxs[4];
+      for (int m = 0; m < group; ++m) {
+        const int jm = path[at + m];
+        double* wj = w + kWidth * static_cast<long>(jm);
+        double dj = lx[lp[jm]];
+        for (int k = 0; k < kWidth; ++k) {
+          z[m][k] = wj[k];
+          wj[k] = 0.0;
+          g[m][k] = 0.0;
+          if (z[m][k] == 0.0) continue;  // this column's path does not pass jm
+          const double a = update ? alpha[k] + z[m][k] * z[m][k] / dj
+                                  : alpha[k] - z[m][k] * z[m][k] / dj;
+          dj *= a;
+          g[m][k] = update ? -z[m][k] / dj : z[m][k] / dj;
+          dj /= alpha[k];
+          alpha[k] = a;
+        }
+        lx[lp[jm]] = dj;
+        // the entries (j_t, j_m) inside the group, into the rows of W still to come
+        for (int t = m + 1; t < group; ++t) {
+          double* wt = w + kWidth * static_cast<long>(path[at + t]);
+          double& l = lx[lp[jm] + t - m];
+          for (int k = 0; k < kWidth; ++k) {
+            wt[k] = std::fma(-z[m][k], l, wt[k]);
+            l = std::fma(-g[m][k], wt[k], l);
+          }
+        }
+        lxs[m] = lx + lp[jm] + group - m;  // the rows below the group
+      }
+      const int* rows = li + p0 + group;
+      const int count = n0 - group;
+      if (group == 1)
+        updateRows<1>(z, g, rows, lxs, count, w);
+      else if (group == 2)
+        updateRows<2>(z, g, rows, lxs, count, w);
+      else
+        updateRows<4>(z, g, rows, lxs, count, w);
+      at += group;
+    }
+  }
+}
+
+}  // namespace
+
+bool ldlUpdownAvailable() { return __builtin_cpu_supports("avx512f"); }
+
+bool ldlColumnFillsIn(const cholmod_factor& l, const int* rows, int count, LdlUpdownWork& work) {
+  if (count <= 1) return false;
+  const int* lp = static_cast<const int*>(l.p);
+  const int* li = static_cast<const int*>(l.i);
+  const int* lnz = static_cast<const int*>(l.nz);
+  if (work.mark.size() != l.n) {
+    work.mark.assign(l.n, 0);
+    work.stamp = 0;
+  }
+  const int r0 = rows[0];
+  const int st = nextStamp(work);
+  for (int p = lp[r0]; p < lp[r0] + lnz[r0]; ++p) work.mark[li[p]] = st;
+  for (int q = 1; q < count; ++q)
+    if (work.mark[rows[q]] != st) return true;
+  return false;
+}
+
+bool ldlUpdown(bool update, const cholmod_sparse& c, cholmod_factor& l, LdlUpdownWork& work,
+               cholmod_common& cm) {
+  cholmod_sparse cc = c;  // cholmod_updown's argument is not const
+  if (!ldlUpdownAvailable() || l.is_super || l.is_ll || l.itype != CHOLMOD_INT ||
+      l.xtype != CHOLMOD_REAL || l.dtype != CHOLMOD_DOUBLE || c.itype != CHOLMOD_INT ||
+      c.xtype != CHOLMOD_REAL || c.dtype != CHOLMOD_DOUBLE || !c.packed || !c.sorted ||
+      c.nrow != l.n)
+    return cholmod_updown(update, &cc, &l, &cm);
+  const int n = static_cast<int>(l.n), ncol = static_cast<int>(c.ncol);
+  if (static_cast<int>(work.mark.size()) != n) {
+    work.mark.assign(n, 0);
+    work.stamp = 0;
+  }
+  if (work.w.size() != static_cast<size_t>(kWidth) * n)
+    work.w.assign(static_cast<size_t>(kWidth) * n, 0.0);
+  // The kernel takes the columns that cannot fill in: every row in L's column at the
+  // column's first row (then its path stays inside L's pattern: a column's pattern, but for
+  // its parent, is in its parent's); cholmod_updown the others, after it (the order of the
+  // rank-1 changes does not matter but to rounding)
+  const int* p0 = static_cast<const int*>(c.p);
+  const int* i0 = static_cast<const int*>(c.i);
+  const double* x0 = static_cast<const double*>(c.x);
+  std::vector<int>&cp = work.cp, &ci = work.ci, &restP = work.restP, &restI = work.restI;
+  std::vector<double>&cx = work.cx, &restX = work.restX;
+  cp.assign(1, 0);
+  restP.assign(1, 0);
+  ci.clear();
+  cx.clear();
+  restI.clear();
+  restX.clear();
+  for (int k = 0; k < ncol; ++k) {
+    if (p0[k] == p0[k + 1]) continue;
+    const bool inside = !ldlColumnFillsIn(l, i0 + p0[k], p0[k + 1] - p0[k], work);
+    std::vector<int>& ri = inside ? ci : restI;
+    std::vector<double>& rx = inside ? cx : restX;
+    ri.insert(ri.end(), i0 + p0[k], i0 + p0[k + 1]);
+    rx.insert(rx.end(), x0 + p0[k], x0 + p0[k + 1]);
+    (inside ? cp : restP).push_back(static_cast<int>(ri.size()));
+  }
+  work.vectorColumns += static_cast<long>(cp.size()) - 1;
+  work.choleskyColumns += static_cast<long>(restP.size()) - 1;
+  vectorPasses(update, static_cast<int>(cp.size()) - 1, l, work);
+  if (restP.size() == 1) return true;
+  cholmod_sparse rest = c;
+  rest.ncol = restP.size() - 1;
+  rest.nzmax = std::max<size_t>(1, restI.size());
+  rest.p = restP.data();
+  rest.i = restI.data();
+  rest.x = restX.data();
+  return cholmod_updown(update, &rest, &l, &cm);
+}
+
+}  // namespace esim

@@ -1,0 +1,46 @@
+// A multiple-rank update or downdate of a simplicial LDL' factor, L D L' +- C C', vectorized
+// over the rows of each column of L (issue #11: a removal's structural update is the
+// cut's critical path, and CHOLMOD's cholmod_updown, as Debian builds it, is scalar code).
+// The arithmetic is CHOLMOD's (Davis and Hager's multiple-rank method C1, the same
+// alpha/gamma recurrence, up to 8 columns of C a pass, each pass along the union of its
+// columns' paths in the elimination tree), so the results agree with cholmod_updown to
+// rounding; it takes only the columns whose change stays inside L's pattern (no fill) and
+// leaves the others to cholmod_updown.
+#pragma once
+
+#include <cholmod.h>
+
+#include <vector>
+
+namespace esim {
+
+// Workspace kept across calls (sized to the factor on first use), and what the calls did.
+struct LdlUpdownWork {
+  std::vector<double> w;  // n x 8, row-major, zero between calls
+  std::vector<int> mark;  // n, path marks
+  std::vector<int> path;  // columns of the current pass's paths
+  int stamp = 0;
+  std::vector<int> cp, ci, restP, restI;  // the columns of C for the kernel, for CHOLMOD
+  std::vector<double> cx, restX;
+  long vectorColumns = 0;    // columns of C the kernel applied
+  long choleskyColumns = 0;  // ... and cholmod_updown (they would fill in L)
+};
+
+// true when this machine runs the vectorized kernel (AVX-512F)
+bool ldlUpdownAvailable();
+
+// true when the column of C with these rows (ascending, in L's row order) would fill in the
+// simplicial factor l: a row outside L's column at the first row (ldlUpdown leaves such a
+// column to cholmod_updown)
+bool ldlColumnFillsIn(const cholmod_factor& l, const int* rows, int count, LdlUpdownWork& work);
+
+// L D L' + C C' (update) or - C C' (downdate), C n x r in L's row order (sorted columns,
+// packed), as cholmod_updown(update, C, L) does: the columns whose change stays inside L's
+// pattern by the kernel, the others (and all of them without AVX-512, or for a factor that
+// is not simplicial LDL' with int indices) by cholmod_updown after it. Returns
+// cholmod_updown's result (true when only the kernel ran). A downdate that loses positive
+// definiteness leaves a pivot <= 0, as cholmod_updown does.
+bool ldlUpdown(bool update, const cholmod_sparse& c, cholmod_factor& l, LdlUpdownWork& work,
+               cholmod_common& cm);
+
+}  // namespace esim
