@@ -46,8 +46,8 @@ __attribute__((target("avx512f,fma"))) inline void transpose8(__m512d* r) {
 // W row and gamma in z[m], g[m]; per row the columns in order, as G single columns would
 template <int G>
 __attribute__((target("avx512f,fma"))) void updateRows(const double (*z)[kWidth],
-                                                      const double (*g)[kWidth], const int* li,
-                                                      double* const* lx, int count, double* w) {
+                                                       const double (*g)[kWidth], const int* li,
+                                                       double* const* lx, int count, double* w) {
   int q = 0;
   for (; q + 8 <= count; q += 8) {
     __m512d r[8];
@@ -102,7 +102,8 @@ void vectorPasses(bool update, int ncol, cholmod_factor& l, LdlUpdownWork& work)
     double alpha[kWidth];
     for (int k = 0; k < kWidth; ++k) alpha[k] = 1.0;
     for (int k = 0; k < rank; ++k) {
-      for (int p = cp[k0 + k]; p < cp[k0 + k + 1]; ++p) w[kWidth * static_cast<long>(ci[p]) + k] = cx[p];
+      for (int p = cp[k0 + k]; p < cp[k0 + k + 1]; ++p)
+        w[kWidth * static_cast<long>(ci[p]) + k] = cx[p];
       if (cp[k0 + k] == cp[k0 + k + 1]) continue;
       for (int j = ci[cp[k0 + k]]; j >= 0 && work.mark[j] != s;
            j = lnz[j] > 1 ? li[lp[j] + 1] : -1) {
@@ -135,8 +136,8 @@ void vectorPasses(bool update, int ncol, cholmod_factor& l, LdlUpdownWork& work)
           wj[k] = 0.0;
           g[m][k] = 0.0;
           if (z[m][k] == 0.0) continue;  // this column's path does not pass jm
-          const double a = update ? alpha[k] + z[m][k] * z[m][k] / dj
-                                  : alpha[k] - z[m][k] * z[m][k] / dj;
+          const double a =
+              update ? alpha[k] + z[m][k] * z[m][k] / dj : alpha[k] - z[m][k] * z[m][k] / dj;
           dj *= a;
           g[m][k] = update ? -z[m][k] / dj : z[m][k] / dj;
           dj /= alpha[k];
