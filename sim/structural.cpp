@@ -1106,6 +1106,11 @@ void StructuralPhase::Impl::outputs(const std::vector<double>& ev, From from) {
 // paper slab (esim bench structural, batches of 5 to 800 tets), update 1.0 to 1.7 ns per
 // unit, refactorization 0.45 ns per flop at 5k nodes, 0.28 at 20k (BLAS 3 gains with size).
 constexpr double kUpdownCostPerEntry = 5;
+// ... and for the vectorized update (ldl_updown.h): 0.20-0.21 ns per unit on the cut (esim
+// bench cut --sizes 8000,20000 --strategy update --stages: 4.7-5.1e9 units a second of the
+// update's wall time), so ~0.5-0.7 refactorization flops; 1 keeps a margin for the rows
+// added back (cholmod_rowadd, scalar)
+constexpr double kVectorUpdownCostPerEntry = 1;
 
 StructuralUpdateStats StructuralPhase::Impl::removeTets(const std::vector<int>& ids) {
   return beginRemoval(ids)();
@@ -1524,7 +1529,9 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
 
   // 7. delete the rows now held, downdate by C C', add the rows free again; or refactorize
   // when that costs more
-  stats.updateCost = kUpdownCostPerEntry * stats.updateWork / target.refactorFlops;
+  const double costPerEntry =
+      vectorizedUpdate && ldlUpdownAvailable() ? kVectorUpdownCostPerEntry : kUpdownCostPerEntry;
+  stats.updateCost = costPerEntry * stats.updateWork / target.refactorFlops;
   bool updated = false;
   const LdlUpdownWork& kernel = target.marks->updown;
   const long vectorBefore = kernel.vectorColumns, choleskyBefore = kernel.choleskyColumns;
