@@ -70,11 +70,13 @@ void validateElectricSolverOptions(const ElectricSolverOptions& options) {
               "solvers.electric.dense_memory_limit_mb must be > 0");
 }
 
-ElectricStrategy resolveElectricStrategy(const ElectricSolverOptions& options, double freeNodes) {
+ElectricStrategy resolveElectricStrategy(const ElectricSolverOptions& options, double freeNodes,
+                                         bool cuts) {
   if (options.strategy != ElectricStrategy::Auto) return options.strategy;
   const bool denseFits = 8.0 * freeNodes * freeNodes <= options.denseMemoryLimitBytes;
-  return freeNodes <= kAutoDenseMaxFreeNodes && denseFits ? ElectricStrategy::DenseInverse
-                                                          : ElectricStrategy::Capacitance;
+  if (freeNodes <= kAutoDenseMaxFreeNodes && denseFits) return ElectricStrategy::DenseInverse;
+  return cuts && freeNodes > kAutoDenseMaxFreeNodes ? ElectricStrategy::Pcg
+                                                    : ElectricStrategy::Capacitance;
 }
 
 std::unique_ptr<ElectricSolver> makeElectricSolver(const ElectricSolverOptions& options) {

@@ -145,15 +145,26 @@ void validateElectricSolverOptions(const ElectricSolverOptions& options);
 
 // The strategy that solves fastest for freeNodes unknowns (nodes off the return electrode):
 // options.strategy unless it is Auto; then the paper's dense inverse up to
-// kAutoDenseMaxFreeNodes (and within denseMemoryLimitBytes), capacitance above.
-ElectricStrategy resolveElectricStrategy(const ElectricSolverOptions& options, double freeNodes);
+// kAutoDenseMaxFreeNodes (and within denseMemoryLimitBytes); above, capacitance, or pcg when
+// the matrix changes in most frames (cuts: a removal updates it in the frame).
+ElectricStrategy resolveElectricStrategy(const ElectricSolverOptions& options, double freeNodes,
+                                         bool cuts = false);
 // Measured on the cut, physics per frame (esim bench cut --strategy update --set
 // solvers.electric.strategy=S, README "The cut"): at 1012 nodes (863 free) the dense
 // inverse's update (one rank-s dgemm) gave a p95 of 1.9-2.4 ms against 2.4-3.9 ms for
 // capacitance (five alternating pairs; its Woodbury term and factor adoption cost 1-4 ms
 // there); at 1500, 2002 and 2976 nodes the dense inverse was ahead in median and p95 (2976:
 // 3.5 / 9.3-9.8 ms against 3.7-4.0 / 11.2-12.2 ms); at 3996 nodes its update (2 n_f^2 s
-// flops at every removal) made the median 16-17 ms against 9.5-9.8 ms.
+// flops at every removal) made the median 16-17 ms against 9.5-9.8 ms. Since the structural
+// update was vectorized (ldl_updown.h), capacitance's update of the large removals (a
+// refactorization in the frame when its Woodbury term misses its check) set the p95 above
+// that: pcg against capacitance (--strategy update --set solvers.electric.strategy=S, two
+// alternating pairs each; the same tets removed): 3996 nodes (--frames 90) median 9.6-9.8
+// against 8.1-8.4 ms, p95 10.9-11.1 against 30.5-32.0 ms; 5040 nodes 14.1-14.4 against
+// 13.7-14.0 ms, p95 19.1-19.2 against 42.3-48.4 ms; 8000 nodes (--frames 60, one run each)
+// 28.6 / 39.2 against 29.5 / 107 ms; liver_incision (esim run, video) 88 s against 114 s, peak
+// memory 1.2 against 2.8 GB. So auto takes pcg above kAutoDenseMaxFreeNodes for a cut; scenes
+// whose matrix stays (no rupture, or a rebuild mode that refactorizes) keep capacitance.
 inline constexpr double kAutoDenseMaxFreeNodes = 3000;
 
 struct ElectricSolveStats {

@@ -252,7 +252,8 @@ void Simulation::buildInitialModel(TetMesh mesh) {
     ESIM_VERIFY(ground > 0, returnElectrodeMessage(config_.returnElectrode));
     // auto: one strategy for the whole run, from the initial mesh (a rebuild keeps it)
     config_.electricSolver.strategy = resolveElectricStrategy(
-        config_.electricSolver, static_cast<double>(mesh.numNodes() - ground));
+        config_.electricSolver, static_cast<double>(mesh.numNodes() - ground),
+        ph.rupture && config_.rebuildMode == RebuildMode::Update);
     // only capacitance caches what the tool will touch: the others get no scripted contacts
     if (config_.electricSolver.strategy != ElectricStrategy::Capacitance)
       config_.prefetchUntilS = 0;

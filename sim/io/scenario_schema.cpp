@@ -264,8 +264,9 @@ const std::vector<Field>& schema() {
                        {"refactor", "dense-inverse", "capacitance", "pcg", "auto"},
                        "electric solver: refactor per contact change, the paper's dense inverse, "
                        "cached sparse columns, warm-started CG, or auto: the dense inverse up "
-                       "to 3000 nodes off the return electrode, capacitance above (the faster "
-                       "on the cut, measured: README 'The cut')"));
+                       "to 3000 nodes off the return electrode; above, pcg for a cut in "
+                       "rebuild mode update, capacitance otherwise (the faster, measured: README "
+                       "'The cut')"));
     f.push_back(number("solvers.electric.tolerance", ESIM_REF(solvers.electricTolerance), "",
                        {0.0, 1.0, true, true}, "relative residual for pcg"));
     f.push_back(integer("solvers.electric.max_iterations", ESIM_REF(solvers.electricMaxIterations),

@@ -117,8 +117,8 @@ TEST(ElectricSolver, StrategyNamesRoundTripAndUnknownNameIsAnError) {
 }
 
 // auto is resolved by the mesh's size: the dense inverse up to kAutoDenseMaxFreeNodes free
-// nodes (and within its memory limit), capacitance above; explicit strategies stay as they
-// are; a solver is never made for auto itself
+// nodes (and within its memory limit), capacitance above, or pcg for a cut; explicit
+// strategies stay as they are; a solver is never made for auto itself
 TEST(ElectricSolver, AutoPicksTheDenseInverseOnSmallMeshesAndCapacitanceAbove) {
   EXPECT_EQ(parseElectricStrategy("auto"), ElectricStrategy::Auto);
   EXPECT_STREQ(electricStrategyName(ElectricStrategy::Auto), "auto");
@@ -127,6 +127,10 @@ TEST(ElectricSolver, AutoPicksTheDenseInverseOnSmallMeshesAndCapacitanceAbove) {
   EXPECT_EQ(resolveElectricStrategy(o, kAutoDenseMaxFreeNodes), ElectricStrategy::DenseInverse);
   EXPECT_EQ(resolveElectricStrategy(o, kAutoDenseMaxFreeNodes + 1), ElectricStrategy::Capacitance);
   EXPECT_EQ(resolveElectricStrategy(o, 49966), ElectricStrategy::Capacitance);
+  // a cut (the matrix updated in most frames): pcg above the dense inverse's range
+  EXPECT_EQ(resolveElectricStrategy(o, 863, true), ElectricStrategy::DenseInverse);
+  EXPECT_EQ(resolveElectricStrategy(o, kAutoDenseMaxFreeNodes + 1, true), ElectricStrategy::Pcg);
+  EXPECT_EQ(resolveElectricStrategy(o, 49966, true), ElectricStrategy::Pcg);
   o.denseMemoryLimitBytes = 8.0 * 863 * 863 - 1;  // 863 free nodes no longer fit
   EXPECT_EQ(resolveElectricStrategy(o, 863), ElectricStrategy::Capacitance);
   EXPECT_EQ(resolveElectricStrategy(o, 862), ElectricStrategy::DenseInverse);
