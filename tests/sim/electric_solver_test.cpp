@@ -648,18 +648,34 @@ TEST(ElectricSolverUpdate, ThreeCutsMatchAFreshSolverForEveryStrategy) {
   }
 }
 
+// a capacitance solver of the cut slab's matrix, its surface the contact candidates
+std::unique_ptr<ElectricSolver> capacitanceOn(const CutSlab& cut) {
+  auto solver = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
+  solver->setContactCandidates(cut.surface);
+  solver->setMatrix(cut.K, cut.grounded);
+  return solver;
+}
+
+// the paper slab, its sample contact sets and two cuts: every tet at the top centre's node
+// (the node leaves the free set), then the tets across the corner island
+struct TwoCuts {
+  const CutSlab initial{1013};
+  const std::vector<std::vector<int>> sets = sampleContacts(paperSlab(1013));
+  const int orphan = initial.nearestNode(Vec3(0.0, 0.0, 0.01));
+  const std::vector<std::vector<int>> cuts = {initial.aliveTetsWith(orphan),
+                                              initial.tetsAcross(initial.cornerIsland())};
+};
+
 // The capacitance cache's columns are corrected on their next use, by every cut they
 // have not seen: columns cached before three cuts and not used in between give the
 // potential of a fresh solver to 1e-9 after the third. With a log budget too small for
 // one correction (cacheMemoryLimitBytes: a quarter of it), the columns behind are dropped
 // instead and solved again on use: the same potential, new columns counted.
 TEST(ElectricSolverUpdate, ColumnsUnusedOverSeveralCutsAreCorrectedOnTheirNextUse) {
-  const CutSlab initial(1013);
-  const Problem p = paperSlab(1013);
-  const std::vector<std::vector<int>> sets = sampleContacts(p);
-  const int orphan = initial.nearestNode(Vec3(0.0, 0.0, 0.01));
-  const std::vector<std::vector<int>> cuts = {initial.aliveTetsWith(orphan),
-                                              initial.tetsAcross(initial.cornerIsland())};
+  const TwoCuts two;
+  const CutSlab& initial = two.initial;
+  const std::vector<std::vector<int>>& sets = two.sets;
+  const std::vector<std::vector<int>>& cuts = two.cuts;
   for (const double cacheBytes : {256.0 * 1024 * 1024, 64.0 * 1024}) {
     SCOPED_TRACE("cache " + std::to_string(cacheBytes) + " bytes");
     CutSlab cut = initial;
@@ -697,20 +713,17 @@ TEST(ElectricSolverUpdate, ColumnsUnusedOverSeveralCutsAreCorrectedOnTheirNextUs
 // solves as a fresh factor does, the cached columns corrected and only set 4's patches
 // solved, and the same calls give the same bits
 TEST(ElectricSolverUpdate, ColumnsBehindByDifferentCutsAreCorrectedTogether) {
-  const CutSlab initial(1013);
-  const Problem p = paperSlab(1013);
-  const std::vector<std::vector<int>> sets = sampleContacts(p);
-  const int orphan = initial.nearestNode(Vec3(0.0, 0.0, 0.01));
-  const std::vector<std::vector<int>> cuts = {initial.aliveTetsWith(orphan),
-                                              initial.tetsAcross(initial.cornerIsland())};
+  const TwoCuts two;
+  const CutSlab& initial = two.initial;
+  const std::vector<std::vector<int>>& sets = two.sets;
+  const int orphan = two.orphan;
+  const std::vector<std::vector<int>>& cuts = two.cuts;
   std::vector<int> all = sortedUnion(sortedUnion(sets[0], sets[2]), sets[4]);
   std::erase(all, orphan);  // left the free set in the first cut
   std::vector<Eigen::VectorXd> results;
   for (int run = 0; run < 2; ++run) {
     CutSlab cut = initial;
-    auto solver = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
-    solver->setContactCandidates(cut.surface);
-    solver->setMatrix(cut.K, cut.grounded);
+    auto solver = capacitanceOn(cut);
     Eigen::VectorXd u;
     solver->solve(sets[0], kVolt, u);
     for (int b = 0; b < 2; ++b) {
@@ -729,9 +742,7 @@ TEST(ElectricSolverUpdate, ColumnsBehindByDifferentCutsAreCorrectedTogether) {
     EXPECT_LT(relError(u, uf), 1e-9);
     // set 4's patches solved, sets 0 and 2 corrected: what a capacitance solver of the cut
     // matrix holding sets 0 and 2 solves for the union
-    auto cachedFresh = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
-    cachedFresh->setContactCandidates(cut.surface);
-    cachedFresh->setMatrix(cut.K, cut.grounded);
+    auto cachedFresh = capacitanceOn(cut);
     std::vector<int> cached = sortedUnion(sets[0], sets[2]);
     std::erase(cached, orphan);
     const int solvedBefore = cachedFresh->solve(cached, kVolt, uf).newColumns;
@@ -858,9 +869,7 @@ TEST(ElectricSolverUpdate, CapacitanceNewSurfaceIsPrefetchedAndUpdatesAreDetermi
   Eigen::VectorXd u[2];
   for (int run = 0; run < 2; ++run) {
     CutSlab cut = initial;
-    auto solver = makeElectricSolver({.strategy = ElectricStrategy::Capacitance});
-    solver->setContactCandidates(cut.surface);
-    solver->setMatrix(cut.K, cut.grounded);
+    auto solver = capacitanceOn(cut);
     Eigen::VectorXd v;
     solver->solve({initial.nearestNode(Vec3(0.02, 0.0, 0.01))}, kVolt, v);
     const std::vector<int> before = cut.surface;

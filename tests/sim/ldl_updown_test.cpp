@@ -12,6 +12,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "sim/cholmod_view.h"
+
 namespace esim {
 namespace {
 
@@ -78,19 +80,7 @@ struct Columns {
     p.push_back(static_cast<int>(i.size()));
   }
   cholmod_sparse view(int n) {
-    cholmod_sparse s{};
-    s.nrow = n;
-    s.ncol = p.size() - 1;
-    s.nzmax = std::max<size_t>(1, i.size());
-    s.p = p.data();
-    s.i = i.data();
-    s.x = x.data();
-    s.itype = CHOLMOD_INT;
-    s.xtype = CHOLMOD_REAL;
-    s.dtype = CHOLMOD_DOUBLE;
-    s.sorted = 1;
-    s.packed = 1;
-    return s;
+    return cholmodViewColumns(n, p.size() - 1, p.data(), i.data(), x.data());
   }
 };
 
