@@ -77,6 +77,13 @@ __attribute__((target("avx512f,fma"))) void updateRows(const double (*z)[kWidth]
   }
 }
 
+// the marks sized to a factor of n rows (kept across calls on the same factor)
+void sizeMarks(LdlUpdownWork& work, size_t n) {
+  if (work.mark.size() == n) return;
+  work.mark.assign(n, 0);
+  work.stamp = 0;
+}
+
 int nextStamp(LdlUpdownWork& work) {
   if (++work.stamp == 0x7fffffff) {
     std::fill(work.mark.begin(), work.mark.end(), 0);
@@ -177,10 +184,7 @@ bool ldlColumnFillsIn(const cholmod_factor& l, const int* rows, int count, LdlUp
   const int* lp = static_cast<const int*>(l.p);
   const int* li = static_cast<const int*>(l.i);
   const int* lnz = static_cast<const int*>(l.nz);
-  if (work.mark.size() != l.n) {
-    work.mark.assign(l.n, 0);
-    work.stamp = 0;
-  }
+  sizeMarks(work, l.n);
   const int r0 = rows[0];
   const int st = nextStamp(work);
   for (int p = lp[r0]; p < lp[r0] + lnz[r0]; ++p) work.mark[li[p]] = st;
@@ -197,13 +201,9 @@ bool ldlUpdown(bool update, const cholmod_sparse& c, cholmod_factor& l, LdlUpdow
       c.xtype != CHOLMOD_REAL || c.dtype != CHOLMOD_DOUBLE || !c.packed || !c.sorted ||
       c.nrow != l.n)
     return cholmod_updown(update, &cc, &l, &cm);
-  const int n = static_cast<int>(l.n), ncol = static_cast<int>(c.ncol);
-  if (static_cast<int>(work.mark.size()) != n) {
-    work.mark.assign(n, 0);
-    work.stamp = 0;
-  }
-  if (work.w.size() != static_cast<size_t>(kWidth) * n)
-    work.w.assign(static_cast<size_t>(kWidth) * n, 0.0);
+  const int ncol = static_cast<int>(c.ncol);
+  sizeMarks(work, l.n);
+  if (work.w.size() != kWidth * l.n) work.w.assign(kWidth * l.n, 0.0);
   // The kernel takes the columns that cannot fill in: every row in L's column at the
   // column's first row (then its path stays inside L's pattern: a column's pattern, but for
   // its parent, is in its parent's); cholmod_updown the others, after it (the order of the

@@ -400,6 +400,14 @@ struct StructuralPhase::Impl {
   void outputs(const std::vector<double>& ev, From from);
   std::vector<int> rowPattern(int dof, const Target& target);
   bool deleteRows(const std::vector<int>& dofs, const Target& target, cholmod_common& cm);
+  // L D L' +- C C' on the target's factor: the vectorized kernel (ldl_updown.h) or, without
+  // vectorizedUpdate, cholmod_updown; the columns counted in the target's work either way
+  bool updown(bool update, cholmod_sparse& c, const Target& target, cholmod_common& cm) {
+    if (vectorizedUpdate) return ldlUpdown(update, c, **target.factor, target.marks->updown, cm);
+    target.marks->updown.choleskyColumns += static_cast<long>(c.ncol);
+    return cholmod_updown(update, &c, *target.factor, &cm);
+  }
+  bool kernelUpdates() const { return vectorizedUpdate && ldlUpdownAvailable(); }
   StructuralUpdateStats removeTets(const std::vector<int>& ids);
   std::function<StructuralUpdateStats()> beginRemoval(const std::vector<int>& ids);
   StructuralUpdateStats updateFactor(std::chrono::steady_clock::time_point t0,
@@ -704,9 +712,7 @@ bool StructuralPhase::Impl::deleteRows(const std::vector<int>& dofs, const Targe
   }
   if (wp.size() == 1) return true;
   cholmod_sparse w = cholmodViewColumns(f->n, wp.size() - 1, wp.data(), wi.data(), wx.data());
-  if (vectorizedUpdate) return ldlUpdown(true, w, *f, target.marks->updown, cm);
-  target.marks->updown.choleskyColumns += static_cast<long>(w.ncol);
-  return cholmod_updown(true, &w, f, &cm);
+  return updown(true, w, target, cm);
 }
 
 // ---- solves ----
@@ -1466,7 +1472,7 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
   // out of row order gives the columns after it rows outside L's pattern, often: such a
   // group goes tet by tet instead (a tet's dofs are all coupled in L: no order fills in),
   // more columns but all of them vectorized.
-  if (vectorizedUpdate && ldlUpdownAvailable()) {
+  if (kernelUpdates()) {
     std::vector<std::uint8_t> byTet(groups.size(), 0);  // summed groups with a column that fills
     bool any = false;
     for (size_t k = 0; k < groups.size(); ++k)
@@ -1529,8 +1535,7 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
 
   // 7. delete the rows now held, downdate by C C', add the rows free again; or refactorize
   // when that costs more
-  const double costPerEntry =
-      vectorizedUpdate && ldlUpdownAvailable() ? kVectorUpdownCostPerEntry : kUpdownCostPerEntry;
+  const double costPerEntry = kernelUpdates() ? kVectorUpdownCostPerEntry : kUpdownCostPerEntry;
   stats.updateCost = costPerEntry * stats.updateWork / target.refactorFlops;
   bool updated = false;
   const LdlUpdownWork& kernel = target.marks->updown;
@@ -1539,12 +1544,7 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
     bool ok = newlyHeld.empty() || deleteRows(newlyHeld, target, cm);
     if (ok && stats.rank > 0) {
       cholmod_sparse c = cholmodViewColumns(factor->n, stats.rank, cp.data(), ci.data(), cx.data());
-      if (vectorizedUpdate) {
-        ok = ldlUpdown(false, c, *factor, target.marks->updown, cm);
-      } else {
-        target.marks->updown.choleskyColumns += static_cast<long>(c.ncol);
-        ok = cholmod_updown(false, &c, factor, &cm);
-      }
+      ok = updown(false, c, target, cm);
     }
     for (size_t k = 0; ok && k < newlyFreed.size(); ++k) {
       // column of A at the dof: K over the alive tets, on the dofs free so far
