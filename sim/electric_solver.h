@@ -109,7 +109,7 @@ namespace esim {
 // Auto is not a solver: resolveElectricStrategy turns it into one for a mesh's size
 enum class ElectricStrategy { Refactor, DenseInverse, Capacitance, Pcg, Auto };
 
-enum class PcgPreconditioner { Jacobi, IncompleteCholesky };
+enum class PcgPreconditioner { Jacobi, IncompleteCholesky, TwoLevel };
 
 // how capacitance applies updateMatrix to its factor (see electric_capacitance.cpp)
 enum class CapacitanceUpdate {
@@ -128,7 +128,8 @@ struct ElectricSolverOptions {
   ElectricStrategy strategy = ElectricStrategy::Capacitance;
   double pcgTolerance = 1e-8;  // relative residual ||b - A x|| / ||b||
   int pcgMaxIterations = 5000;
-  PcgPreconditioner pcgPreconditioner = PcgPreconditioner::Jacobi;  // or IncompleteCholesky
+  // see electric_pcg.cpp: two-level measured 1.5x (8000 nodes) to 3.4x (27908) faster
+  PcgPreconditioner pcgPreconditioner = PcgPreconditioner::TwoLevel;
   double denseMemoryLimitBytes = 2048.0 * 1048576.0;  // dense-inverse refuses above (2 GiB)
   double cacheMemoryLimitBytes = 1024.0 * 1048576.0;  // capacitance column cache cap (LRU eviction)
   int capacitancePatchNodes = 16;                     // capacitance: candidates solved together

@@ -205,6 +205,9 @@ struct ScenarioSolvers {
   // pcg relative residual
   double electricTolerance = scenario_detail::core().electricSolver.pcgTolerance;
   int electricMaxIterations = scenario_detail::core().electricSolver.pcgMaxIterations;
+  // pcg's preconditioner: jacobi | ic | two-level
+  PcgPreconditioner electricPreconditioner =
+      scenario_detail::core().electricSolver.pcgPreconditioner;
   // dense-inverse refuses above this
   int electricDenseMemoryLimitMb =
       static_cast<int>(scenario_detail::core().electricSolver.denseMemoryLimitBytes / 1048576.0);

@@ -271,6 +271,12 @@ const std::vector<Field>& schema() {
                        {0.0, 1.0, true, true}, "relative residual for pcg"));
     f.push_back(integer("solvers.electric.max_iterations", ESIM_REF(solvers.electricMaxIterations),
                         "", closed(1, 1e7), "iteration cap for pcg"));
+    f.push_back(choice("solvers.electric.preconditioner",
+                       ESIM_ENUM_REF(solvers.electricPreconditioner), {"jacobi", "ic", "two-level"},
+                       "pcg's preconditioner: Jacobi, incomplete Cholesky, or two-level "
+                       "(l1-Jacobi and a coarse level on aggregates of nodes: iterations that "
+                       "barely grow with the mesh; README, 'The potential's two-level "
+                       "preconditioner')"));
     f.push_back(integer("solvers.electric.dense_memory_limit_mb",
                         ESIM_REF(solvers.electricDenseMemoryLimitMb), "MB", closed(1, 1e7),
                         "dense-inverse refuses when n^2 * 8 bytes exceeds this"));

@@ -63,6 +63,7 @@ TEST(RunConfig, EveryDefaultComesFromTheCore) {
   EXPECT_EQ(c.electricSolver.strategy, d.electricSolver.strategy);
   EXPECT_EQ(c.electricSolver.pcgTolerance, d.electricSolver.pcgTolerance);
   EXPECT_EQ(c.electricSolver.pcgMaxIterations, d.electricSolver.pcgMaxIterations);
+  EXPECT_EQ(c.electricSolver.pcgPreconditioner, d.electricSolver.pcgPreconditioner);
   EXPECT_EQ(c.electricSolver.threads, d.electricSolver.threads);
   EXPECT_EQ(c.electricSolver.cacheMemoryLimitBytes, d.electricSolver.cacheMemoryLimitBytes);
   EXPECT_EQ(c.conductivityTempCoeffPerK, d.conductivityTempCoeffPerK);
@@ -102,6 +103,32 @@ TEST(RunConfig, EveryDefaultComesFromTheCore) {
   EXPECT_EQ(c.structural.local.refreshEvery, d.structural.local.refreshEvery);
   EXPECT_EQ(c.structural.local.refreshOnThread, d.structural.local.refreshOnThread);
   EXPECT_EQ(c.structural.vectorizedUpdate, d.structural.vectorizedUpdate);
+}
+
+// solvers.electric.preconditioner reaches pcg's options; the default is two-level
+TEST(RunConfig, PcgPreconditionerKeyReachesTheSolver) {
+  const auto preconditioner = [](const std::string& name) {
+    return makeSimulationConfig(
+               parseScenario("name: p\nsolvers:\n  electric:\n    preconditioner: " + name + "\n",
+                             "p.yaml"))
+        .electricSolver.pcgPreconditioner;
+  };
+  EXPECT_EQ(preconditioner("jacobi"), PcgPreconditioner::Jacobi);
+  EXPECT_EQ(preconditioner("ic"), PcgPreconditioner::IncompleteCholesky);
+  EXPECT_EQ(preconditioner("two-level"), PcgPreconditioner::TwoLevel);
+  EXPECT_EQ(
+      makeSimulationConfig(parseScenario("name: d\n", "d.yaml")).electricSolver.pcgPreconditioner,
+      PcgPreconditioner::TwoLevel);
+  try {
+    preconditioner("multigrid");
+    ADD_FAILURE() << "accepted preconditioner: multigrid";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Input);
+    const std::string what = e.what();
+    EXPECT_NE(what.find("p.yaml"), std::string::npos) << what;
+    EXPECT_NE(what.find("solvers.electric.preconditioner"), std::string::npos) << what;
+    EXPECT_NE(what.find("two-level"), std::string::npos) << what;
+  }
 }
 
 // solvers.structural.*: the local solve's keys reach the structural phase's options

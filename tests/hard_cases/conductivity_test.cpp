@@ -82,7 +82,8 @@ TEST(HardConductivity, SolverStrategiesAgreeAndConserveCurrentAcrossA1e6Contrast
             std::pair{ElectricStrategy::DenseInverse, PcgPreconditioner::Jacobi},
             std::pair{ElectricStrategy::Capacitance, PcgPreconditioner::Jacobi},
             std::pair{ElectricStrategy::Pcg, PcgPreconditioner::Jacobi},
-            std::pair{ElectricStrategy::Pcg, PcgPreconditioner::IncompleteCholesky}}) {
+            std::pair{ElectricStrategy::Pcg, PcgPreconditioner::IncompleteCholesky},
+            std::pair{ElectricStrategy::Pcg, PcgPreconditioner::TwoLevel}}) {
         ElectricSolverOptions o;
         o.strategy = strategy;
         o.pcgPreconditioner = pre;
@@ -90,9 +91,10 @@ TEST(HardConductivity, SolverStrategiesAgreeAndConserveCurrentAcrossA1e6Contrast
         o.pcgMaxIterations = 100000;
         const bool direct = strategy != ElectricStrategy::Pcg;
         SCOPED_TRACE(std::string(electricStrategyName(strategy)) +
-                     (direct                             ? ""
-                      : pre == PcgPreconditioner::Jacobi ? " (jacobi)"
-                                                         : " (ic)"));
+                     (direct                                         ? ""
+                      : pre == PcgPreconditioner::Jacobi             ? " (jacobi)"
+                      : pre == PcgPreconditioner::IncompleteCholesky ? " (ic)"
+                                                                     : " (two-level)"));
         auto solver = makeElectricSolver(o);
         solver->setMatrix(K, ground);
         Eigen::VectorXd u;

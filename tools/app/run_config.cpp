@@ -30,6 +30,7 @@ void mapElectric(const Scenario& s, SimulationConfig& c) {
   c.electricSolver.strategy = s.solvers.electricStrategy;
   c.electricSolver.pcgTolerance = s.solvers.electricTolerance;
   c.electricSolver.pcgMaxIterations = s.solvers.electricMaxIterations;
+  c.electricSolver.pcgPreconditioner = s.solvers.electricPreconditioner;
   c.electricSolver.denseMemoryLimitBytes = s.solvers.electricDenseMemoryLimitMb * 1048576.0;
   c.electricSolver.cacheMemoryLimitBytes = s.solvers.electricCacheMemoryLimitMb * 1048576.0;
   c.electricSolver.threads = s.solvers.electricThreads;

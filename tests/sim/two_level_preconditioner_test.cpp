@@ -1,0 +1,244 @@
+// Tests for sim/two_level_preconditioner.cpp: the aggregates (a partition into connected
+// groups), the preconditioner's symmetry and definiteness (also with positive off-diagonal
+// entries, and with rows excluded from the coarse space, a whole aggregate among them), CG
+// with it reaching a direct solve's answer, iterations that stay flat as a grid is refined
+// where Jacobi's grow, and the error messages.
+#include "sim/two_level_preconditioner.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/SparseCholesky>
+#include <algorithm>
+#include <cmath>
+#include <queue>
+#include <string>
+#include <vector>
+
+#include "sim/core_error.h"
+
+namespace esim {
+namespace {
+
+// a k x k x k grid's 7-point Laplacian with the nodes of the bottom face held at 0
+// (eliminated into the diagonal): SPD, both triangles stored. A positive `skew` adds a
+// positive coupling between diagonal neighbours (x+1, y+1), as obtuse tets give, with the
+// diagonal raised to keep it positive definite.
+SparseMatrix gridLaplacian(int k, double skew = 0) {
+  const int n = k * k * k;
+  std::vector<Eigen::Triplet<double>> t;
+  const auto id = [k](int x, int y, int z) { return x + k * (y + k * z); };
+  for (int z = 0; z < k; ++z)
+    for (int y = 0; y < k; ++y)
+      for (int x = 0; x < k; ++x) {
+        const int i = id(x, y, z);
+        double diag = z == 0 ? 1.0 : 0.0;  // the held face below
+        const auto couple = [&](int j, double w) {
+          t.emplace_back(i, j, -w);
+          t.emplace_back(j, i, -w);
+          diag += std::abs(w);
+          t.emplace_back(j, j, std::abs(w));
+        };
+        if (x + 1 < k) couple(id(x + 1, y, z), 1.0 + 0.3 * ((i * 7) % 5));  // varied weights
+        if (y + 1 < k) couple(id(x, y + 1, z), 1.0);
+        if (z + 1 < k) couple(id(x, y, z + 1), 2.0);
+        if (skew > 0 && x + 1 < k && y + 1 < k) couple(id(x + 1, y + 1, z), -skew);
+        t.emplace_back(i, i, diag);
+      }
+  SparseMatrix a(n, n);
+  a.setFromTriplets(t.begin(), t.end());
+  a.makeCompressed();
+  return a;
+}
+
+// M^-1 as a dense matrix, column by column
+Eigen::MatrixXd denseInverse(const TwoLevelPreconditioner& p, int n) {
+  Eigen::MatrixXd m(n, n);
+  Eigen::VectorXd z;
+  for (int j = 0; j < n; ++j) {
+    p.apply(Eigen::VectorXd::Unit(n, j), z);
+    m.col(j) = z;
+  }
+  return m;
+}
+
+// preconditioned CG from zero to ||b - A x|| <= tol ||b||; returns the iterations (x out)
+template <class Apply>
+int cg(const SparseMatrix& a, const Eigen::VectorXd& b, double tol, Apply precondition,
+       Eigen::VectorXd& x) {
+  x.setZero(b.size());
+  Eigen::VectorXd r = b, z(b.size());
+  precondition(r, z);
+  Eigen::VectorXd p = z;
+  double rz = r.dot(z);
+  for (int it = 1; it <= 10000; ++it) {
+    const Eigen::VectorXd ap = a * p;
+    const double alpha = rz / p.dot(ap);
+    x += alpha * p;
+    r -= alpha * ap;
+    if (r.norm() <= tol * b.norm()) return it;
+    precondition(r, z);
+    const double rzNew = r.dot(z);
+    p = z + (rzNew / rz) * p;
+    rz = rzNew;
+  }
+  return -1;
+}
+
+TEST(TwoLevelPreconditioner, AggregatesPartitionTheGraphIntoConnectedGroups) {
+  const SparseMatrix a = gridLaplacian(10);
+  const int n = static_cast<int>(a.rows());
+  for (int passes : {1, 2}) {
+    SCOPED_TRACE(std::to_string(passes) + " pass(es)");
+    TwoLevelPreconditioner p;
+    p.setGraph(a, passes);
+    const int m = p.numAggregates();
+    const std::vector<int>& of = p.aggregateOf();
+    ASSERT_EQ(static_cast<int>(of.size()), n);
+    std::vector<int> size(m, 0);
+    for (int i = 0; i < n; ++i) {
+      ASSERT_GE(of[i], 0);
+      ASSERT_LT(of[i], m);
+      ++size[of[i]];
+    }
+    EXPECT_GT(*std::min_element(size.begin(), size.end()), 0);  // no aggregate empty
+    // 7-point stencil: a first-pass aggregate is a node and its (up to 6) neighbours, with
+    // leftovers attached; the second groups those
+    if (passes == 1) {
+      EXPECT_GT(m, n / 12);
+      EXPECT_LT(m, n / 4);
+    } else {
+      EXPECT_LT(m, n / 30);
+    }
+    // each aggregate connected: a search from one member inside the aggregate meets all
+    std::vector<char> seen(n, 0);
+    int components = 0;
+    for (int s = 0; s < n; ++s) {
+      if (seen[s]) continue;
+      ++components;
+      std::queue<int> q;
+      q.push(s);
+      seen[s] = 1;
+      while (!q.empty()) {
+        const int i = q.front();
+        q.pop();
+        for (SparseMatrix::InnerIterator it(a, i); it; ++it)
+          if (!seen[it.row()] && of[it.row()] == of[i]) {
+            seen[it.row()] = 1;
+            q.push(static_cast<int>(it.row()));
+          }
+      }
+    }
+    EXPECT_EQ(components, m);
+  }
+}
+
+TEST(TwoLevelPreconditioner, IsSymmetricPositiveDefiniteWithRowsExcluded) {
+  // positive off-diagonal entries (no M-matrix), rows excluded as contact rows are: their
+  // rows and columns of A the identity
+  for (double skew : {0.0, 0.4}) {
+    SCOPED_TRACE("skew " + std::to_string(skew));
+    const SparseMatrix k = gridLaplacian(6, skew);
+    const int n = static_cast<int>(k.rows());
+    TwoLevelPreconditioner p;
+    p.setGraph(k, 1);
+    // the rows of aggregate 0 (all of them: an aggregate without a column) and two more
+    std::vector<int> excluded;
+    for (int i = 0; i < n; ++i)
+      if (p.aggregateOf()[i] == 0) excluded.push_back(i);
+    excluded.push_back(n / 2);
+    excluded.push_back(n - 1);
+    SparseMatrix a = k;
+    std::vector<char> out(n, 0);
+    for (int i : excluded) out[i] = 1;
+    for (int j = 0; j < n; ++j)
+      for (SparseMatrix::InnerIterator it(a, j); it; ++it)
+        if (out[it.row()] || out[j]) it.valueRef() = it.row() == j ? 1.0 : 0.0;
+    ASSERT_EQ(Eigen::LLT<Eigen::MatrixXd>(Eigen::MatrixXd(a)).info(), Eigen::Success);
+    p.compute(a, excluded);
+    ASSERT_TRUE(p.ready());
+    const Eigen::MatrixXd m = denseInverse(p, n);
+    EXPECT_LT((m - m.transpose()).norm(), 1e-12 * m.norm());
+    const Eigen::VectorXd eig = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(
+                                    0.5 * (m + m.transpose()), Eigen::EigenvaluesOnly)
+                                    .eigenvalues();
+    EXPECT_GT(eig.minCoeff(), 1e-8 * eig.maxCoeff());
+    // M^-1 A's eigenvalues in (0, 1]: 1 on the coarse space, and l1-Jacobi's Gershgorin
+    // bound lambda_max(S A) <= 1 on the rest (plain Jacobi exceeds it with skew)
+    const Eigen::MatrixXd ma = m * Eigen::MatrixXd(a);
+    const Eigen::VectorXcd mae = ma.eigenvalues();
+    double lo = 1e300, hi = 0;
+    for (int i = 0; i < n; ++i) {
+      EXPECT_NEAR(mae[i].imag(), 0.0, 1e-8);
+      lo = std::min(lo, mae[i].real());
+      hi = std::max(hi, mae[i].real());
+    }
+    EXPECT_GT(lo, 0.0);
+    EXPECT_LE(hi, 1.0 + 1e-9);
+    std::cout << "skew " << skew << ": eig(M^-1 A) in [" << lo << ", " << hi << "], "
+              << p.numAggregates() << " aggregates\n";
+  }
+}
+
+TEST(TwoLevelPreconditioner, CgReachesTheDirectAnswerInIterationsThatStayFlat) {
+  int previousTwoLevel = 0, previousJacobi = 0;
+  for (int k : {8, 16, 24}) {
+    SCOPED_TRACE("grid " + std::to_string(k));
+    const SparseMatrix a = gridLaplacian(k);
+    const int n = static_cast<int>(a.rows());
+    Eigen::VectorXd b(n);
+    for (int i = 0; i < n; ++i) b[i] = std::sin(0.37 * i) + (i == n / 2 ? 10.0 : 0.0);
+    const Eigen::VectorXd exact = Eigen::SimplicialLDLT<SparseMatrix>(a).solve(b);
+    TwoLevelPreconditioner p;
+    p.setGraph(a, 1);
+    p.compute(a, {});
+    Eigen::VectorXd x;
+    const int twoLevel = cg(
+        a, b, 1e-10, [&](const Eigen::VectorXd& r, Eigen::VectorXd& z) { p.apply(r, z); }, x);
+    ASSERT_GT(twoLevel, 0);
+    EXPECT_LT((x - exact).norm(), 1e-8 * exact.norm());
+    const Eigen::VectorXd diagonal = a.diagonal();
+    const int jacobi = cg(
+        a, b, 1e-10,
+        [&](const Eigen::VectorXd& r, Eigen::VectorXd& z) { z = r.cwiseQuotient(diagonal); }, x);
+    ASSERT_GT(jacobi, 0);
+    std::cout << "k " << k << " (" << n << " rows): two-level " << twoLevel << ", Jacobi "
+              << jacobi << " iterations, " << p.numAggregates() << " aggregates\n";
+    EXPECT_LT(twoLevel, jacobi);
+    if (previousJacobi > 0) {
+      // h halves (k 8 -> 16): Jacobi's iterations grow ~ 1/h, the two-level's far less
+      EXPECT_GT(jacobi, 1.3 * previousJacobi);
+      EXPECT_LT(twoLevel, 1.25 * previousTwoLevel);
+    }
+    previousJacobi = jacobi;
+    previousTwoLevel = twoLevel;
+  }
+}
+
+TEST(TwoLevelPreconditioner, BadInputIsAnErrorNamingIt) {
+  const SparseMatrix a = gridLaplacian(4);
+  TwoLevelPreconditioner p;
+  const auto message = [](auto&& f) {
+    try {
+      f();
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message([&] { p.setGraph(a, 0); }).find("0 aggregation passes; expected 1 to 3"),
+            std::string::npos);
+  p.setGraph(a, 1);
+  EXPECT_NE(message([&] { p.compute(gridLaplacian(5), {}); }).find("not the pattern"),
+            std::string::npos);
+  EXPECT_NE(message([&] { p.compute(a, {64}); }).find("excluded row 64 outside [0, 64)"),
+            std::string::npos);
+  SparseMatrix indefinite = a;
+  indefinite.coeffRef(0, 0) = -100;  // E's first entry negative
+  EXPECT_NE(message([&] { p.compute(indefinite, {}); }).find("not positive definite"),
+            std::string::npos);
+  EXPECT_FALSE(p.ready());
+}
+
+}  // namespace
+}  // namespace esim
