@@ -31,7 +31,7 @@ constexpr double kRssScale = 1.0;
 #endif
 
 // 60 x 60 x 40 mm at 1 mm (60 x 60 x 42 = 151 200 nodes, 856 326 tets); a 200 V blade pressed
-// into the top centre; pcg (Jacobi) for the potential: the sparse strategies' factorizations
+// into the top centre; pcg (two-level) for the potential: the sparse strategies' factorizations
 // of a 150k-node 3-D Laplacian (CHOLMOD) alone take ~1 GB; explicit heat (lumped mass,
 // sub-stepped below its limit). Three frames.
 TEST(HardMemory, LargeMesh150kNodesElectricAndThermal) {
