@@ -77,6 +77,17 @@ void TwoLevelPreconditioner::setGraph(const SparseMatrix& K, int passes) {
   ESIM_VERIFY(K.rows() == K.cols() && K.isCompressed(),
               "two-level preconditioner: the matrix must be square and compressed");
   const int n = static_cast<int>(K.rows());
+  ready_ = false;
+  // the same graph as last time (a new matrix of the same pattern: conductivities that
+  // follow the temperature): the aggregates and patterns stand
+  if (passes == passes_ && static_cast<int>(graphOuter_.size()) == n + 1 &&
+      std::equal(graphOuter_.begin(), graphOuter_.end(), K.outerIndexPtr()) &&
+      static_cast<long>(graphInner_.size()) == K.nonZeros() &&
+      std::equal(graphInner_.begin(), graphInner_.end(), K.innerIndexPtr()))
+    return;
+  passes_ = passes;
+  graphOuter_.assign(K.outerIndexPtr(), K.outerIndexPtr() + n + 1);
+  graphInner_.assign(K.innerIndexPtr(), K.innerIndexPtr() + K.nonZeros());
   // K is symmetric: its columns are the rows' neighbour lists. Each pass aggregates the
   // last pass's aggregates over their own graph.
   std::vector<int> outer(K.outerIndexPtr(), K.outerIndexPtr() + n + 1);
@@ -161,7 +172,6 @@ void TwoLevelPreconditioner::setGraph(const SparseMatrix& K, int passes) {
   }
   azValue_.assign(azRow_.size(), 0.0);
   coarse_.analyzePattern(e_);
-  ready_ = false;
 }
 
 void TwoLevelPreconditioner::compute(const SparseMatrix& A, const std::vector<int>& excluded) {
@@ -215,9 +225,9 @@ void TwoLevelPreconditioner::compute(const SparseMatrix& A, const std::vector<in
 }
 
 double TwoLevelPreconditioner::memoryBytes() const {
-  const double ints = static_cast<double>(aggregateOf_.size() + coarseOf_.size() +
-                                          azOuter_.size() + azRow_.size() + azSlot_.size() +
-                                          eSlot_.size() + eDiagonal_.size());
+  const double ints = static_cast<double>(
+      graphOuter_.size() + graphInner_.size() + aggregateOf_.size() + coarseOf_.size() +
+      azOuter_.size() + azRow_.size() + azSlot_.size() + eSlot_.size() + eDiagonal_.size());
   const double doubles =
       static_cast<double>(smoother_.size() + azValue_.size() + 3 * coarseRhs_.size());
   const double factor =

@@ -42,7 +42,8 @@ class TwoLevelPreconditioner {
  public:
   // aggregates of the graph of K (n x n, symmetric pattern, both triangles stored),
   // `passes` aggregation passes (1: ~10-15 nodes each, 2: ~100-200); throws Error for
-  // passes outside [1, 3]
+  // passes outside [1, 3]. The graph of the last call again costs one comparison. compute
+  // must follow either way.
   void setGraph(const SparseMatrix& K, int passes);
 
   // smoother and coarse matrix of A (the pattern of setGraph's K, both triangles), the rows
@@ -61,15 +62,17 @@ class TwoLevelPreconditioner {
   double memoryBytes() const;
 
  private:
-  std::vector<int> aggregateOf_;     // setGraph's aggregates
-  std::vector<int> coarseOf_;        // compute's: aggregateOf_ with excluded rows -1
+  std::vector<int> graphOuter_, graphInner_;  // setGraph's graph (a repeat is skipped)
+  int passes_ = 0;
+  std::vector<int> aggregateOf_;  // setGraph's aggregates
+  std::vector<int> coarseOf_;     // compute's: aggregateOf_ with excluded rows -1
   int numAggregates_ = 0;
-  Eigen::VectorXd smoother_;  // 1 / sum_j |a_ij|
+  Eigen::VectorXd smoother_;          // 1 / sum_j |a_ij|
   std::vector<int> azOuter_, azRow_;  // A Z (n x m) by columns: setGraph's pattern
   std::vector<double> azValue_;       // and compute's values
-  SparseMatrix e_;            // E = Z' A Z, lower triangle
-  std::vector<int> azSlot_, eSlot_;  // per entry of A: its place in az_ and e_ (-1: upper)
-  std::vector<int> eDiagonal_;       // place of E(a, a)
+  SparseMatrix e_;                    // E = Z' A Z, lower triangle
+  std::vector<int> azSlot_, eSlot_;   // per entry of A: its place in az_ and e_ (-1: upper)
+  std::vector<int> eDiagonal_;        // place of E(a, a)
   Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>> coarse_;
   mutable Eigen::VectorXd coarseRhs_, coarseW_, coarseSolution_;  // scratch of apply
   bool ready_ = false;

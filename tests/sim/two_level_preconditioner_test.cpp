@@ -202,8 +202,8 @@ TEST(TwoLevelPreconditioner, CgReachesTheDirectAnswerInIterationsThatStayFlat) {
         a, b, 1e-10,
         [&](const Eigen::VectorXd& r, Eigen::VectorXd& z) { z = r.cwiseQuotient(diagonal); }, x);
     ASSERT_GT(jacobi, 0);
-    std::cout << "k " << k << " (" << n << " rows): two-level " << twoLevel << ", Jacobi "
-              << jacobi << " iterations, " << p.numAggregates() << " aggregates\n";
+    std::cout << "k " << k << " (" << n << " rows): two-level " << twoLevel << ", Jacobi " << jacobi
+              << " iterations, " << p.numAggregates() << " aggregates\n";
     EXPECT_LT(twoLevel, jacobi);
     if (previousJacobi > 0) {
       // h halves (k 8 -> 16): Jacobi's iterations grow ~ 1/h, the two-level's far less
@@ -213,6 +213,39 @@ TEST(TwoLevelPreconditioner, CgReachesTheDirectAnswerInIterationsThatStayFlat) {
     previousJacobi = jacobi;
     previousTwoLevel = twoLevel;
   }
+}
+
+// a new matrix of the same pattern (conductivities following the temperature) keeps the
+// aggregates, and the preconditioner equals a fresh one of that matrix; a new pattern
+// aggregates again
+TEST(TwoLevelPreconditioner, AGraphSetAgainKeepsItsAggregatesAndANewOneIsAggregated) {
+  const SparseMatrix a = gridLaplacian(7);
+  const SparseMatrix b = gridLaplacian(7, 0.3);  // a's pattern and diagonal couplings
+  TwoLevelPreconditioner kept, fresh;
+  kept.setGraph(a, 1);
+  kept.compute(a, {3});
+  SparseMatrix scaled = a * 3.0;  // same pattern, other values
+  kept.setGraph(scaled, 1);
+  EXPECT_FALSE(kept.ready());  // compute must follow
+  kept.compute(scaled, {5});
+  fresh.setGraph(scaled, 1);
+  fresh.compute(scaled, {5});
+  EXPECT_EQ(kept.aggregateOf(), fresh.aggregateOf());
+  Eigen::VectorXd r = Eigen::VectorXd::LinSpaced(a.rows(), -1.0, 2.0), zKept, zFresh;
+  kept.apply(r, zKept);
+  fresh.apply(r, zFresh);
+  EXPECT_EQ(zKept, zFresh);
+  // another pattern (diagonal couplings added): aggregated again, as a fresh one does
+  ASSERT_NE(b.nonZeros(), a.nonZeros());
+  kept.setGraph(b, 1);
+  kept.compute(b, {});
+  TwoLevelPreconditioner other;
+  other.setGraph(b, 1);
+  other.compute(b, {});
+  EXPECT_EQ(kept.aggregateOf(), other.aggregateOf());
+  kept.apply(r, zKept);
+  other.apply(r, zFresh);
+  EXPECT_EQ(zKept, zFresh);
 }
 
 TEST(TwoLevelPreconditioner, BadInputIsAnErrorNamingIt) {
