@@ -598,10 +598,66 @@ TEST(RunCli, ReportsThatCannotBeWrittenFailTheRunAndLeaveNoCutFile) {
 
 // paper_slab for `frames` small frames into out, with the fault ESIM_FAULT injects (its
 // earlier partial output removed first)
-Result runWithFault(const std::string& fault, int frames, const fs::path& out) {
+Result runWithFault(const std::string& fault, int frames, const fs::path& out,
+                    const std::string& more = "") {
   fs::remove_all(out.string() + ".partial");
   return shell("ESIM_FAULT=" + fault + " " + ESIM_EXE + " run scenarios/paper_slab.yaml --frames " +
-               std::to_string(frames) + kSmall + " -o " + out.string());
+               std::to_string(frames) + kSmall + more + " -o " + out.string());
+}
+
+// frame k drawn on its own thread while frame k+1 is simulated gives the same images, the
+// same video bytes, and reports the frames' period and latency
+TEST(RunCli, TheDrawThreadGivesTheSameFramesAndReportsThePeriod) {
+  std::string hash[2], video[2];
+  for (int serial = 0; serial < 2; ++serial) {
+    const fs::path out = tempOut(serial ? "draw_serial" : "draw_thread");
+    const Result r = esimRun("scenarios/slab_cut.yaml --frames 12 --set mesh.slab.nodes=1013" +
+                             std::string(kSmall) + (serial ? " --no-draw-thread" : "") +
+                             " --overwrite -o " + out.string());
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    const auto timing = nlohmann::json::parse(readFile(out / "timing.json"));
+    EXPECT_EQ(timing["draw_thread"].get<bool>(), serial == 0);
+    EXPECT_EQ(timing["frame_period"]["frames_ran"].get<int>(), 12);
+    EXPECT_EQ(timing["frame_latency"]["frames_ran"].get<int>(), 12);
+    EXPECT_GT(timing["frame_period"]["p50_ms"].get<double>(), 0.0);
+    EXPECT_GT(timing["structural"]["removed_tets"].get<int>(), 0);  // a cut: the mesh changes
+    const std::string summary = readFile(out / "summary.txt");
+    EXPECT_NE(summary.find("  period "), std::string::npos) << summary;
+    EXPECT_EQ(summary.find("drawn on a thread") != std::string::npos, serial == 0) << summary;
+    hash[serial] = nlohmann::json::parse(readFile(out / "hashes.json"))["all_frames_xxh3"];
+    video[serial] = readFile(out / "video.mp4");
+    // the trace puts the drawing on a track of its own when it has one
+    const auto trace = nlohmann::json::parse(readFile(out / "trace.json"));
+    int drawTrack = 0;
+    for (const auto& e : trace["traceEvents"]) drawTrack += e["tid"].get<int>() == 2;
+    EXPECT_EQ(drawTrack > 0, serial == 0);
+    fs::remove_all(out);
+  }
+  EXPECT_EQ(hash[0], hash[1]);
+  EXPECT_FALSE(video[0].empty());
+  EXPECT_EQ(video[0], video[1]);
+}
+
+// a frame that cannot be drawn (injected, ESIM_FAULT=draw@N; a disk that fills under the
+// PNGs or the video) ends the run with the frames before it, on the drawing thread or not:
+// exit 1, the error naming that frame, the video and reports of the frames before it
+TEST(RunCli, AFrameThatCannotBeDrawnKeepsTheFramesBeforeIt) {
+  for (const std::string more : {"", " --no-draw-thread"}) {
+    SCOPED_TRACE(more);
+    const fs::path out = tempOut("draw_fault");
+    const fs::path partial = out.string() + ".partial";
+    const Result r = runWithFault("draw@3", 8, out, more);
+    EXPECT_EQ(r.exitCode, 1) << r.output;
+    EXPECT_NE(r.output.find("frame 3: video: writing frame 3 failed"), std::string::npos)
+        << r.output;
+    ASSERT_TRUE(fs::exists(partial / "timing.json")) << r.output;
+    const auto timing = nlohmann::json::parse(readFile(partial / "timing.json"));
+    EXPECT_FALSE(timing["complete"].get<bool>());
+    EXPECT_EQ(timing["frames"].get<int>(), 3);
+    EXPECT_EQ(videoFrames(partial / "video.mp4"), 3);
+    EXPECT_EQ(nlohmann::json::parse(readFile(partial / "hashes.json"))["frames"].size(), 3u);
+    fs::remove_all(partial);
+  }
 }
 
 // memory that runs out in the middle of a run (injected, ESIM_FAULT: a real one comes only

@@ -15,6 +15,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -24,9 +25,11 @@
 #include <iomanip>
 #include <iostream>
 #include <memory>
+#include <mutex>
 #include <new>
 #include <optional>
 #include <sstream>
+#include <thread>
 
 #include "render/image_hash.h"
 #include "render/image_png.h"
@@ -141,6 +144,7 @@ Setup setUp(const RunOptions& opt, Scenario scenario) {
 // Fault injection for the tests of the loop's failure paths, which a real fault reaches
 // only by chance (memory running out in the middle of a run): ESIM_FAULT=bad_alloc@N makes
 // frame N throw std::bad_alloc after its physics, as if an allocation had failed;
+// ESIM_FAULT=draw@N makes drawing frame N fail (on the drawing thread when there is one);
 // ESIM_FAULT=video_close@0 makes closing the video fail (a disk that fills at the end).
 // -1: none.
 int injectedFaultFrame(const char* kind) {
@@ -152,7 +156,7 @@ int injectedFaultFrame(const char* kind) {
 
 class FrameOutputs {
  public:
-  FrameOutputs(const Setup& s, const fs::path& dir) : s_(s), dir_(dir) {
+  FrameOutputs(const Setup& s, const fs::path& dir, bool pipelined) : s_(s), dir_(dir) {
     const Scenario& sc = s.scenario;
     VideoEncoder::Options vo;
     vo.path = (dir / "video.mp4").string();
@@ -170,52 +174,70 @@ class FrameOutputs {
       labels_ = std::make_unique<LabelWriter>(s.renderer->options(), dir, s.labels.preview, vo);
     if (sc.output.pngEvery > 0) fs::create_directories(dir / "frames");
     if (s.fieldsEvery > 0) fs::create_directories(dir / "fields");
+    if (s.renderer && pipelined) worker_ = std::thread([this] { drawLoop(); });
   }
 
-  // renders the frame (timed into rec) and hands it to the encoder, hashes and PNGs;
-  // writes the VTU fields on their frames
-  void add(int f, Simulation& sim, FrameRecord& rec) {
+  // a frame whose outputs are done: its record (render stages timed in) and when it was done
+  struct Done {
+    FrameRecord record;
+    double doneUs = 0, renderStartUs = 0;  // from the loop's start
+  };
+
+  // a failure of the drawing thread: the frame it was drawing and the error
+  struct DrawFailure {
+    int frame;
+    std::exception_ptr error;
+  };
+
+  // frame f's outputs. The VTU fields are written here; the drawing (render, hashes,
+  // labels, PNGs, the encoder) is handed to the drawing thread when there is one
+  // (pipelined: frame f is drawn while frame f+1 is simulated), else done here. Returns
+  // the frames whose outputs finished meanwhile, in order. Throws DrawFailure when the
+  // drawing of an earlier frame failed, or what the fields' writing throws.
+  std::vector<Done> add(int f, Simulation& sim, const FrameRecord& physics) {
     const Scenario& sc = s_.scenario;
-    if (s_.renderer) {
-      const SurfaceSnapshot snap = sim.snapshot(sc.look.displacementScale);
-      rec = sim.lastRecord();
-      const std::vector<std::uint8_t>* rgb = nullptr;
-      const LabelFrame* labels = nullptr;
-      {
-        // the label pass draws the frame's buffers again: a part of rendering
-        StageTimer timer(rec, Stage::Render);
-        rgb = &s_.renderer->render(snap);
-        if (labels_) labels = &s_.renderer->renderLabels();
-      }
-      const std::uint64_t h = hashFrame(*rgb);
-      allHash_.add(h);
-      hashes_.push_back(
-          {{"frame", f},
-           {"xxh3", hashToHex(h)},
-           {"dhash", hashToHex(perceptualHash(*rgb, sc.look.width, sc.look.height))}});
-      if (labels) {
-        const std::uint64_t mh = hashBytes(labels->classes.data(), labels->classes.size());
-        allMaskHash_.add(mh);
-        hashes_.back()["mask_xxh3"] = hashToHex(mh);
-        hashes_.back()["depth_xxh3"] = hashToHex(depthHash(*labels));
-        StageTimer timer(rec, Stage::Labels);
-        labels_->add(f, snap, rec, *rgb, *labels);
-      }
-      if (sc.output.pngEvery > 0 && f % sc.output.pngEvery == 0)
-        writePng((dir_ / "frames" / numbered("frame_", f, ".png")).string(), *rgb, sc.look.width,
-                 sc.look.height);
-      if (encoder_) {
-        StageTimer timer(rec, Stage::Encode);
-        encoder_->push(*rgb);
-      }
-    }
     if (s_.fieldsEvery > 0 && f % s_.fieldsEvery == 0)
       writeFields((dir_ / "fields" / numbered("frame_", f, ".vtu")).string(), sim);
+    std::vector<Done> done;
+    if (!s_.renderer) {
+      done.push_back({physics, sinceStartUs(), sinceStartUs()});
+      return done;
+    }
+    Job job{f, sim.snapshot(sc.look.displacementScale), sim.lastRecord()};
+    if (!worker_.joinable()) {
+      done.push_back(draw(job));
+      return done;
+    }
+    std::unique_lock lock(mutex_);
+    idle_.wait(lock, [this] { return !busy_; });
+    takeFinished(done);
+    job_ = std::move(job);
+    busy_ = true;
+    wake_.notify_one();
+    return done;
   }
+
+  // waits for the drawing thread to finish; returns the frame it finished (if any); throws
+  // DrawFailure as add does
+  std::vector<Done> drain() {
+    std::vector<Done> done;
+    if (!worker_.joinable()) return done;
+    std::unique_lock lock(mutex_);
+    idle_.wait(lock, [this] { return !busy_; });
+    takeFinished(done);
+    return done;
+  }
+
+  // the loop's start, against which doneUs is measured
+  void startClock(Clock::time_point t0) { t0_ = t0; }
+  bool pipelined() const { return worker_.joinable(); }
+
+  ~FrameOutputs() { stopWorker(); }
 
   // closes the video (playable however many frames it has) and the label files, each even
   // when the other fails; the first error is rethrown
   void close() {
+    stopWorker();
     std::exception_ptr first;
     try {
       if (labels_) labels_->close();
@@ -246,6 +268,109 @@ class FrameOutputs {
   std::uint64_t allMasksHash() const { return allMaskHash_.combined(); }
 
  private:
+  struct Job {
+    int frame;
+    SurfaceSnapshot snapshot;
+    FrameRecord record;  // the physics' stages, timed
+  };
+
+  double sinceStartUs() const {
+    return std::chrono::duration<double, std::micro>(Clock::now() - t0_).count();
+  }
+
+  // renders the frame (timed into its record) and hands it to the encoder, hashes, labels
+  // and PNGs (on the drawing thread when pipelined)
+  Done draw(Job& job) {
+    const Scenario& sc = s_.scenario;
+    const int f = job.frame;
+    if (f == drawFaultFrame_)  // (ESIM_FAULT=draw@N: a frame that cannot be drawn or written)
+      throw Error("video: writing frame " + std::to_string(f) +
+                  " failed: No space left on device (injected: ESIM_FAULT)");
+    FrameRecord& rec = job.record;
+    Done done;
+    done.renderStartUs = sinceStartUs();
+    const std::vector<std::uint8_t>* rgb = nullptr;
+    const LabelFrame* labels = nullptr;
+    {
+      // the label pass draws the frame's buffers again: a part of rendering
+      StageTimer timer(rec, Stage::Render);
+      rgb = &s_.renderer->render(job.snapshot);
+      if (labels_) labels = &s_.renderer->renderLabels();
+    }
+    const std::uint64_t h = hashFrame(*rgb);
+    allHash_.add(h);
+    hashes_.push_back({{"frame", f},
+                       {"xxh3", hashToHex(h)},
+                       {"dhash", hashToHex(perceptualHash(*rgb, sc.look.width, sc.look.height))}});
+    if (labels) {
+      const std::uint64_t mh = hashBytes(labels->classes.data(), labels->classes.size());
+      allMaskHash_.add(mh);
+      hashes_.back()["mask_xxh3"] = hashToHex(mh);
+      hashes_.back()["depth_xxh3"] = hashToHex(depthHash(*labels));
+      StageTimer timer(rec, Stage::Labels);
+      labels_->add(f, job.snapshot, rec, *rgb, *labels);
+    }
+    if (sc.output.pngEvery > 0 && f % sc.output.pngEvery == 0)
+      writePng((dir_ / "frames" / numbered("frame_", f, ".png")).string(), *rgb, sc.look.width,
+               sc.look.height);
+    if (encoder_) {
+      StageTimer timer(rec, Stage::Encode);
+      encoder_->push(*rgb);
+    }
+    done.record = rec;
+    done.doneUs = sinceStartUs();
+    return done;
+  }
+
+  // the drawing thread: one frame at a time, handed over by add
+  void drawLoop() {
+    for (;;) {
+      std::unique_lock lock(mutex_);
+      wake_.wait(lock, [this] { return job_.has_value() || quit_; });
+      if (!job_) return;
+      Job job = std::move(*job_);
+      job_.reset();
+      lock.unlock();
+      std::optional<Done> done;
+      std::exception_ptr error;
+      try {
+        done = draw(job);
+      } catch (...) {
+        error = std::current_exception();
+      }
+      lock.lock();
+      if (error) {
+        failure_ = DrawFailure{job.frame, error};  // the thread stops: see takeFinished
+      } else {
+        finished_ = std::move(done);
+      }
+      busy_ = false;
+      idle_.notify_all();
+      if (error) return;  // no frame is drawn after a failed one
+    }
+  }
+
+  // (under mutex_) the finished frame into done, or the drawing thread's failure thrown
+  void takeFinished(std::vector<Done>& done) {
+    if (finished_) done.push_back(std::move(*finished_));
+    finished_.reset();
+    if (failure_) {
+      const DrawFailure failure = *failure_;
+      failure_.reset();
+      throw failure;  // (the thread has stopped; the loop hands it nothing more)
+    }
+  }
+
+  void stopWorker() {
+    if (!worker_.joinable()) return;
+    {
+      std::lock_guard lock(mutex_);
+      quit_ = true;
+    }
+    wake_.notify_one();
+    worker_.join();
+  }
+
   // fields of the phases the scene has, as VTU (README: fields for inspection)
   static void writeFields(const std::string& path, const Simulation& sim) {
     const TetMesh& m = sim.mesh();
@@ -292,6 +417,16 @@ class FrameOutputs {
   std::vector<std::uint8_t> depthBytes_;  // scratch of depthHash
   double encodeS_ = 0;
   std::string codec_;
+  Clock::time_point t0_ = Clock::now();
+  int drawFaultFrame_ = injectedFaultFrame("draw");
+  // the drawing thread and its one-frame hand-over
+  std::thread worker_;
+  std::mutex mutex_;
+  std::condition_variable wake_, idle_;
+  std::optional<Job> job_;
+  std::optional<Done> finished_;
+  std::optional<DrawFailure> failure_;
+  bool busy_ = false, quit_ = false;
 };
 
 // ---- progress ----
@@ -330,6 +465,9 @@ class Progress {
 struct LoopResult {
   std::vector<FrameRecord> records;
   std::vector<double> frameStartUs;
+  std::vector<double> frameDoneUs;    // each frame's outputs done (from the loop's start)
+  std::vector<double> renderStartUs;  // each frame's drawing started
+  bool pipelined = false;             // drawn on a thread while the next frame was simulated
   double loopS = 0;
   double peakPowerW = 0;
   bool interrupted = false;
@@ -404,6 +542,15 @@ nlohmann::json timingExtra(const Setup& s, const FrameOutputs& out, const LoopRe
   extra["peak_rss_after_setup_mb"] = s.rssAfterSetupMb;
   if (loop.memoryRoomMinBytes >= 0) extra["memory_left_min_mb"] = loop.memoryRoomMinBytes / 1e6;
   extra["frame_loop_s"] = loop.loopS;
+  // frames delivered: with the drawing on its own thread, the period is what a viewer sees,
+  // the latency what a hand on the tool would (physics + render is each frame's own work)
+  extra["draw_thread"] = loop.pipelined;
+  extra["frame_period"] = statsJson(seriesStats(framePeriodsMs(loop.frameDoneUs)));
+  extra["frame_period"]["note"] =
+      "wall time between frames whose outputs are done (video frame handed to the encoder)";
+  extra["frame_latency"] =
+      statsJson(seriesStats(frameLatenciesMs(loop.frameStartUs, loop.frameDoneUs)));
+  extra["frame_latency"]["note"] = "from the start of a frame's physics to its outputs done";
   extra["offline"] = {{"encode_s", out.encodeSeconds()},
                       {"codec", out.codec()},
                       {"note", "libav encoding on its own thread, not in the 30 Hz budget"}};
@@ -481,6 +628,13 @@ void summaryStages(std::ostringstream& sum, const LoopResult& loop, const nlohma
                 "  interactive    %10.3f %10.3f   (physics+render; %d of %d frames over 33.3 ms)\n",
                 inter.p50Ms, inter.p95Ms, timing["frames_over_budget"].get<int>(),
                 static_cast<int>(loop.records.size()));
+  sum << line;
+  const StageStats period = seriesStats(framePeriodsMs(loop.frameDoneUs));
+  const StageStats latency = seriesStats(frameLatenciesMs(loop.frameStartUs, loop.frameDoneUs));
+  std::snprintf(line, sizeof line,
+                "  period         %10.3f %10.3f   (frames done; latency %.1f / %.1f ms%s)\n",
+                period.p50Ms, period.p95Ms, latency.p50Ms, latency.p95Ms,
+                loop.pipelined ? "; drawn on a thread while the next frame is simulated" : "");
   sum << line;
 }
 
@@ -587,7 +741,11 @@ std::string writeReports(const Setup& s, const FrameOutputs& out, const LoopResu
   const nlohmann::json timing = timingJson(loop.records, extra);
   writeFileAtomic(dir / "timing.json", timing.dump(2) + "\n");
   writeFileAtomic(dir / "timing.csv", timingCsv(loop.records));
-  writeFileAtomic(dir / "trace.json", chromeTrace(loop.records, loop.frameStartUs).dump() + "\n");
+  writeFileAtomic(dir / "trace.json",
+                  chromeTrace(loop.records, loop.frameStartUs,
+                              loop.pipelined ? loop.renderStartUs : std::vector<double>{})
+                          .dump() +
+                      "\n");
   writeFileAtomic(dir / "scenario.yaml", scenarioToYaml(s.scenario));
   if (s.renderer && s.scenario.output.hashes)
     writeFileAtomic(dir / "hashes.json", hashesJson(s, out, extra).dump(2) + "\n");
@@ -619,35 +777,48 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) 
   MemoryGuard memory(memoryGuard ? memoryRootFromEnvironment() : fs::path());
   memory.check();  // the room at the start
   const auto t0 = Clock::now();
-  for (int f = 0; f < s.frames && !gStop; ++f) {
-    loop.frameStartUs.push_back(
-        std::chrono::duration<double, std::micro>(Clock::now() - t0).count());
+  out.startClock(t0);
+  loop.pipelined = out.pipelined();
+  // the totals as of each frame handed to the outputs, kept until its outputs are done
+  struct Totals {
+    double energyJ, maxSeenC, nowC;
+  };
+  std::vector<Totals> totals;
+  const auto finished = [&](std::vector<FrameOutputs::Done> done) {
+    for (FrameOutputs::Done& d : done) {
+      const Totals& t = totals[loop.records.size()];
+      loop.peakPowerW = std::max(loop.peakPowerW, d.record.powerW);
+      loop.energyJ = t.energyJ;
+      loop.maxTemperatureSeenC = t.maxSeenC;
+      loop.temperatureNowC = t.nowC;
+      loop.frameDoneUs.push_back(d.doneUs);
+      loop.renderStartUs.push_back(d.renderStartUs);
+      loop.records.push_back(std::move(d.record));
+      progress.update(static_cast<int>(loop.records.size()), loop.records.back().timeS);
+    }
+  };
+  // a frame that failed (its outputs, or an earlier frame's drawing): the frames before it
+  // are kept; false for a stop asked inside the frame (the frame dropped, no failure)
+  const auto failed = [&](int f, std::exception_ptr error) {
     try {
-      FrameRecord rec = s.sim->step();
-      if (f == badAllocFrame) throw std::bad_alloc();
-      out.add(f, *s.sim, rec);
-      loop.peakPowerW = std::max(loop.peakPowerW, rec.powerW);
-      loop.energyJ = s.sim->energyDeliveredJ();
-      loop.maxTemperatureSeenC = s.sim->maxTemperatureSeenC();
-      loop.temperatureNowC = rec.maxTemperatureC;
-      loop.records.push_back(rec);
+      std::rethrow_exception(error);
+    } catch (const FrameOutputs::DrawFailure& d) {  // the frame being drawn failed
+      f = d.frame;
+      error = d.error;
+    } catch (...) {
+    }
+    try {
+      std::rethrow_exception(error);
     } catch (const Interrupted&) {
-      // a stop asked inside the frame: the frame is dropped, the frames before it are kept
-      loop.frameStartUs.pop_back();
-      break;
     } catch (const std::bad_alloc&) {
       loop.failureKind = ErrorKind::Run;
       loop.failure = "frame " + std::to_string(f) +
                      ": out of memory (a smaller mesh, or another electric strategy: see "
                      "timing.json's electric_memory_mb)" +
                      (addressSpaceBound().empty() ? "" : "; " + addressSpaceBound());
-      loop.frameStartUs.pop_back();
-      break;
     } catch (const fs::filesystem_error& e) {
       loop.failureKind = ErrorKind::Run;
       loop.failure = "frame " + std::to_string(f) + ": " + e.what();
-      loop.frameStartUs.pop_back();
-      break;
     } catch (const Error& e) {
       // the run cannot go on (a failed solve, all tissue gone, a tool reaching the return
       // electrode): the frames so far are kept
@@ -657,10 +828,21 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) 
       loop.failure = what.rfind("rupture, frame " + std::to_string(f) + ":", 0) == 0
                          ? what
                          : "frame " + std::to_string(f) + ": " + what;
-      loop.frameStartUs.pop_back();
+    }
+  };
+  for (int f = 0; f < s.frames && !gStop; ++f) {
+    loop.frameStartUs.push_back(
+        std::chrono::duration<double, std::micro>(Clock::now() - t0).count());
+    try {
+      FrameRecord rec = s.sim->step();
+      if (f == badAllocFrame) throw std::bad_alloc();
+      totals.push_back(
+          {s.sim->energyDeliveredJ(), s.sim->maxTemperatureSeenC(), rec.maxTemperatureC});
+      finished(out.add(f, *s.sim, rec));
+    } catch (...) {
+      failed(f, std::current_exception());
       break;
     }
-    progress.update(f + 1, s.sim->timeS());
     if (f + 1 == s.frames) break;  // the last frame: nothing left to keep room for
     if (std::string low = memory.check(); !low.empty()) {
       // first the electric column cache gives memory back (the fields stay the same, later
@@ -682,6 +864,13 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) 
       break;
     }
   }
+  // the frame still being drawn
+  try {
+    finished(out.drain());
+  } catch (...) {
+    if (loop.failure.empty()) failed(-1, std::current_exception());
+  }
+  loop.frameStartUs.resize(loop.records.size());
   loop.memoryRoomMinBytes = memory.minRoomBytes();
   loop.peakResidentBytes = memory.peakResidentBytes();
   loop.interrupted = gStop.load();
@@ -710,7 +899,7 @@ int runScenario(const RunOptions& opt) {
   output.create();
   std::optional<FrameOutputs> out;
   try {
-    out.emplace(s, output.partial());
+    out.emplace(s, output.partial(), opt.drawOnThread);
   } catch (...) {
     output.discard();
     throw;

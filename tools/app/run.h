@@ -34,6 +34,9 @@ struct RunOptions {
   // reports written) when the memory left runs under the run's reserve (memory_room.h
   // MemoryGuard); true: run on, at the risk of the kernel's kill without reports
   bool noMemoryGuard = false;
+  // draw frame f on a thread of its own while frame f+1 is simulated (the same images;
+  // false: draw each frame after its physics, in the loop)
+  bool drawOnThread = true;
 };
 
 // runs the scenario; returns the exit code (0 complete, 1 failed or interrupted, outputs

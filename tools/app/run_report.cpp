@@ -25,12 +25,6 @@ double percentile(const std::vector<double>& sorted, double p) {
   return sorted[lo] + (pos - lo) * (sorted[hi] - sorted[lo]);
 }
 
-nlohmann::json statsJson(const StageStats& s) {
-  return {{"frames_ran", s.ran}, {"frames_skipped", s.skipped}, {"mean_ms", s.meanMs},
-          {"p50_ms", s.p50Ms},   {"p95_ms", s.p95Ms},           {"p99_ms", s.p99Ms},
-          {"max_ms", s.maxMs}};
-}
-
 bool stagePresent(const std::vector<FrameRecord>& records, Stage stage) {
   for (const auto& r : records)
     if (r.status[static_cast<int>(stage)] != StageStatus::Absent) return true;
@@ -38,6 +32,12 @@ bool stagePresent(const std::vector<FrameRecord>& records, Stage stage) {
 }
 
 }  // namespace
+
+nlohmann::json statsJson(const StageStats& s) {
+  return {{"frames_ran", s.ran}, {"frames_skipped", s.skipped}, {"mean_ms", s.meanMs},
+          {"p50_ms", s.p50Ms},   {"p95_ms", s.p95Ms},           {"p99_ms", s.p99Ms},
+          {"max_ms", s.maxMs}};
+}
 
 StageStats seriesStats(std::vector<double> ms) {
   StageStats s;
@@ -137,13 +137,19 @@ nlohmann::json timingJson(const std::vector<FrameRecord>& records, const nlohman
 }
 
 nlohmann::json chromeTrace(const std::vector<FrameRecord>& records,
-                           const std::vector<double>& frameStartUs) {
+                           const std::vector<double>& frameStartUs,
+                           const std::vector<double>& drawStartUs) {
   nlohmann::json events = nlohmann::json::array();
   for (size_t f = 0; f < records.size(); ++f) {
     double ts = f < frameStartUs.size() ? frameStartUs[f] : 0;
+    double drawTs = f < drawStartUs.size() ? drawStartUs[f] : -1;
     for (int s = 0; s < kStageCount; ++s) {
       const StageStatus st = records[f].status[s];
       if (st == StageStatus::Absent) continue;
+      // the drawing thread's stages on a track of their own, from when it began the frame
+      const bool drawn = drawTs >= 0 && (s == static_cast<int>(Stage::Render) ||
+                                         s == static_cast<int>(Stage::Encode) ||
+                                         s == static_cast<int>(Stage::Labels));
       // a skipped stage's event is the time it took to find it had nothing to do
       const double dur = records[f].ms[s] * 1000.0;
       nlohmann::json args = {{"frame", records[f].frame}};
@@ -151,15 +157,30 @@ nlohmann::json chromeTrace(const std::vector<FrameRecord>& records,
       events.push_back({{"name", stageName(static_cast<Stage>(s))},
                         {"cat", "frame"},
                         {"ph", "X"},
-                        {"ts", ts},
+                        {"ts", drawn ? drawTs : ts},
                         {"dur", dur},
                         {"pid", 1},
-                        {"tid", 1},
+                        {"tid", drawn ? 2 : 1},
                         {"args", args}});
-      ts += dur;
+      (drawn ? drawTs : ts) += dur;
     }
   }
   return {{"traceEvents", events}, {"displayTimeUnit", "ms"}};
+}
+
+std::vector<double> framePeriodsMs(const std::vector<double>& doneUs) {
+  std::vector<double> ms;
+  for (size_t f = 0; f < doneUs.size(); ++f)
+    ms.push_back((doneUs[f] - (f > 0 ? doneUs[f - 1] : 0.0)) / 1000.0);
+  return ms;
+}
+
+std::vector<double> frameLatenciesMs(const std::vector<double>& startUs,
+                                     const std::vector<double>& doneUs) {
+  std::vector<double> ms;
+  for (size_t f = 0; f < std::min(startUs.size(), doneUs.size()); ++f)
+    ms.push_back((doneUs[f] - startUs[f]) / 1000.0);
+  return ms;
 }
 
 extern "C" char* openblas_get_corename(void);

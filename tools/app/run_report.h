@@ -25,6 +25,9 @@ StageStats stageStats(const std::vector<FrameRecord>& records, Stage stage);
 // statistics of a derived per-frame time (e.g. physics + render)
 StageStats seriesStats(std::vector<double> ms);
 
+// frames_ran, frames_skipped, mean_ms, p50_ms, p95_ms, p99_ms, max_ms
+nlohmann::json statsJson(const StageStats& stats);
+
 // interactive time of a frame: the simulation stages + render [ms]
 double interactiveMs(const FrameRecord& record);
 
@@ -40,9 +43,18 @@ nlohmann::json timingJson(const std::vector<FrameRecord>& records, const nlohman
 
 // trace.json: Chrome trace format (Perfetto), one complete event per stage per frame, back
 // to back from the frame's start; a skipped stage's event (args.skipped) is the time it took
-// to find nothing to do, so a frame's events before encode_wait sum to its interactive time
+// to find nothing to do, so a frame's events before encode_wait sum to its interactive time.
+// With drawStartUs (a frame drawn on a thread of its own), the render, encode_wait and
+// write_labels events are on track 2, back to back from when that thread began the frame.
 nlohmann::json chromeTrace(const std::vector<FrameRecord>& records,
-                           const std::vector<double>& frameStartUs);
+                           const std::vector<double>& frameStartUs,
+                           const std::vector<double>& drawStartUs = {});
+
+// the time between frames whose outputs are done (the first from the loop's start), and
+// each frame's latency from the start of its physics to its outputs done [ms]
+std::vector<double> framePeriodsMs(const std::vector<double>& doneUs);
+std::vector<double> frameLatenciesMs(const std::vector<double>& startUs,
+                                     const std::vector<double>& doneUs);
 
 // "Intel(R) Xeon(R) ..." from /proc/cpuinfo, and the core count
 nlohmann::json machineInfo();

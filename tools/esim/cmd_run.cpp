@@ -53,6 +53,10 @@ Registrar reg(
                    "run on when the memory left runs short (by default the electric column "
                    "cache gives memory back, then the run stops with its reports, exit 1, "
                    "before the kernel would kill it without them)");
+      app.add_flag("--no-draw-thread{false}", opt->drawOnThread,
+                   "draw each frame after its physics, in the frame loop (by default frame k "
+                   "is drawn on a thread of its own while frame k+1 is simulated: the same "
+                   "images, a frame period closer to the slower of the two)");
       app.add_flag("--plots", opt->plots,
                    "also write timing.png (stage times per frame, power, temperature, removed "
                    "tets; needs python3-matplotlib, else a warning)");
