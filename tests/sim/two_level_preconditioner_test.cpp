@@ -248,6 +248,46 @@ TEST(TwoLevelPreconditioner, AGraphSetAgainKeepsItsAggregatesAndANewOneIsAggrega
   EXPECT_EQ(zKept, zFresh);
 }
 
+// the degenerate systems a cut leaves: one unknown, nodes with no neighbour left, every row
+// excluded (every free node in contact): M stays the exact inverse or l1-Jacobi, finite
+TEST(TwoLevelPreconditioner, TinyAndDegenerateSystemsStaySolvable) {
+  // one unknown
+  SparseMatrix one(1, 1);
+  one.insert(0, 0) = 4.0;
+  one.makeCompressed();
+  TwoLevelPreconditioner p;
+  p.setGraph(one, 1);
+  p.compute(one, {});
+  Eigen::VectorXd z;
+  p.apply(Eigen::VectorXd::Constant(1, 2.0), z);
+  EXPECT_NEAR(z[0], 0.5, 1e-15);  // the coarse level is the whole system: exact
+  // isolated nodes (a diagonal matrix) and a pair
+  SparseMatrix d(4, 4);
+  d.insert(0, 0) = 2.0;
+  d.insert(1, 1) = 3.0;
+  d.insert(2, 2) = 2.0;
+  d.insert(3, 3) = 2.0;
+  d.insert(2, 3) = -1.0;
+  d.insert(3, 2) = -1.0;
+  d.makeCompressed();
+  p.setGraph(d, 2);
+  p.compute(d, {});
+  const Eigen::MatrixXd inverse = denseInverse(p, 4);
+  EXPECT_LT((inverse * Eigen::MatrixXd(d) - Eigen::MatrixXd::Identity(4, 4)).norm(), 1e-12)
+      << "isolated nodes and a pair: each aggregate's coarse solve is exact";
+  // every row excluded: no coarse column, M = l1-Jacobi
+  const SparseMatrix a = gridLaplacian(3);
+  std::vector<int> all(27);
+  for (int i = 0; i < 27; ++i) all[i] = i;
+  SparseMatrix ai = a;  // the pattern of a, the identity's values
+  for (int j = 0; j < 27; ++j)
+    for (SparseMatrix::InnerIterator it(ai, j); it; ++it) it.valueRef() = it.row() == j ? 1.0 : 0.0;
+  p.setGraph(a, 1);
+  p.compute(ai, all);
+  p.apply(Eigen::VectorXd::LinSpaced(27, 1.0, 27.0), z);
+  EXPECT_LT((z - Eigen::VectorXd::LinSpaced(27, 1.0, 27.0)).norm(), 1e-12);
+}
+
 TEST(TwoLevelPreconditioner, BadInputIsAnErrorNamingIt) {
   const SparseMatrix a = gridLaplacian(4);
   TwoLevelPreconditioner p;
