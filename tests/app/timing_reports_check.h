@@ -9,9 +9,10 @@
 //   - timing.csv: one row per frame, a column per stage of timing.json's stages, and per
 //     stage the mean and max of its "ran" cells equal timing.json's mean_ms and max_ms;
 //   - trace.json: complete ("X") events of known stages, back to back within a frame in
-//     stage order, frames not overlapping; per frame the events before encode_wait sum to the
-//     CSV's interactive_ms (skipped stages included), and every ran or skipped cell of the
-//     CSV has its event.
+//     stage order on each track (1: the loop; 2: the drawing thread's render, encode_wait
+//     and write_labels, after the frame's physics), frames not overlapping on a track; per frame
+//     the events before encode_wait sum to the CSV's interactive_ms (skipped stages included), and
+//     every ran or skipped cell of the CSV has its event.
 #pragma once
 
 #include <gtest/gtest.h>
@@ -153,7 +154,9 @@ inline void checkTimingReports(const std::string& csvText, const nlohmann::json&
     byFrame[e["args"]["frame"].get<int>()].push_back(e);
   }
   ASSERT_EQ(static_cast<int>(byFrame.size()), frames);
-  double previousEndUs = -1;
+  // per track (tid 1: the frame loop; tid 2: the drawing thread, when frames are drawn on
+  // one): back to back within a frame, frames in order; a frame is drawn after its physics
+  std::map<int, double> previousEndUs;
   for (const auto& r : rows) {
     const int f = std::atoi(r.at("frame").c_str());
     ASSERT_TRUE(byFrame.count(f)) << "frame " << f << " has no trace events";
@@ -165,11 +168,27 @@ inline void checkTimingReports(const std::string& csvText, const nlohmann::json&
           std::find(names.begin(), names.end(), ev[i]["name"].get<std::string>()) - names.begin());
       EXPECT_GT(stage, lastStage) << "frame " << f << ": stages out of order";
       lastStage = stage;
-      if (i > 0) {
+      const int tid = ev[i]["tid"].get<int>();
+      EXPECT_TRUE(tid == 1 ||
+                  (tid == 2 && (ev[i]["name"] == "render" || ev[i]["name"] == "encode_wait" ||
+                                ev[i]["name"] == "write_labels")))
+          << "frame " << f << ": " << ev[i]["name"] << " on track " << tid;
+      if (i > 0 && ev[i - 1]["tid"].get<int>() == tid) {
         EXPECT_NEAR(ev[i]["ts"].get<double>(),
                     ev[i - 1]["ts"].get<double>() + ev[i - 1]["dur"].get<double>(), 1e-6)
             << "frame " << f << ": events not back to back";
+      } else if (i > 0) {  // the drawing thread's first event: after the frame's physics
+        EXPECT_GE(ev[i]["ts"].get<double>(),
+                  ev[i - 1]["ts"].get<double>() + ev[i - 1]["dur"].get<double>() - 1e-6)
+            << "frame " << f << ": drawn before its physics ended";
       }
+      if (i == 0 || ev[i - 1]["tid"].get<int>() != tid) {
+        if (previousEndUs.count(tid)) {
+          EXPECT_GE(ev[i]["ts"].get<double>(), previousEndUs[tid] - 1e-6) << "frame " << f;
+        }
+      }
+      if (i + 1 == ev.size() || ev[i + 1]["tid"].get<int>() != tid)
+        previousEndUs[tid] = ev[i]["ts"].get<double>() + ev[i]["dur"].get<double>();
       const std::string& cell = r.at(ev[i]["name"].get<std::string>() + "_ms");
       EXPECT_FALSE(cell.empty()) << "frame " << f << ": event for an absent stage";
       EXPECT_EQ(cell == "skipped", ev[i]["args"].value("skipped", false)) << "frame " << f;
@@ -181,8 +200,6 @@ inline void checkTimingReports(const std::string& csvText, const nlohmann::json&
     for (const std::string& n : present) cells += !r.at(n + "_ms").empty();
     EXPECT_EQ(static_cast<int>(ev.size()), cells) << "frame " << f;
     EXPECT_NEAR(sumMs, std::atof(r.at("interactive_ms").c_str()), tolMs) << "frame " << f;
-    EXPECT_GE(ev.front()["ts"].get<double>(), previousEndUs - 1e-6) << "frame " << f;
-    previousEndUs = ev.back()["ts"].get<double>() + ev.back()["dur"].get<double>();
   }
 }
 
