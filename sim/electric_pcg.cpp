@@ -9,7 +9,8 @@
 //   Jacobi's grow as 1/h: on slab_cut (8000 nodes) 55 against 180 a frame, on
 //   liver_incision (27908) 37 against 268; solve_potential 7.6 against 11.2 ms and 33
 //   against 110 ms (README, "The potential's two-level preconditioner"). setMatrix
-//   aggregates the new graph again (1 ms at 8000 nodes, 8 ms at 27908); a new contact set
+//   aggregates a new graph again (1 ms at 8000 nodes, 8 ms at 27908; the same pattern
+//   keeps its aggregates); a new contact set
 //   costs the coarse matrix's assembly and factorization (0.4 ms at 8000 nodes).
 // - Jacobi: nothing to set up, O(1/h) iterations.
 // - incomplete Cholesky (Eigen, AMD ordering): IC halves to thirds Jacobi's iterations
@@ -108,12 +109,12 @@ class PcgSolver final : public ElectricSolver {
     Eigen::VectorXd b;
     dirichletSystem(kff_, cf, voltageV, system_, b);
     // warm start from the input potential
-    Eigen::VectorXd x0 = Eigen::VectorXd::Zero(nf);
+    Eigen::VectorXd x = Eigen::VectorXd::Zero(nf);
     if (potential.size() == classes_.n && potential.allFinite())
-      for (int i = 0; i < nf; ++i) x0[i] = potential[classes_.freeNodes[i]];
+      for (int i = 0; i < nf; ++i) x[i] = potential[classes_.freeNodes[i]];
     // the contact rows are decoupled identity rows: solve them as 0 = 0 so that the
     // relative residual measures the unknowns only (u_c is scattered below)
-    for (int c : cf) x0[c] = b[c] = 0.0;
+    for (int c : cf) x[c] = b[c] = 0.0;
     if (!prepared_ || cf != preparedContact_) {  // the preconditioner of this system
       if (options_.pcgPreconditioner == PcgPreconditioner::TwoLevel) {
         coarse_.compute(system_, cf);  // the contact rows out of its coarse space
@@ -124,7 +125,6 @@ class PcgSolver final : public ElectricSolver {
         jacobi_.compute(system_);
       }
     }
-    Eigen::VectorXd x = x0;
     iterate(b, x, stats);
     prepared_ = true;
     preparedContact_ = cf;

@@ -90,8 +90,7 @@ void TwoLevelPreconditioner::setGraph(const SparseMatrix& K, int passes) {
   graphInner_.assign(K.innerIndexPtr(), K.innerIndexPtr() + K.nonZeros());
   // K is symmetric: its columns are the rows' neighbour lists. Each pass aggregates the
   // last pass's aggregates over their own graph.
-  std::vector<int> outer(K.outerIndexPtr(), K.outerIndexPtr() + n + 1);
-  std::vector<int> inner(K.innerIndexPtr(), K.innerIndexPtr() + K.nonZeros());
+  std::vector<int> outer = graphOuter_, inner = graphInner_;
   aggregateOf_.resize(n);
   std::iota(aggregateOf_.begin(), aggregateOf_.end(), 0);
   int size = n;
