@@ -16,7 +16,9 @@
 #include "sim/cholmod_view.h"
 #include "sim/core_error.h"
 #include "sim/fem_p1.h"
+#include "sim/ldl_solve.h"
 #include "sim/ldl_updown.h"
+#include "sim/two_threads.h"
 
 extern "C" void openblas_set_num_threads(int num_threads);
 
@@ -140,10 +142,20 @@ struct SimplicialView {
   double diagonal(int j) const { return x[p[j]]; }                  // D(j)
 };
 
+// a phase's per-tet stresses on two threads from this many tets (below, a thread's start,
+// ~20-50 us, costs more than half the loop: ~0.1 us a tet)
+constexpr int kMinTetsForTwoShares = 2000;
+
 const char* const kNoPieceHeld = "structural: no piece of the body is held by the supports";
 
 double secondsSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void verifySolveThreads(int threads) {
+  ESIM_VERIFY(threads >= 0 && threads <= 2,
+              "structural: solveThreads must be 0 (CHOLMOD's solve), 1 or 2, got " +
+                  std::to_string(threads));
 }
 
 void verifyLocalOptions(const LocalSolveOptions& o) {
@@ -193,6 +205,8 @@ struct StructuralPhase::Impl {
   bool vectorizedUpdate = true;        // StructuralOptions::vectorizedUpdate
   bool prepareForUpdates = false;      // StructuralOptions::prepareForUpdates
   cholmod_dense *x = nullptr, *y = nullptr, *e = nullptr;  // solve workspaces
+  LdlSolveWork wholeSolve, regionSolve;  // ldl_solve.h's, of the whole factor and the region's
+  int solveThreads = 2;                  // StructuralOptions::solveThreads
   Eigen::VectorXd rhs, u;
   struct RowMarks {  // per row of L: etree walks of an update
     std::vector<int> mark;
@@ -261,6 +275,7 @@ struct StructuralPhase::Impl {
     std::exception_ptr error;
     cholmod_common common;
     cholmod_dense *x = nullptr, *y = nullptr, *e = nullptr;
+    LdlSolveWork solve;
   } refresh;
   StructuralSolveStats lastSolve;
   // ---- outputs ----
@@ -387,7 +402,8 @@ struct StructuralPhase::Impl {
   void fullSolve(const std::vector<double>& ev);
   void fullDisplacement(const std::vector<double>& ev, const StateView& s, Eigen::VectorXd& f,
                         Eigen::VectorXd& out, cholmod_common& c, cholmod_dense*& wx,
-                        cholmod_dense*& wy, cholmod_dense*& we) const;
+                        cholmod_dense*& wy, cholmod_dense*& we, LdlSolveWork& lw,
+                        int threads) const;
   StructuralUpdateStats applyPending(Pending job, const StateView& s, cholmod_common& c);
   void bringFactorUpToDate();
   void startRefresh(const std::vector<double>& ev);
@@ -741,7 +757,8 @@ Voigt StructuralPhase::Impl::elasticStress(int t, const Eigen::VectorXd& disp) c
 void StructuralPhase::Impl::fullDisplacement(const std::vector<double>& ev, const StateView& s,
                                              Eigen::VectorXd& f, Eigen::VectorXd& out,
                                              cholmod_common& c, cholmod_dense*& wx,
-                                             cholmod_dense*& wy, cholmod_dense*& we) const {
+                                             cholmod_dense*& wy, cholmod_dense*& we,
+                                             LdlSolveWork& lw, int threads) const {
   const int nt = static_cast<int>(tets.size());
   // f = sum_e V_e B_e^T D eps*_e; D eps* = K_b e_v (1,1,1,0,0,0), so node i of the tet
   // gets V_e K_b e_v grad N_i; 0 on the held dofs (their rows of A are the identity)
@@ -757,6 +774,12 @@ void StructuralPhase::Impl::fullDisplacement(const std::vector<double>& ev, cons
   }
   out.setZero(numDofs());
   if (s.numFree == 0) return;
+  if (threads > 0 && ldlSolveSupports(*factor)) {  // updated (simplicial LDL'): ldl_solve.h
+    ldlSolve(*factor, f.data(), out.data(), threads, lw);
+    for (int dof = 0; dof < numDofs(); ++dof)
+      if (s.held[dof]) out(dof) = 0;
+    return;
+  }
   cholmod_dense b{};
   b.nrow = numDofs();
   b.ncol = 1;
@@ -805,7 +828,9 @@ void StructuralPhase::Impl::bringFactorUpToDate() {
 void StructuralPhase::Impl::fullSolve(const std::vector<double>& ev) {
   bringFactorUpToDate();  // a refresh running is older than this solve
   openblas_set_num_threads(1);
-  fullDisplacement(ev, current(), rhs, u, common, x, y, e);
+  fullDisplacement(ev, current(), rhs, u, common, x, y, e, wholeSolve, solveThreads);
+  lastSolve.solveThreads =
+      solveThreads > 0 && ldlSolveSupports(*factor) ? wholeSolve.threadsUsed : 0;
   appliedDofs.clear();
   if (method == StructuralSolveMethod::local) {
     hasReference = true;
@@ -835,8 +860,9 @@ void StructuralPhase::Impl::startRefresh(const std::vector<double>& ev) {
     try {
       const StateView s = refresh.view();
       if (!refresh.job.removed.empty()) applyPending(std::move(refresh.job), s, refresh.common);
+      // one thread: this one runs beside the frame's (the same bits as two)
       fullDisplacement(refresh.ev, s, refresh.rhs, refresh.u, refresh.common, refresh.x, refresh.y,
-                       refresh.e);
+                       refresh.e, refresh.solve, 1);
       refresh.elastic.resize(tets.size());
       for (size_t t = 0; t < tets.size(); ++t)
         if (s.alive[t]) refresh.elastic[t] = elasticStress(static_cast<int>(t), refresh.u);
@@ -978,6 +1004,17 @@ bool StructuralPhase::Impl::localSolve(const std::vector<double>& ev) {
     }
   }
   // 4. K_UU d_U = r_U; u = u_ref + d on U, u_ref elsewhere
+  for (int dof : appliedDofs) u(dof) = refU(dof);
+  if (solveThreads > 0 && ldlSolveSupports(*regionFactor)) {  // kept simplicial: ldl_solve.h
+    Eigen::VectorXd d(regionDofs.size());
+    ldlSolve(*regionFactor, r.data(), d.data(), solveThreads, regionSolve);
+    for (size_t k = 0; k < regionDofs.size(); ++k) u(regionDofs[k]) = refU(regionDofs[k]) + d(k);
+    lastSolve.solveThreads = regionSolve.threadsUsed;
+    appliedDofs = regionDofs;
+    startNextRefresh();
+    outputs(ev, From::region);
+    return true;
+  }
   cholmod_dense b{};
   b.nrow = regionDofs.size();
   b.ncol = 1;
@@ -991,7 +1028,6 @@ bool StructuralPhase::Impl::localSolve(const std::vector<double>& ev) {
       cholmod_solve2(CHOLMOD_A, regionFactor, &b, nullptr, &rx, nullptr, &ry, &re, &common);
   if (!ok) throwIfOutOfResources(common);
   ESIM_RUN_CHECK(ok, "structural: CHOLMOD solve failed");
-  for (int dof : appliedDofs) u(dof) = refU(dof);
   const double* correction = static_cast<const double*>(rx->x);
   for (size_t k = 0; k < regionDofs.size(); ++k)
     u(regionDofs[k]) = refU(regionDofs[k]) + correction[k];
@@ -1084,23 +1120,26 @@ bool StructuralPhase::Impl::buildRegion(const Eigen::AlignedBox3d& box) {
 
 // stress and von Mises per tet: D B u from u (solution: every tet, stored as the reference
 // under the local method; region: the region's tets) or from the reference
+// (each tet on its own: the two halves of the tets on solveThreads threads)
 void StructuralPhase::Impl::outputs(const std::vector<double>& ev, From from) {
   const int nt = static_cast<int>(tets.size());
   const bool store = from == From::solution && method == StructuralSolveMethod::local;
-  for (int t = 0; t < nt; ++t) {
-    if (!alive[t]) {
-      stress[t] = VoigtStress{};
-      vonMisesPa[t] = 0;
-      continue;
+  runTwoShares(nt >= kMinTetsForTwoShares ? solveThreads : 1, [&](int share) {
+    for (int t = share * nt / 2, end = (share + 1) * nt / 2; t < end; ++t) {
+      if (!alive[t]) {
+        stress[t] = VoigtStress{};
+        vonMisesPa[t] = 0;
+        continue;
+      }
+      const bool fresh = from == From::solution || (from == From::region && inRegion[t]);
+      const Voigt s = fresh ? elasticStress(t, u) : refElastic[t];
+      if (store) refElastic[t] = s;
+      // sigma = D B u - K_b e_v (1, 1, 1, 0, 0, 0)
+      const double p = bulkModulusPa * ev[t];
+      stress[t] = {s(0) - p, s(1) - p, s(2) - p, s(3), s(4), s(5)};
+      vonMisesPa[t] = vonMises(stress[t]);
     }
-    const bool fresh = from == From::solution || (from == From::region && inRegion[t]);
-    const Voigt s = fresh ? elasticStress(t, u) : refElastic[t];
-    if (store) refElastic[t] = s;
-    // sigma = D B u - K_b e_v (1, 1, 1, 0, 0, 0)
-    const double p = bulkModulusPa * ev[t];
-    stress[t] = {s(0) - p, s(1) - p, s(2) - p, s(3), s(4), s(5)};
-    vonMisesPa[t] = vonMises(stress[t]);
-  }
+  });
 }
 
 // ---- removal ----
@@ -1633,11 +1672,13 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   m.d = elasticity(e, nu);
   m.bulkModulusPa = e / (3 * (1 - 2 * nu));
   m.supports = supports;
+  verifySolveThreads(options.solveThreads);
   ESIM_VERIFY(!(options.updateCostLimit < 0), "structural: updateCostLimit must be >= 0, got " +
                                                   messageNumber(options.updateCostLimit));
   m.updateCostLimit = options.updateCostLimit;
   m.vectorizedUpdate = options.vectorizedUpdate;
   m.prepareForUpdates = options.prepareForUpdates;
+  m.solveThreads = options.solveThreads;
   verifyLocalOptions(options.local);
   m.method = options.solveMethod;
   m.local = options.local;
@@ -1731,6 +1772,11 @@ void StructuralPhase::setSolveMethod(StructuralSolveMethod method, const LocalSo
 }
 
 const StructuralSolveStats& StructuralPhase::lastSolveStats() const { return impl_->lastSolve; }
+
+void StructuralPhase::setSolveThreads(int threads) {
+  verifySolveThreads(threads);
+  impl_->solveThreads = threads;
+}
 
 const Eigen::VectorXd& StructuralPhase::displacementM() const { return impl_->u; }
 const std::vector<VoigtStress>& StructuralPhase::stressPa() const { return impl_->stress; }

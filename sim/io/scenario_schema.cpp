@@ -337,6 +337,13 @@ const std::vector<Field>& schema() {
                         "AVX-512 kernel where the CPU has it (else, or false: CHOLMOD's "
                         "cholmod_updown, scalar code); the same result to round-off, 2-4x "
                         "faster (README, \"The cut with the model updated in place\")"));
+    f.push_back(integer("solvers.structural.solve_threads",
+                        ESIM_REF(solvers.structuralSolveThreads), "threads", closed(0, 2),
+                        "the structural solve's two triangular solves, once its factor is "
+                        "updated (simplicial LDL'), split over this many threads by the "
+                        "elimination tree (the same bits with 1 or 2), or 0: by CHOLMOD's own "
+                        "solve, for comparison (README, \"The cut with the model updated in "
+                        "place\")"));
     f.push_back(choice("solvers.rebuild.mode", ESIM_ENUM_REF(solvers.rebuildMode),
                        {"synchronous", "background", "update"},
                        "after rupture: build the new model in the frame that breaks tets, or on "

@@ -137,7 +137,7 @@ TEST(RunConfig, StructuralLocalSolveKeysReachThePhase) {
       "name: local\nsolvers:\n  structural:\n    method: local\n    local_margin_m: 0.004\n"
       "    local_refresh_every: 7\n    local_refresh_on_thread: true\n"
       "    local_slack_m: 0.002\n    local_max_region_fraction: 0.8\n"
-      "    vectorized_update: false\n",
+      "    vectorized_update: false\n    solve_threads: 1\n",
       "local.yaml");
   const SimulationConfig c = makeSimulationConfig(s);
   EXPECT_EQ(c.structural.solveMethod, StructuralSolveMethod::local);
@@ -147,6 +147,8 @@ TEST(RunConfig, StructuralLocalSolveKeysReachThePhase) {
   EXPECT_EQ(c.structural.local.slackM, 0.002);
   EXPECT_EQ(c.structural.local.maxRegionFraction, 0.8);
   EXPECT_FALSE(c.structural.vectorizedUpdate);
+  EXPECT_EQ(c.structural.solveThreads, 1);
+  EXPECT_EQ(makeSimulationConfig(parseScenario("name: d\n", "d.yaml")).structural.solveThreads, 2);
   EXPECT_TRUE(
       makeSimulationConfig(parseScenario("name: d\n", "d.yaml")).structural.vectorizedUpdate);
   try {

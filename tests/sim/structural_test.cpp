@@ -727,6 +727,58 @@ TEST(StructuralRemoval, PrepareForUpdatesGivesTheSameResults) {
   expectSameAsFresh(fallback, mesh, clamp, "after a second fallback");
 }
 
+// StructuralOptions::solveThreads: once updated, the factor is solved by ldl_solve.h, its tree
+// split in two shares (this slab's L is above the split's minimum); one thread runs the same
+// shares, so 1 and 2 threads give the same bits, and both equal a fresh build (CHOLMOD's
+// supernodal solve) after removals
+TEST(StructuralRemoval, SolveThreadsGiveTheSameBitsAndEqualAFreshBuild) {
+  SlabSpec spec;
+  spec.sizeM = {kLx, kLy, kLz};
+  spec.nodesPerAxis = {16, 13, 8};
+  TetMesh mesh = makeSlab(spec);
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralOptions one = alwaysUpdate(), two = alwaysUpdate();
+  one.solveThreads = 1;
+  two.solveThreads = 2;
+  StructuralPhase a(mesh, one, clamp), b(mesh, two, clamp);
+  const std::vector<double> ev = unevenLoad(mesh);
+  a.solve(ev);
+  EXPECT_EQ(a.lastSolveStats().solveThreads, 0);  // supernodal before the first update
+  std::vector<int> top;
+  for (int t = 0; t < mesh.numTets(); ++t)
+    if (centroidZ(mesh, t) > 0.8 * kLz && t % 7 == 0) top.push_back(t);
+  ASSERT_GT(top.size(), 20u);
+  for (size_t k = 0; k < top.size(); k += 10) {
+    const std::vector<int> batch(top.begin() + k, top.begin() + std::min(k + 10, top.size()));
+    a.removeTets(batch);
+    b.removeTets(batch);
+    for (int t : batch) mesh.alive[t] = 0;
+    a.solve(ev);
+    b.solve(ev);
+    EXPECT_EQ(a.lastSolveStats().solveThreads, 1);
+    EXPECT_EQ(b.lastSolveStats().solveThreads, 2);
+    ASSERT_EQ(a.displacementM(), b.displacementM()) << "after batch " << k / 10;
+  }
+  expectSameAsFresh(b, mesh, clamp, "two threads after the removals");
+  StructuralOptions bad = paper();
+  bad.solveThreads = 3;
+  try {
+    StructuralPhase p(mesh, bad, clamp);
+    ADD_FAILURE() << "solveThreads 3 accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("solveThreads must be 0 (CHOLMOD's solve), 1 or 2, got 3"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_THROW(b.setSolveThreads(-1), Error);
+  // 0: CHOLMOD's own solve of the same factor, equal to round-off
+  const Eigen::VectorXd mine = b.displacementM();
+  b.setSolveThreads(0);
+  b.solve(ev);
+  EXPECT_EQ(b.lastSolveStats().solveThreads, 0);
+  EXPECT_LT(relativeDifference(b.displacementM(), mine), 1e-12);
+}
+
 TEST(StructuralRemoval, RejectsBadIds) {
   TetMesh mesh = distortedSlab();
   StructuralPhase phase(mesh, paper(), hold(mesh, onBottom, {0, 1, 2}));

@@ -88,6 +88,7 @@ void mapStructural(const Scenario& s, SimulationConfig& c) {
   c.structural.local.refreshEvery = s.solvers.structuralLocalRefreshEvery;
   c.structural.local.refreshOnThread = s.solvers.structuralLocalRefreshOnThread;
   c.structural.vectorizedUpdate = s.solvers.structuralVectorizedUpdate;
+  c.structural.solveThreads = s.solvers.structuralSolveThreads;
   c.rebuildMode = s.solvers.rebuildMode;
   c.rebuildLagFrames = s.solvers.rebuildLagFrames;
   c.recomputeLagFrames = s.solvers.rebuildRecompute;

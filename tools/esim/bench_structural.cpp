@@ -13,9 +13,12 @@
 // 4. Remove the same 5 tets from the phase of step 1 with removeTets (the factor updated,
 //    the first update converting it to simplicial LDL', unless --prepare-for-updates built
 //    the phase with the conversion done), timed; then a solve with the
-//    updated factor (median of --solves) and its difference from the rebuilt phase's.
+//    updated factor (median of --solves; ldl_solve.h on two threads, the default: solve_upd;
+//    on one: upd_1t; CHOLMOD's cholmod_solve2 of the same factor: upd_chol, taken in turn)
+//    and its difference from the rebuilt phase's.
 // 5. Print a table; --csv writes nodes,dofs,factor_ms,solve_ms,rebuild5_ms,update5_ms,
-//    convert_ms,update_refactorized,solve_updated_ms,update_vs_rebuild,max_von_mises_pa.
+//    convert_ms,update_refactorized,solve_updated_ms,update_vs_rebuild,max_von_mises_pa,
+//    solve_updated_1thread_ms,solve_updated_cholmod_ms.
 // With --local, instead: the local solve (StructuralSolveMethod::local) against the full
 // one, frame by frame, on two loads scaled so that the peak von Mises is --overload times
 // the critical stress (SimulationConfig's default):
@@ -213,16 +216,17 @@ int benchStructural(const BenchStructuralOptions& opt) {
   const std::vector<int> sizes = app::parseNodeCounts(opt.sizes, "bench structural");
   app::CsvOutput csv(opt.csv,
                      "nodes,dofs,factor_ms,solve_ms,rebuild5_ms,update5_ms,convert_ms,"
-                     "update_refactorized,solve_updated_ms,update_vs_rebuild,max_von_mises_pa");
+                     "update_refactorized,solve_updated_ms,update_vs_rebuild,max_von_mises_pa,"
+                     "solve_updated_1thread_ms,solve_updated_cholmod_ms");
   std::printf(
       "esim bench structural: paper slab 100x100x10 mm, bottom clamped, Gaussian "
       "expansion (peak %.2f, radius 3 mm) under the top centre; %d solves; E 4.75e4 "
       "Pa, nu 0.4; one BLAS thread%s\n",
       opt.peakExpansion, opt.solves,
       opt.prepareForUpdates ? "; prepareForUpdates (factor_ms includes the conversion)" : "");
-  std::printf("%8s %8s %10s %10s %12s %11s %11s %10s %13s %10s %12s\n", "nodes", "dofs",
+  std::printf("%8s %8s %10s %10s %12s %11s %11s %10s %13s %10s %10s %10s %12s\n", "nodes", "dofs",
               "factor_ms", "solve_ms", "rebuild5_ms", "update5_ms", "convert_ms", "refactored",
-              "solve_upd_ms", "upd_vs_reb", "max_vm_Pa");
+              "solve_upd_ms", "upd_1t_ms", "upd_chol_ms", "upd_vs_reb", "max_vm_Pa");
   for (const int nodes : sizes) {
     SlabSpec spec;
     spec.targetNodes = nodes;
@@ -271,28 +275,35 @@ int benchStructural(const BenchStructuralOptions& opt) {
     const StructuralUpdateStats update =
         phase->removeTets({order[0], order[1], order[2], order[3], order[4]});
     const double updateMs = msSince(t0);
-    std::vector<double> updatedSolveMs;
-    for (int k = 0; k < opt.solves; ++k) {
-      t0 = std::chrono::steady_clock::now();
-      phase->solve(load);
-      updatedSolveMs.push_back(msSince(t0));
-    }
-    std::sort(updatedSolveMs.begin(), updatedSolveMs.end());
+    // the updated (simplicial) factor's solves: CHOLMOD's, ldl_solve.h's on 1 and 2 threads,
+    // interleaved (one solve of each in turn: the machine's load shared alike)
+    std::vector<double> updatedMs[3];
+    for (int k = 0; k < opt.solves; ++k)
+      for (int threads : {0, 1, 2}) {
+        phase->setSolveThreads(threads);
+        t0 = std::chrono::steady_clock::now();
+        phase->solve(load);
+        updatedMs[threads].push_back(msSince(t0));
+      }
+    for (auto& v : updatedMs) std::sort(v.begin(), v.end());
+    const auto median = [](const std::vector<double>& v) { return v[v.size() / 2]; };
     rebuilt->solve(load);
     const double difference = (phase->displacementM() - rebuilt->displacementM()).norm() /
                               rebuilt->displacementM().norm();
-    const double solveUpdatedMs = updatedSolveMs[updatedSolveMs.size() / 2];
+    const double solveUpdatedMs = median(updatedMs[2]);
     const double convertMs = 1e3 * update.convertSeconds;
-    std::printf("%8d %8d %10.1f %10.2f %12.1f %11.2f %11.2f %10s %13.2f %10.1e %12.1f\n",
-                mesh.numNodes(), rebuilt->numFreeDofs(), factorMs, solveMs[solveMs.size() / 2],
-                rebuildMs, updateMs, convertMs, update.refactorized ? "yes" : "no", solveUpdatedMs,
-                difference, maxVm);
+    std::printf(
+        "%8d %8d %10.1f %10.2f %12.1f %11.2f %11.2f %10s %13.2f %10.2f %10.2f %10.1e %12.1f\n",
+        mesh.numNodes(), rebuilt->numFreeDofs(), factorMs, solveMs[solveMs.size() / 2], rebuildMs,
+        updateMs, convertMs, update.refactorized ? "yes" : "no", solveUpdatedMs,
+        median(updatedMs[1]), median(updatedMs[0]), difference, maxVm);
     std::fflush(stdout);
     if (csv)
       csv.out() << mesh.numNodes() << ',' << rebuilt->numFreeDofs() << ',' << factorMs << ','
                 << solveMs[solveMs.size() / 2] << ',' << rebuildMs << ',' << updateMs << ','
                 << convertMs << ',' << (update.refactorized ? 1 : 0) << ',' << solveUpdatedMs << ','
-                << difference << ',' << maxVm << '\n';
+                << difference << ',' << maxVm << ',' << median(updatedMs[1]) << ','
+                << median(updatedMs[0]) << '\n';
   }
   if (csv) {
     csv.commit();
