@@ -51,11 +51,11 @@ class VideoEncoder {
     double fps = 30;  // frames per second, exact (stored as a fraction)                   // frames
                       // per second
     int crf = 20;     // x264 constant rate factor, 0..51 (lower = better)
-    std::string preset = "medium";  // x264 preset (ultrafast .. placebo)
-    bool reproducible = true;       // bitexact, one thread
-    int queueCapacity = 8;          // frames waiting before push() blocks
-    std::string codec = "libx264";  // wanted encoder
-    bool allowFallback = true;      // try libopenh264, then mpeg4 if it is missing
+    std::string preset = "veryfast";  // x264 preset (ultrafast .. placebo)
+    bool reproducible = true;         // bitexact, one thread
+    int queueCapacity = 8;            // frames waiting before push() blocks
+    std::string codec = "libx264";    // wanted encoder
+    bool allowFallback = true;        // try libopenh264, then mpeg4 if it is missing
   };
 
   VideoEncoder();

@@ -13,9 +13,9 @@
 namespace esim {
 namespace {
 
-constexpr int kMaxChain = 4;        // columns whose row indices one pass reads
-constexpr double kBalance = 0.55;   // the heavier thread's share of the subtrees' work at most
-constexpr double kMaxTop = 0.5;     // stop splitting once the top holds this share of the work
+constexpr int kMaxChain = 4;       // columns whose row indices one pass reads
+constexpr double kBalance = 0.55;  // the heavier thread's share of the subtrees' work at most
+constexpr double kMaxTop = 0.5;    // stop splitting once the top holds this share of the work
 
 struct View {
   int n;
@@ -76,8 +76,7 @@ bool ldlSolveSupports(const cholmod_factor& l) {
 
 namespace {
 
-void makePlan(const View& l, long minSplitEntries, LdlSolveWork& w,
-              LdlSolvePlan& plan) {
+void makePlan(const View& l, long minSplitEntries, LdlSolveWork& w, LdlSolvePlan& plan) {
   const int n = l.n;
   std::vector<int>& parent = w.parent;
   parent.assign(n, -1);
@@ -129,8 +128,7 @@ void makePlan(const View& l, long minSplitEntries, LdlSolveWork& w,
       // little)
       if (start[s + 1] - start[s] != 1) {
         frontier();
-        if (deal(roots, nullptr, nullptr) <= kBalance * static_cast<double>(total - topWork))
-          break;
+        if (deal(roots, nullptr, nullptr) <= kBalance * static_cast<double>(total - topWork)) break;
       }
       if (start[s + 1] == start[s] || topWork > kMaxTop * static_cast<double>(total)) break;
       heap.pop();
@@ -227,19 +225,35 @@ void backwardChain(const View& l, const LdlChain& ch, double* w) {
 
 void forward(const View& l, const std::vector<LdlChain>& chains, double* w, double* acc) {
   for (const LdlChain& ch : chains) switch (ch.count) {
-      case 1: forwardChain<1>(l, ch, w, acc); break;
-      case 2: forwardChain<2>(l, ch, w, acc); break;
-      case 3: forwardChain<3>(l, ch, w, acc); break;
-      default: forwardChain<4>(l, ch, w, acc); break;
+      case 1:
+        forwardChain<1>(l, ch, w, acc);
+        break;
+      case 2:
+        forwardChain<2>(l, ch, w, acc);
+        break;
+      case 3:
+        forwardChain<3>(l, ch, w, acc);
+        break;
+      default:
+        forwardChain<4>(l, ch, w, acc);
+        break;
     }
 }
 
 void backward(const View& l, const std::vector<LdlChain>& chains, double* w) {
   for (auto it = chains.rbegin(); it != chains.rend(); ++it) switch (it->count) {
-      case 1: backwardChain<1>(l, *it, w); break;
-      case 2: backwardChain<2>(l, *it, w); break;
-      case 3: backwardChain<3>(l, *it, w); break;
-      default: backwardChain<4>(l, *it, w); break;
+      case 1:
+        backwardChain<1>(l, *it, w);
+        break;
+      case 2:
+        backwardChain<2>(l, *it, w);
+        break;
+      case 3:
+        backwardChain<3>(l, *it, w);
+        break;
+      default:
+        backwardChain<4>(l, *it, w);
+        break;
     }
 }
 
@@ -270,7 +284,8 @@ void ldlSolve(const cholmod_factor& factor, const double* b, double* x, int thre
   } else {
     for (auto& a : work.acc) a.assign(n, 0.0);
     work.threadsUsed = 1;
-    if (runTwoShares(threads, [&](int t) { forward(l, plan.chains[t], w.data(), work.acc[t].data()); }))
+    if (runTwoShares(threads,
+                     [&](int t) { forward(l, plan.chains[t], w.data(), work.acc[t].data()); }))
       work.threadsUsed = 2;
     for (int r : plan.topRows) w[r] += work.acc[0][r] + work.acc[1][r];
     forward(l, plan.chains[2], w.data(), nullptr);

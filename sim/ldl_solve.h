@@ -49,7 +49,7 @@ bool ldlSolveSupports(const cholmod_factor& l);
 // x = A^-1 b (n entries each, b and x distinct) with the factor l of A, on 1 or 2 threads
 // (the tree is split when L has at least minSplitEntries entries, else one thread solves it
 // in one share). l must be supported (ldlSolveSupports).
-void ldlSolve(const cholmod_factor& l, const double* b, double* x, int threads,
-              LdlSolveWork& work, long minSplitEntries = 200000);
+void ldlSolve(const cholmod_factor& l, const double* b, double* x, int threads, LdlSolveWork& work,
+              long minSplitEntries = 200000);
 
 }  // namespace esim

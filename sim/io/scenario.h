@@ -283,12 +283,15 @@ struct ScenarioLook {
 
 struct ScenarioOutput {
   bool video = true;
-  int crf = 20;                   // H.264 constant rate factor
-  std::string preset = "medium";  // x264 preset
-  bool reproducible = true;       // single-threaded deterministic encode
-  int pngEvery = 0;               // write every Nth frame as PNG (0 = none)
-  int fieldsEvery = 0;            // write every Nth frame as VTU (0 = none)
-  bool hashes = true;             // hashes.json
+  int crf = 20;  // H.264 constant rate factor
+  // x264 preset: veryfast, measured on slab_cut (120 frames, 1280x720, crf 20): the
+  // encoder's thread 1.5-1.6 s against 3.3-4.0 s with medium, the PSNR against the frames'
+  // PNGs 36.01 against 36.07 dB, the file 208 against 242 kB
+  std::string preset = "veryfast";
+  bool reproducible = true;  // single-threaded deterministic encode
+  int pngEvery = 0;          // write every Nth frame as PNG (0 = none)
+  int fieldsEvery = 0;       // write every Nth frame as VTU (0 = none)
+  bool hashes = true;        // hashes.json
   bool operator==(const ScenarioOutput&) const = default;
 };
 

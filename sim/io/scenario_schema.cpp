@@ -416,7 +416,9 @@ const std::vector<Field>& schema() {
     f.push_back(choice("output.preset", ESIM_REF(output.preset),
                        {"ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow",
                         "slower", "veryslow"},
-                       "x264 speed preset"));
+                       "x264 speed preset (veryfast: on slab_cut less than half medium's "
+                       "encoding time for a PSNR 0.06 dB lower and a smaller file; README, "
+                       "\"Rendering\")"));
     f.push_back(boolean("output.reproducible", ESIM_REF(output.reproducible),
                         "deterministic single-threaded encoding (same bytes every run)"));
     f.push_back(integer("output.png_every", ESIM_REF(output.pngEvery), "", closed(0, 1e6),

@@ -50,7 +50,7 @@ struct BenchRenderOptions {
   std::string backend = "osmesa";
   std::string msaa = "0,4";
   std::string shading = "pixel,vertex";
-  std::string preset = "medium";
+  std::string preset = "veryfast";
   int crf = 20;
   std::string liver = "assets/liver.obj";
   std::string csv;
