@@ -13,13 +13,20 @@
 #include <immintrin.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <limits>
+#include <system_error>
+#include <thread>
 
 namespace esim {
 namespace {
 
 constexpr int kWidth = 8;  // columns of C a pass (one AVX-512 vector of doubles)
+// the passes pipelined on two threads from this many entries of L walked (below, starting
+// the thread, ~20-50 us, costs more than it saves)
+constexpr long kMinPipelinedEntries = 100000;
 
 // 8 x 8 transpose of r[0..7] in place
 __attribute__((target("avx512f,fma"))) inline void transpose8(__m512d* r) {
@@ -92,8 +99,13 @@ int nextStamp(LdlUpdownWork& work) {
   return work.stamp;
 }
 
-// the kernel's passes over the columns in work.cp, work.ci, work.cx (see ldlUpdown)
-void vectorPasses(bool update, int ncol, cholmod_factor& l, LdlUpdownWork& work) {
+// one pass: the columns [k0, k0 + rank) of C (its path, ascending, built before) with the
+// workspace w (zero on entry and on return). Pipelined (see vectorPasses): before each group of
+// columns it waits until the previous pass has finished every column up to the group's last
+// (*previous > that column), and after it tells the next pass how far it is (*progress).
+void runPass(bool update, int k0, int rank, const std::vector<int>& path, cholmod_factor& l,
+             const LdlUpdownWork& work, double* w, const std::atomic<int>* previous,
+             std::atomic<int>* progress) {
   const int* lp = static_cast<const int*>(l.p);
   const int* li = static_cast<const int*>(l.i);
   const int* lnz = static_cast<const int*>(l.nz);
@@ -101,78 +113,136 @@ void vectorPasses(bool update, int ncol, cholmod_factor& l, LdlUpdownWork& work)
   const int* cp = work.cp.data();
   const int* ci = work.ci.data();
   const double* cx = work.cx.data();
-  double* w = work.w.data();
-  for (int k0 = 0; k0 < ncol; k0 += kWidth) {
-    const int rank = std::min(kWidth, ncol - k0);
+  double alpha[kWidth];
+  for (int k = 0; k < kWidth; ++k) alpha[k] = 1.0;
+  for (int k = 0; k < rank; ++k)
+    for (int p = cp[k0 + k]; p < cp[k0 + k + 1]; ++p)
+      w[kWidth * static_cast<long>(ci[p]) + k] = cx[p];
+  for (size_t at = 0; at < path.size();) {
+    // a group of 1, 2 or 4 columns: each the parent of the one before and the next on
+    // the path (so no other column of the path comes between), with the same pattern
+    // below the group (cholmod_updown's dual and quad columns)
+    const int j = path[at];
+    const int p0 = lp[j], n0 = lnz[j];
+    int group = 1;
+    const auto joins = [&](int t) {  // column at + t continues the chain
+      return at + t < path.size() && n0 > t && li[p0 + t] == path[at + t] &&
+             lnz[path[at + t]] == n0 - t;
+    };
+    if (joins(1)) group = joins(2) && joins(3) ? 4 : 2;
+    if (previous) {
+      const int last = path[at + group - 1];
+      for (int spins = 0; previous->load(std::memory_order_acquire) <= last; ++spins)
+        if (spins < 64)
+          _mm_pause();
+        else
+          std::this_thread::yield();  // the other thread may have lost its core
+    }
+    double z[4][kWidth], g[4][kWidth];
+    double* lxs[4];
+    for (int m = 0; m < group; ++m) {
+      const int jm = path[at + m];
+      double* wj = w + kWidth * static_cast<long>(jm);
+      double dj = lx[lp[jm]];
+      for (int k = 0; k < kWidth; ++k) {
+        z[m][k] = wj[k];
+        wj[k] = 0.0;
+        g[m][k] = 0.0;
+        if (z[m][k] == 0.0) continue;  // this column's path does not pass jm
+        const double a =
+            update ? alpha[k] + z[m][k] * z[m][k] / dj : alpha[k] - z[m][k] * z[m][k] / dj;
+        dj *= a;
+        g[m][k] = update ? -z[m][k] / dj : z[m][k] / dj;
+        dj /= alpha[k];
+        alpha[k] = a;
+      }
+      lx[lp[jm]] = dj;
+      // the entries (j_t, j_m) inside the group, into the rows of W still to come
+      for (int t = m + 1; t < group; ++t) {
+        double* wt = w + kWidth * static_cast<long>(path[at + t]);
+        double& lv = lx[lp[jm] + t - m];
+        for (int k = 0; k < kWidth; ++k) {
+          wt[k] = std::fma(-z[m][k], lv, wt[k]);
+          lv = std::fma(-g[m][k], wt[k], lv);
+        }
+      }
+      lxs[m] = lx + lp[jm] + group - m;  // the rows below the group
+    }
+    const int* rows = li + p0 + group;
+    const int count = n0 - group;
+    if (group == 1)
+      updateRows<1>(z, g, rows, lxs, count, w);
+    else if (group == 2)
+      updateRows<2>(z, g, rows, lxs, count, w);
+    else
+      updateRows<4>(z, g, rows, lxs, count, w);
+    at += group;
+    if (progress)
+      progress->store(at < path.size() ? path[at] : std::numeric_limits<int>::max(),
+                      std::memory_order_release);
+  }
+  if (progress) progress->store(std::numeric_limits<int>::max(), std::memory_order_release);
+}
+
+// the kernel's passes over the columns in work.cp, work.ci, work.cx (see ldlUpdown): their
+// paths first (the marks are shared), then the passes in order; on two threads (work.threads)
+// pipelined when there is enough of them: the even passes here, the odd ones on a second
+// thread with its own W, pass p working on a column only after pass p - 1 is done with it
+// (the passes change each column of L in the same order as one thread would: the same bits)
+void vectorPasses(bool update, int ncol, cholmod_factor& l, LdlUpdownWork& work) {
+  const int* lp = static_cast<const int*>(l.p);
+  const int* li = static_cast<const int*>(l.i);
+  const int* lnz = static_cast<const int*>(l.nz);
+  const int* cp = work.cp.data();
+  const int* ci = work.ci.data();
+  const int passes = (ncol + kWidth - 1) / kWidth;
+  if (static_cast<int>(work.paths.size()) < passes) work.paths.resize(passes);
+  long entries = 0;  // of L the passes walk
+  for (int pass = 0; pass < passes; ++pass) {
+    const int k0 = pass * kWidth, rank = std::min(kWidth, ncol - k0);
     const int s = nextStamp(work);
-    work.path.clear();
-    double alpha[kWidth];
-    for (int k = 0; k < kWidth; ++k) alpha[k] = 1.0;
+    std::vector<int>& path = work.paths[pass];
+    path.clear();
     for (int k = 0; k < rank; ++k) {
-      for (int p = cp[k0 + k]; p < cp[k0 + k + 1]; ++p)
-        w[kWidth * static_cast<long>(ci[p]) + k] = cx[p];
       if (cp[k0 + k] == cp[k0 + k + 1]) continue;
       for (int j = ci[cp[k0 + k]]; j >= 0 && work.mark[j] != s;
            j = lnz[j] > 1 ? li[lp[j] + 1] : -1) {
         work.mark[j] = s;
-        work.path.push_back(j);
+        path.push_back(j);
+        entries += lnz[j];
       }
     }
-    std::sort(work.path.begin(), work.path.end());
-    const std::vector<int>& path = work.path;
-    for (size_t at = 0; at < path.size();) {
-      // a group of 1, 2 or 4 columns: each the parent of the one before and the next on
-      // the path (so no other column of the path comes between), with the same pattern
-      // below the group (cholmod_updown's dual and quad columns)
-      const int j = path[at];
-      const int p0 = lp[j], n0 = lnz[j];
-      int group = 1;
-      const auto joins = [&](int t) {  // column at + t continues the chain
-        return at + t < path.size() && n0 > t && li[p0 + t] == path[at + t] &&
-               lnz[path[at + t]] == n0 - t;
-      };
-      if (joins(1)) group = joins(2) && joins(3) ? 4 : 2;
-      double z[4][kWidth], g[4][kWidth];
-      double* lxs[4];
-      for (int m = 0; m < group; ++m) {
-        const int jm = path[at + m];
-        double* wj = w + kWidth * static_cast<long>(jm);
-        double dj = lx[lp[jm]];
-        for (int k = 0; k < kWidth; ++k) {
-          z[m][k] = wj[k];
-          wj[k] = 0.0;
-          g[m][k] = 0.0;
-          if (z[m][k] == 0.0) continue;  // this column's path does not pass jm
-          const double a =
-              update ? alpha[k] + z[m][k] * z[m][k] / dj : alpha[k] - z[m][k] * z[m][k] / dj;
-          dj *= a;
-          g[m][k] = update ? -z[m][k] / dj : z[m][k] / dj;
-          dj /= alpha[k];
-          alpha[k] = a;
-        }
-        lx[lp[jm]] = dj;
-        // the entries (j_t, j_m) inside the group, into the rows of W still to come
-        for (int t = m + 1; t < group; ++t) {
-          double* wt = w + kWidth * static_cast<long>(path[at + t]);
-          double& l = lx[lp[jm] + t - m];
-          for (int k = 0; k < kWidth; ++k) {
-            wt[k] = std::fma(-z[m][k], l, wt[k]);
-            l = std::fma(-g[m][k], wt[k], l);
-          }
-        }
-        lxs[m] = lx + lp[jm] + group - m;  // the rows below the group
-      }
-      const int* rows = li + p0 + group;
-      const int count = n0 - group;
-      if (group == 1)
-        updateRows<1>(z, g, rows, lxs, count, w);
-      else if (group == 2)
-        updateRows<2>(z, g, rows, lxs, count, w);
-      else
-        updateRows<4>(z, g, rows, lxs, count, w);
-      at += group;
+    std::sort(path.begin(), path.end());
+  }
+  const auto rankOf = [ncol](int pass) { return std::min(kWidth, ncol - pass * kWidth); };
+  std::thread other;
+  std::vector<std::atomic<int>> progress(
+      work.threads >= 2 && passes >= 2 && entries >= kMinPipelinedEntries ? passes : 0);
+  if (!progress.empty()) {
+    if (work.w2.size() != work.w.size()) work.w2.assign(work.w.size(), 0.0);
+    for (auto& p : progress) p.store(-1, std::memory_order_relaxed);
+    try {
+      other = std::thread([&] {
+        for (int pass = 1; pass < passes; pass += 2)
+          runPass(update, pass * kWidth, rankOf(pass), work.paths[pass], l, work, work.w2.data(),
+                  &progress[pass - 1], pass + 1 < passes ? &progress[pass] : nullptr);
+      });
+    } catch (const std::system_error&) {
     }
   }
+  if (!other.joinable()) {
+    for (int pass = 0; pass < passes; ++pass)
+      runPass(update, pass * kWidth, rankOf(pass), work.paths[pass], l, work, work.w.data(),
+              nullptr, nullptr);
+    work.pipelined = false;
+    return;
+  }
+  for (int pass = 0; pass < passes; pass += 2)
+    runPass(update, pass * kWidth, rankOf(pass), work.paths[pass], l, work, work.w.data(),
+            pass > 0 ? &progress[pass - 1] : nullptr,
+            pass + 1 < passes ? &progress[pass] : nullptr);
+  other.join();
+  work.pipelined = true;
 }
 
 }  // namespace

@@ -22,8 +22,12 @@ struct LdlUpdownWork {
   int stamp = 0;
   std::vector<int> cp, ci, restP, restI;  // the columns of C for the kernel, for CHOLMOD
   std::vector<double> cx, restX;
-  long vectorColumns = 0;    // columns of C the kernel applied
-  long choleskyColumns = 0;  // ... and cholmod_updown (they would fill in L)
+  std::vector<std::vector<int>> paths;  // per pass of up to 8 columns: its columns of L
+  std::vector<double> w2;               // the second thread's W
+  int threads = 1;                      // 2: passes pipelined on two threads (the same bits)
+  bool pipelined = false;               // the last call's passes ran on two threads
+  long vectorColumns = 0;               // columns of C the kernel applied
+  long choleskyColumns = 0;             // ... and cholmod_updown (they would fill in L)
 };
 
 // true when this machine runs the vectorized kernel (AVX-512F)

@@ -313,6 +313,12 @@ struct StructuralPhase::Impl {
 
   int numDofs() const { return static_cast<int>(held.size()); }
 
+  // StructuralOptions::solveThreads: the solves', the stresses' and the update kernel's
+  void setThreads(int threads) {
+    solveThreads = threads;
+    wholeMarks.updown.threads = regionMarks.updown.threads = threads >= 2 ? 2 : 1;
+  }
+
   Mat12 elementStiffness(int t) const {
     const Mat6x12 b = strainMatrix(geo[t]);
     return geo[t].volume * b.transpose() * (d * b);
@@ -1678,7 +1684,7 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   m.updateCostLimit = options.updateCostLimit;
   m.vectorizedUpdate = options.vectorizedUpdate;
   m.prepareForUpdates = options.prepareForUpdates;
-  m.solveThreads = options.solveThreads;
+  m.setThreads(options.solveThreads);
   verifyLocalOptions(options.local);
   m.method = options.solveMethod;
   m.local = options.local;
@@ -1775,7 +1781,7 @@ const StructuralSolveStats& StructuralPhase::lastSolveStats() const { return imp
 
 void StructuralPhase::setSolveThreads(int threads) {
   verifySolveThreads(threads);
-  impl_->solveThreads = threads;
+  impl_->setThreads(threads);
 }
 
 const Eigen::VectorXd& StructuralPhase::displacementM() const { return impl_->u; }

@@ -151,6 +151,39 @@ TEST(LdlUpdown, UpdateAndDowndateMatchCholmodUpdown) {
   }
 }
 
+// LdlUpdownWork::threads 2: the passes pipelined on two threads change L exactly as one thread
+// does (the same bits), for an update and a downdate of many passes, and leave both W zero
+TEST(LdlUpdown, PipelinedPassesGiveTheSameBitsAsOneThread) {
+  if (!ldlUpdownAvailable()) GTEST_SKIP() << "no AVX-512 here: no kernel to pipeline";
+  Grid g(24);  // 13 824 rows: the passes walk far more than the pipeline's minimum
+  for (int rank : {9, 16, 61}) {
+    SCOPED_TRACE("rank " + std::to_string(rank));
+    Columns c = fillFree(g, rank, 77u + rank);
+    cholmod_sparse cs = c.view(g.n);
+    cholmod_factor* one = g.copy();
+    cholmod_factor* two = g.copy();
+    LdlUpdownWork w1, w2;
+    w2.threads = 2;
+    for (bool update : {true, false}) {
+      ASSERT_TRUE(ldlUpdown(update, cs, *one, w1, g.cm));
+      ASSERT_TRUE(ldlUpdown(update, cs, *two, w2, g.cm));
+      EXPECT_FALSE(w1.pipelined);
+      EXPECT_TRUE(w2.pipelined);
+      ASSERT_EQ(one->nzmax, two->nzmax);
+      const double* a = static_cast<const double*>(one->x);
+      const double* b = static_cast<const double*>(two->x);
+      size_t differ = 0;
+      for (size_t q = 0; q < one->nzmax; ++q) differ += a[q] != b[q];
+      EXPECT_EQ(differ, 0u) << (update ? "update" : "downdate");
+    }
+    EXPECT_LT(valueDifference(two, g.base), 1e-12);  // and back
+    for (double w : w2.w) ASSERT_EQ(w, 0.0);
+    for (double w : w2.w2) ASSERT_EQ(w, 0.0);
+    cholmod_free_factor(&one, &g.cm);
+    cholmod_free_factor(&two, &g.cm);
+  }
+}
+
 // a column with a row outside L's column at its first row would fill in: it goes to
 // cholmod_updown (after the others), and the factor solves the changed matrix as CHOLMOD's
 TEST(LdlUpdown, ColumnsThatWouldFillInGoToCholmod) {
