@@ -50,6 +50,6 @@ bool ldlSolveSupports(const cholmod_factor& l);
 // (the tree is split when L has at least minSplitEntries entries, else one thread solves it
 // in one share). l must be supported (ldlSolveSupports).
 void ldlSolve(const cholmod_factor& l, const double* b, double* x, int threads, LdlSolveWork& work,
-              long minSplitEntries = 200000);
+              long minSplitEntries = 1000000);  // ~1 ms of one thread here
 
 }  // namespace esim

@@ -142,9 +142,10 @@ struct SimplicialView {
   double diagonal(int j) const { return x[p[j]]; }                  // D(j)
 };
 
-// a phase's per-tet stresses on two threads from this many tets (below, a thread's start,
-// ~20-50 us, costs more than half the loop: ~0.1 us a tet)
-constexpr int kMinTetsForTwoShares = 2000;
+// a phase's per-tet stresses on two threads from this many tets (~0.1 us a tet; a thread's
+// start, 50-100 us here, made the 1026-node slab's solve 0.1 ms slower with 2000: esim bench
+// structural)
+constexpr int kMinTetsForTwoShares = 20000;
 
 const char* const kNoPieceHeld = "structural: no piece of the body is held by the supports";
 

@@ -107,7 +107,7 @@ TEST(LdlSolve, MatchesCholmodWithOneAndTwoThreadsAndSplitsTheWorkEvenly) {
   for (int threads : {1, 2}) {
     LdlSolveWork work;
     std::vector<double> x(g.n);
-    ldlSolve(*g.l, b.data(), x.data(), threads, work);
+    ldlSolve(*g.l, b.data(), x.data(), threads, work, 100000);
     EXPECT_LT(relativeDifference(x, want), 1e-13) << threads << " threads";
     EXPECT_EQ(work.threadsUsed, threads);
     // both shares busy; the heavier at most 55 % of the subtrees' work (the plan's rule),
