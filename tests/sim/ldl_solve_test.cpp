@@ -14,6 +14,8 @@
 #include <numeric>
 #include <vector>
 
+extern "C" void openblas_set_num_threads(int num_threads);
+
 namespace esim {
 namespace {
 
@@ -26,6 +28,7 @@ struct Grid3 {
   cholmod_factor* l = nullptr;
   int n = 0;
   explicit Grid3(int k, bool metis = true) {
+    openblas_set_num_threads(1);  // as the structural phase (BLAS threads would only spin)
     cholmod_start(&cm);
     cm.print = 0;
     if (metis) {
