@@ -14,6 +14,8 @@
 #include <numeric>
 #include <vector>
 
+#include "tests/sim/grid_operator_util.h"
+
 extern "C" void openblas_set_num_threads(int num_threads);
 
 namespace esim {
@@ -27,39 +29,14 @@ struct Grid3 {
   cholmod_sparse* a = nullptr;
   cholmod_factor* l = nullptr;
   int n = 0;
-  explicit Grid3(int k, bool metis = true) {
+  explicit Grid3(int k) {
     openblas_set_num_threads(1);  // as the structural phase (BLAS threads would only spin)
     cholmod_start(&cm);
     cm.print = 0;
-    if (metis) {
-      cm.nmethods = 1;
-      cm.method[0].ordering = CHOLMOD_METIS;
-    }
-    const int nodes = k * k * k;
-    n = 3 * nodes;
-    const double m3[3][3] = {{2, 0.5, 0.2}, {0.5, 2, 0.3}, {0.2, 0.3, 2}};
-    cholmod_triplet* t = cholmod_allocate_triplet(n, n, 36 * nodes, -1, CHOLMOD_REAL, &cm);
-    const auto add = [&](int u, int v, double s) {  // node block (u, v), u >= v
-      for (int a = 0; a < 3; ++a)
-        for (int b = 0; b < 3; ++b) {
-          const int i = 3 * u + a, j = 3 * v + b;
-          if (i < j) continue;
-          static_cast<int*>(t->i)[t->nnz] = i;
-          static_cast<int*>(t->j)[t->nnz] = j;
-          static_cast<double*>(t->x)[t->nnz++] = s * m3[a][b];
-        }
-    };
-    for (int z = 0; z < k; ++z)
-      for (int y = 0; y < k; ++y)
-        for (int x = 0; x < k; ++x) {
-          const int i = x + k * (y + k * z);
-          add(i, i, 6.5 + 0.01 * (i % 7));
-          if (x + 1 < k) add(i + 1, i, -1);
-          if (y + 1 < k) add(i + k, i, -1);
-          if (z + 1 < k) add(i + k * k, i, -1);
-        }
-    a = cholmod_triplet_to_sparse(t, 0, &cm);
-    cholmod_free_triplet(&t, &cm);
+    cm.nmethods = 1;
+    cm.method[0].ordering = CHOLMOD_METIS;
+    n = 3 * k * k * k;
+    a = testing_util::gridOperator(k, 3, cm);
     l = cholmod_analyze(a, &cm);
     cholmod_factorize(a, l, &cm);
     EXPECT_EQ(cm.status, CHOLMOD_OK);

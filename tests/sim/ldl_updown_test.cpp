@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "sim/cholmod_view.h"
+#include "tests/sim/grid_operator_util.h"
 
 namespace esim {
 namespace {
@@ -29,23 +30,7 @@ struct Grid {
     cm.supernodal = CHOLMOD_SIMPLICIAL;
     cm.final_ll = false;
     n = k * k * k;
-    cholmod_triplet* t = cholmod_allocate_triplet(n, n, 4 * n, -1, CHOLMOD_REAL, &cm);
-    const auto add = [&](int i, int j, double v) {
-      static_cast<int*>(t->i)[t->nnz] = i;
-      static_cast<int*>(t->j)[t->nnz] = j;
-      static_cast<double*>(t->x)[t->nnz++] = v;
-    };
-    for (int z = 0; z < k; ++z)
-      for (int y = 0; y < k; ++y)
-        for (int x = 0; x < k; ++x) {
-          const int i = x + k * (y + k * z);
-          add(i, i, 6.5 + 0.01 * (i % 7));
-          if (x + 1 < k) add(i + 1, i, -1);
-          if (y + 1 < k) add(i + k, i, -1);
-          if (z + 1 < k) add(i + k * k, i, -1);
-        }
-    a = cholmod_triplet_to_sparse(t, 0, &cm);
-    cholmod_free_triplet(&t, &cm);
+    a = testing_util::gridOperator(k, 1, cm);
     base = cholmod_analyze(a, &cm);
     cholmod_factorize(a, base, &cm);
     EXPECT_EQ(cm.status, CHOLMOD_OK);
