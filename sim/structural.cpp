@@ -1012,30 +1012,29 @@ bool StructuralPhase::Impl::localSolve(const std::vector<double>& ev) {
   }
   // 4. K_UU d_U = r_U; u = u_ref + d on U, u_ref elsewhere
   for (int dof : appliedDofs) u(dof) = refU(dof);
+  const double* correction = nullptr;
+  Eigen::VectorXd d;
   if (solveThreads > 0 && ldlSolveSupports(*regionFactor)) {  // kept simplicial: ldl_solve.h
-    Eigen::VectorXd d(regionDofs.size());
+    d.resize(static_cast<Eigen::Index>(regionDofs.size()));
     ldlSolve(*regionFactor, r.data(), d.data(), solveThreads, regionSolve);
-    for (size_t k = 0; k < regionDofs.size(); ++k) u(regionDofs[k]) = refU(regionDofs[k]) + d(k);
+    correction = d.data();
     lastSolve.solveThreads = regionSolve.threadsUsed;
-    appliedDofs = regionDofs;
-    startNextRefresh();
-    outputs(ev, From::region);
-    return true;
+  } else {
+    cholmod_dense b{};
+    b.nrow = regionDofs.size();
+    b.ncol = 1;
+    b.nzmax = b.nrow;
+    b.d = b.nrow;
+    b.x = r.data();
+    b.xtype = CHOLMOD_REAL;
+    b.dtype = CHOLMOD_DOUBLE;
+    openblas_set_num_threads(1);
+    const int ok =
+        cholmod_solve2(CHOLMOD_A, regionFactor, &b, nullptr, &rx, nullptr, &ry, &re, &common);
+    if (!ok) throwIfOutOfResources(common);
+    ESIM_RUN_CHECK(ok, "structural: CHOLMOD solve failed");
+    correction = static_cast<const double*>(rx->x);
   }
-  cholmod_dense b{};
-  b.nrow = regionDofs.size();
-  b.ncol = 1;
-  b.nzmax = b.nrow;
-  b.d = b.nrow;
-  b.x = r.data();
-  b.xtype = CHOLMOD_REAL;
-  b.dtype = CHOLMOD_DOUBLE;
-  openblas_set_num_threads(1);
-  const int ok =
-      cholmod_solve2(CHOLMOD_A, regionFactor, &b, nullptr, &rx, nullptr, &ry, &re, &common);
-  if (!ok) throwIfOutOfResources(common);
-  ESIM_RUN_CHECK(ok, "structural: CHOLMOD solve failed");
-  const double* correction = static_cast<const double*>(rx->x);
   for (size_t k = 0; k < regionDofs.size(); ++k)
     u(regionDofs[k]) = refU(regionDofs[k]) + correction[k];
   appliedDofs = regionDofs;

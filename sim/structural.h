@@ -208,9 +208,10 @@ struct StructuralOptions {
   // no AVX-512) by CHOLMOD's cholmod_updown: the same arithmetic, equal to round-off
   bool vectorizedUpdate = true;
   // the triangular solves of a simplicial LDL' factor (the whole one once updated, the local
-  // method's region) by ldl_solve.h on this many threads (1 or 2; the same bits either way),
-  // or 0: by CHOLMOD's cholmod_solve2 (one thread; the comparison). A supernodal factor,
-  // before its first update, is solved by CHOLMOD.
+  // method's region) by ldl_solve.h, the per-tet stresses, and a removal's update (ldl_updown.h's
+  // passes pipelined) on this many threads (1 or 2; the same bits either way), or 0: the
+  // solves by CHOLMOD's cholmod_solve2, the rest on one thread (the comparison). A supernodal
+  // factor, before its first update, is solved by CHOLMOD.
   int solveThreads = 2;
   StructuralSolveMethod solveMethod = StructuralSolveMethod::full;  // see LocalSolveOptions
   LocalSolveOptions local;

@@ -341,9 +341,10 @@ const std::vector<Field>& schema() {
                         ESIM_REF(solvers.structuralSolveThreads), "threads", closed(0, 2),
                         "the structural solve's two triangular solves, once its factor is "
                         "updated (simplicial LDL'), split over this many threads by the "
-                        "elimination tree (the same bits with 1 or 2), or 0: by CHOLMOD's own "
-                        "solve, for comparison (README, \"The cut with the model updated in "
-                        "place\")"));
+                        "elimination tree, and a removal's update pipelined over them (the same "
+                        "bits with 1 or 2); 0: the solves by CHOLMOD's own, the rest on one "
+                        "thread, for comparison (README, \"The structural solve and update on "
+                        "two threads\")"));
     f.push_back(choice("solvers.rebuild.mode", ESIM_ENUM_REF(solvers.rebuildMode),
                        {"synchronous", "background", "update"},
                        "after rupture: build the new model in the frame that breaks tets, or on "
