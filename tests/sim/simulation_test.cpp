@@ -347,6 +347,31 @@ TEST(Simulation, UpdateModeCutsLikeTheSynchronousRebuild) {
   EXPECT_EQ(sa.triangles, sb.triangles);
 }
 
+// solvers.structural.solve_threads: the structural solves and a removal's updates on one thread
+// or two give the same cut to the bit (ldl_solve.h and ldl_updown.h run the same arithmetic
+// either way): the same tets in the same frames, the same stresses and temperatures
+TEST(Simulation, StructuralThreadsGiveTheSameCutToTheBit) {
+  auto run = [](int threads) {
+    SimulationConfig c = cutConfig(true);
+    c.phases.structural = c.phases.rupture = true;
+    c.toolVoltageV = 400;
+    c.toolPath.keys[1].timeS = 2.0;
+    c.rebuildMode = RebuildMode::Update;
+    c.structural.solveThreads = threads;
+    auto sim = std::make_unique<Simulation>(smallSlab(), c);
+    std::vector<int> removedPerFrame;
+    for (int f = 0; f < 45; ++f) removedPerFrame.push_back(sim->step().removedTets);
+    return std::make_pair(std::move(sim), removedPerFrame);
+  };
+  const auto [one, oneRemoved] = run(1);
+  const auto [two, twoRemoved] = run(2);
+  ASSERT_GT(one->removedTets(), 0) << "the scene does not cut";
+  EXPECT_EQ(oneRemoved, twoRemoved);
+  EXPECT_EQ(one->mesh().alive, two->mesh().alive);
+  EXPECT_EQ(*one->vonMisesPa(), *two->vonMisesPa());
+  EXPECT_EQ(one->temperatureC(), two->temperatureC());
+}
+
 // the electric column cache capped in the middle of a cut (esim run gives memory back when
 // its cgroup runs short): the cut removes the same tets in the same frames, the fields stay
 // within round-off of an uncapped twin, and a cap in a background rebuild waits for its job
