@@ -113,15 +113,21 @@ int benchCut(const BenchCutOptions& opt) {
                                   (opt.render ? ",render_median_ms,render_p95_ms,"
                                                 "interactive_median_ms,interactive_p95_ms"
                                               : ""));
+  const int structuralThreads = first->solvers.structuralSolveThreads;
+  const std::string threadsNote =
+      structuralThreads == 0 ? "1 (CHOLMOD's solve)" : std::to_string(structuralThreads);
   if (renderer)
     std::printf(
         "esim bench cut: %s at %s V, physics per frame, then each frame drawn at %dx%d "
-        "(render and physics + render apart), one BLAS thread\n",
+        "(render and physics + render apart), one BLAS thread, structural solve and update on "
+        "%s\n",
         opt.scenario.c_str(), scenarioNumber(opt.voltageV).c_str(), renderer->options().width,
-        renderer->options().height);
+        renderer->options().height, threadsNote.c_str());
   else
-    std::printf("esim bench cut: %s at %s V, physics per frame (no rendering), one BLAS thread\n",
-                opt.scenario.c_str(), scenarioNumber(opt.voltageV).c_str());
+    std::printf(
+        "esim bench cut: %s at %s V, physics per frame (no rendering), one BLAS thread, "
+        "structural solve and update on %s\n",
+        opt.scenario.c_str(), scenarioNumber(opt.voltageV).c_str(), threadsNote.c_str());
   std::printf("%-12s %7s %6s %10s %9s %9s %8s %8s %11s %6s", "strategy", "nodes", "frames",
               "median_ms", "p95_ms", "max_ms", "removed", "rebuilds", "rebuild_med", "waits");
   if (renderer)
