@@ -194,6 +194,72 @@ TEST(LdlSolve, SolvesAForestOfSingleColumnsAndOneUnknown) {
   }
 }
 
+// irregular trees: random sparse SPD matrices (random couplings, diagonally dominant; some
+// rows uncoupled: a forest), AMD or METIS, every one split (minimum 0): CHOLMOD's answer to
+// 1e-12 on one thread and two, the same bits on both
+TEST(LdlSolve, RandomSparseMatricesMatchCholmod) {
+  std::uint32_t seed = 2026;
+  const auto next = [&seed](std::uint32_t m) {
+    seed = seed * 1664525u + 1013904223u;
+    return (seed >> 8) % m;
+  };
+  for (int trial = 0; trial < 24; ++trial) {
+    const int n = 1 + static_cast<int>(next(600));
+    const int couplings = static_cast<int>(next(4 * n + 1));
+    cholmod_common cm;
+    cholmod_start(&cm);
+    cm.print = 0;
+    cm.supernodal = trial % 2 ? CHOLMOD_SIMPLICIAL : CHOLMOD_SUPERNODAL;
+    cm.final_ll = false;
+    if (trial % 3 == 0) {
+      cm.nmethods = 1;
+      cm.method[0].ordering = CHOLMOD_METIS;
+    }
+    cholmod_triplet* t = cholmod_allocate_triplet(n, n, n + couplings, -1, CHOLMOD_REAL, &cm);
+    std::vector<double> rowSum(n, 0.0);
+    for (int k = 0; k < couplings; ++k) {
+      int i = static_cast<int>(next(n)), j = static_cast<int>(next(n));
+      if (i == j) continue;
+      if (i < j) std::swap(i, j);
+      const double v = -0.1 - static_cast<double>(next(1000)) / 1000.0;
+      static_cast<int*>(t->i)[t->nnz] = i;
+      static_cast<int*>(t->j)[t->nnz] = j;
+      static_cast<double*>(t->x)[t->nnz++] = v;
+      rowSum[i] += std::abs(v);
+      rowSum[j] += std::abs(v);
+    }
+    for (int i = 0; i < n; ++i) {
+      static_cast<int*>(t->i)[t->nnz] = i;
+      static_cast<int*>(t->j)[t->nnz] = i;
+      static_cast<double*>(t->x)[t->nnz++] = rowSum[i] + 0.5;
+    }
+    cholmod_sparse* a = cholmod_triplet_to_sparse(t, 0, &cm);
+    cholmod_free_triplet(&t, &cm);
+    cholmod_factor* l = cholmod_analyze(a, &cm);
+    cholmod_factorize(a, l, &cm);
+    ASSERT_EQ(cm.status, CHOLMOD_OK) << "trial " << trial;
+    cholmod_change_factor(CHOLMOD_REAL, false, false, false, false, l, &cm);
+    ASSERT_TRUE(ldlSolveSupports(*l));
+    cholmod_dense* b = cholmod_zeros(n, 1, CHOLMOD_REAL, &cm);
+    for (int i = 0; i < n; ++i) static_cast<double*>(b->x)[i] = 1.0 + next(100) / 50.0;
+    cholmod_dense* want = cholmod_solve(CHOLMOD_A, l, b, &cm);
+    const std::vector<double> bv(static_cast<double*>(b->x), static_cast<double*>(b->x) + n);
+    const std::vector<double> wv(static_cast<double*>(want->x), static_cast<double*>(want->x) + n);
+    std::vector<double> x1(n), x2(n);
+    LdlSolveWork w1, w2;
+    ldlSolve(*l, bv.data(), x1.data(), 1, w1, 0);
+    ldlSolve(*l, bv.data(), x2.data(), 2, w2, 0);
+    EXPECT_LT(relativeDifference(x2, wv), 1e-12) << "trial " << trial << ", n " << n;
+    EXPECT_EQ(x1, x2) << "trial " << trial;
+    EXPECT_EQ(w1.work[0] + w1.work[1] + w1.work[2], w2.work[0] + w2.work[1] + w2.work[2]);
+    cholmod_free_dense(&want, &cm);
+    cholmod_free_dense(&b, &cm);
+    cholmod_free_factor(&l, &cm);
+    cholmod_free_sparse(&a, &cm);
+    cholmod_finish(&cm);
+  }
+}
+
 TEST(LdlSolve, TakesOnlySimplicialLdlFactors) {
   Grid3 g(4);
   cholmod_factor* ll = cholmod_copy_factor(g.l, &g.cm);
