@@ -13,7 +13,7 @@
 namespace esim {
 namespace {
 
-constexpr int kMaxChain = 4;       // columns whose row indices one pass reads
+constexpr int kMaxChain = 8;       // columns whose row indices (and scattered rows) one pass takes
 constexpr double kBalance = 0.55;  // the heavier thread's share of the subtrees' work at most
 constexpr double kMaxTop = 0.5;    // stop splitting once the top holds this share of the work
 
@@ -223,38 +223,27 @@ void backwardChain(const View& l, const LdlChain& ch, double* w) {
   }
 }
 
+// the chain's kernel for its length (1 .. C)
+template <int C>
+void forwardAny(const View& l, const LdlChain& ch, double* w, double* acc) {
+  if constexpr (C > 1)
+    if (ch.count < C) return forwardAny<C - 1>(l, ch, w, acc);
+  forwardChain<C>(l, ch, w, acc);
+}
+
+template <int C>
+void backwardAny(const View& l, const LdlChain& ch, double* w) {
+  if constexpr (C > 1)
+    if (ch.count < C) return backwardAny<C - 1>(l, ch, w);
+  backwardChain<C>(l, ch, w);
+}
+
 void forward(const View& l, const std::vector<LdlChain>& chains, double* w, double* acc) {
-  for (const LdlChain& ch : chains) switch (ch.count) {
-      case 1:
-        forwardChain<1>(l, ch, w, acc);
-        break;
-      case 2:
-        forwardChain<2>(l, ch, w, acc);
-        break;
-      case 3:
-        forwardChain<3>(l, ch, w, acc);
-        break;
-      default:
-        forwardChain<4>(l, ch, w, acc);
-        break;
-    }
+  for (const LdlChain& ch : chains) forwardAny<kMaxChain>(l, ch, w, acc);
 }
 
 void backward(const View& l, const std::vector<LdlChain>& chains, double* w) {
-  for (auto it = chains.rbegin(); it != chains.rend(); ++it) switch (it->count) {
-      case 1:
-        backwardChain<1>(l, *it, w);
-        break;
-      case 2:
-        backwardChain<2>(l, *it, w);
-        break;
-      case 3:
-        backwardChain<3>(l, *it, w);
-        break;
-      default:
-        backwardChain<4>(l, *it, w);
-        break;
-    }
+  for (auto it = chains.rbegin(); it != chains.rend(); ++it) backwardAny<kMaxChain>(l, *it, w);
 }
 
 }  // namespace
