@@ -1,5 +1,5 @@
 // The two-thread LDL' solve of ldl_solve.h: the plan (which columns each thread solves, in
-// chains of up to four), the forward solve L w = P b, and the backward solve
+// chains of up to eight), the forward solve L w = P b, and the backward solve
 // L' x = D^-1 w, in place in one array; x = P' w.
 #include "sim/ldl_solve.h"
 

@@ -12,10 +12,11 @@
 // of L). The columns taken off, the "top", are solved by one thread: after the subtrees in
 // the forward solve (a subtree column's rows above its subtree's root are top rows: each
 // thread adds into its own array there, summed after), before them in the backward solve
-// (a subtree column reads top rows already solved). Runs of columns that form a chain with
-// the same pattern below (consecutive columns j, j + 1 where column j + 1's rows are
-// column j's rows but j + 1: the three components of a node, as CHOLMOD's own solve finds
-// them) read their row indices once.
+// (a subtree column reads top rows already solved). Runs of up to 8 columns that form a chain
+// with the same pattern below (consecutive columns j, j + 1 where column j + 1's rows are
+// column j's rows but j + 1: a node's three components, nodes of one separator; CHOLMOD's own
+// solve takes up to 4) read their row indices and update (forward) or read (backward) their
+// rows once: 1.5-1.9x faster on one thread than runs of 4 (README).
 // The plan depends only on L's pattern (counts and first rows below the diagonal), and one
 // thread runs the same plan (the two shares one after the other), so the result depends
 // neither on the threads' timing nor on their number: the same bits every run, on any
