@@ -25,6 +25,20 @@ inline void throwIfOutOfResources(const cholmod_common& c) {
         "than 2^31 entries, beyond CHOLMOD's 32-bit indices; use a smaller mesh");
 }
 
+// nrow x ncol column-major doubles at x (leading dimension nrow) as a CHOLMOD dense matrix, e.g.
+// a right-hand side; it points into x, which must outlive it (CHOLMOD only reads a solve's B)
+inline cholmod_dense cholmodViewDense(const double* x, size_t nrow, size_t ncol = 1) {
+  cholmod_dense d{};
+  d.nrow = nrow;
+  d.ncol = ncol;
+  d.nzmax = nrow * ncol;
+  d.d = nrow;
+  d.x = const_cast<double*>(x);
+  d.xtype = CHOLMOD_REAL;
+  d.dtype = CHOLMOD_DOUBLE;
+  return d;
+}
+
 // ncol sparse columns of nrow rows (compressed: p[0..ncol] offsets into i, rows ascending in
 // each column, and x, the values) as an unsymmetric CHOLMOD matrix, e.g. the columns of a
 // low-rank update; it points into the arrays, which must outlive it

@@ -388,14 +388,7 @@ void CholmodFactor::solve(const double* b, double* x, int ncols) {
   ESIM_CHECK(factorized_);  // solve after a successful factorization
   cholmod_common* c = &impl_->common;
   const int n = size();
-  cholmod_dense bd{};
-  bd.nrow = n;
-  bd.ncol = ncols;
-  bd.nzmax = static_cast<size_t>(n) * ncols;
-  bd.d = n;
-  bd.x = const_cast<double*>(b);
-  bd.xtype = CHOLMOD_REAL;
-  bd.dtype = CHOLMOD_DOUBLE;
+  cholmod_dense bd = cholmodViewDense(b, n, ncols);
   const int ok = cholmod_solve2(CHOLMOD_A, impl_->factor, &bd, nullptr, &impl_->x, nullptr,
                                 &impl_->y, &impl_->e, c);
   if (!ok) throwIfOutOfResources(*c);

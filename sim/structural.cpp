@@ -787,14 +787,7 @@ void StructuralPhase::Impl::fullDisplacement(const std::vector<double>& ev, cons
       if (s.held[dof]) out(dof) = 0;
     return;
   }
-  cholmod_dense b{};
-  b.nrow = numDofs();
-  b.ncol = 1;
-  b.nzmax = b.nrow;
-  b.d = b.nrow;
-  b.x = f.data();
-  b.xtype = CHOLMOD_REAL;
-  b.dtype = CHOLMOD_DOUBLE;
+  cholmod_dense b = cholmodViewDense(f.data(), numDofs());
   const int ok = cholmod_solve2(CHOLMOD_A, factor, &b, nullptr, &wx, nullptr, &wy, &we, &c);
   if (!ok) throwIfOutOfResources(c);
   ESIM_RUN_CHECK(ok, "structural: CHOLMOD solve failed");
@@ -1020,14 +1013,7 @@ bool StructuralPhase::Impl::localSolve(const std::vector<double>& ev) {
     correction = d.data();
     lastSolve.solveThreads = regionSolve.threadsUsed;
   } else {
-    cholmod_dense b{};
-    b.nrow = regionDofs.size();
-    b.ncol = 1;
-    b.nzmax = b.nrow;
-    b.d = b.nrow;
-    b.x = r.data();
-    b.xtype = CHOLMOD_REAL;
-    b.dtype = CHOLMOD_DOUBLE;
+    cholmod_dense b = cholmodViewDense(r.data(), regionDofs.size());
     openblas_set_num_threads(1);
     const int ok =
         cholmod_solve2(CHOLMOD_A, regionFactor, &b, nullptr, &rx, nullptr, &ry, &re, &common);

@@ -43,6 +43,23 @@ SimulationConfig cutConfig(bool thermal) {
   return c;
 }
 
+// the cut of the update-mode tests: every phase, the blade at 400 V along 2 s
+SimulationConfig fullCutConfig(RebuildMode mode) {
+  SimulationConfig c = cutConfig(true);
+  c.phases.structural = c.phases.rupture = true;
+  c.toolVoltageV = 400;
+  c.toolPath.keys[1].timeS = 2.0;
+  c.rebuildMode = mode;
+  return c;
+}
+
+// the tets each of `frames` steps removed
+std::vector<int> removedPerStep(Simulation& sim, int frames) {
+  std::vector<int> out;
+  for (int f = 0; f < frames; ++f) out.push_back(sim.step().removedTets);
+  return out;
+}
+
 TEST(Simulation, ElectricOnlyBuildsNoThermalStage) {
   Simulation sim(smallSlab(), cutConfig(false));
   const FrameRecord& r = sim.step();
@@ -315,15 +332,10 @@ TEST(Simulation, CutWithTheElectricPhaseConservesCurrentAfterRemoval) {
 // the same frames as the synchronous rebuild, with the same fields to 1e-9
 TEST(Simulation, UpdateModeCutsLikeTheSynchronousRebuild) {
   auto run = [](RebuildMode mode) {
-    SimulationConfig c = cutConfig(true);
-    c.phases.structural = c.phases.rupture = true;
-    c.toolVoltageV = 400;
-    c.toolPath.keys[1].timeS = 2.0;
-    c.rebuildMode = mode;
+    SimulationConfig c = fullCutConfig(mode);
     c.prefetchUntilS = 2.0;  // update: the exposed surface's columns on a thread (joined)
     auto sim = std::make_unique<Simulation>(smallSlab(), c);
-    std::vector<int> removedPerFrame;
-    for (int f = 0; f < 45; ++f) removedPerFrame.push_back(sim->step().removedTets);
+    std::vector<int> removedPerFrame = removedPerStep(*sim, 45);
     return std::make_pair(std::move(sim), removedPerFrame);
   };
   const auto [sync, syncRemoved] = run(RebuildMode::Synchronous);
@@ -352,15 +364,10 @@ TEST(Simulation, UpdateModeCutsLikeTheSynchronousRebuild) {
 // either way): the same tets in the same frames, the same stresses and temperatures
 TEST(Simulation, StructuralThreadsGiveTheSameCutToTheBit) {
   auto run = [](int threads) {
-    SimulationConfig c = cutConfig(true);
-    c.phases.structural = c.phases.rupture = true;
-    c.toolVoltageV = 400;
-    c.toolPath.keys[1].timeS = 2.0;
-    c.rebuildMode = RebuildMode::Update;
+    SimulationConfig c = fullCutConfig(RebuildMode::Update);
     c.structural.solveThreads = threads;
     auto sim = std::make_unique<Simulation>(smallSlab(), c);
-    std::vector<int> removedPerFrame;
-    for (int f = 0; f < 45; ++f) removedPerFrame.push_back(sim->step().removedTets);
+    std::vector<int> removedPerFrame = removedPerStep(*sim, 45);
     return std::make_pair(std::move(sim), removedPerFrame);
   };
   const auto [one, oneRemoved] = run(1);
@@ -377,11 +384,7 @@ TEST(Simulation, StructuralThreadsGiveTheSameCutToTheBit) {
 // within round-off of an uncapped twin, and a cap in a background rebuild waits for its job
 TEST(Simulation, AnElectricCacheCappedMidCutCutsTheSame) {
   auto run = [](RebuildMode mode, bool cap) {
-    SimulationConfig c = cutConfig(true);
-    c.phases.structural = c.phases.rupture = true;
-    c.toolVoltageV = 400;
-    c.toolPath.keys[1].timeS = 2.0;
-    c.rebuildMode = mode;
+    SimulationConfig c = fullCutConfig(mode);
     c.electricSolver.strategy = ElectricStrategy::Capacitance;
     c.prefetchUntilS = 2.0;
     auto sim = std::make_unique<Simulation>(smallSlab(), c);
@@ -419,11 +422,7 @@ TEST(Simulation, AnElectricCacheCappedMidCutCutsTheSame) {
 // compared with a twin, bit for bit)
 void expectLocalCutsLikeTheFullOne(bool refreshOnThread) {
   auto make = [&](StructuralSolveMethod method) {
-    SimulationConfig c = cutConfig(true);
-    c.phases.structural = c.phases.rupture = true;
-    c.toolVoltageV = 400;
-    c.toolPath.keys[1].timeS = 2.0;
-    c.rebuildMode = RebuildMode::Update;
+    SimulationConfig c = fullCutConfig(RebuildMode::Update);
     c.structural.solveMethod = method;
     c.structural.local.marginM = 0.006;
     c.structural.local.refreshEvery = 10;
