@@ -76,12 +76,10 @@ bool ldlSolveSupports(const cholmod_factor& l) {
 
 namespace {
 
-void makePlan(const View& l, long minSplitEntries, LdlSolveWork& w, LdlSolvePlan& plan) {
+void makePlan(const View& l, long minSplitEntries, LdlSolvePlan& plan) {
   const int n = l.n;
-  std::vector<int>& parent = w.parent;
-  parent.assign(n, -1);
-  std::vector<long>& sub = w.subtreeWork;
-  sub.assign(n, 0);
+  std::vector<int> parent(n, -1);
+  std::vector<long> sub(n, 0);
   long total = 0;
   for (int j = 0; j < n; ++j) {
     if (l.nz[j] > 1) parent[j] = l.i[l.p[j] + 1];
@@ -92,10 +90,7 @@ void makePlan(const View& l, long minSplitEntries, LdlSolveWork& w, LdlSolvePlan
   plan.keyNz.assign(l.nz, l.nz + n);
   plan.keyParent = parent;
   // owner: 0 / 1 a thread's subtree, 2 the top; subRoot: the root of a column's subtree
-  std::vector<int>& owner = w.owner;
-  std::vector<int>& subRoot = w.subRoot;
-  owner.assign(n, -1);
-  subRoot.assign(n, n);
+  std::vector<int> owner(n, -1), subRoot(n, n);
   plan.split = total >= minSplitEntries;
   if (!plan.split) {
     owner.assign(n, 0);
@@ -260,7 +255,7 @@ void ldlSolve(const cholmod_factor& factor, const double* b, double* x, int thre
   for (int j = 0; same && j < n; ++j)
     same = plan.keyParent[j] == (l.nz[j] > 1 ? l.i[l.p[j] + 1] : -1);
   if (!same) {
-    makePlan(l, minSplitEntries, work, plan);
+    makePlan(l, minSplitEntries, plan);
     plan.minSplitEntries = minSplitEntries;
   }
   std::vector<double>& w = work.y;
@@ -271,12 +266,15 @@ void ldlSolve(const cholmod_factor& factor, const double* b, double* x, int thre
     backward(l, plan.chains[0], w.data());
     work.threadsUsed = 1;
   } else {
-    for (auto& a : work.acc) a.assign(n, 0.0);
+    for (auto& a : work.acc) a.resize(n, 0.0);  // only top rows are written, reset below
     work.threadsUsed = 1;
     if (runTwoShares(threads,
                      [&](int t) { forward(l, plan.chains[t], w.data(), work.acc[t].data()); }))
       work.threadsUsed = 2;
-    for (int r : plan.topRows) w[r] += work.acc[0][r] + work.acc[1][r];
+    for (int r : plan.topRows) {
+      w[r] += work.acc[0][r] + work.acc[1][r];
+      work.acc[0][r] = work.acc[1][r] = 0.0;
+    }
     forward(l, plan.chains[2], w.data(), nullptr);
     backward(l, plan.chains[2], w.data());
     runTwoShares(threads, [&](int t) { backward(l, plan.chains[t], w.data()); });

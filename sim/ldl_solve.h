@@ -37,11 +37,10 @@ struct LdlSolvePlan;
 // to the factor on use) and what the last solve did
 struct LdlSolveWork {
   std::shared_ptr<LdlSolvePlan> plan;
-  std::vector<int> parent, owner, subRoot;
-  std::vector<long> subtreeWork;
-  std::vector<double> y, acc[2];
-  int threadsUsed = 0;  // last solve: 1 or 2
-  long work[3] = {};    // the plan: entries of L in share 0, share 1, and the top
+  std::vector<double> y, acc[2];  // the solve's vector; each share's sums into top rows (0
+                                  // between solves)
+  int threadsUsed = 0;            // last solve: 1 or 2
+  long work[3] = {};              // the plan: entries of L in share 0, share 1, and the top
 };
 
 // can ldlSolve take this factor? (simplicial LDL', int indices, real double)

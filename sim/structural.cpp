@@ -207,6 +207,7 @@ struct StructuralPhase::Impl {
   bool prepareForUpdates = false;      // StructuralOptions::prepareForUpdates
   cholmod_dense *x = nullptr, *y = nullptr, *e = nullptr;  // solve workspaces
   LdlSolveWork wholeSolve, regionSolve;  // ldl_solve.h's, of the whole factor and the region's
+  Eigen::VectorXd regionCorrection;      // d_U of a local solve by ldl_solve.h
   int solveThreads = 2;                  // StructuralOptions::solveThreads
   Eigen::VectorXd rhs, u;
   struct RowMarks {  // per row of L: etree walks of an update
@@ -1006,11 +1007,10 @@ bool StructuralPhase::Impl::localSolve(const std::vector<double>& ev) {
   // 4. K_UU d_U = r_U; u = u_ref + d on U, u_ref elsewhere
   for (int dof : appliedDofs) u(dof) = refU(dof);
   const double* correction = nullptr;
-  Eigen::VectorXd d;
   if (solveThreads > 0 && ldlSolveSupports(*regionFactor)) {  // kept simplicial: ldl_solve.h
-    d.resize(static_cast<Eigen::Index>(regionDofs.size()));
-    ldlSolve(*regionFactor, r.data(), d.data(), solveThreads, regionSolve);
-    correction = d.data();
+    regionCorrection.resize(static_cast<Eigen::Index>(regionDofs.size()));
+    ldlSolve(*regionFactor, r.data(), regionCorrection.data(), solveThreads, regionSolve);
+    correction = regionCorrection.data();
     lastSolve.solveThreads = regionSolve.threadsUsed;
   } else {
     cholmod_dense b = cholmodViewDense(r.data(), regionDofs.size());

@@ -11,9 +11,10 @@
 // once at construction (supernodal LL'); every full solve() is a right-hand side (0 on the
 // held components) and two triangular solves (a local one, see LocalSolveOptions, a
 // correction on a region around the changed load). Once the factor is simplicial LDL' (after
-// the first removal) the triangular solves are ldl_solve.h's, on solveThreads threads (at
-// 8000 nodes, slab_cut --no-video: a solve 14.2 ms on one thread, 8.6-8.7 ms on two, medians
-// from temporary instrumentation; README, "The structural solve and update on two threads").
+// the first removal) the triangular solves are ldl_solve.h's, on solveThreads threads (esim
+// bench structural at 8000 nodes, a solve with its stresses: 4.7 ms on two threads, 6.7 ms on
+// one, 8.9 ms by CHOLMOD's cholmod_solve2; README, "The structural solve and update on two
+// threads").
 // Removed tets (alive == 0) contribute nothing; a node left without an alive tet is
 // held at 0, and so is every node of a floating island (a rigid piece: alive tets
 // connected through shared faces, whose own supports leave a rigid motion free: cut

@@ -238,7 +238,8 @@ struct ScenarioSolvers {
   bool structuralLocalRefreshOnThread = scenario_detail::core().structural.local.refreshOnThread;
   // a removal's factor update by the vectorized kernel (else cholmod_updown)
   bool structuralVectorizedUpdate = scenario_detail::core().structural.vectorizedUpdate;
-  // threads of the triangular solves of an updated factor (1 or 2; the same bits either way)
+  // threads of an updated factor's triangular solves and of a removal's update (1 or 2, the
+  // same bits either way; 0: CHOLMOD's solve)
   int structuralSolveThreads = scenario_detail::core().structural.solveThreads;
   // synchronous | background | update
   RebuildMode rebuildMode = scenario_detail::core().rebuildMode;
