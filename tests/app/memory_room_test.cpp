@@ -5,6 +5,7 @@
 #include "tools/app/memory_room.h"
 
 #include <gtest/gtest.h>
+#include <sys/prctl.h>
 
 #include <cstdlib>
 #include <fstream>
@@ -238,6 +239,26 @@ TEST(MemoryShare, OnlyAPositiveCountIsAShare) {
   ::unsetenv("ESIM_MEMORY_SHARE");
   EXPECT_EQ(memoryShareFromEnvironment(), 1);
   if (before) ::setenv("ESIM_MEMORY_SHARE", saved.c_str(), 1);
+}
+
+// transparent huge pages off for the process (what its threads inherit), unless
+// ESIM_ALLOW_THP=1; the note for timing.json says which
+TEST(TransparentHugePages, AreOffUnlessAllowed) {
+  unsetenv("ESIM_ALLOW_THP");
+  ASSERT_EQ(prctl(PR_SET_THP_DISABLE, 0, 0, 0, 0), 0);
+  disableTransparentHugePages();
+  EXPECT_EQ(prctl(PR_GET_THP_DISABLE, 0, 0, 0, 0), 1);
+  EXPECT_EQ(transparentHugePagesNote(), "disabled (PR_SET_THP_DISABLE)");
+
+  ASSERT_EQ(prctl(PR_SET_THP_DISABLE, 0, 0, 0, 0), 0);
+  setenv("ESIM_ALLOW_THP", "1", 1);
+  disableTransparentHugePages();
+  EXPECT_EQ(prctl(PR_GET_THP_DISABLE, 0, 0, 0, 0), 0);
+  EXPECT_EQ(transparentHugePagesNote(), "allowed (ESIM_ALLOW_THP=1)");
+  setenv("ESIM_ALLOW_THP", "yes", 1);  // only "1" allows them
+  disableTransparentHugePages();
+  EXPECT_EQ(prctl(PR_GET_THP_DISABLE, 0, 0, 0, 0), 1);
+  unsetenv("ESIM_ALLOW_THP");
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 #include "tools/app/memory_room.h"
 
 #include <fcntl.h>
+#include <sys/prctl.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -11,6 +12,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <limits>
 #include <sstream>
@@ -27,6 +29,7 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kUnlimitedV1 = 1e18;
 
 std::string gAddressSpaceBound;  // what boundAddressSpace set (addressSpaceBound)
+std::string gHugePages;          // what disableTransparentHugePages did
 int gWatcherPipe = -1;           // watchOutOfMemory's write end, held by the watched process
 
 // a "Key:   N kB" line of a /proc file, in bytes (-1 if absent)
@@ -235,6 +238,20 @@ void boundAddressSpace() {
 }
 
 const std::string& addressSpaceBound() { return gAddressSpaceBound; }
+
+void disableTransparentHugePages() {
+  const char* allow = std::getenv("ESIM_ALLOW_THP");
+  if (allow && std::strcmp(allow, "1") == 0) {
+    gHugePages = "allowed (ESIM_ALLOW_THP=1)";
+    return;
+  }
+  gHugePages = prctl(PR_SET_THP_DISABLE, 1, 0, 0, 0) == 0
+                   ? "disabled (PR_SET_THP_DISABLE)"
+                   : std::string("left as the system sets them: PR_SET_THP_DISABLE failed: ") +
+                         std::strerror(errno);
+}
+
+const std::string& transparentHugePagesNote() { return gHugePages; }
 
 namespace {
 

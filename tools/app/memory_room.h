@@ -45,6 +45,17 @@ int memoryShareFromEnvironment();
 // under the sanitizers, which reserve terabytes of address space. Called once, at start.
 void boundAddressSpace();
 
+// Transparent huge pages off for this process and its threads (prctl PR_SET_THP_DISABLE),
+// unless ESIM_ALLOW_THP=1. libx264 asks for huge pages (madvise MADV_HUGEPAGE) for its
+// frame buffers; on this project's machines (a VM; THP "madvise"), a run with them had the
+// structural solve's frames 4-10x slower every ~11 frames, all in user time, with the other
+// core idle (measured on slab_cut, `perf record` and /proc/thread-self/schedstat: 3 of 5
+// runs with 9-13 such frames of 40-125 ms; with THP off 0 in 5; README, "Frame-time
+// spikes"). The frame loop gains nothing from huge pages here. Called once, at start;
+// transparentHugePagesNote() says what it did, for timing.json.
+void disableTransparentHugePages();
+const std::string& transparentHugePagesNote();
+
 // The kernel's out-of-memory killer ends a process with SIGKILL, which it cannot catch: a
 // run whose memory grows a little at a time past what its cgroup allows (each allocation
 // under the address-space bound) ended with no word ("Killed", exit 137). This forks a

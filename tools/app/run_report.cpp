@@ -203,6 +203,7 @@ nlohmann::json machineInfo() {
   const char* core = openblas_get_corename();
   j["openblas_core"] = core ? core : "";
   j["memory_bound"] = addressSpaceBound();  // empty: none set (tools/app/memory_room.h)
+  j["transparent_huge_pages"] = transparentHugePagesNote();
   return j;
 }
 

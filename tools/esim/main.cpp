@@ -4,8 +4,9 @@
 // 2. Parse; CLI11 prints --help and usage errors.
 // 3. Run the chosen command; an esim::Error becomes a message and the exit code of its kind
 //    (input 2, run 1, internal 4: command.h).
-// Before all that, OpenBLAS's kernels (useFastBlasKernels) and the memory bound
-// (boundAddressSpace, tools/app/memory_room.h).
+// Before all that, OpenBLAS's kernels (useFastBlasKernels), the memory bound
+// (boundAddressSpace) and transparent huge pages off (disableTransparentHugePages; both
+// tools/app/memory_room.h).
 #include <unistd.h>
 
 #include <algorithm>
@@ -65,6 +66,7 @@ void useFastBlasKernels(char** argv) {
 int main(int argc, char** argv) {
   useFastBlasKernels(argv);
   esim::app::boundAddressSpace();
+  esim::app::disableTransparentHugePages();  // before any thread (they inherit it)
   esim::app::watchOutOfMemory();  // after the exec of useFastBlasKernels, before any thread
   using namespace esim::cli;
   CLI::App app{
