@@ -157,21 +157,6 @@ FrameView frameView(const RenderOptions& o, const SurfaceSnapshot& snap) {
   return f;
 }
 
-// tissue mottling: n x n lattice of hashed values (integer hash: identical everywhere)
-std::vector<std::uint8_t> mottlingNoise(int n) {
-  std::vector<std::uint8_t> noise(n * n);
-  for (int i = 0; i < n * n; ++i) {
-    std::uint32_t h = static_cast<std::uint32_t>(i) * 2654435761u + 0x9e3779b9u;
-    h ^= h >> 15;
-    h *= 0x2c1b3c6du;
-    h ^= h >> 12;
-    h *= 0x297a2d39u;
-    h ^= h >> 15;
-    noise[i] = static_cast<std::uint8_t>(h >> 24);
-  }
-  return noise;
-}
-
 // RGBA read-back (bottom row first) -> RGB24 frame (top row first), pixels still at
 // alpha 0 taking the background colour of their row from bgColumn (RGBA, bottom first)
 void compositeBackground(const std::vector<std::uint8_t>& readBuf,
@@ -204,8 +189,7 @@ struct Renderer::Impl {
   std::unique_ptr<GlContext> ctx;
   // one surface program per variant: the look's with and without the tool's
   // shadow, and the tool's own
-  SurfaceProgram lookProgram[2], toolProgram;  // lookProgram[shadow]
-  GLuint noiseTex = 0;
+  SurfaceProgram lookProgram[2], toolProgram;           // lookProgram[shadow]
   GLuint bgProgram = 0, bgVao = 0, resolveProgram = 0;  // bgVao: empty, full-screen passes
   GLuint bgTex = 0, bgFbo = 0;         // the background column (1 x height): MSAA resolve input
   std::vector<std::uint8_t> bgColumn;  // the same, RGBA bottom row first, for the composite
@@ -236,14 +220,13 @@ struct Renderer::Impl {
   void createPrograms();         // background and surface programs
   void createVertexArrays();     // background (empty), surface (with its index buffer), tool
   void createColormapTexture();  // the colour map as a 1D texture, unit 0
-  void createNoiseTexture();     // the tissue's mottling, unit 1
   void createTargets();          // plain framebuffer, and the multisampled one with MSAA
   void createMsaaTarget();       // multisampled framebuffer and the resolve program
   void drawBackgroundColumn();   // the background pass, once: bgTex and bgColumn
   void destroy();                // deletes the GL objects (the context must still be current-able)
   // per frame, in render()'s order
   void clearTarget();          // binds the draw framebuffer, clears colour (alpha 0) and depth
-  void bindSurfaceTextures();  // colour map on unit 0, noise on unit 1
+  void bindSurfaceTextures();  // colour map on unit 0
   // binds a surface program and sets its uniforms for this frame
   void useSurfaceProgram(const SurfaceProgram& p, const M4& model, const FrameView& view,
                          const ToolSnapshot& tool);
@@ -256,7 +239,6 @@ void Renderer::Impl::init() {
   createPrograms();
   createVertexArrays();
   createColormapTexture();
-  createNoiseTexture();
   createTargets();
   drawBackgroundColumn();
 }
@@ -327,22 +309,6 @@ void Renderer::Impl::createColormapTexture() {
   gl.TexParameteri(GL_TEXTURE_1D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
   gl.TexParameteri(GL_TEXTURE_1D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
   gl.TexParameteri(GL_TEXTURE_1D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-}
-
-void Renderer::Impl::createNoiseTexture() {
-  // tissue mottling: 64^2 lattice, bilinear and tiling (kSurfaceFs samples it twice)
-  const GlFunctions& gl = ctx->gl();
-  constexpr int n = 64;
-  const std::vector<std::uint8_t> noise = mottlingNoise(n);
-  gl.GenTextures(1, &noiseTex);
-  gl.ActiveTexture(GL_TEXTURE1);
-  gl.BindTexture(GL_TEXTURE_2D, noiseTex);
-  gl.TexImage2D(GL_TEXTURE_2D, 0, GL_R8, n, n, 0, GL_RED, GL_UNSIGNED_BYTE, noise.data());
-  gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-  gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-  gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_REPEAT);
-  gl.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_REPEAT);
-  gl.ActiveTexture(GL_TEXTURE0);
 }
 
 void Renderer::Impl::createTargets() {
@@ -451,7 +417,6 @@ void Renderer::Impl::destroy() {
   GLuint bufs[] = {surfVbo, toolVbo, surfIbo};
   gl.DeleteBuffers(3, bufs);
   gl.DeleteTextures(1, &lutTex);
-  gl.DeleteTextures(1, &noiseTex);
   gl.DeleteTextures(1, &msColor);
   gl.DeleteTextures(1, &bgTex);
   gl.DeleteProgram(resolveProgram);
@@ -479,8 +444,6 @@ void Renderer::Impl::clearTarget() {
 
 void Renderer::Impl::bindSurfaceTextures() {
   const GlFunctions& gl = ctx->gl();
-  gl.ActiveTexture(GL_TEXTURE1);
-  gl.BindTexture(GL_TEXTURE_2D, noiseTex);
   gl.ActiveTexture(GL_TEXTURE0);
   gl.BindTexture(GL_TEXTURE_1D, lutTex);
 }
@@ -492,7 +455,6 @@ void Renderer::Impl::useSurfaceProgram(const SurfaceProgram& p, const M4& model,
   gl.UniformMatrix4fv(p.uViewProj, 1, GL_FALSE, view.viewProj.data());
   gl.UniformMatrix4fv(p.uModel, 1, GL_FALSE, model.data());
   gl.Uniform1i(p.uColormap, 0);
-  gl.Uniform1i(p.uNoise, 1);
   if (opt.look == "potential")
     gl.Uniform2f(p.uTempRange, opt.vMinV, opt.vMaxV);
   else

@@ -18,7 +18,7 @@
 // Looks: "temperature" colours T with a perceptual map (colormap.h) between
 // tMinC and tMaxC (clamped); "tissue" shows pink liver-like tissue, whitening with
 // coagulation, browning then charring with desiccation, darker on cut walls, with
-// a faint mottling (a hashed value-noise texture); "potential" colours the electric
+// a faint mottling (hashed value noise, computed per pixel); "potential" colours the electric
 // potential phi [V] (SurfaceSnapshot::potentialV) with the same map between vMinV and
 // vMaxV, linear t = (phi - vMin) / (vMax - vMin) or, with potentialLogScale,
 // t = ln(phi / vMin) / ln(vMax / vMin) (vMinV > 0), clamped to [0, 1], with a bar in V.
