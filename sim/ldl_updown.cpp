@@ -17,15 +17,16 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
-#include <system_error>
 #include <thread>
+
+#include "sim/two_threads.h"
 
 namespace esim {
 namespace {
 
 constexpr int kWidth = 8;  // columns of C a pass (one AVX-512 vector of doubles)
-// the passes pipelined on two threads from this many entries of L walked (below, starting
-// the thread, ~20-50 us, costs more than it saves)
+// the passes pipelined on two threads from this many entries of L walked (below, handing
+// the odd passes to a helper thread costs more than it saves)
 constexpr long kMinPipelinedEntries = 100000;
 
 // 8 x 8 transpose of r[0..7] in place
@@ -215,22 +216,19 @@ void vectorPasses(bool update, int ncol, cholmod_factor& l, LdlUpdownWork& work)
     std::sort(path.begin(), path.end());
   }
   const auto rankOf = [ncol](int pass) { return std::min(kWidth, ncol - pass * kWidth); };
-  std::thread other;
+  HelperRun other;
   std::vector<std::atomic<int>> progress(
       work.threads >= 2 && passes >= 2 && entries >= kMinPipelinedEntries ? passes : 0);
   if (!progress.empty()) {
     if (work.w2.size() != work.w.size()) work.w2.assign(work.w.size(), 0.0);
     for (auto& p : progress) p.store(-1, std::memory_order_relaxed);
-    try {
-      other = std::thread([&] {
-        for (int pass = 1; pass < passes; pass += 2)
-          runPass(update, pass * kWidth, rankOf(pass), work.paths[pass], l, work, work.w2.data(),
-                  &progress[pass - 1], pass + 1 < passes ? &progress[pass] : nullptr);
-      });
-    } catch (const std::system_error&) {
-    }
+    other = runOnHelper([&] {
+      for (int pass = 1; pass < passes; pass += 2)
+        runPass(update, pass * kWidth, rankOf(pass), work.paths[pass], l, work, work.w2.data(),
+                &progress[pass - 1], pass + 1 < passes ? &progress[pass] : nullptr);
+    });
   }
-  if (!other.joinable()) {
+  if (!other.running()) {
     for (int pass = 0; pass < passes; ++pass)
       runPass(update, pass * kWidth, rankOf(pass), work.paths[pass], l, work, work.w.data(),
               nullptr, nullptr);
@@ -241,7 +239,7 @@ void vectorPasses(bool update, int ncol, cholmod_factor& l, LdlUpdownWork& work)
     runPass(update, pass * kWidth, rankOf(pass), work.paths[pass], l, work, work.w.data(),
             pass > 0 ? &progress[pass - 1] : nullptr,
             pass + 1 < passes ? &progress[pass] : nullptr);
-  other.join();
+  other.wait();
   work.pipelined = true;
 }
 

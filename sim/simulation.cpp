@@ -541,9 +541,11 @@ void Simulation::updateModel(const std::vector<int>& broken, FrameRecord& rec) {
     ESIM_RUN_CHECK(m.mesh.numAlive() > 0, "rupture: every element of the tissue has been removed");
     if (m.structural) {  // the factor's update on a thread, joined by the next structural
       structuralJobFrame_ = state_.frame;  // solve (see the header); its pieces here
-      structuralJob_ =
-          std::async(std::launch::async,
-                     [update = m.structural->beginRemoval(broken)]() mutable { return update(); });
+      auto job = std::make_shared<std::packaged_task<StructuralUpdateStats()>>(
+          m.structural->beginRemoval(broken));
+      structuralJob_ = job->get_future();
+      structuralRun_ = runOnHelper([job] { (*job)(); });
+      if (!structuralRun_.running()) (*job)();  // no thread to be had: here
     }
     removeFromBoundary(m.mesh, *m.faceNeighbours, broken, m.surface);
     const BoundaryNodeChange moved =
@@ -664,6 +666,7 @@ Simulation::~Simulation() {
   if (job_.valid()) job_.wait();                      // the job reads model_
   if (prefetchJob_.valid()) prefetchJob_.wait();      // and this one the electric solver
   if (structuralJob_.valid()) structuralJob_.wait();  // and this one the structural phase
+  structuralRun_.wait();
 }
 
 void Simulation::waitStructural() const {
@@ -673,6 +676,7 @@ void Simulation::waitStructural() const {
   } catch (...) {
     structuralError_ = std::current_exception();
   }
+  structuralRun_.wait();  // the helper free again (it set the result as its last step)
 }
 
 // the structural update in flight joined; its error is the rupture's (throwRebuildError)

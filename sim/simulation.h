@@ -38,6 +38,7 @@
 #include "sim/subgrid_contact.h"
 #include "sim/thermal_step.h"
 #include "sim/tool_path.h"
+#include "sim/two_threads.h"
 
 namespace esim {
 
@@ -400,7 +401,9 @@ class Simulation {
   // rowadd), on a thread from the removal frame's rupture to the next structural solve,
   // while the other phases' updates and the next frame's contacts, potential and heat run
   // (the same arithmetic as in the frame loop: the result does not depend on the timing)
+  // (on a kept helper thread: sim/two_threads.h)
   mutable std::future<StructuralUpdateStats> structuralJob_;
+  mutable HelperRun structuralRun_;  // the helper running it (waited for with it)
   mutable std::exception_ptr structuralError_;
   mutable StructuralUpdateStats structuralJobStats_;  // of the last one joined
   int structuralJobFrame_ = -1;           // the removal frame (its errors are that rupture's)
