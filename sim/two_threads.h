@@ -38,8 +38,10 @@ class HelperRun {
 };
 
 // starts task on an idle helper (or a thread of its own); the returned run must be waited
-// for (its destructor waits). task must not throw. If no thread can be started, the run is
-// not running and the task has not run (the caller runs it).
+// for (its destructor waits). task must not throw, and must leave the thread as it found it
+// (its priority, its floating-point environment: the next task inherits them; the electric
+// prefetch, which lowers its thread's priority, runs on a thread of its own). If no thread
+// can be started, the run is not running and the task has not run (the caller runs it).
 HelperRun runOnHelper(std::function<void()> task);
 
 // the helpers started so far (tests)
