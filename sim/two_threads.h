@@ -4,7 +4,7 @@
 //
 // Helper threads are kept for the process's life and reused: starting a thread cost
 // 50-100 us here, and several a frame were started (strace -c on slab_cut: clone3 52 us and
-// set_robust_list 72 us a call on this machine's paravirtualized kernel; 585 starts in the
+// set_robust_list 72 us a call, strace's own overhead included; 585 starts in the
 // run, 14 with the helpers). A task goes to an idle helper; up to kMaxHelpers are started, on first
 // need; when all are busy (callers on several threads at once), a thread of its own is started for
 // it, as before. A helper waits for work on a condition variable: no spinning between frames.
