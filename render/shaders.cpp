@@ -159,11 +159,9 @@ out vec4 fragColor;
 
 #if LOOK == 1
 // the tissue's mottling: value noise on a tiling 64^2 lattice of hashed bytes, bilinear,
-// computed here (it was a GL_R8 texture with GL_LINEAR and GL_REPEAT, which gives the
-// same values to llvmpipe's 8-bit filter weights: PSNR 65-69 dB between the two). Two
-// texture lookups a pixel were ~37 % of llvmpipe's time on slab_cut; the arithmetic
-// costs ~21 % less in all (perf, README "Rendering"). The depth shifts the lookup so
-// vertical cut walls are mottled too.
+// computed here rather than looked up in a texture (two lookups a pixel cost llvmpipe 21 %
+// more on slab_cut: README, "Rendering"). The depth shifts the lookup so vertical cut walls
+// are mottled too.
 // one lattice value, in [0, 1]: an integer hash of the lattice index
 float latticeValue(uint x, uint y) {
   uint h = ((y & 63u) * 64u + (x & 63u)) * 2654435761u + 0x9e3779b9u;
