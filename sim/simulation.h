@@ -26,6 +26,7 @@
 #include <future>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "sim/core_error.h"
@@ -367,6 +368,7 @@ class Simulation {
   void checkFinite(Stage stage, const char* what, const double* values, int count,
                    const char* unit) const;
   void checkMaximumPrinciple(double highBeforeC, bool heated, FrameRecord& record);
+  std::pair<double, double> tissueTemperatureRangeC() const;  // min, max on alive tets' nodes
   std::string noContactWarning() const;  // the tool never touched the tissue ("" if it did)
   void refreshConductivity();
   void computeEigenstrain();

@@ -307,6 +307,40 @@ TEST(Simulation, RuptureRemovesBoilingTissueAndRebuildsTheSurface) {
   EXPECT_EQ(again.mesh().alive, sim.mesh().alive);
 }
 
+// nodes whose every tet broke keep the temperature they had then: the frame's maximum is the
+// tissue's (the nodes of alive tets), and an orphan hotter than the tissue left is no breach
+// of the maximum principle in the frames after the generator stops
+TEST(Simulation, RemovedTissueLeavesTheReportedTemperature) {
+  SimulationConfig c = fullCutConfig(RebuildMode::Update);
+  c.toolPath.generatorOnS = {{0.0, 1.0}};
+  Simulation sim(smallSlab(), c);
+  const TetMesh& mesh = sim.mesh();
+  int unheatedWithHotterOrphan = 0;
+  for (int f = 0; f < 45; ++f) {
+    const FrameRecord r = sim.step();
+    std::vector<std::uint8_t> active(mesh.nodes.size(), 0);
+    for (int e = 0; e < mesh.numTets(); ++e)
+      if (mesh.isAlive(e))
+        for (int v : mesh.tets[e]) active[v] = 1;
+    const Eigen::VectorXd& t = sim.thermalState()->temperatureC;
+    double tissue = -1e300, orphan = -1e300;
+    for (int i = 0; i < t.size(); ++i) {
+      if (active[i])
+        tissue = std::max(tissue, t[i]);
+      else
+        orphan = std::max(orphan, t[i]);
+    }
+    // the record was taken before this frame's removal: compare the frames without one
+    if (r.removedTets == 0) {
+      EXPECT_DOUBLE_EQ(r.maxTemperatureC, tissue) << "frame " << f;
+    }
+    if (r.powerW == 0 && orphan > tissue + 1) ++unheatedWithHotterOrphan;
+    EXPECT_EQ(r.maxPrincipleViolationK, 0.0) << "frame " << f;
+  }
+  ASSERT_GT(sim.removedTets(), 0);
+  EXPECT_GT(unheatedWithHotterOrphan, 0);  // the case arose
+}
+
 TEST(Simulation, CutWithTheElectricPhaseConservesCurrentAfterRemoval) {
   SimulationConfig c = cutConfig(true);
   c.phases.structural = c.phases.rupture = true;
