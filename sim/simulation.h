@@ -73,13 +73,13 @@ struct FrameRecord {
   std::array<StageStatus, kStageCount> status{};  // absent / ran / skipped
   int contactNodes = 0;
   bool generatorOn = false;
-  double toolCurrentA = 0;    // into the tissue at the tool [A]
-  double returnCurrentA = 0;  // out at the return electrode [A]
-  double powerW = 0;          // Joule power this frame [W]
-  double maxTemperatureC = 0;
-  double maxVonMisesPa = 0;  // structural phase, over alive tets
-  int removedTets = 0;       // by the rebuild swapped in this frame
-  double rebuildWaitMs = 0;  // background rebuild: the frame loop waited for it
+  double toolCurrentA = 0;     // into the tissue at the tool [A]
+  double returnCurrentA = 0;   // out at the return electrode [A]
+  double powerW = 0;           // Joule power this frame [W]
+  double maxTemperatureC = 0;  // after heat, over the nodes of alive tets (removed tissue left out)
+  double maxVonMisesPa = 0;    // structural phase, over alive tets
+  int removedTets = 0;         // by the rebuild swapped in this frame
+  double rebuildWaitMs = 0;    // background rebuild: the frame loop waited for it
   // update mode, a removal frame: wall time of each part of the update [ms]
   std::array<double, 4> updatePartMs{};  // surface (and contacts), thermal, electric, structural
   double structuralUpdateMs = 0;         // update mode: the structural update joined in this frame,
