@@ -1030,11 +1030,19 @@ std::vector<int> Simulation::findContacts(FrameRecord& rec) const {
       contacts.erase(std::unique(contacts.begin(), contacts.end()), contacts.end());
     }
   }
+  const auto point = [](const Vec3& p) {
+    return "(" + messageNumber(p.x()) + ", " + messageNumber(p.y()) + ", " + messageNumber(p.z()) +
+           ") m";
+  };
   for (int v : contacts)
     ESIM_RUN_CHECK(!std::binary_search(m.ground.begin(), m.ground.end(), v),
                    "find_contacts, frame " + std::to_string(st.frame) +
                        ": short circuit: the tool touches node " + std::to_string(v) +
-                       " on the return electrode (it went through the tissue)");
+                       " on the return electrode, at " + point(m.mesh.nodes[v]) + " (tool tip at " +
+                       point(st.pose.tipM) +
+                       ", tool.contact_distance_m = " + messageNumber(config_.contactDistanceM) +
+                       " m): the tool went through the tissue, or its contact distance reaches "
+                       "across it");
   if (!contacts.empty()) return contacts;
   const int tet = aliveTetContaining(m.mesh, *m.geo, m.boundsM, st.pose.tipM);
   if (tet < 0) return contacts;

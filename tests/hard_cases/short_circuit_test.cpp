@@ -38,5 +38,20 @@ TEST(HardContactFailing, ToolPushedOntoTheReturnElectrode) {
   EXPECT_TRUE(hard::contains(message, "frame 1")) << message;  // fails: no frame
 }
 
+// a tool resting on the top face whose contact distance reaches across the 10 mm slab to
+// the return pad: the message names the node, the tip and the contact distance, and says
+// which of the two it can be
+TEST(HardContactFailing, AContactDistanceAcrossTheSlabNamesItself) {
+  SimulationConfig c = hard::toolAt(ElectrodeKind::Sphere, Vec3(0, 0, 0.0105), false);
+  c.contactDistanceM = 0.012;
+  Simulation sim(makeSlab(hard::smallSlabSpec()), c);
+  const auto [kind, message] = hard::errorOf([&] { sim.step(); });
+  EXPECT_EQ(kind, ErrorKind::Run) << message;
+  EXPECT_TRUE(hard::contains(message, "find_contacts, frame 0: short circuit")) << message;
+  EXPECT_TRUE(hard::contains(message, "tool.contact_distance_m = 0.012 m")) << message;
+  EXPECT_TRUE(hard::contains(message, "tool tip at (0, 0, 0.0105) m")) << message;
+  EXPECT_TRUE(hard::contains(message, "its contact distance reaches across it")) << message;
+}
+
 }  // namespace
 }  // namespace esim
