@@ -353,6 +353,20 @@ TEST(RunCli, AFailedRunExitsOneAndKeepsItsFramesMarkedPartial) {
   fs::remove_all(partial);
 }
 
+// a stage's error names its frame once: not "frame 0: find_contacts, frame 0: ..."
+TEST(RunCli, AShortCircuitSaysItsFrameOnce) {
+  const Result r = failingRun("short_circuit",
+                              "scenarios/slab_cut.yaml --frames 3 --no-video --set "
+                              "mesh.slab.nodes=1013 --set tool.contact_distance_m=0.01 -q");
+  EXPECT_NE(r.output.find("esim: error: find_contacts, frame 0: short circuit: the tool touches "
+                          "node "),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("tool.contact_distance_m = 0.01 m"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("frame 0: find_contacts"), std::string::npos) << r.output;
+  fs::remove_all(tempOut("short_circuit").string() + ".partial");
+}
+
 // a rupture's error names its frame once: not "frame 0: rupture, frame 0: rupture: ..."
 TEST(RunCli, ARuptureThatEndsTheRunSaysSoOnce) {
   const Result r = failingRun("rupture_all",

@@ -823,9 +823,11 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) 
       // the run cannot go on (a failed solve, all tissue gone, a tool reaching the return
       // electrode): the frames so far are kept
       loop.failureKind = e.kind();
-      // (a rupture's error names its frame already: "rupture, frame N: ...")
+      // (a stage's error may name its frame already: "rupture, frame N: ...",
+      // "find_contacts, frame N: ...": a stage name has no space)
       const std::string what = e.what();
-      loop.failure = what.rfind("rupture, frame " + std::to_string(f) + ":", 0) == 0
+      const std::size_t at = what.find(", frame " + std::to_string(f) + ":");
+      loop.failure = at != std::string::npos && what.find(' ') == at + 1
                          ? what
                          : "frame " + std::to_string(f) + ": " + what;
     }
