@@ -1076,8 +1076,8 @@ void Simulation::checkFinite(Stage stage, const char* what, const double* values
 // the coldest and hottest nodes of the tissue left. A node whose last tet broke (removed
 // tissue) keeps the temperature it had then and no longer conducts: left in, it was reported
 // as the tissue's maximum for the rest of the run (slab_cut at 2000 V: 1360 C in every frame
-// after the removal), and an unheated frame after it was a breach of the maximum principle.
-// With no tissue left, the initial temperature (as with no thermal phase).
+// after the removal). The maximum principle is checked on the same nodes. With no tissue
+// left, the initial temperature (as with no thermal phase).
 std::pair<double, double> Simulation::tissueTemperatureRangeC() const {
   const Eigen::VectorXd& t = state_.thermal.temperatureC;
   double low = std::numeric_limits<double>::infinity(), high = -low;
