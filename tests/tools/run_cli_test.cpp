@@ -353,30 +353,31 @@ TEST(RunCli, AFailedRunExitsOneAndKeepsItsFramesMarkedPartial) {
   fs::remove_all(partial);
 }
 
-// a stage's error names its frame once: not "frame 0: find_contacts, frame 0: ..."
-TEST(RunCli, AShortCircuitSaysItsFrameOnce) {
-  const Result r = failingRun("short_circuit",
+// slab_cut at 1013 nodes with `set` fails in frame 0 with an error that starts with `message`
+// and names its frame once: not "frame 0: STAGE, frame 0: ..."
+Result failsInFrameZeroSayingSoOnce(const std::string& name, const std::string& set,
+                                    const std::string& message, const std::string& stage) {
+  const Result r = failingRun(name,
                               "scenarios/slab_cut.yaml --frames 3 --no-video --set "
-                              "mesh.slab.nodes=1013 --set tool.contact_distance_m=0.01 -q");
-  EXPECT_NE(r.output.find("esim: error: find_contacts, frame 0: short circuit: the tool touches "
-                          "node "),
-            std::string::npos)
-      << r.output;
+                              "mesh.slab.nodes=1013 --set " +
+                                  set + " -q");
+  EXPECT_NE(r.output.find("esim: error: " + message), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("frame 0: " + stage), std::string::npos) << r.output;
+  return r;
+}
+
+TEST(RunCli, AShortCircuitSaysItsFrameOnce) {
+  const Result r = failsInFrameZeroSayingSoOnce(
+      "short_circuit", "tool.contact_distance_m=0.01",
+      "find_contacts, frame 0: short circuit: the tool touches node ", "find_contacts");
   EXPECT_NE(r.output.find("tool.contact_distance_m = 0.01 m"), std::string::npos) << r.output;
-  EXPECT_EQ(r.output.find("frame 0: find_contacts"), std::string::npos) << r.output;
   fs::remove_all(tempOut("short_circuit").string() + ".partial");
 }
 
-// a rupture's error names its frame once: not "frame 0: rupture, frame 0: rupture: ..."
 TEST(RunCli, ARuptureThatEndsTheRunSaysSoOnce) {
-  const Result r = failingRun("rupture_all",
-                              "scenarios/slab_cut.yaml --frames 3 --no-video --set "
-                              "mesh.slab.nodes=1013 --set material.critical_stress_pa=1e-9 -q");
-  EXPECT_NE(r.output.find("esim: error: rupture, frame 0: every element of the tissue has been "
-                          "removed\n"),
-            std::string::npos)
-      << r.output;
-  EXPECT_EQ(r.output.find("frame 0: rupture"), std::string::npos) << r.output;
+  failsInFrameZeroSayingSoOnce("rupture_all", "material.critical_stress_pa=1e-9",
+                               "rupture, frame 0: every element of the tissue has been removed\n",
+                               "rupture");
   // the summary counts the cut that ended the run, as the mesh it reports shows it (it
   // said "0 tets removed in 0 frames (0 of 5832 alive)", peak von Mises 0)
   const std::string partial = tempOut("rupture_all").string() + ".partial";
