@@ -1020,6 +1020,23 @@ TEST(RunCli, LabelsArePixelAlignedWithTheVideo) {
   fs::remove_all(again);
 }
 
+// --labels without a value, before another option or last (the empty-value check refused
+// both with "--labels: an empty value", exit 2)
+TEST(RunCli, LabelsWithoutAModeBeforeAnotherOptionOrLast) {
+  for (const std::string& order : {std::string(" --labels -q -o "), std::string(" -q -o ")}) {
+    const fs::path out = tempOut("labels_bare");
+    fs::remove_all(out);
+    const Result r = esimRun(
+        "scenarios/paper_slab.yaml --frames 2 --set look.width=160 --set "
+        "look.height=90" +
+        order + out.string() + (order == " -q -o " ? " --labels" : ""));
+    EXPECT_EQ(r.exitCode, 0) << order << r.output;
+    EXPECT_TRUE(fs::exists(out / "labels" / "mask_00001.png")) << order;
+    EXPECT_FALSE(fs::exists(out / "labels" / "preview.mp4")) << order;
+    fs::remove_all(out);
+  }
+}
+
 TEST(RunCli, LabelsWithAnUnknownModeExitTwo) {
   const fs::path out = tempOut("labels_bad");
   const Result r =

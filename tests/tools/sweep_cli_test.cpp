@@ -120,6 +120,29 @@ TEST(SweepCli, LocalSweepRecordsResumesAndVerifies) {
   fs::remove_all(dir);
 }
 
+// run_options: [--labels], the option without a value last on each run's command line:
+// every variant failed with "--labels: an empty value" (exit 2 from esim run)
+TEST(SweepCli, RunOptionsLabelsWithoutAModeLabelEveryVariant) {
+  const fs::path dir = tempDir("labels");
+  const fs::path spec = fs::temp_directory_path() / "esim_sweep_test_labels.yaml";
+  writeFile(spec, "name: labels\nbase: " + std::string(ESIM_SOURCE_DIR) +
+                      "/scenarios/paper_slab_506.yaml\nrun_options: [--labels]\nset:\n  "
+                      "time.duration_s: 0.1\n  look.width: 160\n  look.height: 90\ngrid:\n  "
+                      "tool.voltage_v: [60, 80]\n");
+  const Result r = esim("sweep " + spec.string() + " -o " + dir.string() + " --workers 1");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  const auto lines = manifest(dir);
+  ASSERT_EQ(lines.size(), 2u);
+  for (const json& l : lines) {
+    EXPECT_EQ(l["status"], "complete") << l.dump();
+    EXPECT_TRUE(l["labels_xxh3"].is_string()) << l.dump();
+    EXPECT_TRUE(fs::exists(dir / "runs" / l["id"].get<std::string>() / "run" / "labels"))
+        << l.dump();
+  }
+  fs::remove_all(dir);
+  fs::remove(spec);
+}
+
 // two sweeps started together into one folder: one runs it, the other is refused (exit 2)
 // with nothing run; every variant complete (both used to run the same variants, leaving
 // variants marked failed that the other had completed, or a misleading "holds other files")

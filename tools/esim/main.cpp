@@ -147,6 +147,9 @@ int main(int argc, char** argv) {
     for (const CLI::Option* o : chosen->get_options()) {
       const std::string name = o->get_name();
       if (name == "--run-args") continue;  // (no more run options: allowed)
+      // an option whose value is optional (esim run --labels [preview]) given without one has
+      // an empty result: it was refused too, so `--labels -o DIR` (the README's) exited 2
+      if (o->get_expected_min() == 0) continue;
       for (const std::string& value : o->results())
         if (value.empty())
           return reportError(esim::Error(
