@@ -131,6 +131,7 @@ TEST(SweepCli, RunOptionsLabelsWithoutAModeLabelEveryVariant) {
                       "tool.voltage_v: [60, 80]\n");
   const Result r = esim("sweep " + spec.string() + " -o " + dir.string() + " --workers 1");
   ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_NE(r.output.find("this run: 2 videos in "), std::string::npos) << r.output;
   const auto lines = manifest(dir);
   ASSERT_EQ(lines.size(), 2u);
   for (const json& l : lines) {
@@ -139,7 +140,15 @@ TEST(SweepCli, RunOptionsLabelsWithoutAModeLabelEveryVariant) {
     EXPECT_TRUE(fs::exists(dir / "runs" / l["id"].get<std::string>() / "run" / "labels"))
         << l.dump();
   }
+  // the same without videos: the throughput line counts runs ("2 videos" before)
+  const fs::path bare = tempDir("labels_no_video");
+  const Result nv = esim("sweep " + spec.string() + " -o " + bare.string() +
+                         " --workers 1 --run-args --no-video");
+  ASSERT_EQ(nv.exitCode, 0) << nv.output;
+  EXPECT_NE(nv.output.find("this run: 2 runs in "), std::string::npos) << nv.output;
+  EXPECT_NE(nv.output.find(" CPU s a run ("), std::string::npos) << nv.output;
   fs::remove_all(dir);
+  fs::remove_all(bare);
   fs::remove(spec);
 }
 

@@ -513,23 +513,27 @@ struct Session {
 Session gSession;
 
 // "this run: 8 videos in 4:05 (117.6 videos/hour), 54.2 CPU s a video (15.1 core-hours per
-// 1000 videos)"
+// 1000 videos)"; "runs" where no run wrote a video (--run-args --no-video)
 void throughputLine(const fs::path& dir) {
   int n = 0;
+  bool video = false;
   double cpu = 0;
   for (const auto& line : manifestLines(dir))
     if (gSession.ids.count(line.value("id", "")) && line.value("status", "") == "complete") {
       ++n;
       cpu += line.value("cpu_s", 0.0);
+      video = video || (line.contains("video") && line["video"].is_string());
     }
   if (n == 0) return;
   const double wall = secondsSince(gSession.start);
+  const char* what = video ? "video" : "run";
   char buf[300];
   std::snprintf(buf, sizeof buf,
-                "this run: %d video%s in %s (%.1f videos/hour), %.1f CPU s a video (%.2f "
-                "core-hours per 1000 videos)\n",
-                n, n == 1 ? "" : "s", clockText(wall).c_str(), n * 3600.0 / std::max(wall, 1e-3),
-                cpu / n, cpu / n * 1000.0 / 3600.0);
+                "this run: %d %s%s in %s (%.1f %ss/hour), %.1f CPU s a %s (%.2f "
+                "core-hours per 1000 %ss)\n",
+                n, what, n == 1 ? "" : "s", clockText(wall).c_str(),
+                n * 3600.0 / std::max(wall, 1e-3), what, cpu / n, what, cpu / n * 1000.0 / 3600.0,
+                what);
   std::cout << buf;
 }
 
