@@ -73,6 +73,12 @@ TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
        "bench electric: --csv is an option of the blade-sweep "
        "table, which --only-update skips"},
       {"bench render --sizes x", "--sizes: 'x' is not WIDTHxHEIGHT (e.g. 1280x720)"},
+      // it ran as 1280x720
+      {"bench render --sizes 1280x720x3",
+       "--sizes: '1280x720x3' is not WIDTHxHEIGHT (e.g. 1280x720)"},
+      // it named look.width/height, which bench render has not
+      {"bench render --sizes 10x10",
+       "--sizes: '10x10' is out of range, expected 16..8192 pixels each"},
       {"bench render --surfaces slab --liver assets/liver.obj",
        "bench render: --liver is the 'liver' case's, which --surfaces leaves out"},
   };

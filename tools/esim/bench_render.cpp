@@ -208,9 +208,13 @@ int benchRender(const BenchRenderOptions& opt) {
   ESIM_VERIFY(opt.frames >= 1 && opt.warmup >= 0, "--frames must be >= 1, --warmup >= 0");
   std::vector<std::array<int, 2>> sizes;
   for (const std::string& s : splitList(opt.sizes)) {
-    int w = 0, h = 0;
-    ESIM_VERIFY(std::sscanf(s.c_str(), "%dx%d", &w, &h) == 2,
-                "--sizes: '" + s + "' is not WIDTHxHEIGHT (e.g. 1280x720)");
+    int w = 0, h = 0, used = 0;  // (all of it: "1280x720x3" was taken as 1280x720)
+    ESIM_VERIFY(
+        std::sscanf(s.c_str(), "%dx%d%n", &w, &h, &used) == 2 && used == static_cast<int>(s.size()),
+        "--sizes: '" + s + "' is not WIDTHxHEIGHT (e.g. 1280x720)");
+    ESIM_VERIFY(
+        w >= 16 && w <= 8192 && h >= 16 && h <= 8192,
+        "--sizes: '" + s + "' is out of range, expected 16..8192 pixels each (the renderer's)");
     sizes.push_back({w, h});
   }
   const std::vector<Variant> variants = parseVariants(opt);
