@@ -396,6 +396,10 @@ void applyOverride(YAML::Node& root, const std::string& text, const std::string&
   std::stringstream ss(key);
   for (std::string k; std::getline(ss, k, '.');) {
     const std::string path = joinPath(group, k);
+    if (const size_t bracket = k.find('['); bracket != std::string::npos && bracket > 0)
+      throw Error(where + path + ": --set cannot pick one entry of a list; give the whole list (" +
+                  joinPath(group, k.substr(0, bracket)) +
+                  "=[...], in YAML flow style) or edit the scenario file");
     if (k.empty() || (!findField(path) && !isGroup(path)))
       throw Error(where + Reader::unknownKeyMessage(group, k));
     if (findField(path) && path != key) throw Error(where + path + " is a value, not a group");

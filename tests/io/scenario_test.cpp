@@ -288,6 +288,10 @@ TEST(Scenario, BadOverridesAreErrors) {
       errorOf("", {"physics=[electric, thermal, boiling, structural, ruptur]"}),
       {"--set physics=", "physics[4]: unknown phase 'ruptur'", "did you mean 'rupture'?"});
   expectMessage(errorOf("", {"tool.path=[1"}), {"--set tool.path=[1", "malformed value"});
+  // an index into a list: it listed the tool's keys as the ones expected
+  expectMessage(errorOf("", {"tool.path[1].orientation_deg=[90, 0, 0]"}),
+                {"tool.path[1]: --set cannot pick one entry of a list; give the whole list "
+                 "(tool.path=[...], in YAML flow style) or edit the scenario file"});
 }
 
 // ---- bad input: one clear message each ----
