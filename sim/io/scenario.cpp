@@ -16,6 +16,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -60,9 +61,65 @@ const char* phaseName(Phase phase) {
   return "?";
 }
 
+namespace {
+
+// the offset of the first byte of `text` that does not start or continue a well-formed UTF-8
+// sequence (RFC 3629: no overlong forms, no surrogates, nothing above U+10FFFF), or npos
+size_t firstNonUtf8(const std::string& text) {
+  const auto* b = reinterpret_cast<const unsigned char*>(text.data());
+  const size_t n = text.size();
+  for (size_t i = 0; i < n;) {
+    const unsigned c = b[i];
+    int more = 0;
+    unsigned low = 0x80, high = 0xBF;  // the allowed range of the second byte
+    if (c < 0x80) {
+      ++i;
+      continue;
+    } else if (c >= 0xC2 && c <= 0xDF) {
+      more = 1;
+    } else if (c >= 0xE0 && c <= 0xEF) {
+      more = 2;
+      if (c == 0xE0) low = 0xA0;   // (overlong)
+      if (c == 0xED) high = 0x9F;  // (surrogates)
+    } else if (c >= 0xF0 && c <= 0xF4) {
+      more = 3;
+      if (c == 0xF0) low = 0x90;   // (overlong)
+      if (c == 0xF4) high = 0x8F;  // (above U+10FFFF)
+    } else {
+      return i;
+    }
+    for (int k = 1; k <= more; ++k) {
+      if (i + k >= n) return i;
+      const unsigned d = b[i + k];
+      if (k == 1 ? (d < low || d > high) : (d < 0x80 || d > 0xBF)) return i;
+    }
+    i += more + 1;
+  }
+  return std::string::npos;
+}
+
+}  // namespace
+
+void requireUtf8Text(const std::string& text, const std::string& where, bool lineAndColumn) {
+  const size_t at = firstNonUtf8(text);
+  if (at == std::string::npos) return;
+  std::string place = where;
+  if (lineAndColumn) {
+    const size_t lineStart = text.rfind('\n', at == 0 ? 0 : at - 1);
+    const size_t line = 1 + std::count(text.begin(), text.begin() + static_cast<long>(at), '\n');
+    const size_t column = at - (lineStart == std::string::npos || at == 0 ? 0 : lineStart + 1) + 1;
+    place += ":" + std::to_string(line) + ":" + std::to_string(column);
+  }
+  char byte[8];
+  std::snprintf(byte, sizeof byte, "0x%02X", static_cast<unsigned char>(text[at]));
+  throw Error(place + ": not UTF-8 text (byte " + byte + "); YAML is Unicode: save it as UTF-8");
+}
+
 Scenario parseScenario(const std::string& yamlText, const std::string& sourceName,
                        const std::vector<std::string>& overrides) {
   // 1. parse
+  requireUtf8Text(yamlText, sourceName, true);
+  for (const auto& text : overrides) requireUtf8Text(text, sourceName + ": --set", false);
   YAML::Node root;
   try {
     root = YAML::Load(yamlText);

@@ -326,6 +326,12 @@ struct Scenario {
 // named "<stdin>" in messages; relative asset paths from the working folder)
 Scenario loadScenario(const std::string& path, const std::vector<std::string>& overrides = {});
 
+// YAML is Unicode text: throws Error "WHERE[:LINE:COLUMN]: not UTF-8 text (byte 0xE9); ..." at
+// the first byte of `text` that is not well-formed UTF-8 (a file saved as Latin-1). Left in a
+// name, such a byte reached the run's JSON reports, whose writer threw at the end of the run
+// (exit 4, every frame computed and only DIR.partial/ left)
+void requireUtf8Text(const std::string& text, const std::string& where, bool lineAndColumn);
+
 // a value as quoted in an error message: 'text', or its first line cut at 60 characters with
 // its length ("'v -0.0175 0.0417 ...' (511234 characters)": a whole OBJ file read as a
 // scenario was quoted whole)

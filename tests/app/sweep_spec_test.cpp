@@ -35,6 +35,15 @@ std::string errorOf(F f) {
   return "";
 }
 
+// a sweep file that is not UTF-8 is refused where it is (its name reached the JSON
+// manifest, whose writer threw: exit 4)
+TEST(SweepSpec, TextThatIsNotUtf8IsRefusedWhereItIs) {
+  const std::string message =
+      errorOf([] { spec("name: \"t\xff\"\nbase: ../paper_slab_506.yaml\ndraws: 1\n"); });
+  EXPECT_NE(message.find("sweeps/test.yaml:1:9: not UTF-8 text (byte 0xFF)"), std::string::npos)
+      << message;
+}
+
 TEST(SweepSpec, ShippedSweepsExpandAndCheck) {
   for (const auto& entry : fs::directory_iterator(kScenarios + "/sweeps")) {
     if (entry.path().extension() != ".yaml") continue;

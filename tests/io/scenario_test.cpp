@@ -296,6 +296,21 @@ TEST(Scenario, BadOverridesAreErrors) {
 
 // ---- bad input: one clear message each ----
 
+// a byte that is not UTF-8 is refused where it is (in a name it threw from the JSON writer at
+// the end of the run: exit 4, only DIR.partial/ left); any well-formed UTF-8 is taken
+TEST(Scenario, TextThatIsNotUtf8IsRefusedWhereItIs) {
+  expectMessage(errorOf("name: ok\ndescription: \"caf\xe9\"\n"),
+                {"bad.yaml:2:18: not UTF-8 text (byte 0xE9); YAML is Unicode: save it as UTF-8"});
+  expectMessage(errorOf("name: \"\xff\xfe\"\n"), {"bad.yaml:1:8: not UTF-8 text (byte 0xFF)"});
+  // an overlong form, a surrogate, a sequence cut short, above U+10FFFF
+  for (const std::string bad : {"\xc0\xaf", "\xed\xa0\x80", "\xe2\x82", "\xf4\x90\x80\x80"})
+    expectMessage(errorOf("name: x" + bad + "\n"), {"bad.yaml:1:8: not UTF-8 text"});
+  expectMessage(errorOf("", {"name=\xff"}), {"bad.yaml: --set: not UTF-8 text (byte 0xFF)"});
+  const Scenario s = parseScenario(
+      "name: \"Leber \xe2\x80\x94 caf\xc3\xa9 \xe6\xbc\xa2 \xf0\x9f\x99\x82\"\n", "ok.yaml");
+  EXPECT_EQ(s.name, "Leber \xe2\x80\x94 caf\xc3\xa9 \xe6\xbc\xa2 \xf0\x9f\x99\x82");
+}
+
 TEST(Scenario, MalformedYamlNamesLineAndColumn) {
   const std::string msg = errorOf("name: x\ntool:\n  voltage_v: [72, 1\n  shape: blade\n");
   expectMessage(msg, {"bad.yaml:", "malformed YAML"});

@@ -398,6 +398,7 @@ class SpecReader {
   }
 
   SweepSpec read(const std::string& text) {
+    requireUtf8Text(text, file_, true);  // (its name and values go to the JSON manifest)
     YAML::Node root;
     try {
       root = YAML::Load(text);
