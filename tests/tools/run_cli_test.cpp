@@ -353,6 +353,19 @@ TEST(RunCli, AFailedRunExitsOneAndKeepsItsFramesMarkedPartial) {
   fs::remove_all(partial);
 }
 
+// an environment variable that is not UTF-8 (LP_NUM_THREADS, recorded in timing.json) is
+// written as U+FFFD: the JSON writer threw after the last frame (exit 4, only DIR.partial/)
+TEST(RunCli, BytesNotUtf8InTheEnvironmentDoNotEndTheRun) {
+  const fs::path out = tempOut("env_not_utf8");
+  const Result r =
+      shell("LP_NUM_THREADS=\"$(printf '\\377')\" " + std::string(ESIM_EXE) +
+            " run scenarios/paper_slab.yaml --frames 1 --no-video -q -o " + out.string());
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  const auto timing = nlohmann::json::parse(readFile(out / "timing.json"));
+  EXPECT_EQ(timing["machine"]["LP_NUM_THREADS"], "\xef\xbf\xbd");  // U+FFFD
+  fs::remove_all(out);
+}
+
 // slab_cut at 1013 nodes with `set` fails in frame 0 with an error that starts with `message`
 // and names its frame once: not "frame 0: STAGE, frame 0: ..."
 Result failsInFrameZeroSayingSoOnce(const std::string& name, const std::string& set,

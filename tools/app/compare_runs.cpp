@@ -11,6 +11,7 @@
 #include "render/image_hash.h"
 #include "render/image_png.h"
 #include "sim/core_error.h"
+#include "tools/app/json_text.h"
 #include "tools/app/run_output.h"
 
 namespace esim::app {
@@ -121,7 +122,7 @@ CompareResult compareRuns(const std::string& runA, const std::string& runB,
                             {"min_psnr_db", kMinPsnrDb},
                             {"max_off_share", kMaxOffShare}}},
                           {"differing_frames", frames}};
-    writeFileAtomic(fs::path(reportDir) / "compare.json", rep.dump(2) + "\n");
+    writeFileAtomic(fs::path(reportDir) / "compare.json", jsonText(rep, 2) + "\n");
   }
   return r;
 }

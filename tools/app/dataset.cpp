@@ -14,6 +14,7 @@
 
 #include "render/image_hash.h"
 #include "sim/core_error.h"
+#include "tools/app/json_text.h"
 #include "tools/app/run_output.h"
 
 namespace esim::app {
@@ -110,7 +111,7 @@ nlohmann::json readResult(const fs::path& dir, const std::string& id) {
 }
 
 void writeResult(const fs::path& dir, const std::string& id, const nlohmann::json& result) {
-  writeFileAtomic(dataset::variantDir(dir, id) / "result.json", result.dump(2) + "\n");
+  writeFileAtomic(dataset::variantDir(dir, id) / "result.json", jsonText(result, 2) + "\n");
 }
 
 std::vector<nlohmann::json> manifestLines(const fs::path& dir) {
@@ -134,7 +135,7 @@ std::vector<nlohmann::json> manifestLines(const fs::path& dir) {
 void writeManifest(const fs::path& dir) {
   ManifestLock lock(dir);
   std::string text;
-  for (const auto& line : manifestLines(dir)) text += line.dump() + "\n";
+  for (const auto& line : manifestLines(dir)) text += jsonText(line) + "\n";
   writeFileAtomic(dir / "manifest.jsonl", text);
 }
 

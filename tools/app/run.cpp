@@ -40,6 +40,7 @@
 #include "sim/io/vtu.h"
 #include "sim/simulation.h"
 #include "tools/app/exit_codes.h"
+#include "tools/app/json_text.h"
 #include "tools/app/memory_room.h"
 #include "tools/app/plot_script.h"
 #include "tools/app/run_config.h"
@@ -739,16 +740,16 @@ std::string writeReports(const Setup& s, const FrameOutputs& out, const LoopResu
                          const fs::path& dir, const fs::path& finalDir, bool plots) {
   const nlohmann::json extra = timingExtra(s, out, loop);
   const nlohmann::json timing = timingJson(loop.records, extra);
-  writeFileAtomic(dir / "timing.json", timing.dump(2) + "\n");
+  writeFileAtomic(dir / "timing.json", jsonText(timing, 2) + "\n");
   writeFileAtomic(dir / "timing.csv", timingCsv(loop.records));
-  writeFileAtomic(dir / "trace.json",
-                  chromeTrace(loop.records, loop.frameStartUs,
-                              loop.pipelined ? loop.renderStartUs : std::vector<double>{})
-                          .dump() +
-                      "\n");
+  writeFileAtomic(
+      dir / "trace.json",
+      jsonText(chromeTrace(loop.records, loop.frameStartUs,
+                           loop.pipelined ? loop.renderStartUs : std::vector<double>{})) +
+          "\n");
   writeFileAtomic(dir / "scenario.yaml", scenarioToYaml(s.scenario));
   if (s.renderer && s.scenario.output.hashes)
-    writeFileAtomic(dir / "hashes.json", hashesJson(s, out, extra).dump(2) + "\n");
+    writeFileAtomic(dir / "hashes.json", jsonText(hashesJson(s, out, extra), 2) + "\n");
   bool plotted = false;
   if (plots) {
     const PlotResult p = plotTiming(dir);

@@ -10,6 +10,7 @@
 
 #include "render/image_png.h"
 #include "sim/core_error.h"
+#include "tools/app/json_text.h"
 #include "tools/app/run_output.h"
 
 namespace esim::app {
@@ -27,7 +28,7 @@ std::string numberedName(const char* prefix, int frame, const char* ext) {
 // indent -1: one line (coco.json's run lengths would take a line each)
 // (whole or not at all: a disk that fills leaves no cut file)
 void writeJson(const fs::path& path, const nlohmann::json& j, int indent = 2) {
-  writeFileAtomic(path, j.dump(indent) + "\n");
+  writeFileAtomic(path, jsonText(j, indent) + "\n");
 }
 
 // the tool's pose, and its tip in the image (projection; visible: the tip's pixel shows it)
@@ -181,7 +182,7 @@ void LabelWriter::add(int frame, const SurfaceSnapshot& snap, const FrameRecord&
     statePixels[labelStateNames()[b]] = labels.statePixels[b];
   line["class_pixels"] = classPixels;
   line["state_pixels"] = statePixels;
-  jsonl_ << line.dump() << "\n";
+  jsonl_ << jsonText(line) << "\n";
   jsonl_.flush();
   ESIM_RUN_CHECK(jsonl_.good(), (dir_ / "frames.jsonl").string() + ": write failed (disk full?)");
   // 3. COCO: the tool and the cut as instances of this frame

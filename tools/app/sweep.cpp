@@ -36,6 +36,7 @@
 #include "sim/core_error.h"
 #include "sim/io/scenario.h"
 #include "tools/app/dataset.h"
+#include "tools/app/json_text.h"
 #include "tools/app/run_output.h"
 #include "tools/app/sweep_spec.h"
 
@@ -428,8 +429,8 @@ void checkFolder(const fs::path& dir, const SweepSpec& spec, const std::vector<S
   const std::string again = "; give a new folder (or remove " + dir.string() + ")";
   if (old.value("run_options", json::array()) != json(runOptions))
     throw Error(dir.string() + ": made with run options " +
-                old.value("run_options", json::array()).dump() + ", now " +
-                json(runOptions).dump() + again);
+                jsonText(old.value("run_options", json::array())) + ", now " +
+                jsonText(json(runOptions)) + again);
   if (old.at("variants").size() != vs.size())
     throw Error(dir.string() + ": holds a sweep of " + std::to_string(old.at("variants").size()) +
                 " variants; " + spec.file + " makes " + std::to_string(vs.size()) + again);
@@ -458,7 +459,7 @@ void writeFolder(const fs::path& dir, const SweepSpec& spec, const std::vector<S
                       {"run_options", runOptions},
                       {"esim", exe},
                       {"variants", variants}};
-  writeFileAtomic(dir / "sweep.json", sweep.dump(2) + "\n");
+  writeFileAtomic(dir / "sweep.json", jsonText(sweep, 2) + "\n");
   for (const auto& v : vs) {
     const fs::path vdir = dataset::variantDir(dir, v.id);
     fs::create_directories(vdir);
@@ -946,7 +947,7 @@ int runSweep(const SweepOptions& opt, const RunOptionsCheck& checkRunOptions) {
   if (opt.dryRun) {
     std::cout << "sweep " << spec.name << ": " << vs.size() << " variant"
               << (vs.size() == 1 ? "" : "s") << " of " << spec.base << ", all checked\n";
-    for (const auto& v : vs) std::cout << "  " << v.id << "  " << v.values.dump() << "\n";
+    for (const auto& v : vs) std::cout << "  " << v.id << "  " << jsonText(v.values) << "\n";
     return 0;
   }
   if (opt.outDir.empty()) throw Error("-o DIR: the sweep's folder is required");

@@ -22,6 +22,7 @@
 #include <sstream>
 
 #include "sim/core_error.h"
+#include "tools/app/json_text.h"
 #include "tools/app/run_config.h"
 
 namespace esim::app {
@@ -695,7 +696,7 @@ class Expander {
   }
 
   static std::string valuesText(const SweepVariant& v) {
-    return v.values.empty() ? std::string("(no values)") : v.values.dump();
+    return v.values.empty() ? std::string("(no values)") : jsonText(v.values);
   }
 
   // the base scenario with the variant's overrides so far; an error names the sweep

@@ -1,0 +1,16 @@
+// json_text.h - the JSON text that esim writes to its files and prints.
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <string>
+
+namespace esim::app {
+
+// j as text (indent < 0: one line). A byte that is not UTF-8 (an environment variable such as
+// LP_NUM_THREADS, a file name) becomes U+FFFD: nlohmann's default throws, which ended a run
+// with exit 4 after every frame was computed, leaving only DIR.partial/
+inline std::string jsonText(const nlohmann::json& j, int indent = -1) {
+  return j.dump(indent, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
+}  // namespace esim::app
