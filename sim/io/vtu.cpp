@@ -104,15 +104,15 @@ std::size_t parseCount(const std::string& text, std::size_t limit, const std::st
 
 // decodes one DataArray body into doubles; every value of the body or none
 std::vector<double> decodeArray(const std::string& type, const std::string& format,
-                                const std::string& body, const std::string& name,
+                                const std::string& body, const std::string& label,
                                 const std::string& path) {
-  const std::string where = path + ": DataArray '" + name + "'";
+  const std::string where = path + ": " + label;
   std::vector<double> out;
   if (format == "ascii") {
     std::istringstream is(body);
     double v;
     while (is >> v) out.push_back(v);
-    ESIM_VERIFY(is.eof(), where + ": value " + std::to_string(out.size()) +
+    ESIM_VERIFY(is.eof(), where + ": value " + std::to_string(out.size() + 1) +
                               " is not a number; expected ascii numbers separated by spaces");
     return out;
   }
@@ -296,8 +296,12 @@ VtuData readVtu(const std::string& path) {
         comps.empty() ? 1
                       : static_cast<int>(parseCount(comps, 1 << 20, "NumberOfComponents", path));
     ESIM_VERIFY(components >= 1, path + ": DataArray '" + name + "' has 0 components");
+    // (an array without a Name, usually the Points', is named by its block in messages)
+    const std::string label = !name.empty()            ? "DataArray '" + name + "'"
+                              : block == Block::Points ? std::string("the Points' DataArray")
+                                                       : std::string("a DataArray without a Name");
     auto values = decodeArray(attribute(tag, "type"), attribute(tag, "format"),
-                              text.substr(pos, end - pos), name, path);
+                              text.substr(pos, end - pos), label, path);
     pos = end + 12;
     auto once = [&](bool& seen, const char* what) {
       ESIM_VERIFY(!seen, path + ": more than one " + what + " array");

@@ -76,6 +76,23 @@ TEST(Vtu, BadInputNamesTheFile) {
     EXPECT_EQ(std::string(e.what()), path + ": not a VTK XML UnstructuredGrid file");
   }
   std::filesystem::remove(path);
+  // the Points' array has no Name: it was "DataArray '': value 11 is not a number" for the
+  // twelfth value
+  const std::string nan = tempPath("nan.vtu");
+  std::ofstream(nan) << "<VTKFile type=\"UnstructuredGrid\"><UnstructuredGrid>"
+                        "<Piece NumberOfPoints=\"4\" NumberOfCells=\"1\"><Points>"
+                        "<DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">"
+                        "0 0 0 1 0 0 0 1 0 0 0 nan</DataArray></Points></Piece>"
+                        "</UnstructuredGrid></VTKFile>";
+  try {
+    readVtu(nan);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), nan +
+                                         ": the Points' DataArray: value 12 is not a number; "
+                                         "expected ascii numbers separated by spaces");
+  }
+  std::filesystem::remove(nan);
   SlabSpec s;
   s.targetNodes = 50;
   const TetMesh m = makeSlab(s);
