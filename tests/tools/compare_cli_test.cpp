@@ -110,6 +110,32 @@ TEST_F(CompareCli, RunsOfDifferentLengthsSayWhyTheyDiffer) {
   fs::remove_all(shorter);
 }
 
+// frames without a PNG in both runs cannot be compared within a tolerance: the result says
+// so (it said MISMATCH, and "set output.png_every" on frames of runs that had set it)
+TEST_F(CompareCli, FramesWithoutAPngAreNamedAsTheMismatch) {
+  for (const char* name : {"every2a", "every2b"}) {
+    const Result r =
+        esim(std::string("run scenarios/paper_slab.yaml --frames 4 --no-video -q "
+                         "--set look.width=160 --set look.height=90 --set "
+                         "output.png_every=2 ") +
+             (name[6] == 'b' ? "--set tool.voltage_v=74 " : "") + "-o " + temp(name).string());
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+  }
+  const Result r = esim("compare " + run("every2a").string() + " " + run("every2b").string());
+  EXPECT_EQ(r.exitCode, 3) << r.output;
+  EXPECT_NE(r.output.find("frame 1: dhash 0 bits (no PNG of this frame in both runs: no "
+                          "tolerant comparison)"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("result        MISMATCH (2 differing frames without a PNG in both "
+                          "runs, so not comparable within a tolerance; output.png_every: 1 "
+                          "writes every frame's)"),
+            std::string::npos)
+      << r.output;
+  fs::remove_all(run("every2a"));
+  fs::remove_all(run("every2b"));
+}
+
 TEST_F(CompareCli, AReportFolderHoldsOneReportAndAnEarlierOneIsReplaced) {
   const fs::path report = temp("report");
   const Result differ =

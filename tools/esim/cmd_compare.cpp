@@ -62,7 +62,7 @@ int runCompare(const CompareOptions& o) {
       std::cout << ", PSNR " << d.psnrDb << " dB, " << 100 * d.offShare << " % pixels off, max "
                 << d.maxDiff << (d.withinTolerance ? " (within tolerance)" : " (OUT of tolerance)");
     else
-      std::cout << " (no PNG in both runs: set output.png_every for a tolerant comparison)";
+      std::cout << " (no PNG of this frame in both runs: no tolerant comparison)";
     std::cout << "\n";
   }
   printReport();
@@ -72,6 +72,15 @@ int runCompare(const CompareOptions& o) {
   }
   std::cout << "  result        MISMATCH";
   // the reason, when it is not a frame of both runs
+  int withoutImages = 0, outOfTolerance = 0;
+  for (const auto& d : r.diffs) {
+    withoutImages += d.hasImages ? 0 : 1;
+    outOfTolerance += d.hasImages && !d.withinTolerance ? 1 : 0;
+  }
+  if (!o.exact && r.framesA == r.framesB && outOfTolerance == 0 && withoutImages > 0)
+    std::cout << " (" << withoutImages << " differing frame" << (withoutImages == 1 ? "" : "s")
+              << " without a PNG in both runs, so not comparable within a tolerance; "
+                 "output.png_every: 1 writes every frame's)";
   if (r.framesA != r.framesB)
     std::cout << " (the runs have " << r.framesA << " and " << r.framesB << " frames"
               << (r.diffs.empty() ? "; the " + std::to_string(std::min(r.framesA, r.framesB)) +
