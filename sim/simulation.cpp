@@ -874,8 +874,9 @@ void Simulation::advance(FrameRecord& rec) {
       rec.powerW = (st.thermal.sourceJ - sourceBeforeJ) / dt;
       st.energyJ += st.thermal.sourceJ - sourceBeforeJ;
     }
-    checkMaximumPrinciple(highBeforeC, st.thermal.sourceJ > sourceBeforeJ, rec);
-    rec.maxTemperatureC = tissueTemperatureRangeC().second;
+    const auto [lowC, highC] = tissueTemperatureRangeC();
+    checkMaximumPrinciple(highBeforeC, lowC, highC, st.thermal.sourceJ > sourceBeforeJ, rec);
+    rec.maxTemperatureC = highC;
     st.maxTemperatureC = std::max(st.maxTemperatureC, rec.maxTemperatureC);
   } else {
     rec.maxTemperatureC = config_.thermal.initialTemperatureC;
@@ -1095,8 +1096,8 @@ std::pair<double, double> Simulation::tissueTemperatureRangeC() const {
 // without a source, rise above max(T before, ambient). Crank-Nicolson and consistent mass
 // can break it at large steps (undershoot); recorded with its size and warned, with the
 // remedy (backward Euler with lumped mass keeps it on non-obtuse meshes).
-void Simulation::checkMaximumPrinciple(double highBeforeC, bool heated, FrameRecord& rec) {
-  const auto [lowC, highC] = tissueTemperatureRangeC();
+void Simulation::checkMaximumPrinciple(double highBeforeC, double lowC, double highC, bool heated,
+                                       FrameRecord& rec) {
   const bool cooled = config_.thermal.convectionW_m2K > 0 && !model_->cooledInitial.empty();
   const double ambient = config_.thermal.ambientTemperatureC;
   // the lower bound holds over the whole run: the initial minimum (or the ambient), never

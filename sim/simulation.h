@@ -367,7 +367,9 @@ class Simulation {
   std::vector<int> findContacts(FrameRecord& record) const;
   void checkFinite(Stage stage, const char* what, const double* values, int count,
                    const char* unit) const;
-  void checkMaximumPrinciple(double highBeforeC, bool heated, FrameRecord& record);
+  // lowC, highC: the tissue's range after the step (tissueTemperatureRangeC)
+  void checkMaximumPrinciple(double highBeforeC, double lowC, double highC, bool heated,
+                             FrameRecord& record);
   std::pair<double, double> tissueTemperatureRangeC() const;  // min, max on alive tets' nodes
   std::string noContactWarning() const;  // the tool never touched the tissue ("" if it did)
   void refreshConductivity();

@@ -105,9 +105,9 @@ void requireUtf8Text(const std::string& text, const std::string& where, bool lin
   if (at == std::string::npos) return;
   std::string place = where;
   if (lineAndColumn) {
-    const size_t lineStart = text.rfind('\n', at == 0 ? 0 : at - 1);
+    const size_t newline = at == 0 ? std::string::npos : text.rfind('\n', at - 1);
     const size_t line = 1 + std::count(text.begin(), text.begin() + static_cast<long>(at), '\n');
-    const size_t column = at - (lineStart == std::string::npos || at == 0 ? 0 : lineStart + 1) + 1;
+    const size_t column = at - (newline == std::string::npos ? 0 : newline + 1) + 1;
     place += ":" + std::to_string(line) + ":" + std::to_string(column);
   }
   char byte[8];
