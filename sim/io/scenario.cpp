@@ -98,10 +98,24 @@ size_t firstNonUtf8(const std::string& text) {
   return std::string::npos;
 }
 
+// the offset of the first C0 control character other than tab, line feed and carriage return,
+// or of DEL, or npos: YAML 1.2 (5.1) allows none in a stream. yaml-cpp read a text that starts
+// with a NUL byte (or has one second) as UTF-16 or UTF-32, and made of it a name that was no
+// longer UTF-8: the scenario the run then wrote out (scenario.yaml) could not be read back
+size_t firstControl(const std::string& text) {
+  for (size_t i = 0; i < text.size(); ++i) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    if ((c < 0x20 && c != '\t' && c != '\n' && c != '\r') || c == 0x7F) return i;
+  }
+  return std::string::npos;
+}
+
 }  // namespace
 
 void requireUtf8Text(const std::string& text, const std::string& where, bool lineAndColumn) {
-  const size_t at = firstNonUtf8(text);
+  const size_t bad = firstNonUtf8(text);
+  const size_t control = firstControl(text);
+  const size_t at = std::min(bad, control);
   if (at == std::string::npos) return;
   std::string place = where;
   if (lineAndColumn) {
@@ -112,6 +126,11 @@ void requireUtf8Text(const std::string& text, const std::string& where, bool lin
   }
   char byte[8];
   std::snprintf(byte, sizeof byte, "0x%02X", static_cast<unsigned char>(text[at]));
+  if (at == control)
+    throw Error(place + ": a control character (byte " + byte +
+                ") that YAML does not allow in text; write it as an escape in a double-quoted "
+                "string (\"\\x" +
+                std::string(byte + 2) + "\") or remove it");
   throw Error(place + ": not UTF-8 text (byte " + byte + "); YAML is Unicode: save it as UTF-8");
 }
 

@@ -329,7 +329,9 @@ Scenario loadScenario(const std::string& path, const std::vector<std::string>& o
 // YAML is Unicode text: throws Error "WHERE[:LINE:COLUMN]: not UTF-8 text (byte 0xE9); ..." at
 // the first byte of `text` that is not well-formed UTF-8 (a file saved as Latin-1). Left in a
 // name, such a byte reached the run's JSON reports, whose writer threw at the end of the run
-// (exit 4, every frame computed and only DIR.partial/ left)
+// (exit 4, every frame computed and only DIR.partial/ left). Throws "...: a control character
+// (byte 0x00) that YAML does not allow in text; ..." at a C0 control other than tab, line feed
+// and carriage return, or DEL (escapes such as "\x1e" in double quotes are taken)
 void requireUtf8Text(const std::string& text, const std::string& where, bool lineAndColumn);
 
 // a value as quoted in an error message: 'text', or its first line cut at 60 characters with

@@ -3,6 +3,8 @@
 // scenario_oracle.h.
 // Its finding, an override whose key is blank (" =1") indexing an empty key list, is fixed
 // (refused by applyOverride); the inputs are kept in tests/fuzz/fuzz_override/regression-*.
+// So is its second, a value starting with NUL bytes, which yaml-cpp read as UTF-32 into a name
+// that was no longer UTF-8 (refused by requireUtf8Text: no control characters in the text).
 #include <cstddef>
 #include <cstdint>
 #include <string>

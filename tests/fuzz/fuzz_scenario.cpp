@@ -1,5 +1,8 @@
 // fuzz_scenario.cpp - libFuzzer target: the scenario loader on any text,
 // parseScenario(text, "fuzz.yaml", {}), then the checks of scenario_oracle.h.
+// Its finding, a text with NUL bytes that yaml-cpp read as UTF-16 or UTF-32 (the name it gave
+// was not UTF-8, so the resolved scenario could not be read back), is fixed: requireUtf8Text
+// refuses control characters; kept in tests/fuzz/fuzz_scenario/regression-nul-*.
 #include <cstddef>
 #include <cstdint>
 #include <string>

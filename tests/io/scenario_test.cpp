@@ -306,6 +306,26 @@ TEST(Scenario, TextThatIsNotUtf8IsRefusedWhereItIs) {
   for (const std::string bad : {"\xc0\xaf", "\xed\xa0\x80", "\xe2\x82", "\xf4\x90\x80\x80"})
     expectMessage(errorOf("name: x" + bad + "\n"), {"bad.yaml:1:8: not UTF-8 text"});
   expectMessage(errorOf("", {"name=\xff"}), {"bad.yaml: --set: not UTF-8 text (byte 0xFF)"});
+  // a control character: yaml-cpp read a text starting with NUL bytes as UTF-32 and made a
+  // name that was not UTF-8, so the resolved scenario it wrote could not be read back (fuzz)
+  expectMessage(errorOf(std::string("name: \"a\0b\"\n", 12)),
+                {"bad.yaml:1:9: a control character (byte 0x00) that YAML does not allow in "
+                 "text; write it as an escape in a double-quoted string (\"\\x00\") or "
+                 "remove it"});
+  expectMessage(errorOf("", {std::string("name=\0\0\0\x1e"
+                                         "er3ten",
+                                         15)}),
+                {"bad.yaml: --set: a control character (byte 0x00)"});
+  expectMessage(errorOf("name: x\ndescription: a\x1b[31m\n"),
+                {"bad.yaml:2:15: a control character (byte 0x1B)"});
+  expectMessage(errorOf("name: x\x7f\n"), {"bad.yaml:1:8: a control character (byte 0x7F)"});
+  // the escape is taken, and what it gives is written back as an escape
+  const Scenario escaped =
+      parseScenario("name: \"a\\x00\\x1eb\"\r\ndescription: \"x\ty\"\n", "ok.yaml");
+  EXPECT_EQ(escaped.name, std::string("a\0\x1e"
+                                      "b",
+                                      4));
+  EXPECT_EQ(parseScenario(scenarioToYaml(escaped), escaped.sourceName), escaped);
   const Scenario s = parseScenario(
       "name: \"Leber \xe2\x80\x94 caf\xc3\xa9 \xe6\xbc\xa2 \xf0\x9f\x99\x82\"\n", "ok.yaml");
   EXPECT_EQ(s.name, "Leber \xe2\x80\x94 caf\xc3\xa9 \xe6\xbc\xa2 \xf0\x9f\x99\x82");
