@@ -41,15 +41,49 @@ def read_run(run_dir):
     csv_path = os.path.join(run_dir, "timing.csv")
     if not os.path.isfile(csv_path):
         fail(EXIT_BAD_INPUT, "%s: no timing.csv (expected an ESim run folder)" % run_dir)
-    with open(csv_path, newline="") as f:
-        rows = list(csv.DictReader(f))
-    if rows and "interactive_ms" not in rows[0]:
+    try:
+        with open(csv_path, newline="", encoding="utf-8") as f:
+            reader = csv.reader(f)
+            header = next(reader, None)
+            lines = list(reader)
+    except (OSError, UnicodeDecodeError, csv.Error) as e:
+        fail(EXIT_BAD_INPUT, "%s: cannot be read: %s" % (csv_path, e))
+    if not header or "interactive_ms" not in header:
         fail(EXIT_BAD_INPUT, "%s: no interactive_ms column (not an ESim timing.csv)" % csv_path)
+    if not lines:
+        fail(EXIT_BAD_INPUT, "%s: no frames (a header and no rows)" % csv_path)
+    # every cell a number, "skipped" (a stage with nothing to do) or empty (absent): a cut or
+    # edited file was drawn with its bad cells as 0
+    for i, cells in enumerate(lines):
+        where = "%s:%d" % (csv_path, i + 2)
+        if len(cells) != len(header):
+            fail(EXIT_BAD_INPUT, "%s: %d fields where the header has %d (a cut or edited file?)"
+                 % (where, len(cells), len(header)))
+        for name, cell in zip(header, cells):
+            if cell in ("", "skipped"):
+                continue
+            try:
+                float(cell)
+            except ValueError:
+                fail(EXIT_BAD_INPUT, "%s: %s = '%s' is not a number" % (where, name, cell[:40]))
+    rows = [dict(zip(header, cells)) for cells in lines]
     info = {}
     json_path = os.path.join(run_dir, "timing.json")
     if os.path.isfile(json_path):
-        with open(json_path) as f:
-            info = json.load(f)
+        try:
+            with open(json_path, encoding="utf-8") as f:
+                info = json.load(f)
+        except (OSError, UnicodeDecodeError, ValueError) as e:
+            fail(EXIT_BAD_INPUT, "%s: not readable JSON: %s" % (json_path, e))
+        if not isinstance(info, dict):
+            fail(EXIT_BAD_INPUT, "%s: expected a JSON object" % json_path)
+        budget = info.get("budget_ms", 1000.0 / 30.0)
+        if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not budget > 0:
+            fail(EXIT_BAD_INPUT, "%s: budget_ms = %r; expected a number > 0" % (json_path, budget))
+        if not isinstance(info.get("mesh", {}), dict):
+            fail(EXIT_BAD_INPUT, "%s: mesh: expected an object" % json_path)
+        if not isinstance(info.get("physics", []), list):
+            fail(EXIT_BAD_INPUT, "%s: physics: expected a list" % json_path)
     return rows, info
 
 

@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -109,7 +110,36 @@ TEST(PlotCli, CutReportsAndEsimPlot) {
   EXPECT_FALSE(fs::exists(note.string() + ".png"));
   EXPECT_FALSE(fs::exists(out.string() + ".png"));
   fs::remove(note);
+  // RUN_DIR missing or a file: said so (it said "holds no timing.csv" of a file)
+  EXPECT_NE(esim("plot " + out.string() + "/nowhere").output.find("nowhere' does not exist"),
+            std::string::npos);
+  EXPECT_NE(esim("plot " + (out / "timing.csv").string()).output.find("' is a file; expected"),
+            std::string::npos);
   if (!haveMatplotlib()) GTEST_SKIP() << "no matplotlib for /usr/bin/python3";
+  // a cut or edited timing.csv or timing.json is refused where it is (exit 2, nothing
+  // written): the script drew bad cells as 0 and a cut line as a short frame
+  const fs::path edited = tempOut("edited");
+  fs::create_directories(edited);
+  const std::string header = csv.substr(0, csv.find('\n') + 1);
+  const std::string row1 =
+      csv.substr(header.size(), csv.find('\n', header.size()) + 1 - header.size());
+  for (const auto& [csvText, json, message] :
+       std::vector<std::tuple<std::string, std::string, std::string>>{
+           {header + row1.substr(0, 12) + "\n", "", "timing.csv:2: 3 fields where the header"},
+           {header + "0,abc" + row1.substr(row1.find(',', 2)), "",
+            "timing.csv:2: time_s = 'abc' is not a number"},
+           {header, "", "timing.csv: no frames"},
+           {csv, "{\"budget_ms\": \"x\"}", "timing.json: budget_ms = 'x'; expected a number"},
+           {csv, "{\"budget_ms\": ", "timing.json: not readable JSON"}}) {
+    std::ofstream(edited / "timing.csv") << csvText;
+    fs::remove(edited / "timing.json");
+    if (!json.empty()) std::ofstream(edited / "timing.json") << json;
+    const Result bad = esim("plot " + edited.string());
+    EXPECT_EQ(bad.exitCode, 2) << message << "\n" << bad.output;
+    EXPECT_NE(bad.output.find(message), std::string::npos) << bad.output;
+    EXPECT_FALSE(fs::exists(edited / "timing.png"));
+  }
+  fs::remove_all(edited);
   const Result p = esim("plot " + out.string());
   ASSERT_EQ(p.exitCode, 0) << p.output;
   EXPECT_TRUE(isPng(out / "timing.png"));

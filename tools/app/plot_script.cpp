@@ -19,7 +19,9 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// exit status of the scripts when matplotlib cannot be imported (tools/plot_*.py)
+// exit status of the scripts when their input is refused (a message on stderr names the
+// file, line and field) and when matplotlib cannot be imported (tools/plot_*.py)
+constexpr int kScriptBadInput = 2;
 constexpr int kScriptNoMatplotlib = 3;
 
 std::string pythonInterpreter() {
@@ -67,6 +69,8 @@ PlotResult runPlotScript(const std::string& script, const std::vector<std::strin
     return {PlotStatus::Unavailable,
             "matplotlib is missing for " + python +
                 " (Debian: apt-get install python3-matplotlib, or tools/install-deps)"};
+  if (WIFEXITED(status) && WEXITSTATUS(status) == kScriptBadInput)
+    return {PlotStatus::BadInput, "tools/" + script + " refused its input (above)"};
   if (WIFEXITED(status) && WEXITSTATUS(status) == 127)
     return {PlotStatus::Unavailable, python + " not found: install python3 (tools/install-deps)"};
   return {PlotStatus::Failed,

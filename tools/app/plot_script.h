@@ -22,7 +22,8 @@ namespace esim::app {
 enum class PlotStatus {
   Written,      // the script wrote its PNG
   Unavailable,  // no python3, no matplotlib or no script: nothing written
-  Failed,       // the script ran and failed (bad input, a bug): nothing written
+  BadInput,     // the script refused its input (its message names file, line, field)
+  Failed,       // the script ran and failed (a bug): nothing written
 };
 
 struct PlotResult {
@@ -34,8 +35,8 @@ struct PlotResult {
 std::filesystem::path findToolScript(const std::string& name);
 
 // runs `python3 tools/SCRIPT ARGS...`; its own output goes to this process's stdout/stderr.
-// The script's exit status 3 means "matplotlib missing" (Unavailable), any other non-zero
-// status Failed.
+// The script's exit status 2 means "input refused" (BadInput), 3 "matplotlib missing"
+// (Unavailable), any other non-zero status Failed.
 PlotResult runPlotScript(const std::string& script, const std::vector<std::string>& args);
 
 // timing.png of a run folder (tools/plot_timing.py): per-frame stacked stage times against

@@ -6,8 +6,9 @@
 //    (else bad input, exit 2). A sweep's run (DIR/runs/<id>/run of `esim sweep`) needs -o:
 //    its files are in DIR/manifest.jsonl, and a timing.png added to it would fail
 //    `esim dataset verify DIR`.
-// 2. Run the script; exit 0 when the PNG is written, 1 with the reason when it cannot be
-//    (python3 or matplotlib missing, a failing script).
+// 2. Run the script; exit 0 when the PNG is written, 2 when it refuses timing.csv or
+//    timing.json (a cut or edited file: its message names the line and field), 1 with the
+//    reason when it cannot be written (python3 or matplotlib missing, a failing script).
 #include <cctype>
 #include <filesystem>
 #include <iostream>
@@ -29,6 +30,13 @@ struct PlotOptions {
 int plotRun(const PlotOptions& opt) {
   namespace fs = std::filesystem;
   std::error_code ec;
+  ESIM_VERIFY(fs::exists(opt.runDir, ec), "esim plot: '" + opt.runDir +
+                                              "' does not exist (expected the folder of an "
+                                              "esim run, e.g. out/demo)");
+  ESIM_VERIFY(fs::is_directory(opt.runDir, ec),
+              "esim plot: '" + opt.runDir +
+                  "' is a file; expected the folder of an esim run (e.g. out/demo), which "
+                  "holds timing.csv");
   ESIM_VERIFY(fs::is_regular_file(fs::path(opt.runDir) / "timing.csv", ec),
               "esim plot: '" + opt.runDir +
                   "' holds no timing.csv (expected the folder of an esim run, e.g. out/demo)");
@@ -55,7 +63,7 @@ int plotRun(const PlotOptions& opt) {
     return kExitOk;
   }
   std::cerr << "esim: error: no timing.png: " << r.message << "\n";
-  return kExitFailure;
+  return r.status == app::PlotStatus::BadInput ? kExitBadInput : kExitFailure;
 }
 
 Registrar reg({"plot"},
