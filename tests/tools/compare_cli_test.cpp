@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -187,6 +188,45 @@ TEST_F(CompareCli, AReportFolderHoldingOtherFilesIsRefusedUntouched) {
   EXPECT_EQ(file.exitCode, 2) << file.output;
   EXPECT_NE(file.output.find("is a file; expected a folder"), std::string::npos) << file.output;
   fs::remove_all(report);
+}
+
+// an edited or foreign hashes.json is refused at its field (exit 2), nothing compared: a
+// dhash that was not hex ended in "internal error: stoull" (exit 4), a frame that was not an
+// object in a JSON type error (exit 4), and frames numbered out of order (7, a repeated 0,
+// -1) were compared by position and called identical
+TEST_F(CompareCli, AnEditedHashesFileIsRefusedAtItsField) {
+  const fs::path edited = temp("edited");
+  fs::create_directories(edited);
+  const auto original = nlohmann::json::parse(readFile(b_ / "hashes.json"));
+  using Edit = std::function<void(nlohmann::json&)>;
+  for (const auto& [edit, message] : std::vector<std::pair<Edit, std::string>>{
+           {[](auto& j) { j["frames"][1]["frame"] = 7; },
+            "hashes.json: frames[1].frame = 7; expected 1 (every frame, in order from 0)"},
+           {[](auto& j) { j["frames"][1]["frame"] = 0; }, "frames[1].frame = 0; expected 1"},
+           {[](auto& j) { j["frames"][2]["frame"] = 1e30; }, "frames[2].frame = 1e+30"},
+           {[](auto& j) { j["frames"][1]["dhash"] = "xyz"; },
+            "frames[1].dhash: expected 16 hexadecimal digits, got \"xyz\""},
+           {[](auto& j) { j["frames"][0].erase("xxh3"); }, "frames[0].xxh3: expected 16"},
+           {[](auto& j) { j["frames"][2] = 5; },
+            "frames[2]: expected an object {frame, xxh3, dhash}, got 5"},
+           {[](auto& j) { j["frames"] = nlohmann::json::object(); },
+            "frames: expected a list of {frame, xxh3, dhash}"},
+           {[](auto& j) { j["width"] = -5; },
+            "width = -5; expected the frame's size in pixels, an integer in [1, 65536]"},
+           {[](auto& j) { j.erase("height"); }, "height = (missing); expected"},
+           {[](auto& j) { j = nlohmann::json::array(); }, "expected a JSON object"}}) {
+    nlohmann::json j = original;
+    edit(j);
+    std::ofstream(edited / "hashes.json") << j.dump(2);
+    for (const auto& [first, second] : {std::pair{b_, edited}, std::pair{edited, b_}}) {
+      const Result r = esim("compare " + first.string() + " " + second.string());
+      EXPECT_EQ(r.exitCode, 2) << message << "\n" << r.output;
+      EXPECT_NE(r.output.find((edited / "hashes.json").string() + ": "), std::string::npos)
+          << r.output;
+      EXPECT_NE(r.output.find(message), std::string::npos) << r.output;
+    }
+  }
+  fs::remove_all(edited);
 }
 
 TEST_F(CompareCli, AMissingRunIsNamed) {

@@ -30,6 +30,47 @@ nlohmann::json readJson(const fs::path& path) {
   }
 }
 
+// 16 hexadecimal digits, as hashToHex writes a 64-bit hash
+bool isHashText(const nlohmann::json& v) {
+  if (!v.is_string()) return false;
+  const std::string& t = v.get_ref<const std::string&>();
+  return t.size() == 16 && t.find_first_not_of("0123456789abcdefABCDEF") == std::string::npos;
+}
+
+// what compareRuns reads of a hashes.json, checked: an edited or foreign file is refused at
+// its field (a dhash that was not hex ended in "internal error: stoull", exit 4; a frame list
+// out of order or numbered wrongly compared the frames by position and said "identical")
+void checkHashes(const nlohmann::json& j, const fs::path& path) {
+  const std::string file = path.string();
+  ESIM_VERIFY(j.is_object(), file + ": expected a JSON object (the hashes.json of an esim run)");
+  for (const char* key : {"width", "height"}) {
+    const auto it = j.find(key);
+    ESIM_VERIFY(it != j.end() && it->is_number_integer() && it->get<long long>() > 0 &&
+                    it->get<long long>() <= 65536,
+                file + ": " + key + " = " +
+                    (it == j.end() ? std::string("(missing)") : it->dump()) +
+                    "; expected the frame's size in pixels, an integer in [1, 65536]");
+  }
+  const auto frames = j.find("frames");
+  ESIM_VERIFY(frames != j.end() && frames->is_array(),
+              file + ": frames: expected a list of {frame, xxh3, dhash}");
+  for (size_t i = 0; i < frames->size(); ++i) {
+    const nlohmann::json& f = (*frames)[i];
+    const std::string at = file + ": frames[" + std::to_string(i) + "]";
+    ESIM_VERIFY(f.is_object(), at + ": expected an object {frame, xxh3, dhash}, got " + f.dump());
+    const auto number = f.find("frame");
+    ESIM_VERIFY(number != f.end() && number->is_number_integer() &&
+                    number->get<long long>() == static_cast<long long>(i),
+                at + ".frame = " + (number == f.end() ? std::string("(missing)") : number->dump()) +
+                    "; expected " + std::to_string(i) + " (every frame, in order from 0)");
+    ESIM_VERIFY(f.contains("xxh3") && isHashText(f["xxh3"]),
+                at + ".xxh3: expected 16 hexadecimal digits, got " +
+                    (f.contains("xxh3") ? f["xxh3"].dump() : std::string("(missing)")));
+    ESIM_VERIFY(!f.contains("dhash") || isHashText(f["dhash"]),
+                at + ".dhash: expected 16 hexadecimal digits, got " + f["dhash"].dump());
+  }
+}
+
 std::string frameName(int f) {
   std::ostringstream name;
   name << "frame_" << std::setw(5) << std::setfill('0') << f << ".png";
@@ -65,6 +106,8 @@ CompareResult compareRuns(const std::string& runA, const std::string& runB,
                           const std::string& reportDir, bool writeDiffs) {
   const nlohmann::json a = readJson(fs::path(runA) / "hashes.json");
   const nlohmann::json b = readJson(fs::path(runB) / "hashes.json");
+  checkHashes(a, fs::path(runA) / "hashes.json");
+  checkHashes(b, fs::path(runB) / "hashes.json");
   CompareResult r;
   ESIM_VERIFY(a.at("width") == b.at("width") && a.at("height") == b.at("height"),
               "compare: frame sizes differ (" + a.at("width").dump() + "x" + a.at("height").dump() +
