@@ -120,6 +120,46 @@ TEST(SweepCli, LocalSweepRecordsResumesAndVerifies) {
   fs::remove_all(dir);
 }
 
+// an edited manifest is reported line by line (exit 3), never an internal error: a line that
+// was a number, a status that was a number, or files that were a list ended in a JSON type
+// error (exit 4); a repeated id, a hash that is not a string and a path outside the variant's
+// folder are named as what they are
+TEST(SweepCli, AnEditedManifestIsReportedLineByLine) {
+  const fs::path dir = tempDir("edited_manifest");
+  const Result r = esim("sweep " + kTiny + " -o " + dir.string() + " --workers 2");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  const std::string manifest = readFile(dir / "manifest.jsonl");
+  std::vector<json> lines;
+  std::istringstream in(manifest);
+  for (std::string text; std::getline(in, text);) lines.push_back(json::parse(text));
+  ASSERT_EQ(lines.size(), 4u);
+  json second = lines[1];
+  second["files"]["runs/v0001/run/hashes.json"] = 5;
+  json third = lines[2];
+  third["files"]["../../../etc/passwd"] = "0000000000000000";
+  std::string text = lines[0].dump() + "\n" + second.dump() + "\n" + third.dump() + "\n" +
+                     lines[3].dump() + "\n" + lines[3].dump() + "\n5\n" +
+                     R"({"status": 1})"
+                     "\n" +
+                     R"({"status": "complete", "id": "v0009", "files": [1]})"
+                     "\n";
+  writeFile(dir / "manifest.jsonl", text);
+  const Result v = esim("dataset verify " + dir.string());
+  EXPECT_EQ(v.exitCode, 3) << v.output;
+  for (const std::string& part :
+       {"manifest.jsonl:2: files[\"runs/v0001/run/hashes.json\"]: expected an xxh3 string, got 5",
+        "manifest.jsonl:3: files: '../../../etc/passwd' is outside the variant's folder",
+        "manifest.jsonl:5: id v0003 is listed a second time",
+        "manifest.jsonl:6: expected a JSON object (a variant), got 5",
+        "manifest.jsonl:7: status: expected a string",
+        "manifest.jsonl:8: files: expected an object {path: xxh3}, got [1]", "6 problems"})
+    EXPECT_NE(v.output.find(part), std::string::npos) << part << "\n" << v.output;
+  EXPECT_EQ(v.output.find("runs/v0001/run/hashes.json: not in the manifest"), std::string::npos)
+      << "a file listed with a malformed hash is not also 'added after the run'\n"
+      << v.output;
+  fs::remove_all(dir);
+}
+
 // run_options: [--labels], the option without a value last on each run's command line:
 // every variant failed with "--labels: an empty value" (exit 2 from esim run)
 TEST(SweepCli, RunOptionsLabelsWithoutAModeLabelEveryVariant) {

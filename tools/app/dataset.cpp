@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <fstream>
 #include <map>
+#include <set>
 #include <sstream>
 
 #include "render/image_hash.h"
@@ -145,6 +146,7 @@ VerifyReport verifyDataset(const fs::path& dir) {
   if (!fs::is_regular_file(manifest, ec))
     throw Error(dir.string() + ": no manifest.jsonl (not a sweep folder made by esim sweep)");
   VerifyReport rep;
+  std::set<std::string> ids;  // of the complete variants so far
   std::istringstream in(readText(manifest));
   int lineNo = 0;
   for (std::string text; std::getline(in, text);) {
@@ -157,18 +159,41 @@ VerifyReport verifyDataset(const fs::path& dir) {
       rep.problems.push_back("manifest.jsonl:" + std::to_string(lineNo) + ": not valid JSON");
       continue;
     }
+    const std::string at = "manifest.jsonl:" + std::to_string(lineNo) + ": ";
+    // a line is an object whose status, id and files have the types esim sweep writes: an
+    // edited line was an internal error (a JSON type error, exit 4)
+    if (!line.is_object()) {
+      rep.problems.push_back(at + "expected a JSON object (a variant), got " + line.dump());
+      continue;
+    }
     ++rep.variants;
-    if (line.value("status", "") != "complete") {
+    const auto status = line.find("status");
+    if (status == line.end() || !status->is_string()) {
+      rep.problems.push_back(at + "status: expected a string (complete, failed, ...)");
+      continue;
+    }
+    if (status->get<std::string>() != "complete") {
       ++rep.notComplete;
       continue;
     }
     ++rep.complete;
-    const std::string id = line.value("id", "");
+    const auto idField = line.find("id");
+    const std::string id =
+        idField != line.end() && idField->is_string() ? idField->get<std::string>() : "";
     if (id.empty() || id.find('/') != std::string::npos || id.find("..") != std::string::npos) {
-      rep.problems.push_back("manifest.jsonl:" + std::to_string(lineNo) + ": bad id");
+      rep.problems.push_back(at + "bad id " +
+                             (idField == line.end() ? std::string("(missing)") : idField->dump()));
+      continue;
+    }
+    if (!ids.insert(id).second) {
+      rep.problems.push_back(at + "id " + id + " is listed a second time");
       continue;
     }
     const nlohmann::json files = line.value("files", nlohmann::json::object());
+    if (!files.is_object()) {
+      rep.problems.push_back(at + "files: expected an object {path: xxh3}, got " + files.dump());
+      continue;
+    }
     // what is on disk now: scenario.yaml and everything under run/
     std::map<std::string, fs::path> onDisk;
     const fs::path vdir = dataset::variantDir(dir, id);
@@ -183,10 +208,23 @@ VerifyReport verifyDataset(const fs::path& dir) {
           onDisk[it->path().lexically_relative(dir).generic_string()] = it->path();
     for (auto it = files.begin(); it != files.end(); ++it) {
       const std::string rel = it.key();
-      const std::string want = it.value().is_string() ? it.value().get<std::string>() : "";
+      if (!it.value().is_string()) {
+        rep.problems.push_back(at + "files[\"" + rel + "\"]: expected an xxh3 string, got " +
+                               it.value().dump());
+        onDisk.erase(rel);
+        continue;
+      }
+      const std::string want = it.value().get<std::string>();
       auto found = onDisk.find(rel);
       if (found == onDisk.end()) {
-        rep.problems.push_back(rel + ": missing (the manifest lists it)");
+        const fs::path relPath(rel);
+        const bool inside =
+            rel.rfind(dataset::variantDir(fs::path(), id).generic_string() + "/", 0) == 0 &&
+            rel.find("..") == std::string::npos && !relPath.is_absolute();
+        rep.problems.push_back(inside ? rel + ": missing (the manifest lists it)"
+                                      : at + "files: '" + rel +
+                                            "' is outside the variant's "
+                                            "folder (an edited manifest)");
         continue;
       }
       ++rep.filesChecked;

@@ -24,7 +24,8 @@ int verify(const VerifyOptions& opt) {
     if (r.notComplete) std::cout << ", " << r.notComplete << " not complete (not checked)";
     std::cout << ": "
               << (r.problems.empty() ? "all match the manifest"
-                                     : std::to_string(r.problems.size()) + " problems")
+                                     : std::to_string(r.problems.size()) +
+                                           (r.problems.size() == 1 ? " problem" : " problems"))
               << "\n";
   }
   return r.problems.empty() ? kExitOk : kExitMismatch;
