@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -157,6 +158,51 @@ TEST(SweepCli, AnEditedManifestIsReportedLineByLine) {
   EXPECT_EQ(v.output.find("runs/v0001/run/hashes.json: not in the manifest"), std::string::npos)
       << "a file listed with a malformed hash is not also 'added after the run'\n"
       << v.output;
+  fs::remove_all(dir);
+}
+
+// an edited sweep.json is refused at its field (exit 2) by every command that reads it, and
+// nothing is written: an id "../../x" led `esim dataset run` to make and run a variant
+// outside the sweep's folder; a list of variants that was a number, an id missing, a run
+// option that was a number were internal errors (exit 4). A result.json of the wrong shape
+// counts as not run (a status that was a number was an internal error too).
+TEST(SweepCli, AnEditedSweepJsonIsRefusedAtItsField) {
+  const fs::path dir = tempDir("edited_sweep_json");
+  const Result r = esim("sweep " + kTiny + " -o " + dir.string() + " --workers 2");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  const json original = json::parse(readFile(dir / "sweep.json"));
+  const std::string outside = (dir.parent_path() / "x").string();
+  fs::remove_all(outside);
+  using Edit = std::function<void(json&)>;
+  for (const auto& [edit, message] : std::vector<std::pair<Edit, std::string>>{
+           {[](json& j) { j["variants"][1]["id"] = "../../x"; },
+            "sweep.json: variants[1].id = \"../../x\"; expected \"v0001\" (sweep.json is esim "
+            "sweep's record: an edited or foreign file)"},
+           {[](json& j) { j["variants"][1].erase("id"); }, "variants[1].id = (missing)"},
+           {[](json& j) { j["variants"][2]["index"] = "q"; }, "variants[2].index: expected 2"},
+           {[](json& j) { j["variants"][1]["values"] = 5; }, "variants[1].values: expected"},
+           {[](json& j) { j["variants"] = 5; }, "variants: expected a list of {id, index"},
+           {[](json& j) { j["run_options"] = {5}; }, "run_options: expected a list of strings"},
+           {[](json& j) { j = json::array(); }, "sweep.json: expected a JSON object"}}) {
+    json j = original;
+    edit(j);
+    writeFile(dir / "sweep.json", j.dump(2));
+    for (const std::string& command :
+         {"dataset run " + dir.string() + " 1", "sweep " + kTiny + " -o " + dir.string()}) {
+      const Result bad = esim(command);
+      EXPECT_EQ(bad.exitCode, 2) << command << "\n" << bad.output;
+      EXPECT_NE(bad.output.find(message), std::string::npos) << message << "\n" << bad.output;
+    }
+    EXPECT_FALSE(fs::exists(outside)) << "a variant was made outside the sweep";
+  }
+  writeFile(dir / "sweep.json", original.dump(2));
+  // a malformed result.json: the variant is run again, its result written anew
+  writeFile(dir / "runs/v0001/result.json", R"({"status": 5, "files": [1]})");
+  const Result again = esim("dataset run " + dir.string() + " v0001");
+  EXPECT_EQ(again.exitCode, 0) << again.output;
+  EXPECT_NE(again.output.find("v0001: complete"), std::string::npos) << again.output;
+  EXPECT_EQ(json::parse(readFile(dir / "runs/v0001/result.json"))["status"], "complete");
+  EXPECT_EQ(esim("dataset verify " + dir.string()).exitCode, 0);
   fs::remove_all(dir);
 }
 

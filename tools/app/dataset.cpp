@@ -17,6 +17,7 @@
 #include "sim/core_error.h"
 #include "tools/app/json_text.h"
 #include "tools/app/run_output.h"
+#include "tools/app/sweep_spec.h"
 
 namespace esim::app {
 
@@ -97,15 +98,67 @@ nlohmann::json readSweepJson(const fs::path& dir) {
   if (!fs::is_regular_file(p, ec))
     throw Error(dir.string() + ": not a sweep folder (no sweep.json; esim sweep SPEC -o " +
                 dir.string() + " makes one)");
-  return readJson(p);
+  const nlohmann::json j = readJson(p);
+  checkSweepJson(j, p);
+  return j;
 }
+
+void checkSweepJson(const nlohmann::json& j, const fs::path& path) {
+  const std::string file = path.string() + ": ";
+  const std::string edited = " (sweep.json is esim sweep's record: an edited or foreign file)";
+  ESIM_VERIFY(j.is_object(), file + "expected a JSON object" + edited);
+  const auto variants = j.find("variants");
+  ESIM_VERIFY(variants != j.end() && variants->is_array(),
+              file + "variants: expected a list of {id, index, values}" + edited);
+  for (size_t i = 0; i < variants->size(); ++i) {
+    const nlohmann::json& v = (*variants)[i];
+    const std::string at = file + "variants[" + std::to_string(i) + "]";
+    ESIM_VERIFY(v.is_object(), at + ": expected an object {id, index, values}" + edited);
+    const auto id = v.find("id");
+    const bool idOk = id != v.end() && id->is_string() &&
+                      id->get_ref<const std::string&>() == variantId(i, variants->size());
+    ESIM_VERIFY(idOk, at + ".id = " + (id == v.end() ? std::string("(missing)") : id->dump()) +
+                          "; expected \"" + variantId(i, variants->size()) + "\"" + edited);
+    const auto index = v.find("index");
+    ESIM_VERIFY(index != v.end() && index->is_number_integer() &&
+                    index->get<long long>() == static_cast<long long>(i),
+                at + ".index: expected " + std::to_string(i) + edited);
+    ESIM_VERIFY(v.contains("values") && v["values"].is_object(),
+                at + ".values: expected an object {field: value}" + edited);
+  }
+  if (const auto opts = j.find("run_options"); opts != j.end()) {
+    bool ok = opts->is_array();
+    if (ok)
+      for (const auto& o : *opts) ok = ok && o.is_string();
+    ESIM_VERIFY(ok, file + "run_options: expected a list of strings" + edited);
+  }
+}
+
+namespace {
+// a result.json as runVariant writes it: an object whose status, message, id, files and
+// numbers have their types (anything else, torn or edited, counts as not run)
+bool wellFormedResult(const nlohmann::json& r) {
+  if (!r.is_object() || !r.contains("status") || !r["status"].is_string()) return false;
+  for (const char* key : {"id", "message", "video"})
+    if (r.contains(key) && !r[key].is_string() && !r[key].is_null()) return false;
+  for (const char* key : {"wall_s", "cpu_s", "peak_rss_mb", "frames", "exit_code"})
+    if (r.contains(key) && !r[key].is_number() && !r[key].is_null()) return false;
+  if (r.contains("files")) {
+    if (!r["files"].is_object()) return false;
+    for (const auto& h : r["files"])
+      if (!h.is_string()) return false;
+  }
+  return true;
+}
+}  // namespace
 
 nlohmann::json readResult(const fs::path& dir, const std::string& id) {
   const fs::path p = dataset::variantDir(dir, id) / "result.json";
   std::error_code ec;
   if (!fs::is_regular_file(p, ec)) return nullptr;
   try {
-    return nlohmann::json::parse(readText(p));
+    nlohmann::json r = nlohmann::json::parse(readText(p));
+    return wellFormedResult(r) ? r : nlohmann::json();
   } catch (const std::exception&) {
     return nullptr;  // a torn or foreign file: the variant counts as not run
   }

@@ -57,10 +57,18 @@ std::string hashFile(const std::filesystem::path& path);
 // sorted by path
 nlohmann::json hashTree(const std::filesystem::path& root, const std::filesystem::path& base);
 
-// DIR/sweep.json (throws Error, input kind, when DIR holds none)
+// DIR/sweep.json, checked by checkSweepJson (throws Error, input kind, when DIR holds none)
 nlohmann::json readSweepJson(const std::filesystem::path& dir);
 
-// runs/<id>/result.json, or null when there is none
+// what the sweep and dataset commands read of a sweep.json, checked: an object whose
+// variants are {id, index, values} with the ids and indices esim sweep gives (v0000, 0, ...)
+// and run_options a list of strings; throws Error "PATH: variants[1].id = ...; expected
+// ..." (an edited id such as "../../x" led `esim dataset run` to write outside the sweep, an
+// edited type was an internal error)
+void checkSweepJson(const nlohmann::json& j, const std::filesystem::path& path);
+
+// runs/<id>/result.json, or null when there is none or it is torn or malformed (a status
+// that is not a string, files that are not {path: hash}): the variant counts as not run
 nlohmann::json readResult(const std::filesystem::path& dir, const std::string& id);
 // writes runs/<id>/result.json (a new file renamed into place)
 void writeResult(const std::filesystem::path& dir, const std::string& id,
