@@ -3,6 +3,7 @@
 // surface file beside --slab-nodes, meshing options for the slab or a .vtu).
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <string>
 
 #include "tests/scratch_dir_util.h"
@@ -48,7 +49,15 @@ TEST_F(MeshInfoCli, AnOptionTheModeWouldIgnoreIsRefused) {
       {"\"" + vtu + "\" --refine-size 0.001",
        "--refine-size is an option of meshing a surface file, and a .vtu tet mesh is read as it "
        "is"},
+      // --vtu checked before the meshing (it failed after it: "cannot rename temporary file:
+      // Is a directory", "cannot open for writing")
+      {"assets/liver.obj --vtu \"" + root_.string() + "\"",
+       "mesh-info: --vtu '" + root_.string() + "' must end in .vtu"},
+      {"assets/liver.obj --vtu \"" + root_.string() + "/d.vtu\"", "d.vtu' is a folder"},
+      {"assets/liver.obj --vtu \"" + root_.string() + "/none/x.vtu\"",
+       "/none/x.vtu': the folder '" + root_.string() + "/none' does not exist"},
   };
+  std::filesystem::create_directories(root_ / "d.vtu");
   for (const Case& c : cases) {
     const auto r = shell(esim(c.args));
     EXPECT_EQ(r.exitCode, 2) << c.args << "\n" << r.output;
