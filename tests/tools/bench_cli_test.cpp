@@ -153,9 +153,15 @@ TEST_F(BenchCli, RenderSampleChecksItsOptionsBeforeMakingItsFolder) {
   const auto r = shell(std::string("\"") + ESIM_EXE + "\" render-sample --width 5 --out \"" +
                        out.string() + "\"");
   EXPECT_EQ(r.exitCode, 2) << r.output;
-  EXPECT_NE(r.output.find("look.width/height: 5x360 is out of range"), std::string::npos)
+  EXPECT_NE(r.output.find("--width: Value 5 not in range 16 to 8192"), std::string::npos)
       << r.output;
   EXPECT_FALSE(fs::exists(out)) << "a failed render-sample left its folder behind";
+  // named as the option (it said "RenderOptions::backend")
+  const auto b = shell(std::string("\"") + ESIM_EXE + "\" render-sample --backend foo --out \"" +
+                       out.string() + "\"");
+  EXPECT_EQ(b.exitCode, 2) << b.output;
+  EXPECT_NE(b.output.find("--backend: foo not in {osmesa,egl}"), std::string::npos) << b.output;
+  EXPECT_FALSE(fs::exists(out));
 }
 
 TEST_F(BenchCli, AnUnwritableTableFailsBeforeTheBenchRuns) {

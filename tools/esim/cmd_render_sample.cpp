@@ -81,9 +81,17 @@ Registrar registerRenderSample(
     [](CLI::App& app) -> Runner {
       auto opt = std::make_shared<RenderSampleOptions>();
       app.add_option("--out", opt->out, "output folder")->capture_default_str();
-      app.add_option("--width", opt->width, "image width [px]")->capture_default_str();
-      app.add_option("--height", opt->height, "image height [px]")->capture_default_str();
-      app.add_option("--backend", opt->backend, "osmesa or egl")->capture_default_str();
+      // checked by the parser, named as the options (the renderer's own messages named
+      // look.width/height and RenderOptions::backend, fields the user never wrote)
+      app.add_option("--width", opt->width, "image width [px]")
+          ->check(CLI::Range(16, 8192))
+          ->capture_default_str();
+      app.add_option("--height", opt->height, "image height [px]")
+          ->check(CLI::Range(16, 8192))
+          ->capture_default_str();
+      app.add_option("--backend", opt->backend, "osmesa or egl")
+          ->check(CLI::IsMember({"osmesa", "egl"}))
+          ->capture_default_str();
       app.add_option("--surface", opt->surface, "'slab' or a closed surface file")
           ->capture_default_str();
       return [opt] { return runRenderSample(*opt); };
