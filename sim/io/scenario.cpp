@@ -176,15 +176,24 @@ std::string quoteInMessage(const std::string& text) {
   return out;
 }
 
+std::string readYamlText(std::istream& in, const std::string& name, const std::string& what) {
+  std::string text;
+  char chunk[1 << 16];
+  while (in.read(chunk, sizeof chunk) || in.gcount() > 0) {
+    text.append(chunk, static_cast<size_t>(in.gcount()));
+    if (text.size() > kMaxYamlBytes)
+      throw Error(name + ": more than " + std::to_string(kMaxYamlBytes >> 20) + " MiB; a " + what +
+                  " is a short YAML file (is this the right file?)");
+  }
+  if (in.bad()) throw Error(name + ": read failed", ErrorKind::Run);
+  return text;
+}
+
 Scenario loadScenario(const std::string& path, const std::vector<std::string>& overrides) {
   if (path == "-") {
     // standard input, read once (stdin cannot be read again: a bench that loads the scene
     // per size got an empty scenario, i.e. the defaults, the second time)
-    static const std::string text = [] {
-      std::stringstream buffer;
-      buffer << std::cin.rdbuf();
-      return buffer.str();
-    }();
+    static const std::string text = readYamlText(std::cin, "<stdin>", "scenario");
     return parseScenario(text, "<stdin>", overrides);
   }
   std::error_code ec;
@@ -192,9 +201,7 @@ Scenario loadScenario(const std::string& path, const std::vector<std::string>& o
     throw Error(path + ": is a folder; expected a scenario file (YAML, e.g. scenarios/*.yaml)");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error(path + ": cannot open the scenario file");
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  return parseScenario(buffer.str(), path, overrides);
+  return parseScenario(readYamlText(in, path, "scenario"), path, overrides);
 }
 
 int frameCount(const Scenario& s) {

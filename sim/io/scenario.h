@@ -14,7 +14,9 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
+#include <iosfwd>
 #include <limits>
 #include <string>
 #include <vector>
@@ -325,6 +327,14 @@ struct Scenario {
 // a folder or an unreadable file is an Error naming it. "-" is standard input (read once;
 // named "<stdin>" in messages; relative asset paths from the working folder)
 Scenario loadScenario(const std::string& path, const std::vector<std::string>& overrides = {});
+
+// the bound on a scenario or sweep file read by readYamlText: /dev/zero or a wrong file (a
+// video) given as the scenario was read until memory ran out
+inline constexpr size_t kMaxYamlBytes = size_t{16} << 20;
+
+// the whole of `in` (a scenario or sweep file, standard input), at most kMaxYamlBytes: more
+// throws Error "NAME: more than 16 MiB; a WHAT is a short YAML file (...)"
+std::string readYamlText(std::istream& in, const std::string& name, const std::string& what);
 
 // YAML is Unicode text: throws Error "WHERE[:LINE:COLUMN]: not UTF-8 text (byte 0xE9); ..." at
 // the first byte of `text` that is not well-formed UTF-8 (a file saved as Latin-1). Left in a

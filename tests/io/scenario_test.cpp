@@ -8,6 +8,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <sstream>
 
 #include "sim/core_error.h"
@@ -29,6 +30,17 @@ std::string errorOf(const std::string& yaml, const std::vector<std::string>& ove
     return e.what();
   }
   ADD_FAILURE() << "no error for:\n" << yaml;
+  return "";
+}
+
+// the error message of f (fails the test when it throws none)
+std::string errorMessage(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "no error";
   return "";
 }
 
@@ -329,6 +341,19 @@ TEST(Scenario, TextThatIsNotUtf8IsRefusedWhereItIs) {
   const Scenario s = parseScenario(
       "name: \"Leber \xe2\x80\x94 caf\xc3\xa9 \xe6\xbc\xa2 \xf0\x9f\x99\x82\"\n", "ok.yaml");
   EXPECT_EQ(s.name, "Leber \xe2\x80\x94 caf\xc3\xa9 \xe6\xbc\xa2 \xf0\x9f\x99\x82");
+}
+
+// a file that never ends (/dev/zero) or a wrong one (a video) is refused at 16 MiB: it was
+// read until memory ran out ("out of memory" after 30 GB)
+TEST(Scenario, AFileLargerThanAnyScenarioIsRefusedAsSuch) {
+  expectMessage(errorMessage([] { loadScenario("/dev/zero"); }),
+                {"/dev/zero: more than 16 MiB; a scenario is a short YAML file (is this the "
+                 "right file?)"});
+  std::istringstream big(std::string(kMaxYamlBytes + 1, ' '));
+  expectMessage(errorMessage([&] { readYamlText(big, "big.yaml", "sweep"); }),
+                {"big.yaml: more than 16 MiB; a sweep is"});
+  std::istringstream exact(std::string(kMaxYamlBytes, ' '));
+  EXPECT_EQ(readYamlText(exact, "ok.yaml", "scenario").size(), kMaxYamlBytes);
 }
 
 TEST(Scenario, MalformedYamlNamesLineAndColumn) {

@@ -574,9 +574,7 @@ class Expander {
   explicit Expander(const SweepSpec& spec) : spec_(spec) {
     std::ifstream in(spec.base, std::ios::binary);
     if (!in) throw Error(spec.baseWhere + ": " + spec.base + ": cannot open the scenario file");
-    std::stringstream ss;
-    ss << in.rdbuf();
-    baseText_ = ss.str();
+    baseText_ = readYamlText(in, spec.baseWhere + ": " + spec.base, "scenario");
     for (const auto& k : spec.knobs)
       if (k.source == KnobSource::Grid) grid_.push_back(&k);
   }
@@ -751,9 +749,7 @@ SweepSpec loadSweepSpec(const std::string& path) {
     throw Error(path + ": is a folder; expected a sweep file (YAML, e.g. scenarios/sweeps/*.yaml)");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error(path + ": cannot open the sweep file");
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  return parseSweepSpec(buffer.str(), path);
+  return parseSweepSpec(readYamlText(in, path, "sweep"), path);
 }
 
 std::size_t sweepVariantCount(const SweepSpec& spec) {
