@@ -57,6 +57,11 @@ std::string resolveAsset(const std::string& path, const std::string& sourceName,
     std::error_code ec;
     const fs::path full = fs::absolute(t, ec).lexically_normal();
     if (fs::is_regular_file(full, ec)) return full.string();
+    if (fs::exists(full, ec))  // it said "not found" of a folder or a device
+      reader.fail("mesh.file.path",
+                  "mesh.file.path: '" + full.string() + "' is " +
+                      (fs::is_directory(full, ec) ? "a folder" : "not a regular file") +
+                      "; expected a mesh file (OBJ, STL, PLY, glTF or .vtu)");
     const std::string n = full.string();
     if (std::find(names.begin(), names.end(), n) == names.end()) names.push_back(n);
   }

@@ -243,8 +243,13 @@ void writeVtu(const std::string& path, const TetMesh& mesh, const std::vector<Vt
 }
 
 VtuData readVtu(const std::string& path) {
+  std::error_code ec;
+  ESIM_VERIFY(std::filesystem::exists(path, ec), path + ": file not found");
+  // (a device such as /dev/zero was read until memory ran out)
+  ESIM_VERIFY(std::filesystem::is_regular_file(path, ec),
+              path + ": cannot read the .vtu: not a regular file");
   std::ifstream is(path, std::ios::binary);
-  ESIM_VERIFY(is.good(), path + ": file not found or not readable");
+  ESIM_VERIFY(is.good(), path + ": not readable");
   std::stringstream ss;
   ss << is.rdbuf();
   const std::string text = ss.str();

@@ -65,7 +65,14 @@ TEST(Vtu, BadInputNamesTheFile) {
     readVtu("/nonexistent/x.vtu");
     FAIL();
   } catch (const Error& e) {
-    EXPECT_STREQ(e.what(), "/nonexistent/x.vtu: file not found or not readable");
+    EXPECT_STREQ(e.what(), "/nonexistent/x.vtu: file not found");
+  }
+  // a device (it was read until memory ran out)
+  try {
+    readVtu("/dev/zero");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "/dev/zero: cannot read the .vtu: not a regular file");
   }
   const std::string path = tempPath("garbage.vtu");
   std::ofstream(path) << "hello";
