@@ -61,7 +61,7 @@ std::string resolveAsset(const std::string& path, const std::string& sourceName,
       reader.fail("mesh.file.path",
                   "mesh.file.path: '" + full.string() + "' is " +
                       (fs::is_directory(full, ec) ? "a folder" : "not a regular file") +
-                      "; expected a mesh file (OBJ, STL, PLY, glTF or .vtu)");
+                      "; expected a closed surface file (OBJ, STL, PLY or glTF)");
     const std::string n = full.string();
     if (std::find(names.begin(), names.end(), n) == names.end()) names.push_back(n);
   }

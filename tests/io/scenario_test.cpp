@@ -438,9 +438,9 @@ TEST(Scenario, MissingAssetListsThePathsTried) {
   // a folder or a device is said to be one (it said "not found")
   expectMessage(errorOf("mesh:\n  source: file\n  file:\n    path: /dev/zero\n"),
                 {"bad.yaml:4:11: mesh.file.path: '/dev/zero' is not a regular file; expected a "
-                 "mesh file (OBJ, STL, PLY, glTF or .vtu)"});
+                 "closed surface file (OBJ, STL, PLY or glTF)"});
   expectMessage(errorOf("mesh:\n  source: file\n  file:\n    path: /tmp\n"),
-                {"mesh.file.path: '/tmp' is a folder; expected a mesh file"});
+                {"mesh.file.path: '/tmp' is a folder; expected a closed surface file"});
   // a file next to the scenario is found and resolved to an absolute path
   const fs::path dir = fs::temp_directory_path() / "esim_scenario_test_asset";
   fs::create_directories(dir);

@@ -831,6 +831,27 @@ TEST(RunCli, AllowedValuesGetClearAnswers) {
       << r.output;
 }
 
+// a surface file is meshed before anything else is said, which takes minutes for a fine
+// mesh: the run says what it meshes first (it was silent until the mesh was done), and -q
+// keeps it quiet
+TEST(RunCli, MeshingASurfaceFileIsAnnounced) {
+  const fs::path out = tempOut("surface_file_announced");
+  const std::string args =
+      "scenarios/liver_cut.yaml --frames 1 --no-video --set output.hashes=false --set "
+      "mesh.file.cell_size_m=0.01 --set mesh.file.facet_size_m=0.01 --set "
+      "mesh.file.refine.enabled=false --overwrite -o " +
+      out.string();
+  const Result r = esimRun(args);
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_EQ(r.output.rfind("esim: meshing assets/liver.obj (mesh.file.cell_size_m 0.01 m)\n", 0),
+            0u)
+      << r.output;
+  const Result quiet = esimRun(args + " -q");
+  ASSERT_EQ(quiet.exitCode, 0) << quiet.output;
+  EXPECT_EQ(quiet.output.find("esim: meshing"), std::string::npos) << quiet.output;
+  fs::remove_all(out);
+}
+
 TEST(RunCli, AnEmptyScenarioRunsTheDefaultsAndTheirBladeDelivers) {
   const fs::path dir = tempOut("empty_scenario");
   fs::create_directories(dir);

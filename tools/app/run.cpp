@@ -120,6 +120,16 @@ Setup setUp(const RunOptions& opt, Scenario scenario) {
   // scenario's: its errors name the file as the scenario checks do
   try {
     const auto t0 = Clock::now();
+    // Mesh_3 of a surface file takes seconds to minutes (about 500 s for 1e7 tets here) and
+    // says nothing while it runs: say what it does first
+    if (!opt.quiet && sc.mesh.source == MeshSource::File) {
+      const ScenarioMeshFile& f = sc.mesh.file;
+      std::fprintf(stderr, "esim: meshing %s (mesh.file.cell_size_m %g m", f.path.c_str(),
+                   f.cellSizeM);
+      if (f.refine.enabled)
+        std::fprintf(stderr, ", refine.cell_size_m %g m near the cut", f.refine.cellSizeM);
+      std::fprintf(stderr, ")\n");
+    }
     TetMesh mesh = buildMesh(sc);
     s.meshS = secondsSince(t0);
     s.nodes = mesh.numNodes();
