@@ -470,6 +470,50 @@ TEST(SweepCli, DryRunListsTheVariants) {
   EXPECT_NE(r.output.find("path.angle_deg"), std::string::npos) << r.output;
 }
 
+// what would break the Slurm script is refused before anything is written: a line break in
+// --sbatch-arg or -o (the rest of the line became a command of the script), an option the
+// script sets itself; a sweep name's line break is left out of the job name
+TEST(SweepCli, SlurmScriptsTakeNothingThatBreaksThem) {
+  const fs::path dir = tempDir("slurm_refused");
+  for (const auto& [args, message] : std::vector<std::pair<std::string, std::string>>{
+           {"--sbatch-arg=\"$(printf '%s\\n%s' --partition=a 'rm -rf x')\"",
+            "--sbatch-arg '--partition=a ...' (22 characters): a line break or control "
+            "character would end the #SBATCH line; give one option per --sbatch-arg"},
+           {"--sbatch-arg=--mem=1G",
+            "--sbatch-arg '--mem=1G': --mem is set by esim: give --mem-mb"},
+           {"--sbatch-arg=--mem-per-cpu=1G", "--mem-per-cpu is set by esim: give --mem-mb"},
+           {"--sbatch-arg=-c4", "--sbatch-arg '-c4': -c is set by esim: give --cpus"},
+           {"--sbatch-arg='--time 5'", "--time is set by esim: give --time-min"},
+           {"--sbatch-arg=--array=0-1", "--array is set by esim: esim writes the job array"},
+           {"--sbatch-arg=-o/tmp/x", "-o is set by esim: esim writes each task's log"},
+           {"--sbatch-arg=partition=long", "expected an sbatch option, e.g. --partition=long"}}) {
+    const Result r = esim("sweep " + kTiny + " -o " + dir.string() + " --slurm " + args);
+    EXPECT_EQ(r.exitCode, 2) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find(message), std::string::npos) << args << "\n" << r.output;
+    EXPECT_FALSE(fs::exists(dir)) << args;
+  }
+  const Result folder =
+      esim("sweep " + kTiny + " -o \"$(printf '%s\\n%s' " + dir.string() + " x)\" --slurm");
+  EXPECT_EQ(folder.exitCode, 2) << folder.output;
+  EXPECT_NE(folder.output.find("a folder name with a line break or control character cannot go "
+                               "into the Slurm script"),
+            std::string::npos)
+      << folder.output;
+  EXPECT_FALSE(fs::exists(dir.string() + "\nx"));
+  // a name with a line break (a YAML escape): the job name keeps what a file name may hold
+  const fs::path spec = tempDir("slurm_name.yaml");
+  writeFile(spec, std::string("name: \"a\\nb c\"\nbase: ") + ESIM_SOURCE_DIR +
+                      "/scenarios/paper_slab_506.yaml\nset: {time.duration_s: 0.1, look.width: "
+                      "160, look.height: 90}\ngrid: {tool.voltage_v: [60, 70]}\n");
+  const Result named = esim("sweep " + spec.string() + " -o " + dir.string() + " --slurm");
+  ASSERT_EQ(named.exitCode, 0) << named.output;
+  const std::string script = readFile(dir / "slurm" / "sweep.sbatch");
+  EXPECT_NE(script.find("#SBATCH --job-name=esim-a_b_c\n#SBATCH --array="), std::string::npos)
+      << script;
+  fs::remove_all(dir);
+  fs::remove(spec);
+}
+
 TEST(SweepCli, SlurmWithoutSubmitWritesTheJobArrayScript) {
   const fs::path dir = tempDir("slurm_script");
   const Result r = esim("sweep " + kTiny + " -o " + dir.string() +

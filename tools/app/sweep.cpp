@@ -746,7 +746,8 @@ fs::path writeScript(const fs::path& absDir, const std::string& file, const Swee
     << "# written by esim sweep --slurm: one variant of " << absDir.string() << " per array task\n"
     << "# (the folder must be shared with the nodes, and " << exe << " on them)\n"
     << "# resources: " << res.basis << "\n"
-    << "#SBATCH --job-name=esim-" << spec.name << "\n"
+    << "#SBATCH --job-name=esim-" << defaultRunFolder(spec.name).filename().string()
+    << "\n"  // (the name's letters, digits, '-', '_' and '.'; a line break ended the line)
     << "#SBATCH --array=" << arraySpec(indices)
     << (opt.maxParallel > 0 ? "%" + std::to_string(opt.maxParallel) : "") << "\n"
     << "#SBATCH --ntasks=1\n"
@@ -926,9 +927,38 @@ std::string esimExecutable() {
   return ec ? std::string("/proc/self/exe") : p.string();
 }
 
+void checkSbatchArgs(const std::vector<std::string>& args) {
+  // the options the script sets itself, and the esim option that sets each
+  static const std::vector<std::pair<std::vector<std::string>, std::string>> owned{
+      {{"--array", "-a"},
+       "esim writes the job array, one task per variant (--max-parallel "
+       "limits how many run at once)"},
+      {{"--output", "-o", "--error", "-e"}, "esim writes each task's log to DIR/slurm/logs/"},
+      {{"--ntasks", "-n"}, "a variant is one task"},
+      {{"--cpus-per-task", "-c"}, "give --cpus"},
+      {{"--mem", "--mem-per-cpu", "--mem-per-gpu"}, "give --mem-mb (esim writes --mem)"},
+      {{"--time", "-t"}, "give --time-min"},
+  };
+  for (const std::string& a : args) {
+    for (const char c : a)
+      if (static_cast<unsigned char>(c) < 0x20 || c == 0x7F)
+        throw Error("--sbatch-arg " + quoteInMessage(a) +
+                    ": a line break or control character would end the #SBATCH line; give one "
+                    "option per --sbatch-arg");
+    ESIM_VERIFY(!a.empty() && a[0] == '-',
+                "--sbatch-arg '" + a + "': expected an sbatch option, e.g. --partition=long");
+    const std::string name = a.substr(0, a.find_first_of("= "));
+    for (const auto& [names, why] : owned)
+      for (const std::string& n : names)
+        if (name == n || (n.size() == 2 && a.rfind(n, 0) == 0 && a.size() > 2 && a[1] != '-'))
+          throw Error("--sbatch-arg '" + a + "': " + n + " is set by esim: " + why);
+  }
+}
+
 int runSweep(const SweepOptions& opt, const RunOptionsCheck& checkRunOptions) {
   if (opt.workers < 1) throw Error("--workers: expected 1 or more");
   if (opt.submit && !opt.slurm) throw Error("--submit goes with --slurm");
+  checkSbatchArgs(opt.sbatchArgs);
   // ---- 1. the sweep file, every variant, the run options ----
   const SweepSpec spec = loadSweepSpec(opt.spec);
   const std::vector<std::string> runOptions = allRunOptions(spec, opt);
@@ -952,6 +982,12 @@ int runSweep(const SweepOptions& opt, const RunOptionsCheck& checkRunOptions) {
   }
   if (opt.outDir.empty()) throw Error("-o DIR: the sweep's folder is required");
   const fs::path dir(opt.outDir);
+  if (opt.slurm)  // the script names the folder on its #SBATCH and comment lines
+    for (const char c : opt.outDir)
+      if (static_cast<unsigned char>(c) < 0x20 || c == 0x7F)
+        throw Error("-o " + quoteInMessage(opt.outDir) +
+                    ": a folder name with a line break or control character cannot go into the "
+                    "Slurm script; choose another");
   // ---- 2. the folder (this sweep's alone until it ends) ----
   FolderLock lock;
   lockSweepFolder(dir, lock);

@@ -54,6 +54,12 @@ using RunOptionsCheck = std::function<void(const std::vector<std::string>&)>;
 // `esim sweep`; returns the exit code, throws Error for bad input
 int runSweep(const SweepOptions& options, const RunOptionsCheck& checkRunOptions);
 
+// --sbatch-arg values, checked before anything is written: one sbatch option each, no line
+// break or control character (one ended the #SBATCH line and put the rest into the script as
+// a command), and none of the options the script sets itself (--array, --output, --ntasks,
+// --cpus-per-task, --mem*, --time: each names the esim option to give instead). Throws Error.
+void checkSbatchArgs(const std::vector<std::string>& args);
+
 // `esim dataset run DIR VARIANT` (what each Slurm task runs): runs one variant (its id or
 // index) of a prepared sweep folder unless it is complete, writes its result and the
 // manifest; 0 complete, 1 not
