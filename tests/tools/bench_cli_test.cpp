@@ -11,6 +11,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "tests/scratch_dir_util.h"
@@ -162,6 +163,22 @@ TEST_F(BenchCli, RenderSampleChecksItsOptionsBeforeMakingItsFolder) {
   EXPECT_EQ(b.exitCode, 2) << b.output;
   EXPECT_NE(b.output.find("--backend: foo not in {osmesa,egl}"), std::string::npos) << b.output;
   EXPECT_FALSE(fs::exists(out));
+}
+
+// bench accuracy checks its scene and --only before it makes its folder (a bad scenario was
+// "the reference run failed", exit 1, in a folder made for nothing; "--only ," ran the
+// reference alone and the plot refused the empty table)
+TEST_F(BenchCli, AccuracyChecksItsSceneAndPointsBeforeMakingItsFolder) {
+  const fs::path out = root_ / "accuracy";
+  for (const auto& [args, message] : std::vector<std::pair<std::string, std::string>>{
+           {"--scenario /dev/zero", "/dev/zero: more than 16 MiB; a scenario is"},
+           {"--only ,", "--only ',': expected point names or knobs, comma separated"}}) {
+    const auto r = shell(std::string("\"") + ESIM_EXE + "\" bench accuracy --quick " + args +
+                         " --out \"" + out.string() + "\"");
+    EXPECT_EQ(r.exitCode, 2) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find(message), std::string::npos) << args << "\n" << r.output;
+    EXPECT_FALSE(fs::exists(out)) << args;
+  }
 }
 
 TEST_F(BenchCli, AnUnwritableTableFailsBeforeTheBenchRuns) {

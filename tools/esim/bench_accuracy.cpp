@@ -380,7 +380,11 @@ int benchAccuracy(const AccuracyOptions& opt) {
     std::string names;
     for (const Point& p : sw.points) names += " " + p.name;
     std::vector<Point> kept;
-    for (const std::string& want : app::splitList(opt.only)) {
+    const std::vector<std::string> wanted = app::splitList(opt.only);
+    ESIM_VERIFY(!wanted.empty(), "--only '" + opt.only +
+                                     "': expected point names or knobs, comma separated (e.g. "
+                                     "mesh_graded,electric:pcg_1e-2)");
+    for (const std::string& want : wanted) {
       const size_t before = kept.size();
       for (const Point& p : sw.points)
         if (p.name == want || p.knob == want) kept.push_back(p);
@@ -389,6 +393,9 @@ int benchAccuracy(const AccuracyOptions& opt) {
     }
     sw.points = kept;
   }
+  // the scene as the reference runs it, checked before the folder is made (a bad scenario
+  // was "the reference run failed", exit 1, after the folder was made)
+  (void)loadScenario(opt.scenario, allSets(sw, sw.reference, seconds));
   app::FolderLock outLock;
   app::createOutputFolder(opt.out, "--out", outLock);
   std::printf(
