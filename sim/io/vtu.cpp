@@ -1,6 +1,8 @@
 // vtu.cpp - VTK XML unstructured grid writer and reader (see vtu.h).
 #include "sim/io/vtu.h"
 
+#include <unistd.h>
+
 #include <charconv>
 #include <cmath>
 #include <cstdint>
@@ -201,7 +203,9 @@ void writeVtu(const std::string& path, const TetMesh& mesh, const std::vector<Vt
     tet_id.push_back(e);
   }
 
-  const std::string tmp = path + ".tmp";
+  // beside the target, named by this process (a user's NAME.vtu.tmp is never touched), and
+  // renamed onto it only when whole
+  const std::string tmp = path + ".tmp" + std::to_string(::getpid());
   {
     std::ofstream os(tmp, std::ios::binary);
     ESIM_VERIFY(os.good(), path + ": cannot open for writing");
@@ -239,7 +243,11 @@ void writeVtu(const std::string& path, const TetMesh& mesh, const std::vector<Vt
   }
   std::error_code ec;
   std::filesystem::rename(tmp, path, ec);
-  ESIM_VERIFY(!ec, path + ": cannot rename temporary file: " + ec.message());
+  if (ec) {  // (the temporary file was left beside a folder named `path`)
+    const std::string why = ec.message();
+    std::filesystem::remove(tmp, ec);
+    throw Error(path + ": cannot write it: " + why);
+  }
 }
 
 VtuData readVtu(const std::string& path) {

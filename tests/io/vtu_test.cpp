@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 
 #include "sim/core_error.h"
 #include "sim/mesh_slab.h"
@@ -58,6 +59,31 @@ TEST(Vtu, RemovedTetsAreLeftOutWithTheirIds) {
   EXPECT_EQ(ids->values[3], 4.0);
   for (double a : d.findCellField("alive")->values) EXPECT_EQ(a, 1.0);
   std::filesystem::remove(path);
+}
+
+// a target that cannot be replaced (a folder) fails with nothing left beside it (the
+// temporary file stayed, e.g. assets.tmp of `esim mesh-info ... --vtu assets`)
+TEST(Vtu, AFailedWriteLeavesNoTemporaryFile) {
+  const std::filesystem::path dir = tempPath("vtu_target_folder.vtu");
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir.string() + ".tmp") << "a user's file\n";
+  SlabSpec spec;
+  spec.targetNodes = 50;
+  try {
+    writeVtu(dir.string(), makeSlab(spec), {}, {});
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(dir.string() + ": cannot write it: "), std::string::npos)
+        << e.what();
+  }
+  int beside = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir.parent_path()))
+    beside += entry.path().filename().string().rfind(dir.filename().string() + ".tmp", 0) == 0;
+  EXPECT_EQ(beside, 1) << "a temporary file was left";
+  std::ifstream user(dir.string() + ".tmp");
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(user), {}), "a user's file\n");
+  std::filesystem::remove_all(dir);
+  std::filesystem::remove(dir.string() + ".tmp");
 }
 
 TEST(Vtu, BadInputNamesTheFile) {
