@@ -51,8 +51,8 @@ TEST_F(MeshInfoCli, AnOptionTheModeWouldIgnoreIsRefused) {
        "is"},
       // --vtu checked before the meshing (it failed after it: "cannot rename temporary file:
       // Is a directory", "cannot open for writing")
-      {"assets/liver.obj --vtu \"" + root_.string() + "\"",
-       "mesh-info: --vtu '" + root_.string() + "' must end in .vtu"},
+      {"assets/liver.obj --vtu \"" + root_.string() + "/mesh.txt\"",
+       "mesh-info: --vtu '" + root_.string() + "/mesh.txt' must end in .vtu"},
       {"assets/liver.obj --vtu \"" + root_.string() + "/d.vtu\"", "d.vtu' is a folder"},
       {"assets/liver.obj --vtu \"" + root_.string() + "/none/x.vtu\"",
        "/none/x.vtu': the folder '" + root_.string() + "/none' does not exist"},

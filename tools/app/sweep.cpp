@@ -927,6 +927,14 @@ std::string esimExecutable() {
   return ec ? std::string("/proc/self/exe") : p.string();
 }
 
+namespace {
+// a control character (a line break) ends a line of the Slurm script
+bool hasControlCharacter(const std::string& text) {
+  return std::any_of(text.begin(), text.end(),
+                     [](char c) { return static_cast<unsigned char>(c) < 0x20 || c == 0x7F; });
+}
+}  // namespace
+
 void checkSbatchArgs(const std::vector<std::string>& args) {
   // the options the script sets itself, and the esim option that sets each
   static const std::vector<std::pair<std::vector<std::string>, std::string>> owned{
@@ -940,11 +948,10 @@ void checkSbatchArgs(const std::vector<std::string>& args) {
       {{"--time", "-t"}, "give --time-min"},
   };
   for (const std::string& a : args) {
-    for (const char c : a)
-      if (static_cast<unsigned char>(c) < 0x20 || c == 0x7F)
-        throw Error("--sbatch-arg " + quoteInMessage(a) +
-                    ": a line break or control character would end the #SBATCH line; give one "
-                    "option per --sbatch-arg");
+    if (hasControlCharacter(a))
+      throw Error("--sbatch-arg " + quoteInMessage(a) +
+                  ": a line break or control character would end the #SBATCH line; give one "
+                  "option per --sbatch-arg");
     ESIM_VERIFY(!a.empty() && a[0] == '-',
                 "--sbatch-arg '" + a + "': expected an sbatch option, e.g. --partition=long");
     const std::string name = a.substr(0, a.find_first_of("= "));
@@ -982,12 +989,10 @@ int runSweep(const SweepOptions& opt, const RunOptionsCheck& checkRunOptions) {
   }
   if (opt.outDir.empty()) throw Error("-o DIR: the sweep's folder is required");
   const fs::path dir(opt.outDir);
-  if (opt.slurm)  // the script names the folder on its #SBATCH and comment lines
-    for (const char c : opt.outDir)
-      if (static_cast<unsigned char>(c) < 0x20 || c == 0x7F)
-        throw Error("-o " + quoteInMessage(opt.outDir) +
-                    ": a folder name with a line break or control character cannot go into the "
-                    "Slurm script; choose another");
+  if (opt.slurm && hasControlCharacter(opt.outDir))  // on the script's #SBATCH, comment lines
+    throw Error("-o " + quoteInMessage(opt.outDir) +
+                ": a folder name with a line break or control character cannot go into the "
+                "Slurm script; choose another");
   // ---- 2. the folder (this sweep's alone until it ends) ----
   FolderLock lock;
   lockSweepFolder(dir, lock);

@@ -8,7 +8,6 @@
 // 3. validateMesh, then print the report; optionally write the mesh as VTU.
 #include <chrono>
 #include <cstdio>
-#include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
@@ -45,19 +44,8 @@ int runMeshInfo(const MeshInfoOptions& opt) {
               "mesh-info: --refine-from and --refine-to go together (the planned cut's ends)");
   ESIM_VERIFY(opt.refineFrom.empty() || (opt.refineFrom.size() == 3 && opt.refineTo.size() == 3),
               "mesh-info: --refine-from and --refine-to take x,y,z in metres");
-  if (!opt.vtuOut.empty()) {  // before the meshing, which may take minutes
-    namespace fs = std::filesystem;
-    const fs::path out = opt.vtuOut;
-    std::error_code ec;
-    ESIM_VERIFY(endsWith(opt.vtuOut, ".vtu"),
-                "mesh-info: --vtu '" + opt.vtuOut + "' must end in .vtu (a file to write)");
-    ESIM_VERIFY(!fs::is_directory(out, ec),
-                "mesh-info: --vtu '" + opt.vtuOut + "' is a folder; expected a .vtu file name");
-    const fs::path parent = out.has_parent_path() ? out.parent_path() : fs::path(".");
-    ESIM_VERIFY(fs::is_directory(parent, ec), "mesh-info: --vtu '" + opt.vtuOut +
-                                                  "': the folder '" + parent.string() +
-                                                  "' does not exist");
-  }
+  if (!opt.vtuOut.empty())  // before the meshing, which may take minutes
+    checkOutputFileName("mesh-info: --vtu", opt.vtuOut, ".vtu");
   // 2. build or load
   TetMesh mesh;
   std::string source = opt.file;

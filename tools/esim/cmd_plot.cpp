@@ -9,7 +9,6 @@
 // 2. Run the script; exit 0 when the PNG is written, 2 when it refuses timing.csv or
 //    timing.json (a cut or edited file: its message names the line and field), 1 with the
 //    reason when it cannot be written (python3 or matplotlib missing, a failing script).
-#include <cctype>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -47,15 +46,7 @@ int plotRun(const PlotOptions& opt) {
                                    "' (manifest.jsonl lists its files: a timing.png added there "
                                    "would fail esim dataset verify); give -o PNG outside it");
   } else {  // a PNG file in a folder that exists (matplotlib would add .png)
-    const fs::path png = opt.png;
-    std::string ext = png.extension().string();
-    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    ESIM_VERIFY(!fs::is_directory(png, ec),
-                "esim plot: -o '" + opt.png + "' is a folder; expected a .png file name");
-    ESIM_VERIFY(ext == ".png", "esim plot: -o '" + opt.png + "' must end in .png");
-    const fs::path parent = png.has_parent_path() ? png.parent_path() : fs::path(".");
-    ESIM_VERIFY(fs::is_directory(parent, ec), "esim plot: -o '" + opt.png + "': the folder '" +
-                                                  parent.string() + "' does not exist");
+    checkOutputFileName("esim plot: -o", opt.png, ".png");
   }
   const app::PlotResult r = app::plotTiming(opt.runDir, opt.png);
   if (r.status == app::PlotStatus::Written) {

@@ -15,6 +15,8 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <cctype>
+#include <filesystem>
 #include <functional>
 #include <string>
 #include <vector>
@@ -49,6 +51,25 @@ inline void refuseGiven(const std::vector<const CLI::Option*>& options, const st
                         const std::string& why) {
   for (const CLI::Option* o : options)
     ESIM_VERIFY(o->count() == 0, command + ": " + o->get_name() + " " + why);
+}
+
+// A file the command will write, checked before any work: not a folder, ending in `ext`
+// (".png"; any case), in a folder that exists. Throws Input errors "<option> 'PATH' is a
+// folder; expected a .png file name", "... must end in .png", "<option> 'PATH': the folder
+// 'DIR' does not exist" (option e.g. "esim plot: -o").
+inline void checkOutputFileName(const std::string& option, const std::string& path,
+                                const std::string& ext) {
+  namespace fs = std::filesystem;
+  const fs::path file = path;
+  std::error_code ec;
+  std::string got = file.extension().string();
+  for (char& c : got) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  ESIM_VERIFY(!fs::is_directory(file, ec),
+              option + " '" + path + "' is a folder; expected a " + ext + " file name");
+  ESIM_VERIFY(got == ext, option + " '" + path + "' must end in " + ext);
+  const fs::path parent = file.has_parent_path() ? file.parent_path() : fs::path(".");
+  ESIM_VERIFY(fs::is_directory(parent, ec),
+              option + " '" + path + "': the folder '" + parent.string() + "' does not exist");
 }
 
 // exit codes (tools/app/exit_codes.h, documented in README)
