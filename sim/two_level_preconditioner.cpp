@@ -263,4 +263,41 @@ void TwoLevelPreconditioner::apply(const Eigen::VectorXd& r, Eigen::VectorXd& z)
     if (coarseOf_[i] >= 0) z[i] += coarseSolution_[coarseOf_[i]];
 }
 
+// A-DEF2: z = S r + Z E^-1 (Z' r - (A Z)' S r)
+void TwoLevelPreconditioner::applyDeflated(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
+  ESIM_CHECK(ready_ && r.size() == smoother_.size());
+  const int n = static_cast<int>(r.size());
+  z.resize(n);
+  coarseRhs_.setZero();
+  for (int i = 0; i < n; ++i) {
+    z[i] = smoother_[i] * r[i];
+    if (coarseOf_[i] >= 0) coarseRhs_[coarseOf_[i]] += r[i];
+  }
+  const int* outer = azOuter_.data();
+  const int* inner = azRow_.data();
+  const double* value = azValue_.data();
+  for (int a = 0; a < numAggregates_; ++a) {
+    double s = 0;
+    for (int p = outer[a]; p < outer[a + 1]; ++p) s += value[p] * z[inner[p]];
+    coarseRhs_[a] -= s;
+  }
+  coarseSolution_ = coarse_.solve(coarseRhs_);
+  for (int i = 0; i < n; ++i)
+    if (coarseOf_[i] >= 0) z[i] += coarseSolution_[coarseOf_[i]];
+}
+
+void TwoLevelPreconditioner::deflate(const SparseMatrix& A, const Eigen::VectorXd& b,
+                                     Eigen::VectorXd& x) const {
+  ESIM_CHECK(ready_ && b.size() == smoother_.size() && x.size() == b.size() &&
+             A.rows() == b.size());
+  const Eigen::VectorXd r = b - A * x;
+  const int n = static_cast<int>(r.size());
+  coarseRhs_.setZero();
+  for (int i = 0; i < n; ++i)
+    if (coarseOf_[i] >= 0) coarseRhs_[coarseOf_[i]] += r[i];
+  coarseSolution_ = coarse_.solve(coarseRhs_);
+  for (int i = 0; i < n; ++i)
+    if (coarseOf_[i] >= 0) x[i] += coarseSolution_[coarseOf_[i]];
+}
+
 }  // namespace esim

@@ -2,7 +2,7 @@
 // groups), the preconditioner's symmetry and definiteness (also with positive off-diagonal
 // entries, and with rows excluded from the coarse space, a whole aggregate among them), CG
 // with it reaching a direct solve's answer, iterations that stay flat as a grid is refined
-// where Jacobi's grow, and the error messages.
+// where Jacobi's grow, the deflated form equal to it where CG runs it, and the error messages.
 #include "sim/two_level_preconditioner.h"
 
 #include <gtest/gtest.h>
@@ -212,6 +212,101 @@ TEST(TwoLevelPreconditioner, CgReachesTheDirectAnswerInIterationsThatStayFlat) {
     }
     previousJacobi = jacobi;
     previousTwoLevel = twoLevel;
+  }
+}
+
+// The deflated form (A-DEF2) that pcg runs: on residuals without a coarse component (Z' r = 0,
+// which deflate's start gives and CG keeps) it is apply's M^-1 to rounding, so CG from deflate's
+// start takes the same iterations to the same answer, for one coarse solve an iteration
+TEST(TwoLevelPreconditioner, TheDeflatedFormIsTheSameCgForOneCoarseSolve) {
+  for (double skew : {0.0, 0.4}) {
+    SCOPED_TRACE("skew " + std::to_string(skew));
+    const SparseMatrix k = gridLaplacian(10, skew);
+    const int n = static_cast<int>(k.rows());
+    TwoLevelPreconditioner p;
+    p.setGraph(k, 1);
+    // rows excluded as contact rows are (identity rows and columns), a whole aggregate too
+    std::vector<char> out(n, 0);
+    std::vector<int> excluded;
+    for (int i = 0; i < n; ++i)
+      if (p.aggregateOf()[i] == 3 || i % 97 == 5) {
+        out[i] = 1;
+        excluded.push_back(i);
+      }
+    SparseMatrix a = k;
+    for (int j = 0; j < n; ++j)
+      for (SparseMatrix::InnerIterator it(a, j); it; ++it)
+        if (out[it.row()] || out[j]) it.valueRef() = it.row() == j ? 1.0 : 0.0;
+    p.compute(a, excluded);
+    // Z' r: the sum of r over each aggregate's rows that are not excluded
+    const auto coarsePart = [&](const Eigen::VectorXd& r) {
+      Eigen::VectorXd s = Eigen::VectorXd::Zero(p.numAggregates());
+      for (int i = 0; i < n; ++i)
+        if (!out[i]) s[p.aggregateOf()[i]] += r[i];
+      return s;
+    };
+    // 1. a residual with Z' r = 0 (each aggregate's mean taken out): the two forms agree
+    Eigen::VectorXd r(n);
+    for (int i = 0; i < n; ++i) r[i] = std::sin(0.91 * i) + 0.3 * std::cos(0.13 * i * i);
+    Eigen::VectorXd mean = coarsePart(r);
+    Eigen::VectorXd count = coarsePart(Eigen::VectorXd::Ones(n));
+    for (int i = 0; i < n; ++i)
+      if (!out[i]) r[i] -= mean[p.aggregateOf()[i]] / count[p.aggregateOf()[i]];
+    ASSERT_LT(coarsePart(r).norm(), 1e-13 * r.norm());
+    Eigen::VectorXd zFull, zDeflated;
+    p.apply(r, zFull);
+    p.applyDeflated(r, zDeflated);
+    EXPECT_LT((zFull - zDeflated).norm(), 1e-12 * zFull.norm());
+    // ... and off that subspace they differ (so the test can fail)
+    Eigen::VectorXd e = Eigen::VectorXd::Unit(n, 0);
+    if (out[0]) e = Eigen::VectorXd::Unit(n, n / 2 + 1);
+    p.apply(e, zFull);
+    p.applyDeflated(e, zDeflated);
+    EXPECT_GT((zFull - zDeflated).norm(), 1e-3 * zFull.norm());
+    // 2. deflate's start has no coarse residual
+    Eigen::VectorXd b(n), x(n);
+    for (int i = 0; i < n; ++i) {
+      b[i] = out[i] ? 0.0 : std::cos(0.29 * i) + (i == n / 2 ? 5.0 : 0.0);
+      x[i] = out[i] ? 0.0 : 0.1 * std::sin(0.7 * i);  // a warm start, as the previous frame's
+    }
+    const Eigen::VectorXd exact = Eigen::SimplicialLDLT<SparseMatrix>(a).solve(b);
+    p.deflate(a, b, x);
+    EXPECT_LT(coarsePart(b - a * x).norm(), 1e-12 * b.norm());
+    // 3. CG from there: the direct answer, in the iterations of the symmetric form from the
+    // same start (within one)
+    const auto cgFrom = [&](Eigen::VectorXd y, auto precondition, Eigen::VectorXd& out) {
+      Eigen::VectorXd res = b - a * y, z(n);
+      precondition(res, z);
+      Eigen::VectorXd dir = z;
+      double rz = res.dot(z);
+      for (int it = 1; it <= 1000; ++it) {
+        const Eigen::VectorXd ad = a * dir;
+        const double alpha = rz / dir.dot(ad);
+        y += alpha * dir;
+        res -= alpha * ad;
+        if (res.norm() <= 1e-10 * b.norm()) {
+          out = y;
+          return it;
+        }
+        precondition(res, z);
+        const double rzNew = res.dot(z);
+        dir = z + (rzNew / rz) * dir;
+        rz = rzNew;
+      }
+      return -1;
+    };
+    Eigen::VectorXd xFull, xDeflated;
+    const int full = cgFrom(
+        x, [&](const Eigen::VectorXd& v, Eigen::VectorXd& z) { p.apply(v, z); }, xFull);
+    const int deflated = cgFrom(
+        x, [&](const Eigen::VectorXd& v, Eigen::VectorXd& z) { p.applyDeflated(v, z); }, xDeflated);
+    ASSERT_GT(full, 0);
+    ASSERT_GT(deflated, 0);
+    EXPECT_LE(std::abs(full - deflated), 1);
+    EXPECT_LT((xDeflated - exact).norm(), 1e-8 * exact.norm());
+    EXPECT_LT((xFull - exact).norm(), 1e-8 * exact.norm());
+    std::cout << "skew " << skew << ": " << full << " iterations with apply, " << deflated
+              << " with applyDeflated\n";
   }
 }
 
