@@ -62,12 +62,22 @@ Eigen::MatrixXd denseInverse(const TwoLevelPreconditioner& p, int n) {
   return m;
 }
 
-// preconditioned CG from zero to ||b - A x|| <= tol ||b||; returns the iterations (x out)
+// k with the rows and columns `out` marks replaced by the identity's, as the contact rows of
+// the potential's reduced system are
+SparseMatrix withRowsExcluded(const SparseMatrix& k, const std::vector<char>& out) {
+  SparseMatrix a = k;
+  for (int j = 0; j < a.cols(); ++j)
+    for (SparseMatrix::InnerIterator it(a, j); it; ++it)
+      if (out[it.row()] || out[j]) it.valueRef() = it.row() == j ? 1.0 : 0.0;
+  return a;
+}
+
+// preconditioned CG from x (in: the start) to ||b - A x|| <= tol ||b||; returns the
+// iterations (x out), -1 if 10000 do not reach it
 template <class Apply>
-int cg(const SparseMatrix& a, const Eigen::VectorXd& b, double tol, Apply precondition,
-       Eigen::VectorXd& x) {
-  x.setZero(b.size());
-  Eigen::VectorXd r = b, z(b.size());
+int cgFrom(const SparseMatrix& a, const Eigen::VectorXd& b, double tol, Apply precondition,
+           Eigen::VectorXd& x) {
+  Eigen::VectorXd r = b - a * x, z(b.size());
   precondition(r, z);
   Eigen::VectorXd p = z;
   double rz = r.dot(z);
@@ -83,6 +93,14 @@ int cg(const SparseMatrix& a, const Eigen::VectorXd& b, double tol, Apply precon
     rz = rzNew;
   }
   return -1;
+}
+
+// ... from zero
+template <class Apply>
+int cg(const SparseMatrix& a, const Eigen::VectorXd& b, double tol, Apply precondition,
+       Eigen::VectorXd& x) {
+  x.setZero(b.size());
+  return cgFrom(a, b, tol, precondition, x);
 }
 
 TEST(TwoLevelPreconditioner, AggregatesPartitionTheGraphIntoConnectedGroups) {
@@ -148,12 +166,9 @@ TEST(TwoLevelPreconditioner, IsSymmetricPositiveDefiniteWithRowsExcluded) {
       if (p.aggregateOf()[i] == 0) excluded.push_back(i);
     excluded.push_back(n / 2);
     excluded.push_back(n - 1);
-    SparseMatrix a = k;
     std::vector<char> out(n, 0);
     for (int i : excluded) out[i] = 1;
-    for (int j = 0; j < n; ++j)
-      for (SparseMatrix::InnerIterator it(a, j); it; ++it)
-        if (out[it.row()] || out[j]) it.valueRef() = it.row() == j ? 1.0 : 0.0;
+    const SparseMatrix a = withRowsExcluded(k, out);
     ASSERT_EQ(Eigen::LLT<Eigen::MatrixXd>(Eigen::MatrixXd(a)).info(), Eigen::Success);
     p.compute(a, excluded);
     ASSERT_TRUE(p.ready());
@@ -233,10 +248,7 @@ TEST(TwoLevelPreconditioner, TheDeflatedFormIsTheSameCgForOneCoarseSolve) {
         out[i] = 1;
         excluded.push_back(i);
       }
-    SparseMatrix a = k;
-    for (int j = 0; j < n; ++j)
-      for (SparseMatrix::InnerIterator it(a, j); it; ++it)
-        if (out[it.row()] || out[j]) it.valueRef() = it.row() == j ? 1.0 : 0.0;
+    const SparseMatrix a = withRowsExcluded(k, out);
     p.compute(a, excluded);
     // Z' r: the sum of r over each aggregate's rows that are not excluded
     const auto coarsePart = [&](const Eigen::VectorXd& r) {
@@ -274,32 +286,12 @@ TEST(TwoLevelPreconditioner, TheDeflatedFormIsTheSameCgForOneCoarseSolve) {
     EXPECT_LT(coarsePart(b - a * x).norm(), 1e-12 * b.norm());
     // 3. CG from there: the direct answer, in the iterations of the symmetric form from the
     // same start (within one)
-    const auto cgFrom = [&](Eigen::VectorXd y, auto precondition, Eigen::VectorXd& out) {
-      Eigen::VectorXd res = b - a * y, z(n);
-      precondition(res, z);
-      Eigen::VectorXd dir = z;
-      double rz = res.dot(z);
-      for (int it = 1; it <= 1000; ++it) {
-        const Eigen::VectorXd ad = a * dir;
-        const double alpha = rz / dir.dot(ad);
-        y += alpha * dir;
-        res -= alpha * ad;
-        if (res.norm() <= 1e-10 * b.norm()) {
-          out = y;
-          return it;
-        }
-        precondition(res, z);
-        const double rzNew = res.dot(z);
-        dir = z + (rzNew / rz) * dir;
-        rz = rzNew;
-      }
-      return -1;
-    };
-    Eigen::VectorXd xFull, xDeflated;
+    Eigen::VectorXd xFull = x, xDeflated = x;
     const int full = cgFrom(
-        x, [&](const Eigen::VectorXd& v, Eigen::VectorXd& z) { p.apply(v, z); }, xFull);
+        a, b, 1e-10, [&](const Eigen::VectorXd& v, Eigen::VectorXd& z) { p.apply(v, z); }, xFull);
     const int deflated = cgFrom(
-        x, [&](const Eigen::VectorXd& v, Eigen::VectorXd& z) { p.applyDeflated(v, z); }, xDeflated);
+        a, b, 1e-10, [&](const Eigen::VectorXd& v, Eigen::VectorXd& z) { p.applyDeflated(v, z); },
+        xDeflated);
     ASSERT_GT(full, 0);
     ASSERT_GT(deflated, 0);
     EXPECT_LE(std::abs(full - deflated), 1);
