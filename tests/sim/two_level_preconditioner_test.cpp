@@ -347,7 +347,10 @@ TEST(TwoLevelPreconditioner, TinyAndDegenerateSystemsStaySolvable) {
   p.compute(one, {});
   Eigen::VectorXd z;
   p.apply(Eigen::VectorXd::Constant(1, 2.0), z);
-  EXPECT_NEAR(z[0], 0.5, 1e-15);  // the coarse level is the whole system: exact
+  EXPECT_NEAR(z[0], 0.5, 1e-15);                 // the coarse level is the whole system: exact
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(1);  // ... and deflate's start is the answer
+  p.deflate(one, Eigen::VectorXd::Constant(1, 2.0), x);
+  EXPECT_NEAR(x[0], 0.5, 1e-15);
   // isolated nodes (a diagonal matrix) and a pair
   SparseMatrix d(4, 4);
   d.insert(0, 0) = 2.0;
@@ -373,6 +376,12 @@ TEST(TwoLevelPreconditioner, TinyAndDegenerateSystemsStaySolvable) {
   p.compute(ai, all);
   p.apply(Eigen::VectorXd::LinSpaced(27, 1.0, 27.0), z);
   EXPECT_LT((z - Eigen::VectorXd::LinSpaced(27, 1.0, 27.0)).norm(), 1e-12);
+  // the deflated form and start too (nothing to deflate)
+  p.applyDeflated(Eigen::VectorXd::LinSpaced(27, 1.0, 27.0), z);
+  EXPECT_LT((z - Eigen::VectorXd::LinSpaced(27, 1.0, 27.0)).norm(), 1e-12);
+  x = Eigen::VectorXd::Constant(27, 3.0);
+  p.deflate(ai, Eigen::VectorXd::Zero(27), x);
+  EXPECT_EQ(x, Eigen::VectorXd::Constant(27, 3.0));
 }
 
 TEST(TwoLevelPreconditioner, BadInputIsAnErrorNamingIt) {
