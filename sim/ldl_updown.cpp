@@ -287,14 +287,30 @@ bool ldlUpdown(bool update, const cholmod_sparse& c, cholmod_factor& l, LdlUpdow
   cx.clear();
   restI.clear();
   restX.clear();
+  // The kernel's columns in the order of their first rows (L's row order, a postorder of the
+  // elimination tree: nearby first rows share more of their paths), so that the 8 columns of
+  // a pass walk fewer columns of L between them. Measured (the passes' walked entries,
+  // temporary instrumentation): 7.6 % fewer on liver_incision (30 frames), 6.2 % on esim
+  // bench cut's 50k slab (30 frames), 1.5 % on slab_cut, where the shared top separators
+  // carry the work. Ties keep C's order, so the order depends on C alone.
+  std::vector<std::pair<int, int>>& order = work.order;
+  order.clear();
   for (int k = 0; k < ncol; ++k) {
     if (p0[k] == p0[k + 1]) continue;
-    const bool inside = !ldlColumnFillsIn(l, i0 + p0[k], p0[k + 1] - p0[k], work);
-    std::vector<int>& ri = inside ? ci : restI;
-    std::vector<double>& rx = inside ? cx : restX;
-    ri.insert(ri.end(), i0 + p0[k], i0 + p0[k + 1]);
-    rx.insert(rx.end(), x0 + p0[k], x0 + p0[k + 1]);
-    (inside ? cp : restP).push_back(static_cast<int>(ri.size()));
+    if (ldlColumnFillsIn(l, i0 + p0[k], p0[k + 1] - p0[k], work)) {
+      restI.insert(restI.end(), i0 + p0[k], i0 + p0[k + 1]);
+      restX.insert(restX.end(), x0 + p0[k], x0 + p0[k + 1]);
+      restP.push_back(static_cast<int>(restI.size()));
+    } else {
+      order.emplace_back(i0[p0[k]], k);
+    }
+  }
+  std::stable_sort(order.begin(), order.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  for (const auto& [first, k] : order) {
+    ci.insert(ci.end(), i0 + p0[k], i0 + p0[k + 1]);
+    cx.insert(cx.end(), x0 + p0[k], x0 + p0[k + 1]);
+    cp.push_back(static_cast<int>(ci.size()));
   }
   work.vectorColumns += static_cast<long>(cp.size()) - 1;
   work.choleskyColumns += static_cast<long>(restP.size()) - 1;

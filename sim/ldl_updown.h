@@ -10,6 +10,7 @@
 
 #include <cholmod.h>
 
+#include <utility>
 #include <vector>
 
 namespace esim {
@@ -22,12 +23,13 @@ struct LdlUpdownWork {
   int stamp = 0;
   std::vector<int> cp, ci, restP, restI;  // the columns of C for the kernel, for CHOLMOD
   std::vector<double> cx, restX;
-  std::vector<std::vector<int>> paths;  // per pass of up to 8 columns: its columns of L
-  std::vector<double> w2;               // the second thread's W
-  int threads = 1;                      // 2: passes pipelined on two threads (the same bits)
-  bool pipelined = false;               // the last call's passes ran on two threads
-  long vectorColumns = 0;               // columns of C the kernel applied
-  long choleskyColumns = 0;             // ... and cholmod_updown (they would fill in L)
+  std::vector<std::pair<int, int>> order;  // the kernel's columns: (first row, column of C)
+  std::vector<std::vector<int>> paths;     // per pass of up to 8 columns: its columns of L
+  std::vector<double> w2;                  // the second thread's W
+  int threads = 1;                         // 2: passes pipelined on two threads (the same bits)
+  bool pipelined = false;                  // the last call's passes ran on two threads
+  long vectorColumns = 0;                  // columns of C the kernel applied
+  long choleskyColumns = 0;                // ... and cholmod_updown (they would fill in L)
 };
 
 // true when this machine runs the vectorized kernel (AVX-512F)
@@ -40,8 +42,10 @@ bool ldlColumnFillsIn(const cholmod_factor& l, const int* rows, int count, LdlUp
 
 // L D L' + C C' (update) or - C C' (downdate), C n x r in L's row order (sorted columns,
 // packed), as cholmod_updown(update, C, L) does: the columns whose change stays inside L's
-// pattern by the kernel, the others (and all of them without AVX-512, or for a factor that
-// is not simplicial LDL' with int indices) by cholmod_updown after it. Returns
+// pattern by the kernel (in the order of their first rows: the result does not depend on the
+// order of such columns with distinct first rows), the others (and all of them without
+// AVX-512, or for a factor that is not simplicial LDL' with int indices) by cholmod_updown
+// after it. Returns
 // cholmod_updown's result (true when only the kernel ran). A downdate that loses positive
 // definiteness leaves a pivot <= 0, as cholmod_updown does.
 bool ldlUpdown(bool update, const cholmod_sparse& c, cholmod_factor& l, LdlUpdownWork& work,

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/SparseCore>
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -138,6 +139,43 @@ TEST(LdlUpdown, UpdateAndDowndateMatchCholmodUpdown) {
 
 // LdlUpdownWork::threads 2: the passes pipelined on two threads change L exactly as one thread
 // does (the same bits), for an update and a downdate of many passes, and leave both W zero
+// the kernel takes its columns in the order of their first rows (passes of nearby columns
+// walk less of L): columns given in another order give the same factor to the bit, and the
+// same as cholmod_updown to rounding
+TEST(LdlUpdown, TheColumnsOrderDoesNotChangeTheFactor) {
+  if (!ldlUpdownAvailable()) GTEST_SKIP() << "no AVX-512: every column goes to cholmod_updown";
+  Grid g(9);
+  // 20 fill-free columns with distinct first rows, and the same columns reversed
+  const Columns forward = fillFree(g, 20, 7);
+  Columns reversed;
+  for (int k = static_cast<int>(forward.p.size()) - 2; k >= 0; --k) {
+    reversed.i.insert(reversed.i.end(), forward.i.begin() + forward.p[k],
+                      forward.i.begin() + forward.p[k + 1]);
+    reversed.x.insert(reversed.x.end(), forward.x.begin() + forward.p[k],
+                      forward.x.begin() + forward.p[k + 1]);
+    reversed.p.push_back(static_cast<int>(reversed.i.size()));
+  }
+  std::vector<int> firsts;
+  for (size_t k = 0; k + 1 < forward.p.size(); ++k) firsts.push_back(forward.i[forward.p[k]]);
+  std::sort(firsts.begin(), firsts.end());
+  ASSERT_EQ(std::unique(firsts.begin(), firsts.end()), firsts.end()) << "first rows repeat";
+  cholmod_factor* a = g.copy();
+  cholmod_factor* b = g.copy();
+  cholmod_factor* reference = g.copy();
+  LdlUpdownWork wa, wb;
+  Columns f = forward, r = reversed, ref = forward;
+  cholmod_sparse ca = f.view(g.n), cb = r.view(g.n), cr = ref.view(g.n);
+  ASSERT_TRUE(ldlUpdown(true, ca, *a, wa, g.cm));
+  ASSERT_TRUE(ldlUpdown(true, cb, *b, wb, g.cm));
+  ASSERT_TRUE(cholmod_updown(true, &cr, reference, &g.cm));
+  EXPECT_EQ(wa.vectorColumns, 20);
+  EXPECT_EQ(valueDifference(a, b), 0.0);
+  EXPECT_LT(valueDifference(a, reference), 1e-13);
+  cholmod_free_factor(&reference, &g.cm);
+  cholmod_free_factor(&b, &g.cm);
+  cholmod_free_factor(&a, &g.cm);
+}
+
 TEST(LdlUpdown, PipelinedPassesGiveTheSameBitsAsOneThread) {
   if (!ldlUpdownAvailable()) GTEST_SKIP() << "no AVX-512 here: no kernel to pipeline";
   Grid g(24);  // 13 824 rows: the passes walk far more than the pipeline's minimum
