@@ -224,7 +224,8 @@ struct StructuralUpdateStats {
   int dofsHeld = 0;             // components newly held: rows deleted from L
   int dofsFreed = 0;            // components of nodes no island holds any more: rows added
   int rank = 0;                 // columns of the downdate C (<= 6 per removed tet)
-  int groupsByTet = 0;          // clusters of removed tets whose columns went tet by tet
+  int groupsSplit = 0;          // clusters of removed tets whose columns went by parts (too
+                                // many dofs, or a summed column that would fill in L)
   long vectorColumns = 0;       // columns (of C and of the rows deleted) by ldl_updown.h's kernel
   long choleskyColumns = 0;     // ... and by cholmod_updown
   int piecesCutOff = 0;         // pieces split off the ones the removed tets belonged to
