@@ -1478,19 +1478,30 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
       done[p] = 1;
     }
   };
-  // Some tets' columns summed; or, over kMaxGroupDofs free dofs or (checkFill, the factor
-  // simplicial) with a column that would fill in L, the columns of its two halves, each the
-  // same way, down to single tets (a tet never fills in: its dofs are all coupled in L). The
-  // halves split the tets ordered by their lowest row of L, so that each half keeps tets
-  // close in the elimination tree. Measured (temporary instrumentation) before the halves,
-  // when such a group went tet by tet: 13 of 62 groups in 40 frames of liver_incision and 11
-  // of 71 in esim bench cut's 50k slab, their removals 77-80 % of all the columns.
-  const auto addSplit = [&](const auto& self, const std::vector<int>& some,
-                            bool checkFill) -> void {
+  // 5. L becomes simplicial LDL' (once after each factorization: only those can be updated),
+  // before C's columns, which addSplit checks against its pattern
+  if (factor->is_super || factor->is_ll) {
+    const auto tc = std::chrono::steady_clock::now();
+    toSimplicial(cm, factor);
+    stats.convertSeconds = secondsSince(tc);
+  }
+  // Some tets' columns summed; or, over kMaxGroupDofs free dofs or with a column that would
+  // fill in L (checked when the vectorized update, ldl_updown.h, takes them: it leaves such
+  // columns to cholmod_updown, which grows L for them, 190 ms for the 13 such columns of one
+  // 8000-node removal, the L grown for the rest of the run; a pivot taken out of row order
+  // gives the columns after it rows outside L's pattern, often), the columns of its two
+  // halves, each the same way, down to single tets (a tet never fills in: its dofs are all
+  // coupled in L). The halves split the tets ordered by their lowest row of L, so that each
+  // half keeps tets close in the elimination tree. True when it split. Measured (temporary
+  // instrumentation) before the halves, when such a group went tet by tet: 13 of 62 groups
+  // in 40 frames of liver_incision and 11 of 71 in esim bench cut's 50k slab, their removals
+  // 77-80 % of all the columns.
+  const bool checkFill = kernelUpdates();
+  const auto addSplit = [&](const auto& self, const std::vector<int>& some) -> bool {
     const std::vector<std::pair<int, int>> free = freeDofs(some);
     if (some.size() == 1) {
       addColumns(some, free);
-      return;
+      return false;
     }
     if (static_cast<int>(free.size()) <= kMaxGroupDofs) {
       const size_t from = cp.size() - 1;
@@ -1499,7 +1510,7 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
       for (size_t c = from; checkFill && !fills && c + 1 < cp.size(); ++c)
         fills =
             ldlColumnFillsIn(*factor, ci.data() + cp[c], cp[c + 1] - cp[c], target.marks->updown);
-      if (!fills) return;
+      if (!fills) return false;
       cp.resize(from + 1);
       ci.resize(cp.back());
       cx.resize(cp.back());
@@ -1517,59 +1528,12 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
     std::vector<int> low, high;
     for (size_t q = 0; q < byRow.size(); ++q)
       (q < byRow.size() / 2 ? low : high).push_back(byRow[q].second);
-    self(self, low, checkFill);
-    self(self, high, checkFill);
+    self(self, low);
+    self(self, high);
+    return true;
   };
-  std::vector<int> groupFrom;  // per group: its first column (and the end last)
-  std::vector<std::uint8_t> split(groups.size(), 0);  // groups that went by parts
-  for (size_t k = 0; k < groups.size(); ++k) {
-    groupFrom.push_back(static_cast<int>(cp.size()) - 1);
-    split[k] = static_cast<int>(freeDofs(groups[k]).size()) > kMaxGroupDofs;
-    addSplit(addSplit, groups[k], false);  // (the factor may be supernodal still)
-  }
-  groupFrom.push_back(static_cast<int>(cp.size()) - 1);
-
-  // 5. L becomes simplicial LDL' (once after each factorization: only those can be updated)
-  if (factor->is_super || factor->is_ll) {
-    const auto tc = std::chrono::steady_clock::now();
-    toSimplicial(cm, factor);
-    stats.convertSeconds = secondsSince(tc);
-  }
-  // With the vectorized update (ldl_updown.h) the columns must not fill in L: the kernel
-  // leaves such columns to cholmod_updown, which grows L for them (190 ms for the 13 such
-  // columns of one 8000-node removal, the L grown for the rest of the run). A pivot taken
-  // out of row order gives the columns after it rows outside L's pattern, often: such a
-  // group is split in halves until none of its parts' columns fills in (addSplit), more
-  // columns but all of them vectorized.
-  if (kernelUpdates()) {
-    std::vector<std::uint8_t> fills(groups.size(), 0);  // groups with a column that fills
-    bool any = false;
-    for (size_t k = 0; k < groups.size(); ++k)
-      for (int c = groupFrom[k]; !fills[k] && c < groupFrom[k + 1]; ++c)
-        any |= fills[k] =
-            ldlColumnFillsIn(*factor, ci.data() + cp[c], cp[c + 1] - cp[c], target.marks->updown);
-    if (any) {
-      const std::vector<int> oldP = std::move(cp), oldI = std::move(ci);
-      const std::vector<double> oldX = std::move(cx);
-      cp.assign(1, 0);
-      ci.clear();
-      cx.clear();
-      for (size_t k = 0; k < groups.size(); ++k) {
-        if (fills[k]) {
-          split[k] = 1;
-          addSplit(addSplit, groups[k], true);
-          continue;
-        }
-        for (int c = groupFrom[k]; c < groupFrom[k + 1]; ++c) {
-          ci.insert(ci.end(), oldI.begin() + oldP[c], oldI.begin() + oldP[c + 1]);
-          cx.insert(cx.end(), oldX.begin() + oldP[c], oldX.begin() + oldP[c + 1]);
-          cp.push_back(static_cast<int>(ci.size()));
-        }
-      }
-    }
-  }
+  for (const std::vector<int>& group : groups) stats.groupsSplit += addSplit(addSplit, group);
   stats.rank = static_cast<int>(cp.size()) - 1;
-  stats.groupsSplit = static_cast<int>(std::count(split.begin(), split.end(), 1));
 
   // 6. the columns of L the update walks: up the elimination tree from each deleted or
   // added row and from the first row of each column of C; the work, those columns' lengths
