@@ -234,14 +234,36 @@ double TwoLevelPreconditioner::memoryBytes() const {
   return 4.0 * ints + 8.0 * doubles + 12.0 * (static_cast<double>(e_.nonZeros()) + factor);
 }
 
+// coarseRhs_ = Z' r: the sum of r over each aggregate's rows in the coarse space
+void TwoLevelPreconditioner::restrictToCoarse(const Eigen::VectorXd& r) const {
+  coarseRhs_.setZero();
+  for (int i = 0; i < r.size(); ++i)
+    if (coarseOf_[i] >= 0) coarseRhs_[coarseOf_[i]] += r[i];
+}
+
+// coarseRhs_ -= (A Z)' z
+void TwoLevelPreconditioner::subtractAzTransposed(const Eigen::VectorXd& z) const {
+  const int* outer = azOuter_.data();
+  const int* inner = azRow_.data();
+  const double* value = azValue_.data();
+  for (int a = 0; a < numAggregates_; ++a) {
+    double s = 0;
+    for (int p = outer[a]; p < outer[a + 1]; ++p) s += value[p] * z[inner[p]];
+    coarseRhs_[a] -= s;
+  }
+}
+
+// z += Z w
+void TwoLevelPreconditioner::prolongAdd(const Eigen::VectorXd& w, Eigen::VectorXd& z) const {
+  for (int i = 0; i < z.size(); ++i)
+    if (coarseOf_[i] >= 0) z[i] += w[coarseOf_[i]];
+}
+
 // M^-1 r = P' S P r + Q r with Q = Z E^-1 Z', P = I - A Q (balancing Neumann-Neumann):
 // w = E^-1 Z' r, t = S (r - A Z w), v = E^-1 (A Z)' t, z = t + Z (w - v)
 void TwoLevelPreconditioner::apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
   ESIM_CHECK(ready_ && r.size() == smoother_.size());
-  const int n = static_cast<int>(r.size());
-  coarseRhs_.setZero();
-  for (int i = 0; i < n; ++i)
-    if (coarseOf_[i] >= 0) coarseRhs_[coarseOf_[i]] += r[i];
+  restrictToCoarse(r);
   coarseW_ = coarse_.solve(coarseRhs_);
   z = r;
   const int* outer = azOuter_.data();
@@ -252,52 +274,30 @@ void TwoLevelPreconditioner::apply(const Eigen::VectorXd& r, Eigen::VectorXd& z)
     for (int p = outer[a]; p < outer[a + 1]; ++p) z[inner[p]] -= value[p] * w;
   }
   z.array() *= smoother_.array();
-  for (int a = 0; a < numAggregates_; ++a) {
-    double s = 0;
-    for (int p = outer[a]; p < outer[a + 1]; ++p) s += value[p] * z[inner[p]];
-    coarseRhs_[a] = s;
-  }
-  coarseSolution_ = coarse_.solve(coarseRhs_);
-  coarseSolution_ = coarseW_ - coarseSolution_;
-  for (int i = 0; i < n; ++i)
-    if (coarseOf_[i] >= 0) z[i] += coarseSolution_[coarseOf_[i]];
+  coarseRhs_.setZero();
+  subtractAzTransposed(z);                      // -(A Z)' t
+  coarseSolution_ = coarse_.solve(coarseRhs_);  // -v
+  coarseSolution_ += coarseW_;
+  prolongAdd(coarseSolution_, z);
 }
 
 // A-DEF2: z = S r + Z E^-1 (Z' r - (A Z)' S r)
 void TwoLevelPreconditioner::applyDeflated(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
   ESIM_CHECK(ready_ && r.size() == smoother_.size());
-  const int n = static_cast<int>(r.size());
-  z.resize(n);
-  coarseRhs_.setZero();
-  for (int i = 0; i < n; ++i) {
-    z[i] = smoother_[i] * r[i];
-    if (coarseOf_[i] >= 0) coarseRhs_[coarseOf_[i]] += r[i];
-  }
-  const int* outer = azOuter_.data();
-  const int* inner = azRow_.data();
-  const double* value = azValue_.data();
-  for (int a = 0; a < numAggregates_; ++a) {
-    double s = 0;
-    for (int p = outer[a]; p < outer[a + 1]; ++p) s += value[p] * z[inner[p]];
-    coarseRhs_[a] -= s;
-  }
+  z = smoother_.cwiseProduct(r);
+  restrictToCoarse(r);
+  subtractAzTransposed(z);
   coarseSolution_ = coarse_.solve(coarseRhs_);
-  for (int i = 0; i < n; ++i)
-    if (coarseOf_[i] >= 0) z[i] += coarseSolution_[coarseOf_[i]];
+  prolongAdd(coarseSolution_, z);
 }
 
 void TwoLevelPreconditioner::deflate(const SparseMatrix& A, const Eigen::VectorXd& b,
                                      Eigen::VectorXd& x) const {
   ESIM_CHECK(ready_ && b.size() == smoother_.size() && x.size() == b.size() &&
              A.rows() == b.size());
-  const Eigen::VectorXd r = b - A * x;
-  const int n = static_cast<int>(r.size());
-  coarseRhs_.setZero();
-  for (int i = 0; i < n; ++i)
-    if (coarseOf_[i] >= 0) coarseRhs_[coarseOf_[i]] += r[i];
+  restrictToCoarse(b - A * x);
   coarseSolution_ = coarse_.solve(coarseRhs_);
-  for (int i = 0; i < n; ++i)
-    if (coarseOf_[i] >= 0) x[i] += coarseSolution_[coarseOf_[i]];
+  prolongAdd(coarseSolution_, x);
 }
 
 }  // namespace esim

@@ -94,7 +94,10 @@ class TwoLevelPreconditioner {
   std::vector<int> azSlot_, eSlot_;   // per entry of A: its place in az_ and e_ (-1: upper)
   std::vector<int> eDiagonal_;        // place of E(a, a)
   Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>> coarse_;
-  mutable Eigen::VectorXd coarseRhs_, coarseW_, coarseSolution_;  // scratch of apply
+  mutable Eigen::VectorXd coarseRhs_, coarseW_, coarseSolution_;        // scratch of apply
+  void restrictToCoarse(const Eigen::VectorXd& r) const;                // coarseRhs_ = Z' r
+  void subtractAzTransposed(const Eigen::VectorXd& z) const;            // coarseRhs_ -= (A Z)' z
+  void prolongAdd(const Eigen::VectorXd& w, Eigen::VectorXd& z) const;  // z += Z w
   bool ready_ = false;
 };
 
