@@ -114,6 +114,27 @@ double vonMises(const VoigtStress& s) {
   return std::sqrt(0.5 * (a * a + b * b + c * c) + 3 * (s[3] * s[3] + s[4] * s[4] + s[5] * s[5]));
 }
 
+Eigen::Matrix<double, 12, 12> elasticTetStiffness(const TetGeometry& g, double youngsModulusPa,
+                                                  double poissonRatio) {
+  const Mat6x12 b = strainMatrix(g);
+  return g.volume * b.transpose() * (elasticity(youngsModulusPa, poissonRatio) * b);
+}
+
+std::array<double, 6> tetStrain(const TetGeometry& g, const std::array<const double*, 4>& u) {
+  std::array<double, 6> strain{};
+  for (int i = 0; i < 4; ++i) {
+    const double gx = g.grad(i, 0), gy = g.grad(i, 1), gz = g.grad(i, 2);
+    const double* ui = u[i];
+    strain[0] += gx * ui[0];
+    strain[1] += gy * ui[1];
+    strain[2] += gz * ui[2];
+    strain[3] += gz * ui[1] + gy * ui[2];
+    strain[4] += gz * ui[0] + gx * ui[2];
+    strain[5] += gy * ui[0] + gx * ui[1];
+  }
+  return strain;
+}
+
 // ---- the phase's state ----
 
 namespace {
@@ -747,19 +768,11 @@ Voigt StructuralPhase::Impl::elasticStress(int t, const Eigen::VectorXd& disp) c
   // the strain B_e u_e straight from the stored gradients (the rows of strainMatrix,
   // without its 72 zeros: the outputs of a solve were a third of its time at 1k nodes,
   // perf); keeping D B_e per tet would cost 576 bytes a tet (92 MB for the liver's 161k)
-  const Eigen::Matrix<double, 4, 3>& g = geo[t].grad;
-  Voigt strain = Voigt::Zero();  // xx, yy, zz, 2yz, 2xz, 2xy
-  for (int i = 0; i < 4; ++i) {
-    const double* u = disp.data() + 3 * tets[t][i];
-    const double gx = g(i, 0), gy = g(i, 1), gz = g(i, 2);
-    strain(0) += gx * u[0];
-    strain(1) += gy * u[1];
-    strain(2) += gz * u[2];
-    strain(3) += gz * u[1] + gy * u[2];
-    strain(4) += gz * u[0] + gx * u[2];
-    strain(5) += gy * u[0] + gx * u[1];
-  }
-  return d * strain;
+  const double* u = disp.data();
+  const std::array<int, 4>& v = tets[t];
+  const std::array<double, 6> strain =
+      tetStrain(geo[t], {u + 3 * v[0], u + 3 * v[1], u + 3 * v[2], u + 3 * v[3]});
+  return d * Eigen::Map<const Voigt>(strain.data());
 }
 
 // u solving K u = f(ev) over the whole body, with the given CHOLMOD workspace

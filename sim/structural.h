@@ -251,6 +251,15 @@ using VoigtStress = std::array<double, 6>;  // xx, yy, zz, yz, xz, xy [Pa]
 // von Mises stress of a Voigt stress [Pa]
 double vonMises(const VoigtStress& s);
 
+struct TetGeometry;
+// P1 elasticity stiffness of one tet, V_e B_e^T D B_e [N/m] (12 x 12, node-major x, y, z
+// components): what StructuralPhase assembles, for studies that assemble K themselves
+Eigen::Matrix<double, 12, 12> elasticTetStiffness(const TetGeometry& g, double youngsModulusPa,
+                                                  double poissonRatio);
+// the strain of one tet (xx, yy, zz, 2yz, 2xz, 2xy) from its 4 nodes' displacements [m]
+// (3 each, x y z), as StructuralPhase's stresses take it
+std::array<double, 6> tetStrain(const TetGeometry& g, const std::array<const double*, 4>& u);
+
 class StructuralPhase {
  public:
   // assembles and factorizes K; throws esim::Error on bad options, supports or a

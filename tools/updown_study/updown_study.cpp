@@ -30,6 +30,7 @@
 #include "sim/fem_p1.h"
 #include "sim/ldl_updown.h"
 #include "sim/mesh_slab.h"
+#include "sim/structural.h"
 
 using namespace esim;
 
@@ -45,31 +46,9 @@ double seconds() {
 
 using Matrix12 = Eigen::Matrix<double, 12, 12>;
 
-// P1 elasticity stiffness of tet e (12 x 12, node-major x, y, z)
+// P1 elasticity stiffness of tet e (12 x 12, node-major x, y, z), as StructuralPhase's
 Matrix12 elementStiffness(const TetGeometry& g) {
-  const double lambda = kYoungsModulusPa * kPoissonRatio /
-                        ((1 + kPoissonRatio) * (1 - 2 * kPoissonRatio)),
-               mu = kYoungsModulusPa / (2 * (1 + kPoissonRatio));
-  Eigen::Matrix<double, 6, 6> d = Eigen::Matrix<double, 6, 6>::Zero();
-  for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 3; ++j) d(i, j) = lambda;
-    d(i, i) += 2 * mu;
-    d(i + 3, i + 3) = mu;
-  }
-  Eigen::Matrix<double, 6, 12> b = Eigen::Matrix<double, 6, 12>::Zero();
-  for (int k = 0; k < 4; ++k) {
-    const double gx = g.grad(k, 0), gy = g.grad(k, 1), gz = g.grad(k, 2);
-    b(0, 3 * k) = gx;
-    b(1, 3 * k + 1) = gy;
-    b(2, 3 * k + 2) = gz;
-    b(3, 3 * k + 1) = gz;
-    b(3, 3 * k + 2) = gy;
-    b(4, 3 * k) = gz;
-    b(4, 3 * k + 2) = gx;
-    b(5, 3 * k) = gy;
-    b(5, 3 * k + 1) = gx;
-  }
-  return g.volume * b.transpose() * d * b;
+  return elasticTetStiffness(g, kYoungsModulusPa, kPoissonRatio);
 }
 
 // the worst relative residuals over a study
