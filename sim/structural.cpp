@@ -120,7 +120,10 @@ Eigen::Matrix<double, 12, 12> elasticTetStiffness(const TetGeometry& g, double y
   return g.volume * b.transpose() * (elasticity(youngsModulusPa, poissonRatio) * b);
 }
 
-std::array<double, 6> tetStrain(const TetGeometry& g, const std::array<const double*, 4>& u) {
+namespace {
+
+// tetStrain's body, inlined into the phase's per-tet stresses (a call a tet otherwise)
+inline std::array<double, 6> strainOf(const TetGeometry& g, const std::array<const double*, 4>& u) {
   std::array<double, 6> strain{};
   for (int i = 0; i < 4; ++i) {
     const double gx = g.grad(i, 0), gy = g.grad(i, 1), gz = g.grad(i, 2);
@@ -133,6 +136,12 @@ std::array<double, 6> tetStrain(const TetGeometry& g, const std::array<const dou
     strain[5] += gy * ui[0] + gx * ui[1];
   }
   return strain;
+}
+
+}  // namespace
+
+std::array<double, 6> tetStrain(const TetGeometry& g, const std::array<const double*, 4>& u) {
+  return strainOf(g, u);
 }
 
 // ---- the phase's state ----
@@ -771,7 +780,7 @@ Voigt StructuralPhase::Impl::elasticStress(int t, const Eigen::VectorXd& disp) c
   const double* u = disp.data();
   const std::array<int, 4>& v = tets[t];
   const std::array<double, 6> strain =
-      tetStrain(geo[t], {u + 3 * v[0], u + 3 * v[1], u + 3 * v[2], u + 3 * v[3]});
+      strainOf(geo[t], {u + 3 * v[0], u + 3 * v[1], u + 3 * v[2], u + 3 * v[3]});
   return d * Eigen::Map<const Voigt>(strain.data());
 }
 

@@ -36,16 +36,16 @@ TEST(CoarseLocalStudy, PrintsARowPerRegionAndTheWholeBodyEqualsTheFullSolve) {
     char name[16] = {};
     Row row;
     double build = 0, solve = 0, coarseBuild = 0, coarseSolve = 0;
-    if (std::sscanf(line.c_str(), "%15s %lf %lf %lf %lf %lf %lf %lf %lf %lf %d %d", name,
-                    &row.dofs, &build, &solve, &coarseBuild, &coarseSolve, &row.nearErr,
-                    &row.maxErr, &row.l2, &row.energy, &row.nearFlips, &row.flips) == 12)
+    if (std::sscanf(line.c_str(), "%15s %lf %lf %lf %lf %lf %lf %lf %lf %lf %d %d", name, &row.dofs,
+                    &build, &solve, &coarseBuild, &coarseSolve, &row.nearErr, &row.maxErr, &row.l2,
+                    &row.energy, &row.nearFlips, &row.flips) == 12)
       rows[name] = row;
     std::sscanf(line.c_str(),
                 "check: the whole-body region against the truth, relative difference %lf", &check);
   }
   ASSERT_EQ(rows.size(), 7u) << r.output;
-  for (const char* name : {"coarse", "coarse+ref", "3.00mm", "3.00mm+ref", "6.00mm", "6.00mm+ref",
-                           "whole"})
+  for (const char* name :
+       {"coarse", "coarse+ref", "3.00mm", "3.00mm+ref", "6.00mm", "6.00mm+ref", "whole"})
     ASSERT_EQ(rows.count(name), 1u) << name << "\n" << r.output;
   EXPECT_GE(check, 0.0) << r.output;
   EXPECT_LT(check, 1e-10) << r.output;
@@ -72,12 +72,9 @@ TEST(CoarseLocalStudy, PrintsARowPerRegionAndTheWholeBodyEqualsTheFullSolve) {
 
 TEST(CoarseLocalStudy, BadArgumentsExitTwoNamingThem) {
   const std::pair<const char*, const char*> cases[] = {
-      {"8k 100", "FINE_NODES '8k'"},
-      {"50 27", "FINE_NODES '50'"},
-      {"900 1000", "COARSE_NODES '1000'"},
-      {"900 150 0", "MARGIN_MM '0'"},
-      {"900 150 4mm", "MARGIN_MM '4mm'"},
-      {"900", "usage"},
+      {"8k 100", "FINE_NODES '8k'"},       {"50 27", "FINE_NODES '50'"},
+      {"900 1000", "COARSE_NODES '1000'"}, {"900 150 0", "MARGIN_MM '0'"},
+      {"900 150 4mm", "MARGIN_MM '4mm'"},  {"900", "usage"},
   };
   for (const auto& [args, named] : cases) {
     const auto r = shell(study(args));

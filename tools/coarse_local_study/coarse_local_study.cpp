@@ -48,16 +48,16 @@ using namespace esim;
 
 namespace {
 
-constexpr double kYoungsModulusPa = 4.75e4;      // paper Table 1
-constexpr double kPoissonRatio = 0.4;            // paper Table 1
-constexpr double kCriticalStressPa = 24.5e3;     // the scenario schema's default
-constexpr double kPeakExpansion = 2.0;           // e_v on the path (boiling tissue: 0.9-3)
-constexpr double kLoadRadiusM = 1e-3;            // the expansion's Gaussian radius
-constexpr double kGrooveM = 0.3e-3;              // the groove's half width
-constexpr double kGrooveLagM = 1e-3;             // the groove ends this far behind the tool
-constexpr double kNearM = 2e-3;                  // "near the tool"
+constexpr double kYoungsModulusPa = 4.75e4;   // paper Table 1
+constexpr double kPoissonRatio = 0.4;         // paper Table 1
+constexpr double kCriticalStressPa = 24.5e3;  // the scenario schema's default
+constexpr double kPeakExpansion = 2.0;        // e_v on the path (boiling tissue: 0.9-3)
+constexpr double kLoadRadiusM = 1e-3;         // the expansion's Gaussian radius
+constexpr double kGrooveM = 0.3e-3;           // the groove's half width
+constexpr double kGrooveLagM = 1e-3;          // the groove ends this far behind the tool
+constexpr double kNearM = 2e-3;               // "near the tool"
 constexpr int kFrames = 10;
-constexpr int kReferenceLag = 2;                 // frames: the "+ref" rows' reference
+constexpr int kReferenceLag = 2;  // frames: the "+ref" rows' reference
 const Vec3 kPathFrom(-0.02, 0, 0.01), kPathTo(0.02, 0, 0.01);
 
 double seconds() {
@@ -140,7 +140,7 @@ SparseMatrix interpolation(const TetMesh& fine, const TetMesh& coarse) {
 }
 
 struct Row {
-  double margin = 0;     // [m]; < 0: the whole body (the check)
+  double margin = 0;      // [m]; < 0: the whole body (the check)
   bool enriched = false;  // the coarse space holds the reference too
   std::vector<double> regionDofs, regionBuildMs, regionSolveMs, coarseBuildMs, coarseSolveMs;
   double nearMax = 0, anyMax = 0, l2 = 0;  // worst frame, errors over kCriticalStressPa
@@ -340,9 +340,9 @@ int main(int argc, char** argv) {
         if (!fine.alive[t]) continue;
         // sigma = D (strain - e_v / 3 I) = D strain - K_b e_v (1, 1, 1, 0, 0, 0)
         const std::array<int, 4>& tv = fine.tets[t];
-        const std::array<double, 6> strain = tetStrain(
-            geo[t], {u.data() + 3 * tv[0], u.data() + 3 * tv[1], u.data() + 3 * tv[2],
-                     u.data() + 3 * tv[3]});
+        const std::array<double, 6> strain =
+            tetStrain(geo[t], {u.data() + 3 * tv[0], u.data() + 3 * tv[1], u.data() + 3 * tv[2],
+                               u.data() + 3 * tv[3]});
         const double lambda = kYoungsModulusPa * kPoissonRatio /
                               ((1 + kPoissonRatio) * (1 - 2 * kPoissonRatio)),
                      mu = kYoungsModulusPa / (2 * (1 + kPoissonRatio));
@@ -369,11 +369,12 @@ int main(int argc, char** argv) {
       row.anyMax = std::max(row.anyMax, anyMax / kCriticalStressPa);
       row.l2 = std::max(row.l2, std::sqrt(num / den));
       const Eigen::VectorXd e = u - truth.displacementM();
-      row.energy = std::max(row.energy, std::sqrt(e.dot(k * e) / truth.displacementM().dot(
-                                                                    k * truth.displacementM())));
+      row.energy =
+          std::max(row.energy,
+                   std::sqrt(e.dot(k * e) / truth.displacementM().dot(k * truth.displacementM())));
       if (row.margin < 0)
-        worstCheck = std::max(worstCheck, (u - truth.displacementM()).norm() /
-                                              truth.displacementM().norm());
+        worstCheck =
+            std::max(worstCheck, (u - truth.displacementM()).norm() / truth.displacementM().norm());
       row.regionDofs.push_back(static_cast<double>(region.size()));
       row.regionBuildMs.push_back(1e3 * build);
       row.regionSolveMs.push_back(1e3 * solve);
@@ -382,9 +383,10 @@ int main(int argc, char** argv) {
     }
   }
   const int above = rows.front().above, nearAbove = rows.front().nearAbove;
-  std::printf("full solve (StructuralPhase, %d unknowns): %.1f ms median; the truth's tets over "
-              "%.1f kPa, summed over the frames: %d, %d of them within %.0f mm of the tool\n",
-              3 * n, median(fullMs), kCriticalStressPa * 1e-3, above, nearAbove, kNearM * 1e3);
+  std::printf(
+      "full solve (StructuralPhase, %d unknowns): %.1f ms median; the truth's tets over "
+      "%.1f kPa, summed over the frames: %d, %d of them within %.0f mm of the tool\n",
+      3 * n, median(fullMs), kCriticalStressPa * 1e-3, above, nearAbove, kNearM * 1e3);
   std::printf("%-10s %8s %10s %10s %10s %10s %9s %9s %8s %8s %7s %7s\n", "region", "dofs",
               "build_ms", "solve_ms", "coarse_b", "coarse_s", "near_err", "max_err", "L2_err",
               "E_err", "n_flips", "flips");
