@@ -1,8 +1,8 @@
 // coarse_local_study_test.cpp - tools/coarse_local_study end to end on a small slab: a row
 // per region (the coarse solve alone, each margin, the whole body), its self-check (the
-// whole-body region equals StructuralPhase's solve) and the invariants of its rows (the
-// whole body has no error, a wider margin holds more unknowns); bad arguments exit 2
-// naming them. Times are never asserted.
+// whole-body region equals StructuralPhase's solve, also with a graded coarse slab) and the
+// invariants of its rows (the whole body has no error, the energy error never grows with the
+// space); bad arguments exit 2 naming them. Times are never asserted.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -68,6 +68,20 @@ TEST(CoarseLocalStudy, PrintsARowPerRegionAndTheWholeBodyEqualsTheFullSolve) {
     EXPECT_LE(rows[narrow].energy, rows[coarse].energy * slack) << with << "\n" << r.output;
     EXPECT_LE(rows[wide].energy, rows[narrow].energy * slack) << with << "\n" << r.output;
   }
+}
+
+TEST(CoarseLocalStudy, AGradedCoarseSlabChecksToo) {
+  const auto r = shell(study("--graded-coarse 900 150 3"));
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_NE(r.output.find("tets, graded)"), std::string::npos) << r.output;
+  double check = -1;
+  std::istringstream lines(r.output);
+  std::string line;
+  while (std::getline(lines, line))
+    std::sscanf(line.c_str(),
+                "check: the whole-body region against the truth, relative difference %lf", &check);
+  EXPECT_GE(check, 0.0) << r.output;
+  EXPECT_LT(check, 1e-10) << r.output;
 }
 
 TEST(CoarseLocalStudy, BadArgumentsExitTwoNamingThem) {

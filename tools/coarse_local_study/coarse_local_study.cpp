@@ -10,8 +10,9 @@
 // up to the tool, r = kLoadRadiusM) loads every alive tet: the vapour trapped along the trail.
 //   truth:  StructuralPhase built on that alive set, solve(e_v) (its solve time: "full ms");
 //   coarse: u_0 = P K_c^-1 P' f, P the P1 interpolation from a uniform coarse slab of the
-//           same box (COARSE nodes) to the fine nodes (zero rows on held components),
-//           K_c = P' K P (Galerkin: the groove is in it), factorized each frame;
+//           same box (COARSE nodes; graded as the fine one with --graded-coarse) to the
+//           fine nodes (zero rows on held components), K_c = P' K P (Galerkin: the groove
+//           is in it), factorized each frame;
 //   local:  u = u_0 + d, K_UU d_U = (f - K u_0)_U on U, the free components of the fine
 //           nodes within MARGIN of the tool point, d = 0 elsewhere (one step of a two-level
 //           multiplicative Schwarz method: coarse, then the region).
@@ -29,7 +30,8 @@
 // The study checks itself: with a region covering the body, the result must equal the
 // truth (relative difference printed; exit 1 above 1e-8). The coarse slab must be coarser
 // than the graded fine one everywhere (else P' K P is singular: exit 1, saying so).
-// Usage: coarse_local_study FINE_NODES COARSE_NODES [MARGIN_MM ...] (default margins 2 4 8)
+// Usage: coarse_local_study FINE_NODES COARSE_NODES [MARGIN_MM ...] [--graded-coarse]
+// (default margins 2 4 8; --graded-coarse: the coarse slab graded as the fine one)
 #include <Eigen/CholmodSupport>
 #include <Eigen/SparseCore>
 #include <algorithm>
@@ -158,8 +160,20 @@ double median(std::vector<double> v) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // --graded-coarse anywhere: the coarse slab graded as the fine one (finer along the cut)
+  bool gradedCoarse = false;
+  std::vector<char*> args;
+  for (int i = 0; i < argc; ++i)
+    if (std::string(argv[i]) == "--graded-coarse")
+      gradedCoarse = true;
+    else
+      args.push_back(argv[i]);
+  argc = static_cast<int>(args.size());
+  argv = args.data();
   if (argc < 3) {
-    std::fprintf(stderr, "usage: coarse_local_study FINE_NODES COARSE_NODES [MARGIN_MM ...]\n");
+    std::fprintf(stderr,
+                 "usage: coarse_local_study FINE_NODES COARSE_NODES [MARGIN_MM ...] "
+                 "[--graded-coarse]\n");
     return 2;
   }
   // a whole number in [lo, hi], else exit 2 naming it
@@ -198,7 +212,7 @@ int main(int argc, char** argv) {
       }
 
   TetMesh fine = makeSlab(slabCutSpec(fineNodes, true));
-  const TetMesh coarse = makeSlab(slabCutSpec(coarseNodes, false));
+  const TetMesh coarse = makeSlab(slabCutSpec(coarseNodes, gradedCoarse));
   const std::vector<TetGeometry> geo = tetGeometry(fine);
   const int n = fine.numNodes(), nt = fine.numTets();
   const SparseMatrix p0 = interpolation(fine, coarse);
@@ -208,9 +222,9 @@ int main(int argc, char** argv) {
       for (int a = 0; a < 3; ++a) clamp.push_back({v, a});
   std::printf(
       "coarse_local_study: slab_cut's slab, %d fine nodes (%d tets), coarse %d nodes (%d "
-      "tets); %d frames, e_v %.2g on the path (radius %.2g mm), groove %.2g mm wide\n",
-      n, nt, coarse.numNodes(), coarse.numTets(), kFrames, kPeakExpansion, kLoadRadiusM * 1e3,
-      2 * kGrooveM * 1e3);
+      "tets, %s); %d frames, e_v %.2g on the path (radius %.2g mm), groove %.2g mm wide\n",
+      n, nt, coarse.numNodes(), coarse.numTets(), gradedCoarse ? "graded" : "uniform", kFrames,
+      kPeakExpansion, kLoadRadiusM * 1e3, 2 * kGrooveM * 1e3);
   std::vector<double> fullMs;
   std::vector<Eigen::VectorXd> truths;  // the displacement of every frame so far
   double worstCheck = 0;
