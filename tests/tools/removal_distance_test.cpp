@@ -18,9 +18,9 @@ class RemovalDistance : public esim::test::ScratchDirTest {};
 
 TEST_F(RemovalDistance, CountsTheRunsRemovalsAndItsSharesGrowWithTheDistance) {
   const std::string run = (root_ / "run").string();
-  const auto ran = shell(std::string("\"") + ESIM_EXE +
-                         "\" run scenarios/slab_cut.yaml --no-video --fields 1 --frames 9 -q -o \"" +
-                         run + "\"");
+  const auto ran = shell(
+      std::string("\"") + ESIM_EXE +
+      "\" run scenarios/slab_cut.yaml --no-video --fields 1 --frames 9 -q -o \"" + run + "\"");
   ASSERT_EQ(ran.exitCode, 0) << ran.output;
   int removedByEsim = -1;
   {
@@ -29,7 +29,8 @@ TEST_F(RemovalDistance, CountsTheRunsRemovalsAndItsSharesGrowWithTheDistance) {
     while (std::getline(lines, line))
       if (line.find("  structural") == 0) {
         const size_t at = line.find("; ");
-        if (at != std::string::npos) std::sscanf(line.c_str() + at, "; %d tets removed", &removedByEsim);
+        if (at != std::string::npos)
+          std::sscanf(line.c_str() + at, "; %d tets removed", &removedByEsim);
       }
   }
   ASSERT_GT(removedByEsim, 0) << ran.output;
@@ -46,8 +47,7 @@ TEST_F(RemovalDistance, CountsTheRunsRemovalsAndItsSharesGrowWithTheDistance) {
     double s = 0;
     if (std::sscanf(line.c_str(), "within %d mm of the tool: %lf %%", &mm, &s) == 2 && k < 4)
       share[k++] = s;
-    std::sscanf(line.c_str(), "median %lf mm, p95 %lf mm, largest %lf mm", &median, &p95,
-                &largest);
+    std::sscanf(line.c_str(), "median %lf mm, p95 %lf mm, largest %lf mm", &median, &p95, &largest);
   }
   EXPECT_EQ(removed, removedByEsim) << r.output;
   EXPECT_EQ(frames, 9) << r.output;
