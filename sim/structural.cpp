@@ -1398,9 +1398,9 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
   // median 1.3-1.8 against 2.7-3.0 ms, the frame p95 2.0-2.7 against 4.6-5.8 ms; --sizes 8000
   // --frames 60 --stages (two pairs) the update's median 81-85 against 142-160 ms, its p95
   // 181-205 against 399-420 ms, the frame p95 184-195 against 377-393 ms. Above
-  // kMaxGroupDofs a cluster goes by parts (addSplit, below; it went one tet by one, 6 columns
-  // each, in the measurements that follow) (the dense LDL' is
-  // ~m^3/3 flops on m^2 doubles: 150 Mflop and 4.7 MB at 768). 768 (was 192, and 96 with the
+  // kMaxGroupDofs a cluster goes by parts (addSplit, below; in the measurements that follow it
+  // went tet by tet, 6 columns each): the dense LDL' is ~m^3/3 flops on m^2 doubles, 150 Mflop
+  // and 4.7 MB at 768. 768 (was 192, and 96 with the
   // eigenpairs, whose 192 x 192 eigenproblem took 9 ms): esim bench cut --sizes 50000
   // --frames 30 --strategy update --stages, one run each (temporary instrumentation): with
   // 192, 6 of the 27 removals had a cluster over the limit (151-392 tets, 237-408 dofs, up to

@@ -285,15 +285,18 @@ int main(int argc, char** argv) {
   std::vector<double> fullMs;
   std::vector<Eigen::VectorXd> truths;  // the displacement of every frame so far
   double worstCheck = 0;
-  const double bulk = kYoungsModulusPa / (3 * (1 - 2 * kPoissonRatio));
+  const double lambda = kYoungsModulusPa * kPoissonRatio /
+                        ((1 + kPoissonRatio) * (1 - 2 * kPoissonRatio)),
+               mu = kYoungsModulusPa / (2 * (1 + kPoissonRatio)),
+               bulk = kYoungsModulusPa / (3 * (1 - 2 * kPoissonRatio));
+  std::vector<Vec3> centroid(nt, Vec3::Zero());
+  for (int t = 0; t < nt; ++t)
+    for (int v : fine.tets[t]) centroid[t] += fine.nodes[v] / 4;
   for (int frame = 0; frame < kFrames; ++frame) {
     const double s = (frame + 1.0) / kFrames;
     const Vec3 tool = kPathFrom + s * (kPathTo - kPathFrom);
     std::vector<double> ev(nt, 0.0);
-    std::vector<Vec3> centroid(nt);
     for (int t = 0; t < nt; ++t) {
-      centroid[t] = Vec3::Zero();
-      for (int v : fine.tets[t]) centroid[t] += fine.nodes[v] / 4;
       const double d = distanceToSegment(centroid[t], kPathFrom, tool);
       ev[t] = kPeakExpansion * std::exp(-d * d / (2 * kLoadRadiusM * kLoadRadiusM));
     }
@@ -418,20 +421,17 @@ int main(int argc, char** argv) {
         const std::array<double, 6> strain =
             tetStrain(geo[t], {u.data() + 3 * tv[0], u.data() + 3 * tv[1], u.data() + 3 * tv[2],
                                u.data() + 3 * tv[3]});
-        const double lambda = kYoungsModulusPa * kPoissonRatio /
-                              ((1 + kPoissonRatio) * (1 - 2 * kPoissonRatio)),
-                     mu = kYoungsModulusPa / (2 * (1 + kPoissonRatio));
         const double tr = strain[0] + strain[1] + strain[2];
         VoigtStress sigma;
         for (int a = 0; a < 3; ++a) sigma[a] = lambda * tr + 2 * mu * strain[a] - bulk * ev[t];
         for (int a = 3; a < 6; ++a) sigma[a] = mu * strain[a];
         const double vm = vonMises(sigma), want = truth.vonMisesPa()[t];
         const double err = std::abs(vm - want);
+        const bool near = (centroid[t] - tool).norm() < kNearM;
         anyMax = std::max(anyMax, err);
-        if ((centroid[t] - tool).norm() < kNearM) nearMax = std::max(nearMax, err);  // near
+        if (near) nearMax = std::max(nearMax, err);
         num += err * err;
         den += want * want;
-        const bool near = (centroid[t] - tool).norm() < kNearM;
         const bool flip = (vm > kCriticalStressPa) != (want > kCriticalStressPa);
         row.flips += flip;
         row.nearFlips += flip && near;
@@ -443,13 +443,10 @@ int main(int argc, char** argv) {
       row.nearMax = std::max(row.nearMax, nearMax / kCriticalStressPa);
       row.anyMax = std::max(row.anyMax, anyMax / kCriticalStressPa);
       row.l2 = std::max(row.l2, std::sqrt(num / den));
-      const Eigen::VectorXd e = u - truth.displacementM();
-      row.energy =
-          std::max(row.energy,
-                   std::sqrt(e.dot(k * e) / truth.displacementM().dot(k * truth.displacementM())));
-      if (row.margin < 0)
-        worstCheck =
-            std::max(worstCheck, (u - truth.displacementM()).norm() / truth.displacementM().norm());
+      const Eigen::VectorXd& want = truth.displacementM();
+      const Eigen::VectorXd e = u - want;
+      row.energy = std::max(row.energy, std::sqrt(e.dot(k * e) / want.dot(k * want)));
+      if (row.margin < 0) worstCheck = std::max(worstCheck, e.norm() / want.norm());
       row.regionDofs.push_back(static_cast<double>(region.size()));
       row.regionBuildMs.push_back(1e3 * build);
       row.regionSolveMs.push_back(1e3 * solve);
