@@ -46,18 +46,20 @@
 
 #include "sim/fem_p1.h"
 #include "sim/mesh_slab.h"
+#include "sim/simulation.h"
 #include "sim/structural.h"
 
 using namespace esim;
 
 namespace {
 
-constexpr double kYoungsModulusPa = 4.75e4;   // paper Table 1
-constexpr double kPoissonRatio = 0.4;         // paper Table 1
-constexpr double kCriticalStressPa = 24.5e3;  // the scenario schema's default
-constexpr double kPeakExpansion = 2.0;        // e_v on the path (boiling tissue: 0.9-3)
-constexpr double kLoadRadiusM = 1e-3;         // the expansion's Gaussian radius
-constexpr double kNearM = 2e-3;               // "near the tool"
+// the defaults (paper Tables 1 and 2), from the one source of them
+const double kYoungsModulusPa = defaultSimulationConfig().structural.youngsModulusPa;
+const double kPoissonRatio = defaultSimulationConfig().structural.poissonRatio;
+const double kCriticalStressPa = defaultSimulationConfig().criticalStressPa;
+constexpr double kPeakExpansion = 2.0;  // e_v on the path (boiling tissue: 0.9-3)
+constexpr double kLoadRadiusM = 1e-3;   // the expansion's Gaussian radius
+constexpr double kNearM = 2e-3;         // "near the tool"
 constexpr int kFrames = 10;
 constexpr int kReferenceLag = 2;  // frames: the "+ref" rows' reference
 const Vec3 kPathFrom(-0.02, 0, 0.01), kPathTo(0.02, 0, 0.01);
