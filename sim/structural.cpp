@@ -19,6 +19,7 @@
 #include "sim/fem_p1.h"
 #include "sim/ldl_solve.h"
 #include "sim/ldl_updown.h"
+#include "sim/structural_coarse.h"
 #include "sim/two_threads.h"
 
 extern "C" void openblas_set_num_threads(int num_threads);
@@ -203,6 +204,9 @@ void verifyLocalOptions(const LocalSolveOptions& o) {
   ESIM_VERIFY(o.maxRegionFraction > 0 && o.maxRegionFraction <= 1,
               "structural: local.maxRegionFraction must be in (0, 1], got " +
                   messageNumber(o.maxRegionFraction));
+  ESIM_VERIFY(
+      std::isfinite(o.coarseSpacingM) && o.coarseSpacingM > 0,
+      "structural: local.coarseSpacingM must be > 0, got " + messageNumber(o.coarseSpacingM));
 }
 
 }  // namespace
@@ -292,7 +296,11 @@ struct StructuralPhase::Impl {
   std::vector<int> regionRowOf;  // per dof: its row of the region's L (-1 outside U)
   double regionFlops = 0;        // CHOLMOD's flop count of the region's factorization
   Pending regionPending;         // removals in the region its factor has not seen (none freed)
-  struct Refresh {               // LocalSolveOptions::refreshOnThread
+  // the coarse method (see LocalSolveOptions::coarseSpacingM)
+  std::unique_ptr<CoarseSpace> coarse;  // made at its first solve
+  bool coarseStale = true;              // K_c to be built (at first, and after a dof was freed)
+  std::vector<double> prevEv;           // the load of the last coarse solve (empty: none)
+  struct Refresh {                      // LocalSolveOptions::refreshOnThread
     std::thread worker;
     bool running = false;
     int solvesSinceStart = 0;
@@ -449,6 +457,17 @@ struct StructuralPhase::Impl {
   void finishRefresh(bool adopt);
   std::vector<int> holdInReference(const std::vector<int>& dofs);
   bool localSolve(const std::vector<double>& ev);
+  bool coarseSolve(const std::vector<double>& ev);
+  void loadVector(const std::vector<double>& ev, const StateView& s, Eigen::VectorXd& f) const;
+  bool readyRegion(const Eigen::AlignedBox3d& box);
+  template <class Elastic>
+  Eigen::VectorXd regionResidual(const std::vector<double>& ev, const Elastic& elastic) const;
+  const double* regionCorrect(const Eigen::VectorXd& r);
+  // the coarse method's K_c += sign P_e' K_e P_e for tet t, dof held when heldAt(dof)
+  template <class Held>
+  void addToCoarse(int t, double sign, const Held& heldAt) {
+    coarse->addTet(tets[t], elementStiffness(t), sign, heldAt);
+  }
   bool buildRegion(const Eigen::AlignedBox3d& box);
   void dropRegion();
   enum class From { solution, region, reference };  // where outputs() takes D B u from
@@ -784,15 +803,11 @@ Voigt StructuralPhase::Impl::elasticStress(int t, const Eigen::VectorXd& disp) c
   return d * Eigen::Map<const Voigt>(strain.data());
 }
 
-// u solving K u = f(ev) over the whole body, with the given CHOLMOD workspace
-void StructuralPhase::Impl::fullDisplacement(const std::vector<double>& ev, const StateView& s,
-                                             Eigen::VectorXd& f, Eigen::VectorXd& out,
-                                             cholmod_common& c, cholmod_dense*& wx,
-                                             cholmod_dense*& wy, cholmod_dense*& we,
-                                             LdlSolveWork& lw, int threads) const {
+// f = sum_e V_e B_e^T D eps*_e; D eps* = K_b e_v (1,1,1,0,0,0), so node i of the tet gets
+// V_e K_b e_v grad N_i; 0 on the held dofs (their rows of A are the identity)
+void StructuralPhase::Impl::loadVector(const std::vector<double>& ev, const StateView& s,
+                                       Eigen::VectorXd& f) const {
   const int nt = static_cast<int>(tets.size());
-  // f = sum_e V_e B_e^T D eps*_e; D eps* = K_b e_v (1,1,1,0,0,0), so node i of the tet
-  // gets V_e K_b e_v grad N_i; 0 on the held dofs (their rows of A are the identity)
   f.setZero(numDofs());
   for (int t = 0; t < nt; ++t) {
     if (!s.alive[t] || ev[t] == 0) continue;
@@ -803,6 +818,15 @@ void StructuralPhase::Impl::fullDisplacement(const std::vector<double>& ev, cons
         if (!s.held[dof]) f(dof) += load * geo[t].grad(i, a);
       }
   }
+}
+
+// u solving K u = f(ev) over the whole body, with the given CHOLMOD workspace
+void StructuralPhase::Impl::fullDisplacement(const std::vector<double>& ev, const StateView& s,
+                                             Eigen::VectorXd& f, Eigen::VectorXd& out,
+                                             cholmod_common& c, cholmod_dense*& wx,
+                                             cholmod_dense*& wy, cholmod_dense*& we,
+                                             LdlSolveWork& lw, int threads) const {
+  loadVector(ev, s, f);
   out.setZero(numDofs());
   if (s.numFree == 0) return;
   if (threads > 0 && ldlSolveSupports(*factor)) {  // updated (simplicial LDL'): ldl_solve.h
@@ -973,16 +997,34 @@ bool StructuralPhase::Impl::localSolve(const std::vector<double>& ev) {
     outputs(ev, From::reference);
     return true;
   }
+  if (!readyRegion(box)) {
+    --localSinceFull;
+    lastSolve.local = false;
+    return false;
+  }
+  // 3. r_U = -sum_e V_e B_e^T sigma_e(u_ref, e_v) over the tets touching U
+  const Eigen::VectorXd r =
+      regionResidual(ev, [&](int t) -> const Voigt& { return refElastic[t]; });
+  // 4. K_UU d_U = r_U; u = u_ref + d on U, u_ref elsewhere
+  for (int dof : appliedDofs) u(dof) = refU(dof);
+  const double* correction = regionCorrect(r);
+  for (size_t k = 0; k < regionDofs.size(); ++k)
+    u(regionDofs[k]) = refU(regionDofs[k]) + correction[k];
+  appliedDofs = regionDofs;
+  startNextRefresh();
+  outputs(ev, From::region);
+  return true;
+}
+
+// the region for the box: kept while the box stays inside the one it was built around, its
+// factor updated for removals in it; false when a region would be too large (nothing built)
+bool StructuralPhase::Impl::readyRegion(const Eigen::AlignedBox3d& box) {
   if (!(regionValid && regionBox.contains(box))) {
     const auto t0 = std::chrono::steady_clock::now();
     Eigen::AlignedBox3d grown = box;
     grown.min().array() -= local.slackM;
     grown.max().array() += local.slackM;
-    if (!buildRegion(grown)) {
-      --localSinceFull;
-      lastSolve.local = false;
-      return false;
-    }
+    if (!buildRegion(grown)) return false;
     lastSolve.regionBuilt = true;
     lastSolve.regionFactorSeconds = secondsSince(t0);
   } else if (!regionPending.removed.empty() || !regionPending.held.empty()) {
@@ -1000,19 +1042,22 @@ bool StructuralPhase::Impl::localSolve(const std::vector<double>& ev) {
     // an update that would cost more than a factorization (or failed): the region built
     // again around the same box (supernodal; a simplicial refactorization in place measured
     // 0.8-1.2 s against 0.3 s at 8000 nodes)
-    if (st.refactorized && !buildRegion(Eigen::AlignedBox3d(regionBox))) {
-      --localSinceFull;
-      lastSolve.local = false;
-      return false;
-    }
+    if (st.refactorized && !buildRegion(Eigen::AlignedBox3d(regionBox))) return false;
     lastSolve.regionFactorSeconds = secondsSince(t0);
   }
   lastSolve.regionDofs = static_cast<int>(regionDofs.size());
   lastSolve.regionTets = static_cast<int>(regionTets.size());
-  // 3. r_U = -sum_e V_e B_e^T sigma_e(u_ref, e_v) over the tets touching U
+  return true;
+}
+
+// r_U = -sum_e V_e B_e^T sigma_e(u_base, e_v) over the tets touching U, elastic(t) giving
+// D B_e u_base
+template <class Elastic>
+Eigen::VectorXd StructuralPhase::Impl::regionResidual(const std::vector<double>& ev,
+                                                      const Elastic& elastic) const {
   Eigen::VectorXd r = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(regionDofs.size()));
   for (int t : regionTets) {
-    const Voigt& s = refElastic[t];
+    const Voigt& s = elastic(t);
     const double p = bulkModulusPa * ev[t];
     const double sxx = s(0) - p, syy = s(1) - p, szz = s(2) - p, syz = s(3), sxz = s(4), sxy = s(5);
     const double vol = geo[t].volume;
@@ -1027,28 +1072,75 @@ bool StructuralPhase::Impl::localSolve(const std::vector<double>& ev) {
       }
     }
   }
-  // 4. K_UU d_U = r_U; u = u_ref + d on U, u_ref elsewhere
-  for (int dof : appliedDofs) u(dof) = refU(dof);
-  const double* correction = nullptr;
+  return r;
+}
+
+// d_U solving K_UU d_U = r_U (valid until the next region solve)
+const double* StructuralPhase::Impl::regionCorrect(const Eigen::VectorXd& r) {
   if (solveThreads > 0 && ldlSolveSupports(*regionFactor)) {  // kept simplicial: ldl_solve.h
     regionCorrection.resize(static_cast<Eigen::Index>(regionDofs.size()));
     ldlSolve(*regionFactor, r.data(), regionCorrection.data(), solveThreads, regionSolve);
-    correction = regionCorrection.data();
     lastSolve.solveThreads = regionSolve.threadsUsed;
-  } else {
-    cholmod_dense b = cholmodViewDense(r.data(), regionDofs.size());
-    openblas_set_num_threads(1);
-    const int ok =
-        cholmod_solve2(CHOLMOD_A, regionFactor, &b, nullptr, &rx, nullptr, &ry, &re, &common);
-    if (!ok) throwIfOutOfResources(common);
-    ESIM_RUN_CHECK(ok, "structural: CHOLMOD solve failed");
-    correction = static_cast<const double*>(rx->x);
+    return regionCorrection.data();
   }
-  for (size_t k = 0; k < regionDofs.size(); ++k)
-    u(regionDofs[k]) = refU(regionDofs[k]) + correction[k];
-  appliedDofs = regionDofs;
-  startNextRefresh();
-  outputs(ev, From::region);
+  cholmod_dense b = cholmodViewDense(r.data(), regionDofs.size());
+  openblas_set_num_threads(1);
+  const int ok =
+      cholmod_solve2(CHOLMOD_A, regionFactor, &b, nullptr, &rx, nullptr, &ry, &re, &common);
+  if (!ok) throwIfOutOfResources(common);
+  ESIM_RUN_CHECK(ok, "structural: CHOLMOD solve failed");
+  return static_cast<const double*>(rx->x);
+}
+
+// the coarse method (see LocalSolveOptions); false when a full solve is due instead
+bool StructuralPhase::Impl::coarseSolve(const std::vector<double>& ev) {
+  if (numFree == 0) return false;
+  const int nt = static_cast<int>(tets.size());
+  // 1. u_0 = P_h K_c^-1 P_h' f
+  if (!coarse) coarse = std::make_unique<CoarseSpace>(nodes, local.coarseSpacingM);
+  if (coarseStale) {
+    const auto t0 = std::chrono::steady_clock::now();
+    coarse->build(assemble(current()), held.data());
+    coarseStale = false;
+    lastSolve.coarseFactorSeconds = secondsSince(t0);
+  }
+  loadVector(ev, current(), rhs);
+  const bool refactor = coarse->needsFactorization();
+  coarse->solve(rhs, held.data(), refU);
+  if (refactor) lastSolve.coarseFactorSeconds = coarse->lastFactorSeconds();
+  lastSolve.local = true;
+  // 2. the box: the load changed since the last solve, and what removals changed
+  if (prevEv.size() != ev.size()) prevEv.assign(ev.size(), 0.0);
+  double largest = 0;
+  for (int t = 0; t < nt; ++t)
+    if (alive[t]) largest = std::max(largest, std::abs(ev[t] - prevEv[t]));
+  Eigen::AlignedBox3d box;  // empty
+  if (largest > 0) {
+    const double threshold = local.loadTolerance * largest;
+    for (int t = 0; t < nt; ++t)
+      if (alive[t] && std::abs(ev[t] - prevEv[t]) > threshold)
+        for (int v : tets[t]) box.extend(nodes[v]);
+  }
+  for (int v : changedNodes) box.extend(nodes[v]);
+  prevEv = ev;
+  changedNodes.clear();
+  // 3. the region's correction (a region kept when nothing changed)
+  u = refU;
+  if (local.coarseCorrection && !(box.isEmpty() && !regionValid)) {
+    if (!box.isEmpty() || !regionPending.removed.empty() || !regionPending.held.empty()) {
+      if (box.isEmpty()) box = regionBox;
+      if (!readyRegion(box)) {
+        lastSolve.local = false;
+        return false;
+      }
+    }
+    lastSolve.regionDofs = static_cast<int>(regionDofs.size());
+    lastSolve.regionTets = static_cast<int>(regionTets.size());
+    const Eigen::VectorXd r = regionResidual(ev, [&](int t) { return elasticStress(t, refU); });
+    const double* correction = regionCorrect(r);
+    for (size_t k = 0; k < regionDofs.size(); ++k) u(regionDofs[k]) += correction[k];
+  }
+  outputs(ev, From::solution);
   return true;
 }
 
@@ -1190,8 +1282,12 @@ std::function<StructuralUpdateStats()> StructuralPhase::Impl::beginRemoval(
   // after what an earlier setting deferred. Measured (esim bench cut --sizes 8000 --frames 60
   // --structural local, margin 10 mm, refresh every 30 in the frame): deferring to the full
   // solve in the frame, median 260 ms against 139 ms with the update on the caller's thread
+  // The coarse method defers it too: it solves without the whole factor
   const bool deferred =
-      method == StructuralSolveMethod::local && local.refreshOnThread && local.refreshEvery > 0;
+      (method == StructuralSolveMethod::local && local.refreshOnThread && local.refreshEvery > 0) ||
+      method == StructuralSolveMethod::coarse;
+  const bool keepCoarse = method == StructuralSolveMethod::coarse && coarse && !coarseStale;
+  if (!keepCoarse) coarseStale = true;  // K_c (if any) is built again at the next coarse solve
   if (!deferred) bringFactorUpToDate();
   std::vector<int> removed;
   for (int t : ids)
@@ -1206,6 +1302,10 @@ std::function<StructuralUpdateStats()> StructuralPhase::Impl::beginRemoval(
     };
   };
   if (removed.empty()) return done(stats);
+
+  // the coarse matrix loses the removed tets (under the held dofs before the removal)
+  if (keepCoarse)
+    for (int t : removed) addToCoarse(t, -1, [&](int dof) { return held[dof] != 0; });
 
   // 1. alive flags; nodes left without an alive tet are held
   std::vector<int> newlyHeld;
@@ -1287,6 +1387,22 @@ std::function<StructuralUpdateStats()> StructuralPhase::Impl::beginRemoval(
   }
   std::sort(newlyHeld.begin(), newlyHeld.end());
   stats.dofsHeld = static_cast<int>(newlyHeld.size());
+  // ... and the alive tets at the nodes newly held change their part of it
+  if (keepCoarse && !newlyHeld.empty()) {
+    std::vector<int> touched;
+    for (int dof : newlyHeld)
+      for (const int* t = tetsOfNode.begin(dof / 3); t != tetsOfNode.end(dof / 3); ++t)
+        if (alive[*t]) touched.push_back(*t);
+    std::sort(touched.begin(), touched.end());
+    touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+    const auto newly = [&](int dof) {
+      return std::binary_search(newlyHeld.begin(), newlyHeld.end(), dof);
+    };
+    for (int t : touched) {
+      addToCoarse(t, -1, [&](int dof) { return held[dof] != 0 && !newly(dof); });
+      addToCoarse(t, 1, [&](int dof) { return held[dof] != 0; });
+    }
+  }
 
   // 3. a node held as part of an island is free again once no island holds it (its tets in
   // the island removed, those in a supported piece alive): the tets removed show them all
@@ -1304,6 +1420,7 @@ std::function<StructuralUpdateStats()> StructuralPhase::Impl::beginRemoval(
     }
   }
   stats.dofsFreed = static_cast<int>(newlyFreed.size());
+  if (!newlyFreed.empty()) coarseStale = true;  // K_c's pattern may grow: built again
 
   // the local solve's reference: u_ref is 0 on the dofs now held (the tets at their nodes
   // change stress); these nodes and the removed tets' widen the next region's box; a
@@ -1324,7 +1441,12 @@ std::function<StructuralUpdateStats()> StructuralPhase::Impl::beginRemoval(
   }
   // the region: the next local solve updates its factor when the removal touched it; a
   // freed dof (not one of its unknowns) drops it
-  if (method == StructuralSolveMethod::local && regionValid && newlyFreed.empty()) {
+  if (method == StructuralSolveMethod::coarse) {  // the next coarse solve's box
+    changedNodes.insert(changedNodes.end(), removedNodes.begin(), removedNodes.end());
+    for (int dof : newlyHeld) changedNodes.push_back(dof / 3);
+    for (int dof : newlyFreed) changedNodes.push_back(dof / 3);
+  }
+  if (method != StructuralSolveMethod::full && regionValid && newlyFreed.empty()) {
     for (int t : removed)
       if (inRegion[t]) {
         inRegion[t] = 0;
@@ -1770,7 +1892,9 @@ void StructuralPhase::solve(const std::vector<double>& ev) {
     ESIM_VERIFY(!m.alive[t] || std::isfinite(ev[t]),
                 "structural: eigenstrain of tet " + std::to_string(t) + " is not finite");
   m.lastSolve = StructuralSolveStats{};
-  if (!(m.method == StructuralSolveMethod::local && m.localSolve(ev))) m.fullSolve(ev);
+  const bool done = (m.method == StructuralSolveMethod::local && m.localSolve(ev)) ||
+                    (m.method == StructuralSolveMethod::coarse && m.coarseSolve(ev));
+  if (!done) m.fullSolve(ev);
   m.lastSolve.seconds = secondsSince(t0);
 }
 
@@ -1778,10 +1902,14 @@ void StructuralPhase::setSolveMethod(StructuralSolveMethod method, const LocalSo
   Impl& m = *impl_;
   verifyLocalOptions(local);
   m.finishRefresh(false);
+  if (m.coarse && local.coarseSpacingM != m.local.coarseSpacingM) m.coarse.reset();
+  if (!m.coarse) m.coarseStale = true;
+  if (method == StructuralSolveMethod::coarse) m.changedNodes.clear();
+  m.prevEv.clear();  // the first coarse solve's box: every loaded tet
   m.method = method;
   m.local = local;
   m.dropRegion();
-  if (method == StructuralSolveMethod::full) {  // the reference is not kept up to date
+  if (method != StructuralSolveMethod::local) {  // the reference is not kept up to date
     m.hasReference = false;
     m.refElastic = {};
     m.refEv = {};

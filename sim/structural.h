@@ -109,8 +109,9 @@ double volumetricExpansion(const ExpansionParams& params, double temperatureC,
 
 // ---- how solve() finds the displacement ----
 enum class StructuralSolveMethod {
-  full,   // K u = f over the whole body with the factor of A (the default)
-  local,  // a correction of the last full solve on a region around the changed load
+  full,    // K u = f over the whole body with the factor of A (the default)
+  local,   // a correction of the last full solve on a region around the changed load
+  coarse,  // a coarse Galerkin solve on a grid, then a correction on a region (see below)
 };
 
 // The local solve. The phase keeps a reference, (e_ref, u_ref): the load and displacement
@@ -173,6 +174,21 @@ struct LocalSolveOptions {
   // removeTets does not wait for it; setSolveMethod and a full solve in the frame join it
   // and drop its solve (refreshEvery 0: no refresh)
   bool refreshOnThread = false;
+  // ---- the coarse method (StructuralSolveMethod::coarse) ----
+  // Every solve: u_0 = P_h K_c^-1 P_h' f on the coarse space of structural_coarse.h (a grid of
+  // cells of at most coarseSpacingM over the mesh's box), then, with coarseCorrection, the
+  // region's correction as above with u_0 for u_ref (one step of a two-level multiplicative
+  // Schwarz method; its energy-norm error is at most the coarse solve's). The box: the
+  // alive tets whose e_v changed by more than loadTolerance times the largest change since
+  // the last solve, the removed tets and the nodes held or freed since (where the tool
+  // heats and cuts); the region is kept while that box stays inside the one it was built
+  // around (a frame with no change keeps it). No full solve is done: removals update K_c
+  // (structural_coarse.h) and the region's factor, and leave the whole factor as it is (it
+  // catches up at the next full solve: a region holding more than maxRegionFraction of the
+  // free components, or setSolveMethod(full)). marginM, slackM, loadTolerance and
+  // maxRegionFraction as above; refreshEvery and refreshOnThread are not used.
+  double coarseSpacingM = 0.003;  // the coarse grid's cell size, at most, along each axis [m]
+  bool coarseCorrection = true;   // false: the coarse solve alone (what the region buys)
 };
 
 // what the last solve() did
@@ -184,6 +200,7 @@ struct StructuralSolveStats {
   int regionDofs = 0;               // unknowns of the local solve (0: no load change)
   int regionTets = 0;               // tets whose stress the correction changes
   double regionFactorSeconds = 0;   // assembly and factorization of K_UU, or its update
+  double coarseFactorSeconds = 0;   // coarse method: K_c's build or numeric refactorization
   bool refreshAdopted = false;      // refreshOnThread: a refresh became the reference ...
   bool refreshStarted = false;      // ... a refresh of this load started
   int solveThreads = 0;             // threads of its triangular solves by ldl_solve.h (1 or 2;

@@ -225,7 +225,7 @@ struct ScenarioSolvers {
       scenario_detail::core().thermal.lumpedMass ? ThermalMass::Lumped : ThermalMass::Consistent;
   bool thermalAllowSubstepping = scenario_detail::core().thermal.allowSubstepping;
   int thermalMaxSubsteps = scenario_detail::core().thermal.maxSubsteps;  // explicit, per frame
-  // full | local (sim/structural.h LocalSolveOptions)
+  // full | local | coarse (sim/structural.h LocalSolveOptions)
   StructuralSolveMethod structuralMethod = scenario_detail::core().structural.solveMethod;
   // local: the region is the nodes within this of the load change's box
   double structuralLocalMarginM = scenario_detail::core().structural.local.marginM;
@@ -238,6 +238,10 @@ struct ScenarioSolvers {
   int structuralLocalRefreshEvery = scenario_detail::core().structural.local.refreshEvery;
   // local: that full solve on a thread of the phase, adopted refresh_every solves later
   bool structuralLocalRefreshOnThread = scenario_detail::core().structural.local.refreshOnThread;
+  // coarse: the coarse grid's cell size, at most [m]
+  double structuralCoarseSpacingM = scenario_detail::core().structural.local.coarseSpacingM;
+  // coarse: the region's correction after the coarse solve (false: the coarse solve alone)
+  bool structuralCoarseCorrection = scenario_detail::core().structural.local.coarseCorrection;
   // a removal's factor update by the vectorized kernel (else cholmod_updown)
   bool structuralVectorizedUpdate = scenario_detail::core().structural.vectorizedUpdate;
   // threads of an updated factor's triangular solves and of a removal's update (1 or 2, the

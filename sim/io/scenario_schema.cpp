@@ -304,11 +304,14 @@ const std::vector<Field>& schema() {
                         "explicit: a frame needing more sub-steps is refused before the run "
                         "(the work of a frame is bounded; use an implicit integrator)"));
     f.push_back(choice("solvers.structural.method", ESIM_ENUM_REF(solvers.structuralMethod),
-                       {"full", "local"},
-                       "structural: each frame's displacement from the whole body's factor, or "
-                       "as a correction of the last full solve on a region around the tets whose "
-                       "load changed (the far field held; a full solve refreshes it every "
-                       "local_refresh_every solves; see README for the stress error it costs)"));
+                       {"full", "local", "coarse"},
+                       "structural: each frame's displacement from the whole body's factor; or "
+                       "(local) as a correction of the last full solve on a region around the "
+                       "tets whose load changed (the far field held; a full solve refreshes it "
+                       "every local_refresh_every solves); or (coarse) a Galerkin solve on a grid "
+                       "of coarse_spacing_m cells, then the same correction on a region around "
+                       "the load's change since the last frame (no full solve; see README for "
+                       "the stress error each costs)"));
     f.push_back(number("solvers.structural.local_margin_m",
                        ESIM_REF(solvers.structuralLocalMarginM), "m", positive(10.0),
                        "local: the region is every node within this of the box around the "
@@ -331,6 +334,15 @@ const std::vector<Field>& schema() {
                         "local: run that full solve on a thread of its own, adopted "
                         "local_refresh_every solves later (deterministic), instead of in the "
                         "frame"));
+    f.push_back(number("solvers.structural.coarse_spacing_m",
+                       ESIM_REF(solvers.structuralCoarseSpacingM), "m", positive(10.0),
+                       "coarse: the grid over the mesh's box has cells of at most this size along "
+                       "each axis (a grid of more than 300 000 nodes is refused)"));
+    f.push_back(boolean("solvers.structural.coarse_correction",
+                        ESIM_REF(solvers.structuralCoarseCorrection),
+                        "coarse: correct the coarse solve on the region (local_margin_m, "
+                        "local_slack_m, local_max_region_fraction); false: the coarse solve "
+                        "alone, to measure what the region buys"));
     f.push_back(boolean("solvers.structural.vectorized_update",
                         ESIM_REF(solvers.structuralVectorizedUpdate),
                         "update mode: a removal's update of the structural factor by ESim's "

@@ -670,7 +670,7 @@ TEST(StructuralRemoval, PieceCutLooseBecomesAnIsland) {
 // A held at three nodes, E on its face (0, 1, 3), C on its face (1, 2, 3) and B on C's face
 // (2, 3, 4): removing C leaves B hanging from A by the edge (2, 3). B could turn about it
 // (its own supports, node 2's, leave that free), so it must be held, node 3 with it
-TEST(StructuralRemoval, PieceHangingByAnEdgeIsHeld) {
+TetMesh hingedMesh() {
   TetMesh mesh;
   const double h = 0.01;
   mesh.nodes = {Vec3(0, 0, 0), Vec3(h, 0, 0),      Vec3(0, h, 0),         Vec3(0, 0, h),
@@ -680,9 +680,19 @@ TEST(StructuralRemoval, PieceHangingByAnEdgeIsHeld) {
     if (tetSignedVolume(mesh.nodes[t[0]], mesh.nodes[t[1]], mesh.nodes[t[2]], mesh.nodes[t[3]]) < 0)
       std::swap(t[0], t[1]);
   mesh.alive.assign(mesh.tets.size(), 1);
+  return mesh;
+}
+
+std::vector<Support> hingedSupports() {  // A's nodes 0, 1, 2
   std::vector<Support> s;
   for (int v : {0, 1, 2})
     for (int a = 0; a < 3; ++a) s.push_back({v, a});
+  return s;
+}
+
+TEST(StructuralRemoval, PieceHangingByAnEdgeIsHeld) {
+  TetMesh mesh = hingedMesh();
+  const std::vector<Support> s = hingedSupports();
   StructuralPhase phase(mesh, alwaysUpdate(), s);
   EXPECT_EQ(phase.numFloatingIslands(), 0);
   expectSameAsFresh(phase, mesh, s, "whole");
@@ -1153,6 +1163,179 @@ TEST(StructuralLocal, RefreshScheduleAndUnchangedLoad) {
   o.marginM = 0.01;
   o.maxRegionFraction = 0;
   EXPECT_THROW({ StructuralPhase bad(mesh, localPaper(o), clamp); }, Error);
+}
+
+// ---- the coarse method ----
+
+StructuralOptions coarsePaper(const LocalSolveOptions& local) {
+  StructuralOptions o = alwaysUpdate();
+  o.solveMethod = StructuralSolveMethod::coarse;
+  o.local = local;
+  return o;
+}
+
+TEST(StructuralCoarse, WholeMeshRegionEqualsTheFullSolveAlsoAfterRemovals) {
+  TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralPhase coarse(mesh, coarsePaper(wholeMesh()), clamp);
+  StructuralPhase full(mesh, paper(), clamp);
+  for (const std::vector<double>& ev :
+       {bumpLoad(mesh, Vec3(-0.004, 0, kLz), 0.004), unevenLoad(mesh)}) {
+    coarse.solve(ev);
+    full.solve(ev);
+    EXPECT_TRUE(coarse.lastSolveStats().local);  // never a full solve
+    EXPECT_EQ(coarse.lastSolveStats().regionDofs, full.numFreeDofs());
+    EXPECT_LT(relativeDifference(coarse.displacementM(), full.displacementM()), 1e-9);
+  }
+  std::vector<int> top;
+  for (int t = 0; t < mesh.numTets(); ++t)
+    if (centroidZ(mesh, t) > 0.75 * kLz && t % 4 == 0) top.push_back(t);
+  const StructuralUpdateStats st = removeBoth(coarse, mesh, {top[0], top[1], top[2], top[3]});
+  EXPECT_TRUE(st.deferred);  // the whole factor is not needed
+  expectSameAsFresh(coarse, mesh, clamp, "4 tets, whole mesh");
+  EXPECT_TRUE(coarse.lastSolveStats().local);
+  // back to full solves: the deferred update is applied then
+  coarse.setSolveMethod(StructuralSolveMethod::full, wholeMesh());
+  expectSameAsFresh(coarse, mesh, clamp, "full again");
+  EXPECT_FALSE(coarse.lastSolveStats().local);
+}
+
+TEST(StructuralCoarse, EnergyErrorFallsAsTheGridIsHalvedAndWithTheRegion) {
+  const TetMesh mesh = biggerSlab();  // 20 x 16 x 10 mm: grids of 20, 10, 5 mm are nested
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  const std::vector<double> ev = bumpLoad(mesh, Vec3(0.002, 0.001, kLz), 0.004);
+  StructuralPhase full(mesh, paper(), clamp);
+  full.solve(ev);
+  std::vector<double> alone, twoLevel;
+  for (double spacing : {0.02, 0.01, 0.005}) {
+    LocalSolveOptions o;
+    o.coarseSpacingM = spacing;
+    o.marginM = 0.003;
+    o.maxRegionFraction = 1;
+    o.coarseCorrection = false;
+    StructuralPhase a(mesh, coarsePaper(o), clamp);
+    a.solve(ev);
+    EXPECT_EQ(a.lastSolveStats().regionDofs, 0);
+    alone.push_back(energyError(mesh, a, full));
+    o.coarseCorrection = true;
+    StructuralPhase b(mesh, coarsePaper(o), clamp);
+    b.solve(ev);
+    EXPECT_GT(b.lastSolveStats().regionDofs, 0);
+    EXPECT_LT(b.lastSolveStats().regionDofs, full.numFreeDofs());
+    twoLevel.push_back(energyError(mesh, b, full));
+  }
+  for (size_t k = 0; k < alone.size(); ++k) {
+    SCOPED_TRACE("grid " + std::to_string(k));
+    if (k > 0) {
+      EXPECT_LE(alone[k], alone[k - 1] * (1 + 1e-9));  // nested spaces
+    }
+    // the region's correction is an energy-orthogonal projection of the coarse error
+    EXPECT_LE(twoLevel[k], alone[k] * (1 + 1e-9));
+    EXPECT_LT(twoLevel[k], 0.5 * alone[k]);
+  }
+  EXPECT_LT(alone.back(), 0.8 * alone.front());
+}
+
+// removed tets, an orphaned node and a piece cut loose: K_c kept by per-tet contributions
+TEST(StructuralCoarse, RemovalsKeepTheCoarseMatrixOfAFreshBuild) {
+  TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  LocalSolveOptions o;
+  o.coarseSpacingM = 0.005;
+  o.coarseCorrection = false;  // the coarse solve alone: what K_c's update decides
+  StructuralPhase phase(mesh, coarsePaper(o), clamp);
+  phase.solve(unevenLoad(mesh));
+  std::vector<int> top;
+  for (int t = 0; t < mesh.numTets(); ++t)
+    if (centroidZ(mesh, t) > 0.75 * kLz && t % 4 == 0) top.push_back(t);
+  removeBoth(phase, mesh, {top[0], top[1], top[2], top[3], top[4]});
+  // an orphaned node: its dofs newly held, the alive tets at it change their part of K_c
+  int held = 0;
+  for (int v = 0; v < mesh.numNodes() && held == 0; ++v) {
+    std::vector<int> ts;
+    for (int t = 0; t < mesh.numTets(); ++t)
+      if (mesh.alive[t] && std::count(mesh.tets[t].begin(), mesh.tets[t].end(), v) > 0)
+        ts.push_back(t);
+    if (ts.size() >= 2 && ts.size() <= 4 && mesh.nodes[v].z() > kLz / 2) {
+      const StructuralUpdateStats st = removeBoth(phase, mesh, ts);
+      held = st.dofsHeld;
+      EXPECT_EQ(st.dofsFreed, 0);
+    }
+  }
+  ASSERT_GT(held, 0);
+  phase.solve(unevenLoad(mesh));
+  // the middle layer, in two halves: the second cuts the top layer loose, an island whose
+  // alive tets change their part of K_c (their nodes held)
+  std::vector<int> left, right;
+  for (int t = 0; t < mesh.numTets(); ++t) {
+    const double z = centroidZ(mesh, t);
+    if (!mesh.alive[t] || z < kLz / 4 || z > kLz / 2) continue;
+    double x = 0;
+    for (int v : mesh.tets[t]) x += mesh.nodes[v].x() / 4;
+    (x < 0 ? left : right).push_back(t);
+  }
+  removeBoth(phase, mesh, left);
+  const StructuralUpdateStats st = removeBoth(phase, mesh, right);
+  EXPECT_EQ(phase.numFloatingIslands(), 1);
+  EXPECT_GT(st.dofsHeld, 0);
+  EXPECT_EQ(st.dofsFreed, 0);
+  const std::vector<double> ev = unevenLoad(mesh);
+  phase.solve(ev);
+  EXPECT_GT(phase.lastSolveStats().coarseFactorSeconds, 0);  // refactorized, not rebuilt
+  StructuralPhase fresh(mesh, coarsePaper(o), clamp);
+  fresh.solve(ev);
+  EXPECT_GT(fresh.displacementM().norm(), 0);
+  EXPECT_LT(relativeDifference(phase.displacementM(), fresh.displacementM()), 1e-9);
+  EXPECT_LT(relativeDifference(asVector(phase.vonMisesPa()), asVector(fresh.vonMisesPa())), 1e-9);
+}
+
+// node 3, held with the piece hanging by an edge, is also a node of alive tets that stay
+// free (A and E): their part of K_c changes, not vanishes
+TEST(StructuralCoarse, PieceHangingByAnEdgeKeepsTheCoarseMatrixOfAFreshBuild) {
+  TetMesh mesh = hingedMesh();
+  const std::vector<Support> s = hingedSupports();
+  LocalSolveOptions o;
+  o.coarseSpacingM = 0.004;
+  o.coarseCorrection = false;
+  StructuralPhase phase(mesh, coarsePaper(o), s);
+  phase.solve(unevenLoad(mesh));
+  const StructuralUpdateStats st = removeBoth(phase, mesh, {1});
+  EXPECT_EQ(st.dofsHeld, 9);
+  EXPECT_EQ(st.dofsFreed, 0);
+  const std::vector<double> ev = unevenLoad(mesh);
+  phase.solve(ev);
+  StructuralPhase fresh(mesh, coarsePaper(o), s);
+  fresh.solve(ev);
+  EXPECT_GT(fresh.displacementM().norm(), 0);
+  EXPECT_LT(relativeDifference(phase.displacementM(), fresh.displacementM()), 1e-9);
+}
+
+TEST(StructuralCoarse, RegionFollowsTheChangingLoadAndStaysWhenItStops) {
+  const TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  LocalSolveOptions o;
+  o.marginM = 0.002;
+  o.slackM = 0.003;
+  o.maxRegionFraction = 1;
+  StructuralPhase phase(mesh, coarsePaper(o), clamp);
+  std::vector<bool> built;
+  for (int k = 0; k < 6; ++k) {  // a bump moving 1 mm a solve, then 5 mm
+    phase.solve(bumpLoad(mesh, Vec3(-0.006 + 0.001 * k + (k == 5 ? 0.005 : 0), 0, kLz), 0.002));
+    built.push_back(phase.lastSolveStats().regionBuilt);
+  }
+  EXPECT_TRUE(built.front());
+  EXPECT_TRUE(built.back());  // left the region's box
+  EXPECT_LT(std::count(built.begin(), built.end(), true), 6);
+  // the same load again: the region stays, the result is the same
+  const std::vector<double> vm = phase.vonMisesPa();
+  phase.solve(bumpLoad(mesh, Vec3(0.004, 0, kLz), 0.002));
+  EXPECT_FALSE(phase.lastSolveStats().regionBuilt);
+  EXPECT_GT(phase.lastSolveStats().regionDofs, 0);
+  EXPECT_LT(relativeDifference(asVector(phase.vonMisesPa()), asVector(vm)), 1e-12);
+  // bad options
+  o.coarseSpacingM = 0;
+  EXPECT_THROW(phase.setSolveMethod(StructuralSolveMethod::coarse, o), Error);
+  EXPECT_THROW({ StructuralPhase bad(mesh, coarsePaper(o), clamp); }, Error);
 }
 
 }  // namespace

@@ -41,7 +41,7 @@ TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
   };
   const std::vector<Case> cases = {
       {"bench cut --sizes 50 --structural bar",
-       "--structural: 'bar' is not full or local (solvers.structural.method)"},
+       "--structural: 'bar' is not full, local or coarse (solvers.structural.method)"},
       // an empty list ran nothing and exited 0
       {"bench cut --sizes 50 --strategy ,", "--strategy is empty; expected synchronous"},
       {"bench cut --sizes 50 --structural ''",

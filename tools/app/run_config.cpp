@@ -87,6 +87,8 @@ void mapStructural(const Scenario& s, SimulationConfig& c) {
   c.structural.local.maxRegionFraction = s.solvers.structuralLocalMaxRegionFraction;
   c.structural.local.refreshEvery = s.solvers.structuralLocalRefreshEvery;
   c.structural.local.refreshOnThread = s.solvers.structuralLocalRefreshOnThread;
+  c.structural.local.coarseSpacingM = s.solvers.structuralCoarseSpacingM;
+  c.structural.local.coarseCorrection = s.solvers.structuralCoarseCorrection;
   c.structural.vectorizedUpdate = s.solvers.structuralVectorizedUpdate;
   c.structural.solveThreads = s.solvers.structuralSolveThreads;
   c.rebuildMode = s.solvers.rebuildMode;

@@ -90,10 +90,12 @@ int benchCut(const BenchCutOptions& opt) {
   ESIM_VERIFY(opt.frames >= 0, "--frames must be >= 0");
   ESIM_VERIFY(opt.paceHz >= 0 && opt.paceHz <= 1e4, "--pace must be in 0..10000 Hz");
   const std::vector<std::string> methods = app::splitList(opt.structural);
-  ESIM_VERIFY(!methods.empty(), "--structural is empty; expected full, local or full,local");
+  ESIM_VERIFY(!methods.empty(),
+              "--structural is empty; expected full, local or coarse (comma separated)");
   for (const std::string& m : methods)
-    ESIM_VERIFY(m == "full" || m == "local",
-                "--structural: '" + m + "' is not full or local (solvers.structural.method)");
+    ESIM_VERIFY(
+        m == "full" || m == "local" || m == "coarse",
+        "--structural: '" + m + "' is not full, local or coarse (solvers.structural.method)");
   // every run's scenario checked before the first run (its mesh is built when it runs); the
   // first one's look serves --render
   std::optional<Scenario> first;
@@ -219,7 +221,8 @@ int benchCut(const BenchCutOptions& opt) {
         if (renderer)
           std::printf(" %10.2f %10.2f %15.2f %15.2f", quantile(renderMs, 0.5),
                       quantile(renderMs, 0.95), quantile(frameMs, 0.5), quantile(frameMs, 0.95));
-        if (differ >= 0) std::printf("  (%d tets removed by one of full/local only)", differ);
+        if (differ >= 0)
+          std::printf("  (%d tets removed by one of full/%s only)", differ, method.c_str());
         if (opt.paceHz > 0) std::printf("  (%d frames ended after their tick)", late);
         // which solver the scene's electric strategy (auto: by the mesh's size) took
         if (const std::string electric = sim.electricSolverName(); !electric.empty())
@@ -299,8 +302,8 @@ cli::Registrar registerBenchCut(
                      "also runs in the idle rest of its frame); 0: back to back")
           ->capture_default_str();
       app.add_option("--structural", opt->structural,
-                     "solvers.structural.method values, comma separated (full,local: the "
-                     "local solve's removed set compared with the full one's)")
+                     "solvers.structural.method values, comma separated (full,local,coarse: "
+                     "each later method's removed set compared with the full one's)")
           ->capture_default_str();
       app.add_flag("--stages", opt->stages, "per-stage median, p95 and max under each row");
       app.add_flag("--render", opt->render,
