@@ -1116,7 +1116,7 @@ bool StructuralPhase::Impl::coarseSolve(const std::vector<double>& ev) {
     if (alive[t]) largest = std::max(largest, std::abs(ev[t] - prevEv[t]));
   Eigen::AlignedBox3d box;  // empty
   if (largest > 0) {
-    const double threshold = local.loadTolerance * largest;
+    const double threshold = local.coarseLoadTolerance * largest;
     for (int t = 0; t < nt; ++t)
       if (alive[t] && std::abs(ev[t] - prevEv[t]) > threshold)
         for (int v : tets[t]) box.extend(nodes[v]);

@@ -179,16 +179,19 @@ struct LocalSolveOptions {
   // cells of at most coarseSpacingM over the mesh's box), then, with coarseCorrection, the
   // region's correction as above with u_0 for u_ref (one step of a two-level multiplicative
   // Schwarz method; its energy-norm error is at most the coarse solve's). The box: the
-  // alive tets whose e_v changed by more than loadTolerance times the largest change since
+  // alive tets whose e_v changed by more than coarseLoadTolerance times the largest change since
   // the last solve, the removed tets and the nodes held or freed since (where the tool
   // heats and cuts); the region is kept while that box stays inside the one it was built
   // around (a frame with no change keeps it). No full solve is done: removals update K_c
   // (structural_coarse.h) and the region's factor, and leave the whole factor as it is (it
   // catches up at the next full solve: a region holding more than maxRegionFraction of the
-  // free components, or setSolveMethod(full)). marginM, slackM, loadTolerance and
-  // maxRegionFraction as above; refreshEvery and refreshOnThread are not used.
-  double coarseSpacingM = 0.003;  // the coarse grid's cell size, at most, along each axis [m]
-  bool coarseCorrection = true;   // false: the coarse solve alone (what the region buys)
+  // free components, or setSolveMethod(full)). marginM, slackM and maxRegionFraction as
+  // above; loadTolerance, refreshEvery and refreshOnThread are not used.
+  double coarseSpacingM = 0.005;  // the coarse grid's cell size, at most, along each axis [m]
+  // the box: tets whose e_v changed by more than this times the largest change (in [0, 1));
+  // the default takes the tets that start to boil (e_v jumps by ~1), not those warming
+  double coarseLoadTolerance = 0.05;
+  bool coarseCorrection = true;  // false: the coarse solve alone (what the region buys)
 };
 
 // what the last solve() did

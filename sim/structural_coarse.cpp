@@ -14,9 +14,9 @@ extern "C" void openblas_set_num_threads(int num_threads);
 namespace esim {
 
 CoarseSpace::CoarseSpace(const std::vector<Vec3>& nodes, double spacingM) {
-  ESIM_VERIFY(std::isfinite(spacingM) && spacingM > 0,
-              "structural: the coarse grid's spacing must be > 0 m, got " +
-                  messageNumber(spacingM));
+  ESIM_VERIFY(
+      std::isfinite(spacingM) && spacingM > 0,
+      "structural: the coarse grid's spacing must be > 0 m, got " + messageNumber(spacingM));
   cholmod_start(&common_);
   common_.print = 0;
   common_.error_handler = nullptr;
@@ -35,8 +35,7 @@ CoarseSpace::CoarseSpace(const std::vector<Vec3>& nodes, double spacingM) {
     throw Error("structural: a coarse grid of spacing " + messageNumber(spacingM) +
                 " m over the mesh's " + messageNumber(size(0)) + " x " + messageNumber(size(1)) +
                 " x " + messageNumber(size(2)) + " m box has " + messageNumber(gridNodes) +
-                " nodes, more than " + std::to_string(kMaxGridNodes) +
-                "; use a larger spacing");
+                " nodes, more than " + std::to_string(kMaxGridNodes) + "; use a larger spacing");
   }
   gridNodes_ = static_cast<int>(gridNodes);
   const int nx = cells_[0] + 1, ny = cells_[1] + 1;

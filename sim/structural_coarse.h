@@ -79,12 +79,12 @@ class CoarseSpace {
   // per fine node: its 8 grid nodes and trilinear weights
   std::vector<std::array<int, 8>> gridOf_;
   std::vector<std::array<double, 8>> weightOf_;
-  SparseMatrix kc_;              // K_c, lower triangle (3 m x 3 m)
-  std::vector<double> diag0_;    // its diagonal at build(): what "spans nothing" is against
-  SparseMatrix work_;            // the matrix factorized (dead rows identity, regularized)
+  SparseMatrix kc_;            // K_c, lower triangle (3 m x 3 m)
+  std::vector<double> diag0_;  // its diagonal at build(): what "spans nothing" is against
+  SparseMatrix work_;          // the matrix factorized (dead rows identity, regularized)
   std::vector<std::uint8_t> dead_;
   std::vector<double> regularization_;  // added to work_'s diagonal
-  bool dirty_ = true;            // kc_ changed since the factorization
+  bool dirty_ = true;                   // kc_ changed since the factorization
   cholmod_common common_;
   cholmod_factor* factor_ = nullptr;
   cholmod_dense *x_ = nullptr, *y_ = nullptr, *e_ = nullptr;

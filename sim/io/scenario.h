@@ -240,6 +240,9 @@ struct ScenarioSolvers {
   bool structuralLocalRefreshOnThread = scenario_detail::core().structural.local.refreshOnThread;
   // coarse: the coarse grid's cell size, at most [m]
   double structuralCoarseSpacingM = scenario_detail::core().structural.local.coarseSpacingM;
+  // coarse: the box holds the tets whose load changed by more than this times the largest
+  double structuralCoarseLoadTolerance =
+      scenario_detail::core().structural.local.coarseLoadTolerance;
   // coarse: the region's correction after the coarse solve (false: the coarse solve alone)
   bool structuralCoarseCorrection = scenario_detail::core().structural.local.coarseCorrection;
   // a removal's factor update by the vectorized kernel (else cholmod_updown)

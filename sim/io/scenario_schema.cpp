@@ -338,6 +338,11 @@ const std::vector<Field>& schema() {
                        ESIM_REF(solvers.structuralCoarseSpacingM), "m", positive(10.0),
                        "coarse: the grid over the mesh's box has cells of at most this size along "
                        "each axis (a grid of more than 300 000 nodes is refused)"));
+    f.push_back(number("solvers.structural.coarse_load_tolerance",
+                       ESIM_REF(solvers.structuralCoarseLoadTolerance), "", closed(0, 0.999),
+                       "coarse: the region is built around the tets whose load (e_v) changed since "
+                       "the last frame by more than this times the largest change (0.05: the "
+                       "tets that start to boil, not those warming)"));
     f.push_back(boolean("solvers.structural.coarse_correction",
                         ESIM_REF(solvers.structuralCoarseCorrection),
                         "coarse: correct the coarse solve on the region (local_margin_m, "

@@ -89,6 +89,7 @@ void mapStructural(const Scenario& s, SimulationConfig& c) {
   c.structural.local.refreshOnThread = s.solvers.structuralLocalRefreshOnThread;
   c.structural.local.coarseSpacingM = s.solvers.structuralCoarseSpacingM;
   c.structural.local.coarseCorrection = s.solvers.structuralCoarseCorrection;
+  c.structural.local.coarseLoadTolerance = s.solvers.structuralCoarseLoadTolerance;
   c.structural.vectorizedUpdate = s.solvers.structuralVectorizedUpdate;
   c.structural.solveThreads = s.solvers.structuralSolveThreads;
   c.rebuildMode = s.solvers.rebuildMode;
