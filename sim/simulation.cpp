@@ -324,7 +324,9 @@ void Simulation::buildInitialModel(TetMesh mesh) {
         std::vector<double>(ph.electric ? model_->mesh.numTets() : 0, config_.conductivityS_m), 0,
         prefetchTo, true);
   } catch (const Error& e) {
-    if (std::string(e.what()).rfind("structural", 0) != 0) throw;
+    // the structural phase's errors about its supports get the clamp that made them
+    const std::string what = e.what();
+    if (what.rfind("structural", 0) != 0 || what.find("supports") == std::string::npos) throw;
     throw RunError(std::string(e.what()) +
                    " (clamped: " + std::to_string(model_->supports.size() / 3) +
                    " bottom nodes within effects.structural_clamp_band_m = " +

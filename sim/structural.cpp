@@ -204,9 +204,9 @@ void verifyLocalOptions(const LocalSolveOptions& o) {
   ESIM_VERIFY(o.maxRegionFraction > 0 && o.maxRegionFraction <= 1,
               "structural: local.maxRegionFraction must be in (0, 1], got " +
                   messageNumber(o.maxRegionFraction));
-  ESIM_VERIFY(
-      std::isfinite(o.coarseSpacingM) && o.coarseSpacingM > 0,
-      "structural: local.coarseSpacingM must be > 0, got " + messageNumber(o.coarseSpacingM));
+  ESIM_VERIFY(std::isfinite(o.coarseSpacingM) && o.coarseSpacingM >= 0,
+              "structural: local.coarseSpacingM must be >= 0 (0: automatic), got " +
+                  messageNumber(o.coarseSpacingM));
 }
 
 }  // namespace
@@ -458,6 +458,7 @@ struct StructuralPhase::Impl {
   std::vector<int> holdInReference(const std::vector<int>& dofs);
   bool localSolve(const std::vector<double>& ev);
   bool coarseSolve(const std::vector<double>& ev);
+  double readyCoarse();
   void loadVector(const std::vector<double>& ev, const StateView& s, Eigen::VectorXd& f) const;
   bool readyRegion(const Eigen::AlignedBox3d& box);
   template <class Elastic>
@@ -1092,18 +1093,23 @@ const double* StructuralPhase::Impl::regionCorrect(const Eigen::VectorXd& r) {
   return static_cast<const double*>(rx->x);
 }
 
+// the coarse method's grid and K_c (built when stale); returns the seconds it took
+double StructuralPhase::Impl::readyCoarse() {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (!coarse) coarse = std::make_unique<CoarseSpace>(nodes, local.coarseSpacingM);
+  if (coarseStale && numFree > 0) {
+    coarse->build(assemble(current()), held.data());
+    coarseStale = false;
+  }
+  return secondsSince(t0);
+}
+
 // the coarse method (see LocalSolveOptions); false when a full solve is due instead
 bool StructuralPhase::Impl::coarseSolve(const std::vector<double>& ev) {
   if (numFree == 0) return false;
   const int nt = static_cast<int>(tets.size());
   // 1. u_0 = P_h K_c^-1 P_h' f
-  if (!coarse) coarse = std::make_unique<CoarseSpace>(nodes, local.coarseSpacingM);
-  if (coarseStale) {
-    const auto t0 = std::chrono::steady_clock::now();
-    coarse->build(assemble(current()), held.data());
-    coarseStale = false;
-    lastSolve.coarseFactorSeconds = secondsSince(t0);
-  }
+  if (coarseStale) lastSolve.coarseFactorSeconds = readyCoarse();
   loadVector(ev, current(), rhs);
   const bool refactor = coarse->needsFactorization();
   coarse->solve(rhs, held.data(), refU);
@@ -1868,6 +1874,8 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   const auto t0 = std::chrono::steady_clock::now();
   m.factorize(m.common, m.current());
   m.factorSeconds = secondsSince(t0);
+  // the coarse method's grid (a refused spacing fails here, not in a frame) and K_c
+  if (m.method == StructuralSolveMethod::coarse) m.factorSeconds += m.readyCoarse();
 }
 
 StructuralPhase::~StructuralPhase() = default;
@@ -1896,14 +1904,27 @@ void StructuralPhase::solve(const std::vector<double>& ev) {
                     (m.method == StructuralSolveMethod::coarse && m.coarseSolve(ev));
   if (!done) m.fullSolve(ev);
   m.lastSolve.seconds = secondsSince(t0);
+    fprintf(
+        stderr,
+        "DBG local %d built %d upd %d refac %d dofs %d/%d regionS %.3f coarseS %.3f total %.3f\n",
+        m.lastSolve.local, m.lastSolve.regionBuilt, m.lastSolve.regionUpdated,
+        m.lastSolve.regionRefactorized, m.lastSolve.regionDofs, m.numFree,
+        m.lastSolve.regionFactorSeconds, m.lastSolve.coarseFactorSeconds, m.lastSolve.seconds);
 }
 
 void StructuralPhase::setSolveMethod(StructuralSolveMethod method, const LocalSolveOptions& local) {
   Impl& m = *impl_;
   verifyLocalOptions(local);
+  // a coarse grid of another spacing: made first, so that a refused one changes nothing
+  std::unique_ptr<CoarseSpace> grid;
+  if (method == StructuralSolveMethod::coarse &&
+      (!m.coarse || local.coarseSpacingM != m.local.coarseSpacingM))
+    grid = std::make_unique<CoarseSpace>(m.nodes, local.coarseSpacingM);
   m.finishRefresh(false);
-  if (m.coarse && local.coarseSpacingM != m.local.coarseSpacingM) m.coarse.reset();
-  if (!m.coarse) m.coarseStale = true;
+  if (grid) {
+    m.coarse = std::move(grid);
+    m.coarseStale = true;
+  }
   if (method == StructuralSolveMethod::coarse) m.changedNodes.clear();
   m.prevEv.clear();  // the first coarse solve's box: every loaded tet
   m.method = method;
@@ -1914,6 +1935,7 @@ void StructuralPhase::setSolveMethod(StructuralSolveMethod method, const LocalSo
     m.refElastic = {};
     m.refEv = {};
   }
+  if (method == StructuralSolveMethod::coarse && m.failure.empty()) m.readyCoarse();
 }
 
 const StructuralSolveStats& StructuralPhase::lastSolveStats() const { return impl_->lastSolve; }

@@ -176,23 +176,25 @@ struct LocalSolveOptions {
   bool refreshOnThread = false;
   // ---- the coarse method (StructuralSolveMethod::coarse) ----
   // Every solve: u_0 = P_h K_c^-1 P_h' f on the coarse space of structural_coarse.h (a grid of
-  // cells of at most coarseSpacingM over the mesh's box), then, with coarseCorrection, the
-  // region's correction as above with u_0 for u_ref (one step of a two-level multiplicative
-  // Schwarz method; its energy-norm error is at most the coarse solve's). The box: the
-  // alive tets whose e_v changed by more than coarseLoadTolerance times the largest change since
-  // the last solve, the removed tets and the nodes held or freed since (where the tool
-  // heats and cuts); the region is kept while that box stays inside the one it was built
-  // around (a frame with no change keeps it). No full solve is done: removals update K_c
-  // (structural_coarse.h) and the region's factor, and leave the whole factor as it is (it
-  // catches up at the next full solve: a region holding more than maxRegionFraction of the
-  // free components, or setSolveMethod(full)). marginM, slackM and maxRegionFraction as
+  // cells of at most coarseSpacingM over the mesh's box, or automatic), then, with
+  // coarseCorrection, the region's correction as above with u_0 for u_ref (one step of a
+  // two-level multiplicative Schwarz method; its energy-norm error is at most the coarse
+  // solve's). The box: the alive tets whose e_v changed by more than coarseLoadTolerance times
+  // the largest change since the last solve, the removed tets and the nodes held or freed
+  // since (where the tool heats and cuts); the region is kept while that box stays inside the
+  // one it was built around (a frame with no change keeps it). No full solve is done: removals
+  // update K_c (structural_coarse.h) and the region's factor, and leave the whole factor as it
+  // is (it catches up at the next full solve: a region holding more than maxRegionFraction of
+  // the free components, or setSolveMethod(full)). marginM, slackM and maxRegionFraction as
   // above; loadTolerance, refreshEvery and refreshOnThread are not used.
   // Measured (esim bench cut --strategy update --structural full,coarse, README "The coarse
   // method in the frame loop"): at 50k nodes, margin 3 mm, slack 1 mm, solve_stress median 64
   // against 206 ms for the full solve, p95 1084 against 404 ms (9 region builds of 16 000-26 000
   // unknowns in 30 frames, 0.5-1.05 s each, in the frame), 2997 against 2975 tets removed; at
   // 8000 nodes slower than the full solve (median 17.6 against 8.3 ms).
-  double coarseSpacingM = 0.005;  // the coarse grid's cell size, at most, along each axis [m]
+  // the coarse grid's cell size, at most, along each axis [m]; 0: automatic, a grid of at most
+  // CoarseSpace::kAutoGridNodes (300) nodes over the mesh's box (slab_cut: 5 mm, 273 nodes)
+  double coarseSpacingM = 0;
   // the box: tets whose e_v changed by more than this times the largest change (in [0, 1));
   // the default takes the tets that start to boil (e_v jumps by ~1), not those warming
   double coarseLoadTolerance = 0.05;
@@ -301,8 +303,9 @@ class StructuralPhase {
   // that left no piece held
   void solve(const std::vector<double>& volumetricEigenstrain);
 
-  // changes the solve method and its options (validated as the constructor does); the
-  // reference of a local solve is kept, its region dropped
+  // changes the solve method and its options (validated as the constructor does; nothing
+  // changed if they are refused); the reference of a local solve is kept, its region dropped;
+  // the coarse method's grid and K_c are built now
   void setSolveMethod(StructuralSolveMethod method, const LocalSolveOptions& local);
   const StructuralSolveStats& lastSolveStats() const;  // of the last solve()
   // changes StructuralOptions::solveThreads (0, 1 or 2; else esim::Error)
@@ -332,7 +335,8 @@ class StructuralPhase {
   int numFreeDofs() const;                           // unknowns of K u = f
   int numFloatingIslands() const;                    // unsupported pieces held in place
   double factorizationSeconds() const;  // wall time of the constructor's factorization [s]
-                                        // (with the conversion if prepareForUpdates)
+                                        // (with the conversion if prepareForUpdates, and the
+                                        // coarse method's K_c and its factorization)
 
  private:
   struct Impl;

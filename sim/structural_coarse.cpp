@@ -13,30 +13,45 @@ extern "C" void openblas_set_num_threads(int num_threads);
 
 namespace esim {
 
+namespace {
+
+// grid nodes of cells of at most h along each axis of a box of `size` (at least one cell each)
+double gridNodesFor(const Vec3& size, double h) {
+  double n = 1;
+  for (int a = 0; a < 3; ++a) n *= std::max(1.0, std::ceil(size(a) / h - 1e-9)) + 1;
+  return n;
+}
+
+}  // namespace
+
 CoarseSpace::CoarseSpace(const std::vector<Vec3>& nodes, double spacingM) {
-  ESIM_VERIFY(
-      std::isfinite(spacingM) && spacingM > 0,
-      "structural: the coarse grid's spacing must be > 0 m, got " + messageNumber(spacingM));
-  cholmod_start(&common_);
-  common_.print = 0;
-  common_.error_handler = nullptr;
+  ESIM_VERIFY(std::isfinite(spacingM) && spacingM >= 0,
+              "structural: the coarse grid's spacing must be >= 0 m (0: automatic), got " +
+                  messageNumber(spacingM));
   Eigen::AlignedBox3d box;
   for (const Vec3& p : nodes) box.extend(p);
   if (nodes.empty()) box.extend(Vec3::Zero());
   const Vec3 size = box.sizes();
-  double gridNodes = 1;
-  for (int a = 0; a < 3; ++a) {
-    const double c = std::max(1.0, std::ceil(size(a) / spacingM - 1e-9));
-    gridNodes *= c + 1;
-    cells_[a] = gridNodes <= kMaxGridNodes ? static_cast<int>(c) : 0;
+  if (spacingM == 0) {  // automatic: the finest of a geometric sequence within kAutoGridNodes
+    spacingM = std::max(size.maxCoeff(), 1e-9);
+    while (gridNodesFor(size, 0.97 * spacingM) <= kAutoGridNodes && spacingM > 1e-9)
+      spacingM *= 0.97;
   }
-  if (gridNodes > kMaxGridNodes) {
-    cholmod_finish(&common_);
-    throw Error("structural: a coarse grid of spacing " + messageNumber(spacingM) +
-                " m over the mesh's " + messageNumber(size(0)) + " x " + messageNumber(size(1)) +
-                " x " + messageNumber(size(2)) + " m box has " + messageNumber(gridNodes) +
-                " nodes, more than " + std::to_string(kMaxGridNodes) + "; use a larger spacing");
-  }
+  spacing_ = spacingM;
+  const double gridNodes = gridNodesFor(size, spacingM);
+  for (int a = 0; a < 3; ++a)
+    cells_[a] = gridNodes <= kMaxGridNodes
+                    ? static_cast<int>(std::max(1.0, std::ceil(size(a) / spacingM - 1e-9)))
+                    : 0;
+  if (gridNodes > kMaxGridNodes)
+    throw Error("structural: a coarse grid (solvers.structural.coarse_spacing_m) of spacing " +
+                messageNumber(spacingM) + " m over the mesh's " + messageNumber(size(0)) + " x " +
+                messageNumber(size(1)) + " x " + messageNumber(size(2)) + " m box has " +
+                messageNumber(gridNodes) + " nodes, more than " + std::to_string(kMaxGridNodes) +
+                "; use a larger spacing");
+  cholmod_start(&common_);
+  common_.print = 0;
+  common_.error_handler = nullptr;
   gridNodes_ = static_cast<int>(gridNodes);
   const int nx = cells_[0] + 1, ny = cells_[1] + 1;
   gridOf_.resize(nodes.size());

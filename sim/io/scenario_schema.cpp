@@ -335,9 +335,10 @@ const std::vector<Field>& schema() {
                         "local_refresh_every solves later (deterministic), instead of in the "
                         "frame"));
     f.push_back(number("solvers.structural.coarse_spacing_m",
-                       ESIM_REF(solvers.structuralCoarseSpacingM), "m", positive(10.0),
+                       ESIM_REF(solvers.structuralCoarseSpacingM), "m", closed(0, 10.0),
                        "coarse: the grid over the mesh's box has cells of at most this size along "
-                       "each axis (a grid of more than 300 000 nodes is refused)"));
+                       "each axis (0: automatic, a grid of at most 300 nodes; a grid of more than "
+                       "300 000 nodes is refused)"));
     f.push_back(number("solvers.structural.coarse_load_tolerance",
                        ESIM_REF(solvers.structuralCoarseLoadTolerance), "", closed(0, 0.999),
                        "coarse: the region is built around the tets whose load (e_v) changed since "

@@ -1332,10 +1332,21 @@ TEST(StructuralCoarse, RegionFollowsTheChangingLoadAndStaysWhenItStops) {
   EXPECT_FALSE(phase.lastSolveStats().regionBuilt);
   EXPECT_GT(phase.lastSolveStats().regionDofs, 0);
   EXPECT_LT(relativeDifference(asVector(phase.vonMisesPa()), asVector(vm)), 1e-12);
-  // bad options
-  o.coarseSpacingM = 0;
+  // bad options: refused at set-up (a grid of too many nodes too), the phase unchanged
+  o.coarseSpacingM = -1;
   EXPECT_THROW(phase.setSolveMethod(StructuralSolveMethod::coarse, o), Error);
   EXPECT_THROW({ StructuralPhase bad(mesh, coarsePaper(o), clamp); }, Error);
+  o.coarseSpacingM = 1e-5;  // 2001 x 1601 x 1001 grid nodes
+  EXPECT_THROW({ StructuralPhase bad(mesh, coarsePaper(o), clamp); }, Error);
+  try {
+    phase.setSolveMethod(StructuralSolveMethod::coarse, o);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("use a larger spacing"), std::string::npos) << e.what();
+  }
+  phase.solve(bumpLoad(mesh, Vec3(0.004, 0, kLz), 0.002));
+  EXPECT_FALSE(phase.lastSolveStats().regionBuilt);  // the same method, region and result
+  EXPECT_LT(relativeDifference(asVector(phase.vonMisesPa()), asVector(vm)), 1e-12);
 }
 
 }  // namespace

@@ -251,6 +251,10 @@ TEST(RunCli, BadInputExitsTwoAndWritesNothing) {
       {"scenarios/paper_slab.yaml --set solvers.electric.strategy=dense-inverse "
        "--set mesh.slab.nodes=60000 --set solvers.electric.dense_memory_limit_mb=100",
        "capacitance"},
+      {"scenarios/slab_cut.yaml --set solvers.structural.method=coarse "
+       "--set solvers.structural.coarse_spacing_m=1e-5",
+       "scenarios/slab_cut.yaml: structural: a coarse grid (solvers.structural.coarse_spacing_m) "
+       "of spacing 1e-05 m"},
   };
   for (const auto& c : cases) {
     const Result r = esimRun(c.args + " -q -o " + out.string());
