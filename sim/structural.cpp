@@ -1904,11 +1904,6 @@ void StructuralPhase::solve(const std::vector<double>& ev) {
                     (m.method == StructuralSolveMethod::coarse && m.coarseSolve(ev));
   if (!done) m.fullSolve(ev);
   m.lastSolve.seconds = secondsSince(t0);
-  fprintf(stderr,
-          "DBG local %d built %d upd %d refac %d dofs %d/%d regionS %.3f coarseS %.3f total %.3f\n",
-          m.lastSolve.local, m.lastSolve.regionBuilt, m.lastSolve.regionUpdated,
-          m.lastSolve.regionRefactorized, m.lastSolve.regionDofs, m.numFree,
-          m.lastSolve.regionFactorSeconds, m.lastSolve.coarseFactorSeconds, m.lastSolve.seconds);
 }
 
 void StructuralPhase::setSolveMethod(StructuralSolveMethod method, const LocalSolveOptions& local) {
