@@ -458,6 +458,8 @@ struct StructuralPhase::Impl {
   std::vector<int> holdInReference(const std::vector<int>& dofs);
   bool localSolve(const std::vector<double>& ev);
   bool coarseSolve(const std::vector<double>& ev);
+  Eigen::AlignedBox3d changedBox(const std::vector<double>& ev, const std::vector<double>& before,
+                                 double tolerance) const;
   double readyCoarse();
   void loadVector(const std::vector<double>& ev, const StateView& s, Eigen::VectorXd& f) const;
   bool readyRegion(const Eigen::AlignedBox3d& box);
@@ -957,6 +959,26 @@ void StructuralPhase::Impl::finishRefresh(bool adopt) {
   localSinceFull = 0;
 }
 
+// the box of the alive tets whose load changed from `before` by more than tolerance times the
+// largest change, and of the nodes removals changed (changedNodes); empty when neither
+Eigen::AlignedBox3d StructuralPhase::Impl::changedBox(const std::vector<double>& ev,
+                                                      const std::vector<double>& before,
+                                                      double tolerance) const {
+  const int nt = static_cast<int>(tets.size());
+  double largest = 0;
+  for (int t = 0; t < nt; ++t)
+    if (alive[t]) largest = std::max(largest, std::abs(ev[t] - before[t]));
+  Eigen::AlignedBox3d box;  // empty
+  if (largest > 0) {
+    const double threshold = tolerance * largest;
+    for (int t = 0; t < nt; ++t)
+      if (alive[t] && std::abs(ev[t] - before[t]) > threshold)
+        for (int v : tets[t]) box.extend(nodes[v]);
+  }
+  for (int v : changedNodes) box.extend(nodes[v]);
+  return box;
+}
+
 // the local solve (see LocalSolveOptions); false when a full solve is due instead
 bool StructuralPhase::Impl::localSolve(const std::vector<double>& ev) {
   if (!hasReference || numFree == 0) return false;
@@ -969,19 +991,8 @@ bool StructuralPhase::Impl::localSolve(const std::vector<double>& ev) {
   } else if (local.refreshEvery > 0 && localSinceFull + 1 >= local.refreshEvery) {
     return false;
   }
-  const int nt = static_cast<int>(tets.size());
   // 1. the box around the load change (and what removals changed)
-  double largest = 0;
-  for (int t = 0; t < nt; ++t)
-    if (alive[t]) largest = std::max(largest, std::abs(ev[t] - refEv[t]));
-  Eigen::AlignedBox3d box;  // empty
-  if (largest > 0) {
-    const double threshold = local.loadTolerance * largest;
-    for (int t = 0; t < nt; ++t)
-      if (alive[t] && std::abs(ev[t] - refEv[t]) > threshold)
-        for (int v : tets[t]) box.extend(nodes[v]);
-  }
-  for (int v : changedNodes) box.extend(nodes[v]);
+  const Eigen::AlignedBox3d box = changedBox(ev, refEv, local.loadTolerance);
   // 2. the region: kept while the box stays inside the one it was built around
   ++localSinceFull;
   const auto startNextRefresh = [&] {  // once this solve is local
@@ -1107,7 +1118,6 @@ double StructuralPhase::Impl::readyCoarse() {
 // the coarse method (see LocalSolveOptions); false when a full solve is due instead
 bool StructuralPhase::Impl::coarseSolve(const std::vector<double>& ev) {
   if (numFree == 0) return false;
-  const int nt = static_cast<int>(tets.size());
   // 1. u_0 = P_h K_c^-1 P_h' f
   if (coarseStale) lastSolve.coarseFactorSeconds = readyCoarse();
   loadVector(ev, current(), rhs);
@@ -1117,17 +1127,7 @@ bool StructuralPhase::Impl::coarseSolve(const std::vector<double>& ev) {
   lastSolve.local = true;
   // 2. the box: the load changed since the last solve, and what removals changed
   if (prevEv.size() != ev.size()) prevEv.assign(ev.size(), 0.0);
-  double largest = 0;
-  for (int t = 0; t < nt; ++t)
-    if (alive[t]) largest = std::max(largest, std::abs(ev[t] - prevEv[t]));
-  Eigen::AlignedBox3d box;  // empty
-  if (largest > 0) {
-    const double threshold = local.coarseLoadTolerance * largest;
-    for (int t = 0; t < nt; ++t)
-      if (alive[t] && std::abs(ev[t] - prevEv[t]) > threshold)
-        for (int v : tets[t]) box.extend(nodes[v]);
-  }
-  for (int v : changedNodes) box.extend(nodes[v]);
+  Eigen::AlignedBox3d box = changedBox(ev, prevEv, local.coarseLoadTolerance);
   prevEv = ev;
   changedNodes.clear();
   // 3. the region's correction (a region kept when nothing changed)

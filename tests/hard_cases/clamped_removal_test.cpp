@@ -26,13 +26,8 @@ using hard::FrameChecker;
 using hard::Invariants;
 using hard::MaxPrinciple;
 
-// every case in each way the model follows a removal: rebuilt (synchronous), edited in place
-// (update), and edited in place with the structural coarse method (update_coarse)
-struct Way {
-  RebuildMode mode;
-  StructuralSolveMethod structural;
-};
-class HardRemovalFailing : public ::testing::TestWithParam<Way> {};
+// every case in each way the model follows a removal (hard::removalWays)
+class HardRemovalFailing : public ::testing::TestWithParam<hard::RemovalWay> {};
 
 // thermal only: a broad Gaussian source (3e8 W/m^3, 20 mm), critical stress 10 Pa: the slab
 // breaks through to its clamped bottom in frame 3
@@ -45,8 +40,7 @@ TEST_P(HardRemovalFailing, RemovalOfTheClampedTissueIsARunError) {
   c.heatSource.radiusM = 0.02;
   c.heatSource.powerDensityW_m3 = 3e8;
   c.criticalStressPa = 10.0;
-  c.rebuildMode = GetParam().mode;
-  c.structural.solveMethod = GetParam().structural;
+  hard::applyWay(GetParam(), c);
   Simulation sim(makeSlab(hard::quarterSlabSpec()), c);
   Invariants inv;
   inv.maxPrinciple = MaxPrinciple::Lower;
@@ -66,15 +60,7 @@ TEST_P(HardRemovalFailing, RemovalOfTheClampedTissueIsARunError) {
   EXPECT_GT(stoppedAt, 0);
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Modes, HardRemovalFailing,
-    ::testing::Values(Way{RebuildMode::Synchronous, StructuralSolveMethod::full},
-                      Way{RebuildMode::Update, StructuralSolveMethod::full},
-                      Way{RebuildMode::Update, StructuralSolveMethod::coarse}),
-    [](const ::testing::TestParamInfo<Way>& info) {
-      return std::string(rebuildModeName(info.param.mode)) +
-             (info.param.structural == StructuralSolveMethod::coarse ? "_coarse" : "");
-    });
+INSTANTIATE_TEST_SUITE_P(Modes, HardRemovalFailing, hard::removalWays(), hard::removalWayName);
 
 }  // namespace
 }  // namespace esim

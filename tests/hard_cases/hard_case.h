@@ -282,4 +282,25 @@ inline bool contains(const std::string& s, const std::string& what) {
   return s.find(what) != std::string::npos;
 }
 
+// the ways the model follows a removal, which every removal case runs in: rebuilt
+// (synchronous), edited in place (update), and edited in place with the structural phase's
+// coarse method (update_coarse: K_c and the region updated, the whole factor's update deferred)
+struct RemovalWay {
+  RebuildMode mode;
+  StructuralSolveMethod structural;
+};
+inline void applyWay(const RemovalWay& w, SimulationConfig& c) {
+  c.rebuildMode = w.mode;
+  c.structural.solveMethod = w.structural;
+}
+inline auto removalWays() {
+  return ::testing::Values(RemovalWay{RebuildMode::Synchronous, StructuralSolveMethod::full},
+                           RemovalWay{RebuildMode::Update, StructuralSolveMethod::full},
+                           RemovalWay{RebuildMode::Update, StructuralSolveMethod::coarse});
+}
+inline std::string removalWayName(const ::testing::TestParamInfo<RemovalWay>& info) {
+  return std::string(rebuildModeName(info.param.mode)) +
+         (info.param.structural == StructuralSolveMethod::coarse ? "_coarse" : "");
+}
+
 }  // namespace esim::hard

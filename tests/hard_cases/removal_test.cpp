@@ -57,20 +57,8 @@ std::vector<int> islandNodes(const TetMesh& mesh) {
   return out;
 }
 
-// every case in each way the model follows a removal: rebuilt (synchronous), edited in place
-// (update), and edited in place with the structural phase's coarse method (update_coarse: K_c
-// and the region updated, the whole factor's update deferred)
-struct Way {
-  RebuildMode mode;
-  StructuralSolveMethod structural;
-};
-class HardRemoval : public ::testing::TestWithParam<Way> {
- protected:
-  static void apply(SimulationConfig& c) {
-    c.rebuildMode = GetParam().mode;
-    c.structural.solveMethod = GetParam().structural;
-  }
-};
+// every case in each way the model follows a removal (hard::removalWays)
+class HardRemoval : public ::testing::TestWithParam<hard::RemovalWay> {};
 
 // full physics on a slab with an island cut loose before the run: a ball on the island for
 // 10 frames (its nodes float: no current, no heat, the island stays at 37 C exactly), then on
@@ -82,7 +70,7 @@ TEST_P(HardRemoval, IsolatedIslandCarriesNoCurrentAndNoHeat) {
   const double dt = c.frameDtS;
   hard::moveTool(c, Vec3(-0.015, -0.015, kLz + 0.0005), 9 * dt, Vec3(0.01, 0.01, kLz + 0.0005),
                  10 * dt);
-  apply(c);
+  hard::applyWay(GetParam(), c);
   Simulation sim(islandSlab(false), c);
   const std::vector<int> island = islandNodes(sim.mesh());
   ASSERT_EQ(island.size(), 5u * 5u * 3u);
@@ -117,7 +105,7 @@ TEST_P(HardRemoval, RuptureCutsAnIslandLoose) {
   c.phases.boiling = c.phases.structural = c.phases.rupture = true;
   c.toolVoltageV = 800;
   c.criticalStressPa = 1e3;
-  apply(c);
+  hard::applyWay(GetParam(), c);
   Simulation sim(islandSlab(true), c);
   Invariants inv;
   inv.maxPrinciple = MaxPrinciple::Lower;
@@ -161,7 +149,7 @@ TEST_P(HardRemoval, RemovalReachesTheReturnElectrode) {
   c.phases.boiling = c.phases.structural = c.phases.rupture = true;
   c.criticalStressPa = 1e3;
   c.toolVoltageV = 300;
-  apply(c);
+  hard::applyWay(GetParam(), c);
   Simulation sim(makeSlab(spec), c);
   ASSERT_EQ(sim.groundNodes().size(), 5u);
   Invariants inv;
@@ -196,7 +184,7 @@ TEST_P(HardRemoval, RemovalOfNearlyEverything) {
   c.heatSource.radiusM = 0.01;
   c.heatSource.powerDensityW_m3 = 1e9;
   c.criticalStressPa = 100.0;
-  apply(c);
+  hard::applyWay(GetParam(), c);
   Simulation sim(makeSlab(hard::quarterSlabSpec()), c);
   const int tets = sim.mesh().numTets();
   Invariants inv;
@@ -221,22 +209,14 @@ TEST_P(HardRemoval, RemovalOfEverythingIsARunError) {
   c.heatSource.radiusM = 0.01;
   c.heatSource.powerDensityW_m3 = 1e9;
   c.criticalStressPa = 1.0;
-  apply(c);
+  hard::applyWay(GetParam(), c);
   Simulation sim(makeSlab(hard::quarterSlabSpec()), c);
   const auto [kind, message] = hard::errorOf([&] { sim.step(); });
   EXPECT_EQ(kind, ErrorKind::Run) << message;
   EXPECT_TRUE(hard::contains(message, "every element")) << message;
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Modes, HardRemoval,
-    ::testing::Values(Way{RebuildMode::Synchronous, StructuralSolveMethod::full},
-                      Way{RebuildMode::Update, StructuralSolveMethod::full},
-                      Way{RebuildMode::Update, StructuralSolveMethod::coarse}),
-    [](const ::testing::TestParamInfo<Way>& info) {
-      return std::string(rebuildModeName(info.param.mode)) +
-             (info.param.structural == StructuralSolveMethod::coarse ? "_coarse" : "");
-    });
+INSTANTIATE_TEST_SUITE_P(Modes, HardRemoval, hard::removalWays(), hard::removalWayName);
 
 }  // namespace
 }  // namespace esim
