@@ -9,7 +9,7 @@
 //    4x MSAA).
 // 3. Each knob a user turns is swept alone from the baseline: mesh resolution (uniform and
 //    graded, from the paper's 1013 nodes up), electric strategy and pcg tolerance, thermal
-//    integrator and time step (fps), the structural solve (local, refactorize), the rebuild
+//    integrator and time step (fps), the structural solve (local, coarse, refactorize), the rebuild
 //    strategy and lag, and the renderer's shading and MSAA.
 // 4. Per point: physics and render time per frame (median, p95; the render every
 //    --render-every frames, snapshot included) and, at the end time, the error against the
@@ -153,6 +153,7 @@ Sweep makeSweep(const AccuracyOptions& opt) {
        [](SimulationConfig& c) { c.structural.solveMethod = StructuralSolveMethod::local; },
        "StructuralOptions::solveMethod = local",
        ""});
+  if (!opt.quick) add("structural", "coarse", {"solvers.structural.method=coarse"});
   if (!opt.quick)
     s.points.push_back({"structural:refactorize",
                         "structural",
