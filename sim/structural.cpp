@@ -204,6 +204,9 @@ void verifyLocalOptions(const LocalSolveOptions& o) {
   ESIM_VERIFY(o.maxRegionFraction > 0 && o.maxRegionFraction <= 1,
               "structural: local.maxRegionFraction must be in (0, 1], got " +
                   messageNumber(o.maxRegionFraction));
+  ESIM_VERIFY(o.coarseLoadTolerance >= 0 && o.coarseLoadTolerance < 1,
+              "structural: local.coarseLoadTolerance must be in [0, 1), got " +
+                  messageNumber(o.coarseLoadTolerance));
   ESIM_VERIFY(std::isfinite(o.coarseSpacingM) && o.coarseSpacingM >= 0,
               "structural: local.coarseSpacingM must be >= 0 (0: automatic), got " +
                   messageNumber(o.coarseSpacingM));
@@ -297,7 +300,7 @@ struct StructuralPhase::Impl {
   double regionFlops = 0;        // CHOLMOD's flop count of the region's factorization
   Pending regionPending;         // removals in the region its factor has not seen (none freed)
   // the coarse method (see LocalSolveOptions::coarseSpacingM)
-  std::unique_ptr<CoarseSpace> coarse;  // made at its first solve
+  std::unique_ptr<CoarseSpace> coarse;  // made at set-up or setSolveMethod
   bool coarseStale = true;              // K_c to be built (at first, and after a dof was freed)
   std::vector<double> prevEv;           // the load of the last coarse solve (empty: none)
   struct Refresh {                      // LocalSolveOptions::refreshOnThread

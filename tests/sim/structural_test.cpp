@@ -1336,6 +1336,12 @@ TEST(StructuralCoarse, RegionFollowsTheChangingLoadAndStaysWhenItStops) {
   o.coarseSpacingM = -1;
   EXPECT_THROW(phase.setSolveMethod(StructuralSolveMethod::coarse, o), Error);
   EXPECT_THROW({ StructuralPhase bad(mesh, coarsePaper(o), clamp); }, Error);
+  o.coarseSpacingM = 0;
+  for (double tolerance : {-0.1, 1.0, std::nan("")}) {
+    o.coarseLoadTolerance = tolerance;
+    EXPECT_THROW(phase.setSolveMethod(StructuralSolveMethod::coarse, o), Error) << tolerance;
+  }
+  o.coarseLoadTolerance = 0.05;
   o.coarseSpacingM = 1e-5;  // 2001 x 1601 x 1001 grid nodes
   EXPECT_THROW({ StructuralPhase bad(mesh, coarsePaper(o), clamp); }, Error);
   try {
