@@ -102,6 +102,9 @@ TEST(RunConfig, EveryDefaultComesFromTheCore) {
   EXPECT_EQ(c.structural.local.maxRegionFraction, d.structural.local.maxRegionFraction);
   EXPECT_EQ(c.structural.local.refreshEvery, d.structural.local.refreshEvery);
   EXPECT_EQ(c.structural.local.refreshOnThread, d.structural.local.refreshOnThread);
+  EXPECT_EQ(c.structural.local.coarseSpacingM, d.structural.local.coarseSpacingM);
+  EXPECT_EQ(c.structural.local.coarseLoadTolerance, d.structural.local.coarseLoadTolerance);
+  EXPECT_EQ(c.structural.local.coarseCorrection, d.structural.local.coarseCorrection);
   EXPECT_EQ(c.structural.vectorizedUpdate, d.structural.vectorizedUpdate);
 }
 
@@ -171,6 +174,20 @@ TEST(RunConfig, StructuralLocalSolveKeysReachThePhase) {
     EXPECT_NE(what.find("bad.yaml:4"), std::string::npos) << what;
     EXPECT_NE(what.find("solvers.structural.local_max_region_fraction"), std::string::npos) << what;
   }
+}
+
+// solvers.structural.coarse_*: the coarse method's keys reach the structural phase's options
+TEST(RunConfig, StructuralCoarseSolveKeysReachThePhase) {
+  const Scenario s = parseScenario(
+      "name: coarse\nsolvers:\n  structural:\n    method: coarse\n"
+      "    coarse_spacing_m: 0.004\n    coarse_load_tolerance: 0.2\n"
+      "    coarse_correction: false\n",
+      "coarse.yaml");
+  const SimulationConfig c = makeSimulationConfig(s);
+  EXPECT_EQ(c.structural.solveMethod, StructuralSolveMethod::coarse);
+  EXPECT_EQ(c.structural.local.coarseSpacingM, 0.004);
+  EXPECT_EQ(c.structural.local.coarseLoadTolerance, 0.2);
+  EXPECT_FALSE(c.structural.local.coarseCorrection);
 }
 
 void expectRefused(const Scenario& s, const std::string& part) {
