@@ -672,6 +672,42 @@ TEST(RunCli, TheDrawThreadGivesTheSameFramesAndReportsThePeriod) {
   EXPECT_EQ(video[0], video[1]);
 }
 
+// the CPU the frames cost (timing.json's cpu, the summary's cpu line): on one CPU (taskset)
+// the process cannot be busier than the one CPU, and what it reports is within what the
+// shell's `times` counts for the whole child (set-up and exit included)
+TEST(RunCli, TheCpuAFrameIsReportedAndBoundedByTheChildsOwn) {
+  const fs::path out = tempOut("cpu");
+  const Result r = shell("taskset -c 0 " + std::string(ESIM_EXE) +
+                         " run scenarios/slab_cut.yaml --frames 12 --set mesh.slab.nodes=1013" +
+                         kSmall + " -o " + out.string() + "; times");
+  ASSERT_NE(r.output.find("m"), std::string::npos) << r.output;
+  const auto timing = nlohmann::json::parse(readFile(out / "timing.json"));
+  const auto& cpu = timing["cpu"];
+  EXPECT_EQ(cpu["cpus"].get<int>(), 1);
+  const double perFrame = cpu["ms_per_frame"].get<double>();
+  EXPECT_GT(cpu["loop_thread_ms_per_frame"].get<double>(), 0.0);
+  EXPECT_LE(cpu["loop_thread_ms_per_frame"].get<double>(), perFrame);
+  EXPECT_DOUBLE_EQ(cpu["period_floor_ms"].get<double>(), perFrame);  // one CPU
+  EXPECT_GT(cpu["busy_cpus"].get<double>(), 0.0);
+  EXPECT_LE(cpu["busy_cpus"].get<double>(), 1.02);
+  // `times`' second line: the children's user and system time, "XmY.YYs" each
+  const std::string last = r.output.substr(r.output.rfind('\n', r.output.size() - 2) + 1);
+  double childS = 0;
+  std::istringstream in(last);
+  std::string field;
+  while (in >> field) {
+    const size_t m = field.find('m');
+    ASSERT_NE(m, std::string::npos) << last;
+    childS += 60 * std::stod(field.substr(0, m)) + std::stod(field.substr(m + 1));
+  }
+  EXPECT_GT(childS, 0.0) << last;
+  EXPECT_LE(perFrame * 12 / 1e3, childS + 0.02) << last;  // times counts in 10 ms ticks
+  const std::string summary = readFile(out / "summary.txt");
+  EXPECT_NE(summary.find("  cpu           "), std::string::npos) << summary;
+  EXPECT_NE(summary.find(" of 1 CPUs busy"), std::string::npos) << summary;
+  fs::remove_all(out);
+}
+
 // a frame that cannot be drawn (injected, ESIM_FAULT=draw@N; a disk that fills under the
 // PNGs or the video) ends the run with the frames before it, on the drawing thread or not:
 // exit 1, the error naming that frame, the video and reports of the frames before it

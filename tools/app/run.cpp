@@ -8,7 +8,9 @@
 #include "tools/app/run.h"
 
 #include <malloc.h>
+#include <sched.h>
 #include <sys/resource.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -73,6 +75,22 @@ constexpr double kImplausibleTemperatureC = 300.0;
 
 double secondsSince(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// CPU time of the whole process (every thread: the loop's, the solvers' helpers, llvmpipe's,
+// the encoder's) or of the calling thread [s]
+double cpuSeconds(clockid_t clock) {
+  timespec ts{};
+  clock_gettime(clock, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+
+// the CPUs this process may run on (its affinity: taskset, a cpuset), at least 1
+int usableCpus() {
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (sched_getaffinity(0, sizeof set, &set) == 0 && CPU_COUNT(&set) > 0) return CPU_COUNT(&set);
+  return std::max(1u, std::thread::hardware_concurrency());
 }
 
 // peak resident memory of this process so far [MB]
@@ -480,6 +498,9 @@ struct LoopResult {
   std::vector<double> renderStartUs;  // each frame's drawing started
   bool pipelined = false;             // drawn on a thread while the next frame was simulated
   double loopS = 0;
+  // CPU: the process's from the loop's start until the video is closed (the frames' own
+  // encoding included), the loop's thread's over the loop, and that span's wall time [s]
+  double cpuStartS = 0, loopThreadStartS = 0, cpuS = 0, loopThreadCpuS = 0, cpuWallS = 0;
   double peakPowerW = 0;
   bool interrupted = false;
   // as of the last complete frame (a frame that failed or was interrupted halfway leaves
@@ -528,6 +549,38 @@ std::vector<std::string> runWarnings(const Simulation& sim, double maxTemperatur
   return warnings;
 }
 
+// what the frames cost in CPU: whether the machine, not the scheduling, bounds the period
+struct CpuUse {
+  double msPerFrame = 0, loopThreadMsPerFrame = 0, busyCpus = 0, periodFloorMs = 0;
+  int cpus = 1;
+};
+
+CpuUse cpuUse(const LoopResult& loop) {
+  CpuUse c;
+  c.cpus = usableCpus();
+  const double frames = static_cast<double>(std::max<size_t>(1, loop.records.size()));
+  c.msPerFrame = 1e3 * loop.cpuS / frames;
+  c.loopThreadMsPerFrame = 1e3 * loop.loopThreadCpuS / frames;
+  c.busyCpus = loop.cpuWallS > 0 ? loop.cpuS / loop.cpuWallS : 0.0;
+  c.periodFloorMs = c.msPerFrame / c.cpus;
+  return c;
+}
+
+nlohmann::json cpuJson(const LoopResult& loop) {
+  const CpuUse c = cpuUse(loop);
+  return {{"ms_per_frame", c.msPerFrame},
+          {"loop_thread_ms_per_frame", c.loopThreadMsPerFrame},
+          {"cpus", c.cpus},
+          {"busy_cpus", c.busyCpus},
+          {"period_floor_ms", c.periodFloorMs},
+          {"note",
+           "CPU time of the whole process (every thread: the frame loop's, the solvers' "
+           "helpers, the renderer's, the encoder's) from the loop's start until the video is "
+           "closed, per frame run; busy_cpus: that time over the same span's wall time; "
+           "period_floor_ms = ms_per_frame / cpus (the CPUs the process may run on): no "
+           "scheduling gives a frame period below it"}};
+}
+
 // timing.json's block beyond the per-stage statistics
 nlohmann::json timingExtra(const Setup& s, const FrameOutputs& out, const LoopResult& loop) {
   const Scenario& sc = s.scenario;
@@ -565,6 +618,7 @@ nlohmann::json timingExtra(const Setup& s, const FrameOutputs& out, const LoopRe
   extra["offline"] = {{"encode_s", out.encodeSeconds()},
                       {"codec", out.codec()},
                       {"note", "libav encoding on its own thread, not in the 30 Hz budget"}};
+  extra["cpu"] = cpuJson(loop);
   extra["machine"] = machineInfo();
   extra["threads"] = {{"blas", sc.solvers.electricThreads},
                       {"encoder", sc.output.reproducible ? 1 : 0}};
@@ -693,6 +747,10 @@ std::string summaryText(const Setup& s, const FrameOutputs& out, const LoopResul
       << sim.timeS() << " s at " << sc.time.fps << " fps, wall " << loop.loopS << " s\n";
   summaryStages(sum, loop, timing);
   sum << "  encode        " << out.encodeSeconds() << " s offline (own thread)\n";
+  const CpuUse cpu = cpuUse(loop);
+  sum << "  cpu           " << cpu.msPerFrame << " ms a frame, all threads (the loop's own "
+      << cpu.loopThreadMsPerFrame << " ms); " << cpu.busyCpus << " of " << cpu.cpus
+      << " CPUs busy: no frame period below " << cpu.periodFloorMs << " ms here\n";
   sum << "  memory        peak " << runPeakMb(loop) << " MB resident (" << s.rssAfterSetupMb
       << " MB after setup)";
   if (loop.memoryRoomMinBytes >= 0)
@@ -788,6 +846,8 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) 
   MemoryGuard memory(memoryGuard ? memoryRootFromEnvironment() : fs::path());
   memory.check();  // the room at the start
   const auto t0 = Clock::now();
+  loop.cpuStartS = cpuSeconds(CLOCK_PROCESS_CPUTIME_ID);
+  loop.loopThreadStartS = cpuSeconds(CLOCK_THREAD_CPUTIME_ID);
   out.startClock(t0);
   loop.pipelined = out.pipelined();
   // the totals as of each frame handed to the outputs, kept until its outputs are done
@@ -888,6 +948,9 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) 
   loop.peakResidentBytes = memory.peakResidentBytes();
   loop.interrupted = gStop.load();
   loop.loopS = secondsSince(t0);
+  loop.loopThreadCpuS = cpuSeconds(CLOCK_THREAD_CPUTIME_ID) - loop.loopThreadStartS;
+  loop.cpuS = cpuSeconds(CLOCK_PROCESS_CPUTIME_ID) - loop.cpuStartS;  // until close adds to it
+  loop.cpuWallS = loop.loopS;
   return loop;
 }
 
@@ -927,6 +990,7 @@ int runScenario(const RunOptions& opt) {
     loop.failure = "closing the outputs: " + what;
     loop.failureKind = kind == ErrorKind::Internal ? kind : ErrorKind::Run;
   };
+  const auto closeStart = Clock::now();
   try {
     out->close();
   } catch (const Error& e) {
@@ -936,6 +1000,8 @@ int runScenario(const RunOptions& opt) {
   } catch (const std::bad_alloc&) {
     closeFailed("out of memory", ErrorKind::Run);
   }
+  loop.cpuS = cpuSeconds(CLOCK_PROCESS_CPUTIME_ID) - loop.cpuStartS;
+  loop.cpuWallS = loop.loopS + secondsSince(closeStart);
   const fs::path where = loop.complete() ? output.final() : output.partial();
   std::string summary;
   try {
