@@ -208,6 +208,29 @@ TEST_F(BenchCli, CutWritesTheIssuesColumns) {
   EXPECT_NE(r.output.find("  electric dense-inverse\n"), std::string::npos) << r.output;
 }
 
+// --stages prints the CPU the frames cost (every thread): under taskset one CPU, and at most
+// that one busy
+TEST_F(BenchCli, CutStagesPrintTheCpuAFrame) {
+  const auto r =
+      shell("taskset -c 0 " + esim("bench cut --sizes 50 --frames 4 --strategy update --stages"));
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  const size_t at = r.output.find("  cpu            ");
+  ASSERT_NE(at, std::string::npos) << r.output;
+  double perFrame = 0, busy = 0, floorMs = 0;
+  int cpus = 0;
+  ASSERT_EQ(std::sscanf(r.output.c_str() + at,
+                        "  cpu %lf ms a frame, all threads; %lf of %d CPUs busy (no frame below "
+                        "%lf ms",
+                        &perFrame, &busy, &cpus, &floorMs),
+            4)
+      << r.output.substr(at, 120);
+  EXPECT_GT(perFrame, 0);
+  EXPECT_EQ(cpus, 1);
+  EXPECT_GT(busy, 0);
+  EXPECT_LE(busy, 1.02);
+  EXPECT_NEAR(floorMs, perFrame, 0.011);  // one CPU; both printed to 0.01
+}
+
 // --render draws each frame (timed apart): four more columns, physics + render at least the
 // render; a look the renderer refuses stops the bench before it runs
 TEST_F(BenchCli, CutWithRenderAddsTheRenderColumns) {

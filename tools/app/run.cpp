@@ -8,9 +8,7 @@
 #include "tools/app/run.h"
 
 #include <malloc.h>
-#include <sched.h>
 #include <sys/resource.h>
-#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -75,22 +73,6 @@ constexpr double kImplausibleTemperatureC = 300.0;
 
 double secondsSince(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
-}
-
-// CPU time of the whole process (every thread: the loop's, the solvers' helpers, llvmpipe's,
-// the encoder's) or of the calling thread [s]
-double cpuSeconds(clockid_t clock) {
-  timespec ts{};
-  clock_gettime(clock, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
-
-// the CPUs this process may run on (its affinity: taskset, a cpuset), at least 1
-int usableCpus() {
-  cpu_set_t set;
-  CPU_ZERO(&set);
-  if (sched_getaffinity(0, sizeof set, &set) == 0 && CPU_COUNT(&set) > 0) return CPU_COUNT(&set);
-  return std::max(1u, std::thread::hardware_concurrency());
 }
 
 // peak resident memory of this process so far [MB]
@@ -846,8 +828,8 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) 
   MemoryGuard memory(memoryGuard ? memoryRootFromEnvironment() : fs::path());
   memory.check();  // the room at the start
   const auto t0 = Clock::now();
-  loop.cpuStartS = cpuSeconds(CLOCK_PROCESS_CPUTIME_ID);
-  loop.loopThreadStartS = cpuSeconds(CLOCK_THREAD_CPUTIME_ID);
+  loop.cpuStartS = processCpuSeconds();
+  loop.loopThreadStartS = threadCpuSeconds();
   out.startClock(t0);
   loop.pipelined = out.pipelined();
   // the totals as of each frame handed to the outputs, kept until its outputs are done
@@ -948,8 +930,8 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) 
   loop.peakResidentBytes = memory.peakResidentBytes();
   loop.interrupted = gStop.load();
   loop.loopS = secondsSince(t0);
-  loop.loopThreadCpuS = cpuSeconds(CLOCK_THREAD_CPUTIME_ID) - loop.loopThreadStartS;
-  loop.cpuS = cpuSeconds(CLOCK_PROCESS_CPUTIME_ID) - loop.cpuStartS;  // until close adds to it
+  loop.loopThreadCpuS = threadCpuSeconds() - loop.loopThreadStartS;
+  loop.cpuS = processCpuSeconds() - loop.cpuStartS;  // until close adds to it
   loop.cpuWallS = loop.loopS;
   return loop;
 }
@@ -1000,7 +982,7 @@ int runScenario(const RunOptions& opt) {
   } catch (const std::bad_alloc&) {
     closeFailed("out of memory", ErrorKind::Run);
   }
-  loop.cpuS = cpuSeconds(CLOCK_PROCESS_CPUTIME_ID) - loop.cpuStartS;
+  loop.cpuS = processCpuSeconds() - loop.cpuStartS;
   loop.cpuWallS = loop.loopS + secondsSince(closeStart);
   const fs::path where = loop.complete() ? output.final() : output.partial();
   std::string summary;

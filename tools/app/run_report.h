@@ -59,4 +59,11 @@ std::vector<double> frameLatenciesMs(const std::vector<double>& startUs,
 // "Intel(R) Xeon(R) ..." from /proc/cpuinfo, and the core count
 nlohmann::json machineInfo();
 
+// CPU time of the whole process (every thread: the frame loop's, the solvers' helpers,
+// llvmpipe's, the encoder's), or of the calling thread [s]
+double processCpuSeconds();
+double threadCpuSeconds();
+// the CPUs this process may run on (its affinity: taskset, a cpuset), at least 1
+int usableCpus();
+
 }  // namespace esim::app

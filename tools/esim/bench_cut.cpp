@@ -36,6 +36,7 @@
 #include "sim/simulation.h"
 #include "tools/app/bench_common.h"
 #include "tools/app/run_config.h"
+#include "tools/app/run_report.h"
 #include "tools/esim/command.h"
 
 namespace esim {
@@ -158,6 +159,8 @@ int benchCut(const BenchCutOptions& opt) {
         const auto period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
             std::chrono::duration<double>(opt.paceHz > 0 ? 1.0 / opt.paceHz : 0.0));
         auto next = std::chrono::steady_clock::now();
+        const auto loopStart = next;
+        const double cpuStartS = app::processCpuSeconds();  // --stages: the CPU the frames cost
         for (int f = 0; f < frames; ++f) {
           if (opt.paceHz > 0) {
             std::this_thread::sleep_until(next);
@@ -202,6 +205,10 @@ int benchCut(const BenchCutOptions& opt) {
             frameLines.push_back(line);
           }
         }
+        const double cpuMsPerFrame = 1e3 * (app::processCpuSeconds() - cpuStartS) / frames;
+        const double busyCpus =
+            1e-3 * cpuMsPerFrame * frames /
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - loopStart).count();
         const double med = quantile(ms, 0.5), p95 = quantile(ms, 0.95),
                      mx = *std::max_element(ms.begin(), ms.end()), rmed = quantile(rebuildMs, 0.5);
         // removed-set difference against the full solve's run: tets removed by one only
@@ -228,6 +235,11 @@ int benchCut(const BenchCutOptions& opt) {
         if (const std::string electric = sim.electricSolverName(); !electric.empty())
           std::printf("  electric %s", electric.c_str());
         std::printf("\n");
+        if (opt.stages)  // the whole process's (every thread's) CPU over the frames
+          std::printf(
+              "  cpu            %.2f ms a frame, all threads; %.2f of %d CPUs busy (no "
+              "frame below %.2f ms on average here)\n",
+              cpuMsPerFrame, busyCpus, app::usableCpus(), cpuMsPerFrame / app::usableCpus());
         if (opt.stages)
           for (int s = 0; s < kStageCount; ++s)
             if (!stageMs[s].empty())
