@@ -60,6 +60,8 @@ namespace esim {
   X(PFNGLUNIFORM1FPROC, Uniform1f)                                           \
   X(PFNGLUNIFORM2FPROC, Uniform2f)                                           \
   X(PFNGLUNIFORM3FVPROC, Uniform3fv)                                         \
+  X(PFNGLUNIFORM3FPROC, Uniform3f)                                           \
+  X(PFNGLUNIFORM1UIPROC, Uniform1ui)                                         \
   X(PFNGLUNIFORMMATRIX4FVPROC, UniformMatrix4fv)                             \
   X(PFNGLGENVERTEXARRAYSPROC, GenVertexArrays)                               \
   X(PFNGLDELETEVERTEXARRAYSPROC, DeleteVertexArrays)                         \

@@ -59,6 +59,15 @@ void validateRenderOptions(const RenderOptions& o) {
               "camera.up: the up vector is zero or parallel to the viewing direction");
   ESIM_VERIFY(o.msaaSamples == 0 || o.msaaSamples == 2 || o.msaaSamples == 4,
               "look.msaa: " + std::to_string(o.msaaSamples) + ", expected 0, 2 or 4");
+  for (int k = 0; k < 3; ++k)
+    ESIM_VERIFY(std::isfinite(o.tissueTint[k]) && o.tissueTint[k] >= 0 && o.tissueTint[k] <= 2,
+                "look.tissue_tint: " + std::to_string(o.tissueTint[k]) +
+                    " is outside [0, 2] (a factor on the tissue's red, green and blue)");
+  ESIM_VERIFY(std::isfinite(norm(o.keyLightCamera)) && norm(o.keyLightCamera) > 0,
+              "look.light_direction: the key light's direction is zero or not finite");
+  ESIM_VERIFY(std::isfinite(o.lightIntensity) && o.lightIntensity >= 0 && o.lightIntensity <= 4,
+              "look.light_intensity: " + std::to_string(o.lightIntensity) +
+                  " is outside [0, 4] (1 = the default lights)");
   ESIM_VERIFY(o.backend == "osmesa" || o.backend == "egl",
               "RenderOptions::backend: '" + o.backend + "' is unknown, expected 'osmesa' or 'egl'");
 }
@@ -147,7 +156,8 @@ FrameView frameView(const RenderOptions& o, const SurfaceSnapshot& snap) {
   f.forward = fwd;
   const V3 right = normalized(cross(fwd, o.up));
   const V3 camUp = cross(right, fwd);
-  f.keyDir = normalized(add(add(mul(right, -0.45f), mul(camUp, 0.65f)), mul(fwd, -0.60f)));
+  const std::array<float, 3>& k = o.keyLightCamera;  // (right, up, towards the viewer)
+  f.keyDir = normalized(add(add(mul(right, k[0]), mul(camUp, k[1])), mul(fwd, -k[2])));
   f.fillDir = normalized(add(add(mul(right, 0.70f), mul(camUp, 0.10f)), mul(fwd, -0.50f)));
   f.halfDir = normalized(sub(f.keyDir, fwd));  // towards the light + towards the viewer
   const ToolSnapshot& tool = snap.tool;
@@ -466,6 +476,12 @@ void Renderer::Impl::useSurfaceProgram(const SurfaceProgram& p, const M4& model,
   gl.Uniform1f(p.uGlow, tool.present && tool.generatorOn ? 1.0f : 0.0f);
   gl.Uniform3fv(p.uToolAxis, 1, view.toolAxis.data());
   gl.Uniform3fv(p.uToolSizes, 1, view.toolSizes.data());
+  // the lights' weights (their products with 1 are the literals they replaced: the default
+  // look keeps its bytes), the tint and the mottling's salt
+  gl.Uniform3f(p.uLightWeights, 0.78f * opt.lightIntensity, 0.22f * opt.lightIntensity,
+               opt.lightIntensity);
+  gl.Uniform3fv(p.uTint, 1, opt.tissueTint.data());
+  gl.Uniform1ui(p.uSeedSalt, opt.textureSeed * 0x85ebca6bu);
 }
 
 void Renderer::Impl::drawSurface(const FrameView& view, const ToolSnapshot& tool) {

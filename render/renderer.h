@@ -69,6 +69,14 @@ struct RenderOptions {
                                      // highlights follow the mesh); colours per pixel
   bool cullBackFaces = true;         // skip triangles seen from behind (closed
                                      // surfaces; false for open ones)
+  // appearance, for datasets that vary it (the defaults are the look drawn before them)
+  std::uint32_t textureSeed = 0;                      // tissue look: the mottling's pattern
+  std::array<float, 3> tissueTint{1.0f, 1.0f, 1.0f};  // tissue look: its colours times this RGB
+  // where the key light comes from in the camera's frame (right, up, towards the viewer);
+  // any length, not zero. The fill light stays where it is, on the other side
+  std::array<float, 3> keyLightCamera{-0.45f, 0.65f, 0.60f};
+  float lightIntensity = 1;  // the key and fill lights' strength, highlights included
+                             // (the ambient term stays)
 };
 
 // wall-clock split of the last render() call [ms]

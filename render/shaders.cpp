@@ -50,6 +50,7 @@ const char* const kLightingGlsl = R"(
 uniform vec3 uHalfDir;        // Blinn-Phong half vector of key light and view (infinite viewer)
 uniform vec3 uKeyDir;         // towards the key light
 uniform vec3 uFillDir;        // towards the fill light
+uniform vec3 uLightWeights;   // the key's and the fill's diffuse weights, the highlights' factor
 
 // Blinn-Phong lobe x^shininess by repeated squaring (pow costs ~20 operations
 // per pixel on llvmpipe): 24 for the temperature and potential looks, 55 for tissue
@@ -162,9 +163,11 @@ out vec4 fragColor;
 // computed here rather than looked up in a texture (two lookups a pixel cost llvmpipe 21 %
 // more on slab_cut: README, "Rendering"). The depth shifts the lookup so vertical cut walls
 // are mottled too.
+uniform uint uSeedSalt;       // look.texture_seed's salt of the hash (0: the default pattern)
+uniform vec3 uTint;           // look.tissue_tint
 // one lattice value, in [0, 1]: an integer hash of the lattice index
 float latticeValue(uint x, uint y) {
-  uint h = ((y & 63u) * 64u + (x & 63u)) * 2654435761u + 0x9e3779b9u;
+  uint h = ((y & 63u) * 64u + (x & 63u)) * 2654435761u + 0x9e3779b9u + uSeedSalt;
   h ^= h >> 15u;
   h *= 0x2c1b3c6du;
   h ^= h >> 12u;
@@ -223,6 +226,7 @@ void main() {
   albedo = mix(albedo, cooked * (0.95 + 0.08 * mottle), smoothstep(0.0, 1.0, coag));
   albedo = mix(albedo, brown, smoothstep(0.0, 0.55, dry));
   albedo = mix(albedo, charred, smoothstep(0.5, 1.0, dry));
+  albedo *= uTint;
   specStrength = 0.38 * (1.0 - dry) * (1.0 - 0.4 * coag);   // wet capsule shine
   shininess = 55.0;
   float dTip = length(vPos - uTipM) * 1000.0;                // [mm]
@@ -240,11 +244,11 @@ void main() {
 #elif VERTEXLIT
   // lighting interpolated from the vertices (Gouraud); colour map and tissue per pixel
   vec3 L = gl_FrontFacing ? vLightFront : vLightBack;
-  vec3 color = albedo * (0.30 + 0.78 * L.x + 0.22 * L.y);
+  vec3 color = albedo * (0.30 + uLightWeights.x * L.x + uLightWeights.y * L.y);
 #if LOOK == 0 || LOOK == 3
-  color += vec3(0.10) * (L.x + 0.3 * L.y);
+  color += vec3(0.10 * uLightWeights.z) * (L.x + 0.3 * L.y);
 #endif
-  color += vec3(specStrength * L.z);
+  color += vec3(specStrength * uLightWeights.z * L.z);
   fragColor = vec4(clamp(color + emissive, 0.0, 1.0), 1.0);
 #else
   vec3 n = normalize(vNormal);
@@ -253,11 +257,11 @@ void main() {
   float key = max(dot(n, uKeyDir), 0.0) * shadow;
   float fill = max(dot(n, uFillDir), 0.0);
   float ambient = metal ? 0.38 : 0.30;
-  vec3 color = albedo * (ambient + 0.78 * key + 0.22 * fill);
+  vec3 color = albedo * (ambient + uLightWeights.x * key + uLightWeights.y * fill);
 #if LOOK == 0 || LOOK == 3
   // a faint grey diffuse sheen, so that the shape of tissue at the dark end of
   // the map (inferno is black at tMin) stays readable
-  color += vec3(0.10) * (key + 0.3 * fill);
+  color += vec3(0.10 * uLightWeights.z) * (key + 0.3 * fill);
 #endif
   float nh = max(dot(n, uHalfDir), 0.0);
 #if LOOK == 2
@@ -265,7 +269,7 @@ void main() {
 #else
   float spec = specStrength * specLobe(nh);
 #endif
-  spec *= step(0.0, dot(n, uKeyDir)) * shadow;
+  spec *= step(0.0, dot(n, uKeyDir)) * shadow * uLightWeights.z;
   color += (metal ? mix(vec3(1.0), albedo, 0.4) : vec3(1.0)) * spec;
   fragColor = vec4(clamp(color + emissive, 0.0, 1.0), 1.0);
 #endif
@@ -340,6 +344,9 @@ SurfaceProgram linkSurfaceProgram(const GlFunctions& gl, const SurfaceVariant& v
   p.uGlow = loc("uGlow");
   p.uToolAxis = loc("uToolAxis");
   p.uToolSizes = loc("uToolSizes");
+  p.uLightWeights = loc("uLightWeights");
+  p.uTint = loc("uTint");
+  p.uSeedSalt = loc("uSeedSalt");
   return p;
 }
 

@@ -51,7 +51,8 @@ struct SurfaceVariant {
 struct SurfaceProgram {
   GLuint id = 0;
   GLint uViewProj = -1, uModel = -1, uColormap = -1, uTempRange = -1, uHalfDir = -1, uKeyDir = -1,
-        uFillDir = -1, uTipM = -1, uGlow = -1, uToolAxis = -1, uToolSizes = -1;
+        uFillDir = -1, uTipM = -1, uGlow = -1, uToolAxis = -1, uToolSizes = -1, uLightWeights = -1,
+        uTint = -1, uSeedSalt = -1;
 };
 
 // "#version" line, the variant's defines and kLightingGlsl: the prefix of both surface stages

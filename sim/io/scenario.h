@@ -288,6 +288,11 @@ struct ScenarioLook {
   bool colorBar = true;
   bool showTime = true;
   double displacementScale = 1.0;  // structural: drawn displacement / computed
+  // appearance, for datasets that vary it (render/renderer.h, RenderOptions)
+  int textureSeed = 0;                     // tissue style: the mottling's pattern
+  Vec3 tissueTint{1.0, 1.0, 1.0};          // tissue style: its colours times this RGB
+  Vec3 lightDirection{-0.45, 0.65, 0.60};  // key light, camera frame (right, up, back)
+  double lightIntensity = 1.0;             // key and fill lights' strength
   bool operator==(const ScenarioLook&) const = default;
 };
 

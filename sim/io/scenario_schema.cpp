@@ -428,6 +428,20 @@ const std::vector<Field>& schema() {
                        closed(0.0, 1e4),
                        "structural: the surface is drawn displaced by this times the computed "
                        "displacement (1 = as computed, 0 = undeformed, more to show it)"));
+    f.push_back(integer("look.texture_seed", ESIM_REF(look.textureSeed), "", closed(0, 1e9),
+                        "tissue style: the pattern of the tissue's mottling (0 = the default "
+                        "one; another value gives another, the same every run)"));
+    f.push_back(vector("look.tissue_tint", ESIM_REF(look.tissueTint), "", closed(0.0, 2.0),
+                       "tissue style: the tissue's colours (every state: fresh, cut wall, "
+                       "coagulated, dried) times this red, green, blue factor (1 = as is)"));
+    f.push_back(vector("look.light_direction", ESIM_REF(look.lightDirection), "", closed(-1e3, 1e3),
+                       "where the key light comes from, in the camera's frame (right, up, "
+                       "towards the viewer; any length); it casts the electrode's shadow. The "
+                       "fill light stays on the other side",
+                       true));
+    f.push_back(number("look.light_intensity", ESIM_REF(look.lightIntensity), "", closed(0.0, 4.0),
+                       "strength of the key and fill lights and their highlights (1 = as is; "
+                       "the ambient light stays)"));
     // output
     f.push_back(boolean("output.video", ESIM_REF(output.video), "write video.mp4 (H.264)"));
     f.push_back(integer("output.crf", ESIM_REF(output.crf), "", closed(0, 51),

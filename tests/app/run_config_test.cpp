@@ -108,6 +108,25 @@ TEST(RunConfig, EveryDefaultComesFromTheCore) {
   EXPECT_EQ(c.structural.vectorizedUpdate, d.structural.vectorizedUpdate);
 }
 
+// the appearance keys reach the renderer's options, and their defaults are the renderer's
+TEST(RunConfig, AppearanceKeysReachTheRenderer) {
+  const RenderOptions d, c = makeRenderOptions(defaults());
+  EXPECT_EQ(c.textureSeed, d.textureSeed);
+  EXPECT_EQ(c.tissueTint, d.tissueTint);
+  EXPECT_EQ(c.keyLightCamera, d.keyLightCamera);
+  EXPECT_EQ(c.lightIntensity, d.lightIntensity);
+  Scenario s = defaults();
+  s.look.textureSeed = 123456789;
+  s.look.tissueTint = {0.9, 1.1, 0.8};
+  s.look.lightDirection = {1, 2, 3};
+  s.look.lightIntensity = 1.5;
+  const RenderOptions r = makeRenderOptions(s);
+  EXPECT_EQ(r.textureSeed, 123456789u);
+  EXPECT_EQ(r.tissueTint, (std::array<float, 3>{0.9f, 1.1f, 0.8f}));
+  EXPECT_EQ(r.keyLightCamera, (std::array<float, 3>{1, 2, 3}));
+  EXPECT_EQ(r.lightIntensity, 1.5f);
+}
+
 // solvers.electric.preconditioner reaches pcg's options; the default is two-level
 TEST(RunConfig, PcgPreconditionerKeyReachesTheSolver) {
   const auto preconditioner = [](const std::string& name) {

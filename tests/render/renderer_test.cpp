@@ -225,6 +225,70 @@ TEST(Renderer, TissueLookStates) {
   EXPECT_GT(wall[0], wall[1] + 40) << "and still red";
 }
 
+// look.texture_seed: another seed another mottling, the same seed the same bytes, the tissue's
+// mean colour kept; the temperature look has no mottling to change
+TEST(Renderer, TextureSeedChangesTheTissueMottlingOnly) {
+  SurfaceSnapshot s;
+  addQuad(s, -0.03f, 0.03f, -0.02f, 0.02f, {37, 0, 0, 0});
+  auto render = [&](const std::string& look, std::uint32_t seed) {
+    RenderOptions o = topDown(look);
+    o.textureSeed = seed;
+    Renderer r(o);
+    return r.render(s);
+  };
+  const auto mean = [](const std::vector<std::uint8_t>& img, int c) {
+    double sum = 0;
+    int n = 0;
+    for (int row = 10; row < kH - 10; ++row)
+      for (int col = 10; col < kW - 10; ++col, ++n) sum += img[(row * kW + col) * 3 + c];
+    return sum / n;
+  };
+  const auto a = render("tissue", 0), b = render("tissue", 7), b2 = render("tissue", 7);
+  EXPECT_EQ(hashFrame(b), hashFrame(b2));
+  int differ = 0;
+  for (size_t i = 0; i < a.size(); i += 3) differ += a[i] != b[i];
+  EXPECT_GT(differ, static_cast<int>(a.size() / 3 / 4)) << "the pattern changes";  // 43 % here
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(mean(a, c), mean(b, c), 3.0) << "channel " << c;
+  EXPECT_EQ(hashFrame(render("temperature", 0)), hashFrame(render("temperature", 7)));
+}
+
+// look.tissue_tint multiplies the tissue's colours (unlit: the albedo itself, to rounding);
+// look.light_intensity 0 leaves the ambient term alone (0.30 of the albedo, fill and key and
+// highlights off), 2 brightens; a key light from behind the plane darkens it
+TEST(Renderer, TintAndLightsScaleAsAsked) {
+  SurfaceSnapshot s;
+  addQuad(s, -0.03f, 0.03f, -0.02f, 0.02f, {37, 0, 0, 0});
+  RenderOptions o = topDown("tissue");
+  Renderer plain(o);
+  const std::vector<std::uint8_t> base = plain.render(s);
+  o.tissueTint = {1.0f, 0.5f, 0.25f};
+  Renderer tinted(o);
+  const std::vector<std::uint8_t> tint = tinted.render(s);
+  for (const float x : {-0.02f, 0.0f, 0.015f}) {
+    const Rgb p = atWorld(base, x, 0.0f), q = atWorld(tint, x, 0.0f);
+    EXPECT_NEAR(q[0], p[0], 1);
+    EXPECT_NEAR(q[1], 0.5 * p[1], 1);
+    EXPECT_NEAR(q[2], 0.25 * p[2], 1);
+  }
+  const auto litPixel = [&](float intensity, std::array<float, 3> key) {
+    RenderOptions l = topDown("tissue");
+    l.lighting = true;
+    l.lightIntensity = intensity;
+    l.keyLightCamera = key;
+    Renderer r(l);
+    return atWorld(r.render(s), 0.0f, 0.0f);
+  };
+  const std::array<float, 3> defaultKey = RenderOptions{}.keyLightCamera;
+  const Rgb albedo = atWorld(base, 0.0f, 0.0f), dark = litPixel(0, defaultKey);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(dark[c], 0.30 * albedo[c], 1.0) << "channel " << c;
+  const Rgb lit = litPixel(1, defaultKey), bright = litPixel(2, defaultKey);
+  const Rgb behind = litPixel(1, {0.0f, 0.0f, -1.0f});
+  EXPECT_GT(lit[0] + lit[1] + lit[2], dark[0] + dark[1] + dark[2] + 60);
+  EXPECT_GT(bright[1] + bright[2], lit[1] + lit[2] + 30);
+  EXPECT_LT(behind[0] + behind[1] + behind[2], lit[0] + lit[1] + lit[2] - 60);
+  EXPECT_GT(behind[0] + behind[1] + behind[2], dark[0] + dark[1] + dark[2]) << "the fill stays";
+}
+
 // rotation taking the tool axis (local +z) to world +y: -90 deg about x
 SurfaceSnapshot withBlade(bool generatorOn) {
   SurfaceSnapshot s;
@@ -582,6 +646,15 @@ TEST(Renderer, RejectsBadOptionsAndSnapshots) {
   EXPECT_NE(message([&] { Renderer r(o); }).find("camera.up"), std::string::npos);
   o.up = {0, 0, 0};
   EXPECT_NE(message([&] { Renderer r(o); }).find("camera.up"), std::string::npos);
+  o = topDown();
+  o.tissueTint = {1, 2.5f, 1};
+  EXPECT_NE(message([&] { Renderer r(o); }).find("look.tissue_tint: 2.5"), std::string::npos);
+  o = topDown();
+  o.keyLightCamera = {0, 0, 0};
+  EXPECT_NE(message([&] { Renderer r(o); }).find("look.light_direction"), std::string::npos);
+  o = topDown();
+  o.lightIntensity = -1;
+  EXPECT_NE(message([&] { Renderer r(o); }).find("look.light_intensity"), std::string::npos);
   o = topDown();
   o.fovDeg = 170;  // the scenario schema's range, (1, 170)
   EXPECT_NE(message([&] { Renderer r(o); }).find("camera.fov_deg"), std::string::npos);

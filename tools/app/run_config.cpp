@@ -130,6 +130,12 @@ RenderOptions makeRenderOptions(const Scenario& s) {
   r.showTime = s.look.showTime;
   r.msaaSamples = s.look.msaa;
   r.shading = s.look.shading;
+  r.textureSeed = static_cast<std::uint32_t>(s.look.textureSeed);
+  for (int c = 0; c < 3; ++c) {
+    r.tissueTint[c] = static_cast<float>(s.look.tissueTint[c]);
+    r.keyLightCamera[c] = static_cast<float>(s.look.lightDirection[c]);
+  }
+  r.lightIntensity = static_cast<float>(s.look.lightIntensity);
   return r;
 }
 
