@@ -356,6 +356,11 @@ std::string readYamlText(std::istream& in, const std::string& name, const std::s
 // and carriage return, or DEL (escapes such as "\x1e" in double quotes are taken)
 void requireUtf8Text(const std::string& text, const std::string& where, bool lineAndColumn);
 
+// "" when a text value (after its escapes are decoded) is UTF-8, else what is wrong with it:
+// yaml-cpp decodes "\N" (U+0085) to the one byte 0x85, and a scenario (or sweep) holding it
+// could not be written back and read again
+std::string decodedTextProblem(const std::string& value);
+
 // a value as quoted in an error message: 'text', or its first line cut at 60 characters with
 // its length ("'v -0.0175 0.0417 ...' (511234 characters)": a whole OBJ file read as a
 // scenario was quoted whole)

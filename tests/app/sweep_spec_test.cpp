@@ -198,6 +198,10 @@ TEST(SweepSpec, ErrorsNameTheSweepFileLineAndKey) {
   const std::vector<Case> cases{
       {"base: ../paper_slab_506.yaml\ngird: {tool.voltage_v: [1]}\n",
        file + ":2:1: gird: unknown key; did you mean 'grid'?"},
+      // yaml-cpp decodes "\N" to a byte that is not UTF-8 (it reached the JSON manifest)
+      {"name: \"cut\\N\"\nbase: ../paper_slab_506.yaml\n",
+       file + ":1:7: name: the text is not UTF-8 once its escapes are decoded (byte 0x85 at "
+              "byte 4"},
       {"base: ../paper_slab_506.yaml\ngrid:\n  tool.voltag_v: [60]\n",
        file + ":3:3: grid.tool.voltag_v: unknown scenario key; did you mean 'tool.voltage_v'?"},
       {"base: ../paper_slab_506.yaml\ngrid:\n  tool.voltage_v: [60, 20000]\n",

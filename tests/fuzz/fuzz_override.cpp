@@ -5,6 +5,9 @@
 // (refused by applyOverride); the inputs are kept in tests/fuzz/fuzz_override/regression-*.
 // So is its second, a value starting with NUL bytes, which yaml-cpp read as UTF-32 into a name
 // that was no longer UTF-8 (refused by requireUtf8Text: no control characters in the text).
+// And its third, a double-quoted "\N" (YAML's U+0085), which yaml-cpp decodes to the one byte
+// 0x85, so the name was not UTF-8 and the resolved scenario could not be read back (refused:
+// decodedTextProblem; regression-nel-escape-not-utf8).
 #include <cstddef>
 #include <cstdint>
 #include <string>

@@ -430,6 +430,8 @@ class SpecReader {
       const YAML::Node& v = kv.second;
       if (key == "name" || key == "description") {
         if (!v.IsScalar()) fail(v.Mark(), key + ": expected text, got " + describe(v));
+        if (const std::string problem = decodedTextProblem(v.Scalar()); !problem.empty())
+          fail(v.Mark(), key + ": " + problem);
         (key == "name" ? spec.name : spec.description) = v.Scalar();
       } else if (key == "base") {
         if (!v.IsScalar() || v.Scalar().empty())
