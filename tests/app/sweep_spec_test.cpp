@@ -198,6 +198,10 @@ TEST(SweepSpec, ErrorsNameTheSweepFileLineAndKey) {
   const std::vector<Case> cases{
       {"base: ../paper_slab_506.yaml\ngird: {tool.voltage_v: [1]}\n",
        file + ":2:1: gird: unknown key; did you mean 'grid'?"},
+      // a scenario where the sweep file was expected: said so, not "mesh: unknown key"
+      {"name: cut\nmesh:\n  source: slab\n",
+       file + ":2:1: mesh: a scenario key at the top of a sweep file: this looks like a "
+              "scenario, not a sweep file"},
       // yaml-cpp decodes "\N" to a byte that is not UTF-8 (it reached the JSON manifest)
       {"name: \"cut\\N\"\nbase: ../paper_slab_506.yaml\n",
        file + ":1:7: name: the text is not UTF-8 once its escapes are decoded (byte 0x85 at "

@@ -421,6 +421,14 @@ class SpecReader {
     for (const auto& kv : root) {
       const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : "";
       if (std::find(keys.begin(), keys.end(), key) == keys.end()) {
+        // a scenario given where a sweep file was expected (esim sweep scenarios/x.yaml)
+        if (isScenarioKeyOrGroup(key) && !root["base"])
+          fail(kv.first.Mark(),
+               key +
+                   ": a scenario key at the top of a sweep file: this looks like a scenario, "
+                   "not a sweep file. A sweep file names its scenario in 'base:' and what to "
+                   "vary in 'grid:' or 'random:' (scenarios/sweeps/README.md); a scenario "
+                   "runs with esim run");
         const std::string near = closest(key, keys);
         fail(kv.first.Mark(), key + ": unknown key" +
                                   (near.empty() ? "; expected one of " + joined(keys)
