@@ -107,6 +107,16 @@ Scenario parseScenario(const std::string& yamlText, const std::string& sourceNam
   } catch (const YAML::Exception& e) {
     throw Error(sourceName + ": malformed YAML: " + e.msg);
   }
+  // a sweep file given where a scenario was expected (esim run scenarios/sweeps/x.yaml): said
+  // so, rather than "base: unknown key"
+  if (root.IsMap() && root["base"] &&
+      (root["grid"] || root["random"] || root["draws"] || root["set"])) {
+    const YAML::Mark m = root["base"].Mark();
+    throw Error(sourceName + ":" + std::to_string(m.line + 1) +
+                ": base: this looks like a sweep file (base, with grid, random, draws or set), "
+                "not a scenario: run its variants with esim sweep " +
+                sourceName + " -o DIR (scenarios/sweeps/README.md)");
+  }
   // 2. overrides
   Reader reader(sourceName);
   for (const auto& text : overrides) applyOverride(root, text, sourceName, reader);

@@ -308,6 +308,16 @@ TEST(Scenario, BadOverridesAreErrors) {
 
 // ---- bad input: one clear message each ----
 
+// a sweep file given as a scenario (esim run scenarios/sweeps/x.yaml) is named as such
+TEST(Scenario, ASweepFileIsNotTakenForAScenario) {
+  expectMessage(errorOf("name: s\nbase: ../slab_cut.yaml\ndraws: 2\nrandom:\n  tool.voltage_v: "
+                        "{uniform: [60, 90]}\n"),
+                {"bad.yaml:2: base: this looks like a sweep file (base, with grid, random, draws "
+                 "or set), not a scenario: run its variants with esim sweep bad.yaml -o DIR"});
+  // base alone stays an unknown key of a scenario
+  expectMessage(errorOf("base: 1\n"), {"base"});
+}
+
 // a byte that is not UTF-8 is refused where it is (in a name it threw from the JSON writer at
 // the end of the run: exit 4, only DIR.partial/ left); any well-formed UTF-8 is taken
 TEST(Scenario, TextThatIsNotUtf8IsRefusedWhereItIs) {
