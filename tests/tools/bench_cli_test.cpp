@@ -211,8 +211,8 @@ TEST_F(BenchCli, CutWritesTheIssuesColumns) {
 // --stages prints the CPU the frames cost (every thread): under taskset one CPU, and at most
 // that one busy
 TEST_F(BenchCli, CutStagesPrintTheCpuAFrame) {
-  const auto r =
-      shell("taskset -c 0 " + esim("bench cut --sizes 50 --frames 4 --strategy update --stages"));
+  const auto r = shell(esim::cli_test::onOneCpu() +
+                       esim("bench cut --sizes 50 --frames 4 --strategy update --stages"));
   ASSERT_EQ(r.exitCode, 0) << r.output;
   const size_t at = r.output.find("  cpu            ");
   ASSERT_NE(at, std::string::npos) << r.output;

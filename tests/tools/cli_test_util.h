@@ -3,6 +3,7 @@
 // Header-only; ESIM_SOURCE_DIR is defined for every test (tests/CMakeLists.txt).
 #pragma once
 
+#include <sched.h>
 #include <sys/wait.h>
 
 #include <cstdio>
@@ -29,6 +30,17 @@ inline Result shell(const std::string& command) {
   const int status = pclose(pipe);
   r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return r;
+}
+
+// "taskset -c K " for the first CPU this process may run on (a CI machine's cpuset need not
+// hold CPU 0): a command that follows runs on that one CPU
+inline std::string onOneCpu() {
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  int first = 0;
+  if (sched_getaffinity(0, sizeof set, &set) == 0)
+    while (first < CPU_SETSIZE && !CPU_ISSET(first, &set)) ++first;
+  return "taskset -c " + std::to_string(first < CPU_SETSIZE ? first : 0) + " ";
 }
 
 // the file's contents ("" when it cannot be read)

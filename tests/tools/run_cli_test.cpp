@@ -24,6 +24,7 @@
 namespace {
 
 namespace fs = std::filesystem;
+using esim::cli_test::onOneCpu;
 using esim::cli_test::readFile;
 using esim::cli_test::Result;
 using esim::cli_test::shell;
@@ -677,7 +678,7 @@ TEST(RunCli, TheDrawThreadGivesTheSameFramesAndReportsThePeriod) {
 // shell's `times` counts for the whole child (set-up and exit included)
 TEST(RunCli, TheCpuAFrameIsReportedAndBoundedByTheChildsOwn) {
   const fs::path out = tempOut("cpu");
-  const Result r = shell("taskset -c 0 " + std::string(ESIM_EXE) +
+  const Result r = shell(onOneCpu() + std::string(ESIM_EXE) +
                          " run scenarios/slab_cut.yaml --frames 12 --set mesh.slab.nodes=1013" +
                          kSmall + " -o " + out.string() + "; times");
   ASSERT_NE(r.output.find("m"), std::string::npos) << r.output;
