@@ -61,6 +61,57 @@ const char* phaseName(Phase phase) {
   return "?";
 }
 
+namespace {
+
+// the offset of the first byte of `text` that does not start or continue a well-formed UTF-8
+// sequence (RFC 3629: no overlong forms, no surrogates, nothing above U+10FFFF), or npos
+size_t firstNonUtf8(const std::string& text) {
+  const auto* b = reinterpret_cast<const unsigned char*>(text.data());
+  const size_t n = text.size();
+  for (size_t i = 0; i < n;) {
+    const unsigned c = b[i];
+    int more = 0;
+    unsigned low = 0x80, high = 0xBF;  // the allowed range of the second byte
+    if (c < 0x80) {
+      ++i;
+      continue;
+    } else if (c >= 0xC2 && c <= 0xDF) {
+      more = 1;
+    } else if (c >= 0xE0 && c <= 0xEF) {
+      more = 2;
+      if (c == 0xE0) low = 0xA0;   // (overlong)
+      if (c == 0xED) high = 0x9F;  // (surrogates)
+    } else if (c >= 0xF0 && c <= 0xF4) {
+      more = 3;
+      if (c == 0xF0) low = 0x90;   // (overlong)
+      if (c == 0xF4) high = 0x8F;  // (above U+10FFFF)
+    } else {
+      return i;
+    }
+    for (int k = 1; k <= more; ++k) {
+      if (i + k >= n) return i;
+      const unsigned d = b[i + k];
+      if (k == 1 ? (d < low || d > high) : (d < 0x80 || d > 0xBF)) return i;
+    }
+    i += more + 1;
+  }
+  return std::string::npos;
+}
+
+// the offset of the first C0 control character other than tab, line feed and carriage return,
+// or of DEL, or npos: YAML 1.2 (5.1) allows none in a stream. yaml-cpp read a text that starts
+// with a NUL byte (or has one second) as UTF-16 or UTF-32, and made of it a name that was no
+// longer UTF-8: the scenario the run then wrote out (scenario.yaml) could not be read back
+size_t firstControl(const std::string& text) {
+  for (size_t i = 0; i < text.size(); ++i) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    if ((c < 0x20 && c != '\t' && c != '\n' && c != '\r') || c == 0x7F) return i;
+  }
+  return std::string::npos;
+}
+
+}  // namespace
+
 void requireUtf8Text(const std::string& text, const std::string& where, bool lineAndColumn) {
   const size_t bad = firstNonUtf8(text);
   const size_t control = firstControl(text);

@@ -19,12 +19,6 @@
 
 namespace esim::scenario_detail {
 
-// the offset of the first byte of `text` that does not start or continue a well-formed UTF-8
-// sequence, or of its first C0 control character but tab, line feed and carriage return (or
-// DEL), or npos
-size_t firstNonUtf8(const std::string& text);
-size_t firstControl(const std::string& text);
-
 class Reader {
  public:
   explicit Reader(std::string source) : source_(std::move(source)) {}
