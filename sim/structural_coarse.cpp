@@ -39,16 +39,14 @@ CoarseSpace::CoarseSpace(const std::vector<Vec3>& nodes, double spacingM) {
   }
   spacing_ = spacingM;
   const double gridNodes = gridNodesFor(size, spacingM);
-  for (int a = 0; a < 3; ++a)
-    cells_[a] = gridNodes <= kMaxGridNodes
-                    ? static_cast<int>(std::max(1.0, std::ceil(size(a) / spacingM - 1e-9)))
-                    : 0;
   if (gridNodes > kMaxGridNodes)
     throw Error("structural: a coarse grid (solvers.structural.coarse_spacing_m) of spacing " +
                 messageNumber(spacingM) + " m over the mesh's " + messageNumber(size(0)) + " x " +
                 messageNumber(size(1)) + " x " + messageNumber(size(2)) + " m box has " +
                 messageNumber(gridNodes) + " nodes, more than " + std::to_string(kMaxGridNodes) +
                 "; use a larger spacing");
+  for (int a = 0; a < 3; ++a)
+    cells_[a] = static_cast<int>(std::max(1.0, std::ceil(size(a) / spacingM - 1e-9)));
   cholmod_start(&common_);
   common_.print = 0;
   common_.error_handler = nullptr;
