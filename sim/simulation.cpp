@@ -214,7 +214,7 @@ void validateSimulationMesh(const TetMesh& meshIn, const SimulationConfig& confi
   }
   if (config.phases.structural)
     ESIM_VERIFY(!clampedSupports(mesh, surfaceNodes, config.clampBandM).empty(),
-                "effects.structural_clamp_band_m = " + std::to_string(config.clampBandM) +
+                "effects.structural_clamp_band_m = " + messageNumber(config.clampBandM) +
                     " m: no surface node lies within it of the lowest node (nothing holds the "
                     "tissue)");
 }
@@ -318,20 +318,10 @@ void Simulation::buildInitialModel(TetMesh mesh) {
       config_.prefetchUntilS > 0
           ? static_cast<int>(std::ceil(config_.prefetchUntilS / config_.frameDtS))
           : -1;
-  try {
-    model_ = buildModel(
-        std::move(alive),
-        std::vector<double>(ph.electric ? model_->mesh.numTets() : 0, config_.conductivityS_m), 0,
-        prefetchTo, true);
-  } catch (const Error& e) {
-    // the structural phase's errors about its supports get the clamp that made them
-    const std::string what = e.what();
-    if (what.rfind("structural", 0) != 0 || what.find("supports") == std::string::npos) throw;
-    throw RunError(std::string(e.what()) +
-                   " (clamped: " + std::to_string(model_->supports.size() / 3) +
-                   " bottom nodes within effects.structural_clamp_band_m = " +
-                   std::to_string(config_.clampBandM) + " m of the lowest node)");
-  }
+  model_ = buildModel(
+      std::move(alive),
+      std::vector<double>(ph.electric ? model_->mesh.numTets() : 0, config_.conductivityS_m), 0,
+      prefetchTo, true);
   // the work of an explicit frame is bounded: refused up front, never a frame of minutes
   if (model_->thermal) checkExplicitBound(*model_->thermal, config_);
 }
@@ -462,6 +452,12 @@ std::unique_ptr<SimModel> Simulation::buildModel(std::vector<std::uint8_t> alive
     StructuralOptions so = config_.structural;
     // update mode: the factor's conversion for low-rank updates is paid here, not in a frame
     so.prepareForUpdates = config_.phases.rupture && config_.rebuildMode == RebuildMode::Update;
+    // its errors about the supports name the clamp that made them
+    const size_t clamped = m.supports.size() / 3;
+    so.supportsNote =
+        "clamped: " + std::to_string(clamped) + (clamped == 1 ? " bottom node" : " bottom nodes") +
+        " within effects.structural_clamp_band_m = " + messageNumber(config_.clampBandM) +
+        " m of the lowest node";
     structural = std::async(concurrent ? std::launch::async : std::launch::deferred, [&m, so] {
       return std::make_unique<StructuralPhase>(m.mesh, so, m.supports);
     });
@@ -516,12 +512,7 @@ void Simulation::throwRebuildError(const Error& e, int ruptureFrame) const {
   if (e.kind() == ErrorKind::Internal || dynamic_cast<const Interrupted*>(&e)) throw;
   std::string what = e.what();
   if (what.rfind("rupture: ", 0) == 0) what.erase(0, 9);  // said once, with the frame
-  std::string context = "rupture, frame " + std::to_string(ruptureFrame) + ": ";
-  if (what.find("supports") != std::string::npos)
-    context +=
-        "the cut removed all the tissue held by the clamps "
-        "(effects.structural_clamp_band_m): ";
-  throw RunError(context + what);
+  throw RunError("rupture, frame " + std::to_string(ruptureFrame) + ": " + what);
 }
 
 // solvers.rebuild.mode: update. The model edited in place in the frame the tets break:

@@ -179,7 +179,10 @@ struct SimplicialView {
 // structural)
 constexpr int kMinTetsForTwoShares = 20000;
 
-const char* const kNoPieceHeld = "structural: no piece of the body is held by the supports";
+// an error about the supports, with StructuralOptions::supportsNote
+std::string supportsMessage(const std::string& what, const std::string& note) {
+  return "structural: " + what + (note.empty() ? "" : " (" + note + ")");
+}
 
 double secondsSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -233,7 +236,9 @@ struct StructuralPhase::Impl {
   std::vector<int> pieceOf;   // per tet, -1 when removed
   std::vector<Piece> pieces;  // by id; ids are never reused
   int livePieces = 0, islands = 0;
-  std::string failure;  // set when a removal left no piece held
+  std::string failure;      // set when a removal left no piece held
+  std::string noPieceHeld;  // its message (StructuralOptions::supportsNote in it)
+  std::string notPositive;  // a factorization's, "not positive definite" (the same)
   // ---- the factor of A = K on the free dofs, identity on the held ones (3n x 3n) ----
   cholmod_common common;
   cholmod_factor* symbolic = nullptr;  // analysis of the first A: every later A fits in it
@@ -695,9 +700,7 @@ void StructuralPhase::Impl::factorize(cholmod_common& c, const StateView& s) {
   openblas_set_num_threads(1);                    // see the header: BLAS threads only spin here
   const int ok = cholmod_factorize(&view, factor, &c);
   throwIfOutOfResources(c);
-  ESIM_RUN_CHECK(ok && c.status == CHOLMOD_OK && factor->minor == factor->n,
-                 "structural: the stiffness matrix is not positive definite (degenerate tets, or "
-                 "supports that leave part of the body free)");
+  ESIM_RUN_CHECK(ok && c.status == CHOLMOD_OK && factor->minor == factor->n, notPositive);
   if (prepareForUpdates) toSimplicial(c, factor);
 }
 
@@ -1391,7 +1394,7 @@ std::function<StructuralUpdateStats()> StructuralPhase::Impl::beginRemoval(
     for (int v : nodesOf(tetsOfPiece(p, start))) holdNode(v, newlyHeld);
   }
   if (livePieces > 0 && islands == livePieces) {
-    failure = kNoPieceHeld;
+    failure = noPieceHeld;
     throw Error(failure);
   }
   std::sort(newlyHeld.begin(), newlyHeld.end());
@@ -1808,9 +1811,9 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   Impl& m = *impl_;
   const double e = options.youngsModulusPa, nu = options.poissonRatio;
   ESIM_VERIFY(std::isfinite(e) && e > 0,
-              "structural: youngsModulusPa must be > 0, got " + std::to_string(e));
+              "structural: youngsModulusPa must be > 0, got " + messageNumber(e));
   ESIM_VERIFY(std::isfinite(nu) && nu >= 0 && nu < 0.5,
-              "structural: poissonRatio must be in [0, 0.5), got " + std::to_string(nu));
+              "structural: poissonRatio must be in [0, 0.5), got " + messageNumber(nu));
   const int n = mesh.numNodes(), nt = mesh.numTets();
   m.nodes = mesh.nodes;
   m.tets = mesh.tets;
@@ -1820,6 +1823,12 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   m.d = elasticity(e, nu);
   m.bulkModulusPa = e / (3 * (1 - 2 * nu));
   m.supports = supports;
+  m.noPieceHeld =
+      supportsMessage("no piece of the body is held by the supports", options.supportsNote);
+  m.notPositive = supportsMessage(
+      "the stiffness matrix is not positive definite (degenerate tets, or supports that leave "
+      "part of the body free)",
+      options.supportsNote);
   verifySolveThreads(options.solveThreads);
   ESIM_VERIFY(!(options.updateCostLimit < 0), "structural: updateCostLimit must be >= 0, got " +
                                                   messageNumber(options.updateCostLimit));
@@ -1852,8 +1861,10 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   }
   m.numFree = static_cast<int>(std::count(m.held.begin(), m.held.end(), 0));
   ESIM_VERIFY(supportsFixRigidMotions(m.nodes, supports),
-              "structural: the supports leave the body free to translate or rotate; hold at "
-              "least 6 independent displacement components (e.g. clamp a face)");
+              supportsMessage("the supports leave the body free to translate or rotate; hold "
+                              "at least 6 independent displacement components, e.g. by "
+                              "clamping a face",
+                              options.supportsNote));
 
   // 2. adjacency over every tet, removed or not (removeTets walks it), and the pieces
   TetMesh whole;
@@ -1867,7 +1878,7 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   m.tetMark.assign(nt, 0);
   std::vector<int> newlyHeld;
   m.classifyPieces(newlyHeld);
-  ESIM_VERIFY(m.livePieces == 0 || m.islands < m.livePieces, kNoPieceHeld);
+  ESIM_VERIFY(m.livePieces == 0 || m.islands < m.livePieces, m.noPieceHeld);
 
   // 3. assembly and factorization of A (3n x 3n), once
   m.u = Eigen::VectorXd::Zero(3 * n);

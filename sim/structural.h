@@ -68,6 +68,7 @@
 #include <array>
 #include <functional>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "sim/mesh_tet.h"
@@ -243,6 +244,10 @@ struct StructuralOptions {
   int solveThreads = 2;
   StructuralSolveMethod solveMethod = StructuralSolveMethod::full;  // see LocalSolveOptions
   LocalSolveOptions local;
+  // what made the supports, in the caller's words (e.g. the scenario key of a clamp):
+  // appended in parentheses to the errors about them (no piece held, a factor not positive
+  // definite), so that the phase's message names the cause; empty: nothing appended
+  std::string supportsNote;
 };
 
 // what one removeTets call did
@@ -318,9 +323,10 @@ class StructuralPhase {
   // esim::Error (Input kind)
   // on an id out of range (nothing changed); when no piece is held by the supports any
   // more, it throws the constructor's esim::Error, "structural: no piece of the body is
-  // held by the supports" (Input kind, as the constructor: the caller names the cause),
-  // and the phase is dead: every later solve or removeTets throws it again; esim::RunError
-  // if CHOLMOD runs out of memory or a refactorization fails.
+  // held by the supports (StructuralOptions::supportsNote)" (Input kind, as the
+  // constructor: the caller says whether a removal made it), and the phase is dead: every later
+  // solve or removeTets throws it again; esim::RunError if CHOLMOD runs out of memory or a
+  // refactorization fails.
   StructuralUpdateStats removeTets(const std::vector<int>& tets);
   // removeTets in two parts: this call does the bookkeeping (alive set, pieces, held and
   // freed dofs) and throws what removeTets throws for it; the function returned updates

@@ -10,8 +10,10 @@
 // structural errors into a Run error naming effects.structural_clamp_band_m
 // (Simulation::buildInitialModel); the rebuild does not. Expected: a Run error like the
 // rebuild's other two ("rupture: every element of the tissue has been removed", "rupture: the
-// cut removed all the tissue on the return electrode"), e.g. "rupture, frame N: the cut
-// removed all the tissue held by the clamps (effects.structural_clamp_band_m)".
+// cut removed all the tissue on the return electrode"). Now: "rupture, frame N: structural:
+// no piece of the body is held by the supports (clamped: K bottom nodes within
+// effects.structural_clamp_band_m = B m of the lowest node)", the clamp named by the
+// structural phase itself (StructuralOptions::supportsNote).
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -53,8 +55,14 @@ TEST_P(HardRemovalFailing, RemovalOfTheClampedTissueIsARunError) {
     } catch (const Error& e) {
       stoppedAt = f;
       std::printf("stopped at frame %d (%s error): %s\n", f, errorKindName(e.kind()), e.what());
-      EXPECT_EQ(e.kind(), ErrorKind::Run) << e.what();               // fails: Input
-      EXPECT_TRUE(hard::contains(e.what(), "rupture")) << e.what();  // fails
+      EXPECT_EQ(e.kind(), ErrorKind::Run) << e.what();  // failed: Input
+      EXPECT_TRUE(hard::contains(e.what(), "rupture, frame " + std::to_string(f) + ": "))
+          << e.what();  // failed
+      // the clamp that held the tissue, and its key (StructuralOptions::supportsNote)
+      EXPECT_TRUE(
+          hard::contains(e.what(), "no piece of the body is held by the supports (clamped: "))
+          << e.what();
+      EXPECT_TRUE(hard::contains(e.what(), "effects.structural_clamp_band_m = ")) << e.what();
     }
   }
   EXPECT_GT(stoppedAt, 0);

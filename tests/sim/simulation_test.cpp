@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -265,6 +266,32 @@ TEST(Simulation, StructuralStressRisesWhereTheWaterBoils) {
   EXPECT_LT(vmBeforeBoiling, 1.5e3);
   EXPECT_GT(vmAfter, 2.45e4);
   EXPECT_EQ(sim.removedTets(), 0);
+}
+
+// the clamp band holds one corner of a tilted slab: the body can turn about it. The
+// structural phase's message names the clamp and its key, and it is bad input (nothing ran)
+TEST(Simulation, AClampThatHoldsNothingIsRefusedAtItsKey) {
+  TetMesh mesh = smallSlab();
+  const Eigen::Matrix3d tilt =
+      (Eigen::AngleAxisd(0.2, Vec3::UnitX()) * Eigen::AngleAxisd(0.3, Vec3::UnitY()))
+          .toRotationMatrix();
+  for (Vec3& p : mesh.nodes) p = tilt * p;
+  SimulationConfig c = boilingSpot(false);
+  c.clampBandM = 0;
+  try {
+    Simulation sim(mesh, c);
+    FAIL() << "built";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Input) << e.what();
+    EXPECT_EQ(std::string(e.what()),
+              "structural: the supports leave the body free to translate or rotate; hold at "
+              "least 6 independent displacement components, e.g. by clamping a face (clamped: 1 "
+              "bottom node within effects.structural_clamp_band_m = 0 m of the lowest node)");
+  }
+  // a band wide enough for the lowest edge's nodes holds it
+  c.clampBandM = 0.002;
+  Simulation sim(mesh, c);
+  EXPECT_TRUE(std::isfinite(sim.step().maxVonMisesPa));
 }
 
 TEST(Simulation, RuptureRemovesBoilingTissueAndRebuildsTheSurface) {

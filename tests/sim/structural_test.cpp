@@ -736,6 +736,11 @@ TEST(StructuralRemoval, RemovingTheClampedTissueIsTheFreshBuildsError) {
   const auto updated = caught([&] { phase.beginRemoval(second); });
   EXPECT_NE(fresh.first.find("no piece of the body is held"), std::string::npos) << fresh.first;
   EXPECT_EQ(updated.first, fresh.first);
+  // the caller's note on the supports ends both messages
+  StructuralOptions noted = paper();
+  noted.supportsNote = "the bottom face";
+  EXPECT_EQ(caught([&] { StructuralPhase p(mesh, noted, clamp); }).first,
+            fresh.first + " (the bottom face)");
   EXPECT_EQ(updated.second, fresh.second);
   // the phase is dead from then on
   EXPECT_EQ(caught([&] { phase.solve(unevenLoad(mesh)); }).first, fresh.first);

@@ -147,7 +147,7 @@ TEST(SweepCli, AnEditedManifestIsReportedLineByLine) {
   writeFile(dir / "manifest.jsonl", text);
   const Result v = esim("dataset verify " + dir.string());
   EXPECT_EQ(v.exitCode, 3) << v.output;
-  for (const std::string& part :
+  for (const char* part :
        {"manifest.jsonl:2: files[\"runs/v0001/run/hashes.json\"]: expected an xxh3 string, got 5",
         "manifest.jsonl:3: files: '../../../etc/passwd' is outside the variant's folder",
         "manifest.jsonl:5: id v0003 is listed a second time",
