@@ -112,6 +112,8 @@ void validateSimulationConfig(const SimulationConfig& config) {
                 "effects.structural_clamp_band_m must be >= 0");
     ESIM_VERIFY(config.criticalStressPa > 0 && std::isfinite(config.criticalStressPa),
                 "material.critical_stress_pa must be > 0");
+    ESIM_VERIFY(config.criticalStressRadiusM >= 0 && std::isfinite(config.criticalStressRadiusM),
+                "material.critical_stress_radius_m must be >= 0");
     ESIM_VERIFY(config.vaporLiquidVolumeRatio >= 1,
                 "material.vapor_liquid_volume_ratio must be >= 1");
   }
@@ -324,6 +326,9 @@ void Simulation::buildInitialModel(TetMesh mesh) {
       prefetchTo, true);
   // the work of an explicit frame is bounded: refused up front, never a frame of minutes
   if (model_->thermal) checkExplicitBound(*model_->thermal, config_);
+  if (ph.rupture && config_.criticalStressRadiusM > 0)
+    nonlocal_ =
+        std::make_unique<NonlocalStress>(model_->mesh, *model_->geo, config_.criticalStressRadiusM);
 }
 
 void Simulation::initState() {
@@ -902,13 +907,24 @@ void Simulation::detectRupture(FrameRecord& rec) {
   const TetMesh& mesh = model_->mesh;
   const std::vector<double>& vm = state_.vonMisesPa;
   const std::vector<double>& pocket = state_.pocketStressPa;  // sub-grid vapour pockets
-  for (int e = 0; e < mesh.numTets(); ++e)
+  // the nonlocal criterion: the averaged stress's tets (ascending), then the pockets'
+  std::vector<int> averaged;
+  if (nonlocal_ && !vm.empty()) averaged = nonlocal_->broken(mesh, vm, config_.criticalStressPa);
+  auto over = averaged.begin();
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    bool stress = false;
+    if (!nonlocal_) {
+      stress = !vm.empty() && vm[e] > config_.criticalStressPa;
+    } else if (over != averaged.end() && *over == e) {
+      stress = true;
+      ++over;
+    }
     if (mesh.isAlive(e) && !pending_[e] &&
-        (vm[e] > config_.criticalStressPa ||
-         (!pocket.empty() && pocket[e] > config_.criticalStressPa))) {
+        (stress || (!pocket.empty() && pocket[e] > config_.criticalStressPa))) {
       queued_.push_back(e);
       pending_[e] = 1;
     }
+  }
   if (queued_.empty()) timer.skip();
 }
 

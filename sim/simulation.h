@@ -34,6 +34,7 @@
 #include "sim/electrode.h"
 #include "sim/fem_p1.h"
 #include "sim/mesh_tet.h"
+#include "sim/rupture_nonlocal.h"
 #include "sim/snapshot.h"
 #include "sim/structural.h"
 #include "sim/subgrid_contact.h"
@@ -176,8 +177,11 @@ struct SimulationConfig {
   StructuralOptions structural;                                              // E, nu
   double vaporLiquidVolumeRatio = ExpansionParams{}.vaporLiquidVolumeRatio;  // v_gas / v_liq
   double maxVaporExpansion = ExpansionParams{}.maxExpansion;  // cap of dV/V (structural.h)
-  double clampBandM = 1e-4;                       // clamp the nodes this close to the lowest z [m]
-  double criticalStressPa = 2.45e4;               // von Mises stress that breaks a tet (paper)
+  double clampBandM = 1e-4;          // clamp the nodes this close to the lowest z [m]
+  double criticalStressPa = 2.45e4;  // von Mises stress that breaks a tet (paper)
+  // > 0: the criterion compares the von Mises stress averaged within this radius [m]
+  // (sim/rupture_nonlocal.h); 0: each tet's own (the paper)
+  double criticalStressRadiusM = 0;
   RebuildMode rebuildMode = RebuildMode::Update;  // or rebuilt in the frame, or on a thread ...
   int rebuildLagFrames = 3;                       // ... swapped in this many frames after rupture
   bool recomputeLagFrames = true;                 // ... then the lag frames again on the new model
@@ -390,6 +394,7 @@ class Simulation {
 
   SimulationConfig config_;
   std::unique_ptr<SimModel> model_;
+  std::unique_ptr<NonlocalStress> nonlocal_;  // criticalStressRadiusM > 0, rupture on
   SimState state_;
   FrameRecord record_;
 

@@ -107,6 +107,8 @@ struct ScenarioMaterial {
   double poissonRatio = scenario_detail::core().structural.poissonRatio;
   // von Mises breaking stress
   double criticalStressPa = scenario_detail::core().criticalStressPa;
+  // radius of the average compared with it (0: each element's own)
+  double criticalStressRadiusM = scenario_detail::core().criticalStressRadiusM;
   // v_gas / v_liq of water at boiling, 1 atm
   double vaporLiquidVolumeRatio = scenario_detail::core().vaporLiquidVolumeRatio;
   // cap of the volumetric expansion (vapour vents)

@@ -135,6 +135,12 @@ const std::vector<Field>& schema() {
                        openHi(0.0, 0.5), "Poisson's ratio nu (paper Table 1)"));
     f.push_back(number("material.critical_stress_pa", ESIM_REF(material.criticalStressPa), "Pa",
                        positive(1e12), "von Mises stress that breaks an element (paper Table 1)"));
+    f.push_back(number("material.critical_stress_radius_m",
+                       ESIM_REF(material.criticalStressRadiusM), "m", closed(0.0, 0.05),
+                       "0: an element breaks when its own von Mises stress passes "
+                       "critical_stress_pa (the paper); > 0: when the stress averaged over the "
+                       "elements within this radius does (nonlocal: the cut's shape stops "
+                       "following the mesh once elements are smaller; sim/rupture_nonlocal.h)"));
     f.push_back(number("material.vapor_liquid_volume_ratio",
                        ESIM_REF(material.vaporLiquidVolumeRatio), "", closed(1.0, 1e4),
                        "volume of water vapour / liquid at boiling and 1 atm (steam tables: "

@@ -420,6 +420,32 @@ TEST(Simulation, UpdateModeCutsLikeTheSynchronousRebuild) {
   EXPECT_EQ(sa.triangles, sb.triangles);
 }
 
+// material.critical_stress_radius_m: the nonlocal criterion (sim/rupture_nonlocal.h) in the
+// frame loop. A radius below every distance between centroids is the paper's criterion to the
+// bit; a wider one removes fewer tets in this scene (the averaged peak is lower), the update
+// mode still the same tets in the same frames as the synchronous rebuild
+TEST(Simulation, NonlocalCriticalStressInTheFrameLoop) {
+  auto run = [](RebuildMode mode, double radiusM) {
+    SimulationConfig c = fullCutConfig(mode);
+    c.criticalStressRadiusM = radiusM;
+    auto sim = std::make_unique<Simulation>(smallSlab(), c);
+    std::vector<int> removedPerFrame = removedPerStep(*sim, 45);
+    return std::make_pair(std::move(sim), removedPerFrame);
+  };
+  const auto [local, localRemoved] = run(RebuildMode::Update, 0);
+  const auto [tiny, tinyRemoved] = run(RebuildMode::Update, 1e-6);
+  ASSERT_GT(local->removedTets(), 0) << "the scene does not cut";
+  EXPECT_EQ(tinyRemoved, localRemoved);
+  EXPECT_EQ(tiny->mesh().alive, local->mesh().alive);
+  const auto [sync, syncRemoved] = run(RebuildMode::Synchronous, 0.004);
+  const auto [upd, updRemoved] = run(RebuildMode::Update, 0.004);
+  EXPECT_GT(upd->removedTets(), 0);
+  EXPECT_LT(upd->removedTets(), local->removedTets());
+  EXPECT_EQ(syncRemoved, updRemoved);
+  EXPECT_EQ(sync->mesh().alive, upd->mesh().alive);
+  std::printf("removed: local %d, nonlocal 4 mm %d\n", local->removedTets(), upd->removedTets());
+}
+
 // solvers.structural.solve_threads: the structural solves and a removal's updates on one thread
 // or two give the same cut to the bit (ldl_solve.h and ldl_updown.h run the same arithmetic
 // either way): the same tets in the same frames, the same stresses and temperatures

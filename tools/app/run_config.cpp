@@ -78,6 +78,7 @@ void mapStructural(const Scenario& s, SimulationConfig& c) {
   c.structural.youngsModulusPa = m.youngsModulusPa;
   c.structural.poissonRatio = m.poissonRatio;
   c.criticalStressPa = m.criticalStressPa;
+  c.criticalStressRadiusM = m.criticalStressRadiusM;
   c.vaporLiquidVolumeRatio = m.vaporLiquidVolumeRatio;
   c.maxVaporExpansion = m.maxVaporExpansion;
   c.clampBandM = s.effects.structuralClampBandM;
