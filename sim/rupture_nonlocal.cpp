@@ -63,8 +63,7 @@ void NonlocalStress::forNeighbours(const TetMesh& mesh, int e, Visit&& visit) co
       }
 }
 
-double NonlocalStress::average(const TetMesh& mesh, const std::vector<double>& field,
-                               int e) const {
+double NonlocalStress::average(const TetMesh& mesh, const std::vector<double>& field, int e) const {
   double sumW = 0, sum = 0;
   int count = 0;
   forNeighbours(mesh, e, [&](int j, double w) {

@@ -50,10 +50,10 @@ class NonlocalStress {
   void forNeighbours(const TetMesh& mesh, int e, Visit&& visit) const;
 
   double radiusM_;
-  Vec3 origin_;                    // the grid's lower corner [m]
-  std::vector<Vec3> centroid_;     // per tet [m]
-  std::vector<double> volume_;     // per tet [m^3]
-  std::vector<std::array<long, 3>> cellOf_;  // per tet: its grid cell
+  Vec3 origin_;                                                // the grid's lower corner [m]
+  std::vector<Vec3> centroid_;                                 // per tet [m]
+  std::vector<double> volume_;                                 // per tet [m^3]
+  std::vector<std::array<long, 3>> cellOf_;                    // per tet: its grid cell
   std::unordered_map<std::uint64_t, std::vector<int>> cells_;  // ascending tet ids per cell
   mutable std::vector<std::uint8_t> seen_;  // broken()'s marks (cleared before it returns)
 };

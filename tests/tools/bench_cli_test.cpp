@@ -172,7 +172,10 @@ TEST_F(BenchCli, AccuracyChecksItsSceneAndPointsBeforeMakingItsFolder) {
   const fs::path out = root_ / "accuracy";
   for (const auto& [args, message] : std::vector<std::pair<std::string, std::string>>{
            {"--scenario /dev/zero", "/dev/zero: more than 16 MiB; a scenario is"},
-           {"--only ,", "--only ',': expected point names or knobs, comma separated"}}) {
+           {"--only ,", "--only ',': expected point names or knobs, comma separated"},
+           // --set reaches the scene the reference runs, checked there too
+           {"--set material.critical_stress_radius_m=0.5",
+            "material.critical_stress_radius_m = 0.5 is outside [0, 0.05]"}}) {
     const auto r = shell(std::string("\"") + ESIM_EXE + "\" bench accuracy --quick " + args +
                          " --out \"" + out.string() + "\"");
     EXPECT_EQ(r.exitCode, 2) << args << "\n" << r.output;

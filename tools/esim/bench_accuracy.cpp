@@ -67,7 +67,16 @@ struct AccuracyOptions {
   double seconds = 0;   // simulated time (0: 2 s, --quick 0.6 s)
   int renderEvery = 0;  // 0: 5 (--quick 3)
   bool noPlot = false;
+  std::vector<std::string> sets;  // --set KEY=VALUE: the scene's, for every point and the
+                                  // reference (a point's own knob still wins)
 };
+
+// the --set options as a command line writes them
+std::string setArgs(const AccuracyOptions& opt) {
+  std::string out;
+  for (const std::string& s : opt.sets) out += " --set " + s;
+  return out;
+}
 
 // ---- the points ----
 
@@ -357,7 +366,8 @@ std::string num(double v, int precision = 4) {
 
 std::string rerunCommand(const AccuracyOptions& opt, const Point& p) {
   return std::string("esim bench accuracy") + (opt.quick ? " --quick" : "") +
-         (opt.seconds > 0 ? " --seconds " + num(opt.seconds) : "") + " --only " + p.name;
+         (opt.seconds > 0 ? " --seconds " + num(opt.seconds) : "") + setArgs(opt) + " --only " +
+         p.name;
 }
 
 std::string runCommand(const AccuracyOptions& opt, const Sweep& sw, const Point& p,
@@ -377,6 +387,7 @@ int benchAccuracy(const AccuracyOptions& opt) {
   const int renderEvery = opt.renderEvery > 0 ? opt.renderEvery : (opt.quick ? 3 : 5);
   ESIM_VERIFY(seconds <= 4.0, "--seconds: the cut lasts 4 s (got " + num(seconds) + ")");
   Sweep sw = makeSweep(opt);
+  sw.baseSets.insert(sw.baseSets.begin(), opt.sets.begin(), opt.sets.end());
   if (!opt.only.empty()) {
     std::string names;
     for (const Point& p : sw.points) names += " " + p.name;
@@ -400,10 +411,10 @@ int benchAccuracy(const AccuracyOptions& opt) {
   app::FolderLock outLock;
   app::createOutputFolder(opt.out, "--out", outLock);
   std::printf(
-      "esim bench accuracy%s: %s, %.2f s of the cut, %zu points + the reference, "
+      "esim bench accuracy%s%s: %s, %.2f s of the cut, %zu points + the reference, "
       "images %dx%d every %d frames\n",
-      opt.quick ? " --quick" : "", opt.scenario.c_str(), seconds, sw.points.size(), sw.width,
-      sw.height, renderEvery);
+      opt.quick ? " --quick" : "", setArgs(opt).c_str(), opt.scenario.c_str(), seconds,
+      sw.points.size(), sw.width, sw.height, renderEvery);
   // ---- 2. the reference ----
   const RunResult ref = runPoint(opt, sw, sw.reference, seconds, renderEvery);
   ESIM_RUN_CHECK(ref.error.empty(), "the reference run failed: " + ref.error);
@@ -492,12 +503,12 @@ int benchAccuracy(const AccuracyOptions& opt) {
   // ---- 6. accuracy.md ----
   const fs::path mdPath = fs::path(opt.out) / "accuracy.md";
   std::ostringstream md;
-  md << "`esim bench accuracy" << (opt.quick ? " --quick" : "") << "`: " << opt.scenario << ", "
-     << num(seconds) << " s of the cut; reference " << ref.nodes << " nodes (graded), "
-     << num(ref.fps) << " fps, capacitance, pixel shading + 4x MSAA: energy " << num(ref.energyJ)
-     << " J, removed " << num(ref.groove.removedVolumeM3 * 1e9) << " mm^3, groove "
-     << num(ref.groove.widthM * 1e3) << " mm wide, " << num(ref.groove.depthM * 1e3)
-     << " mm deep. Errors are relative to the reference "
+  md << "`esim bench accuracy" << (opt.quick ? " --quick" : "") << setArgs(opt)
+     << "`: " << opt.scenario << ", " << num(seconds) << " s of the cut; reference " << ref.nodes
+     << " nodes (graded), " << num(ref.fps) << " fps, capacitance, pixel shading + 4x MSAA: energy "
+     << num(ref.energyJ) << " J, removed " << num(ref.groove.removedVolumeM3 * 1e9)
+     << " mm^3, groove " << num(ref.groove.widthM * 1e3) << " mm wide, "
+     << num(ref.groove.depthM * 1e3) << " mm deep. Errors are relative to the reference "
      << "(probe: RMS over " << ref.probeC.size() << " probes in K); ms are per frame (physics "
      << "median / p95, render = snapshot + draw at " << sw.width << "x" << sw.height
      << "). Pareto front (physics + render median against the error): D depth, I IoU, E "
@@ -628,6 +639,10 @@ Registrar reg({"bench", "accuracy"},
                                "render every Nth frame (default 5, --quick 3)")
                     ->check(CLI::Range(0, 1000));
                 app.add_flag("--no-plot", opt->noPlot, "no accuracy_vs_time.png");
+                app.add_option("--set", opt->sets,
+                               "KEY=VALUE: a scenario value for every point and the reference, "
+                               "as esim run's --set (a point's own knob wins; e.g. "
+                               "material.critical_stress_radius_m=0.00075)");
                 return [opt] {
                   AccuracyOptions o = *opt;
                   o.scenario = app::benchScenarioPath(o.scenario, kDefaultScenario);
