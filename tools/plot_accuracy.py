@@ -115,10 +115,9 @@ def main():
                   "One series per knob, each swept alone from the baseline.\n"
                   "Circles: Pareto front of that error (time against error).\n"
                   "Gold star: the paper's set-up (uniform 1013 nodes).\n"
-                  "Gold square: the shipped slab_cut set-up (graded 8000 nodes,\n"
-                  "background rebuild, lag 3).\n"
-                  "Every series passes through the baseline (graded mesh,\n"
-                  "update in place, capacitance, explicit heat, 30 fps).\n"
+                  "Gold square: the shipped slab_cut set-up, the baseline\n"
+                  "(graded 8000 nodes, updated in place, explicit heat, 30 fps).\n"
+                  "Every series passes through the baseline.\n"
                   "Errors below %g (0: the same discrete cut) are drawn at %g." % (FLOOR, FLOOR),
                   fontsize=10, va="top", transform=axes[-1].transAxes)
     fig.suptitle("esim bench accuracy: what accuracy costs in time (%s)" %
