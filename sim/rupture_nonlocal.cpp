@@ -8,6 +8,10 @@
 
 namespace esim {
 
+namespace {
+constexpr std::uint64_t kCellMask = (1u << 21) - 1;  // one coordinate of a cell key
+}  // namespace
+
 NonlocalStress::NonlocalStress(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
                                double radiusM)
     : radiusM_(radiusM) {
@@ -33,11 +37,35 @@ NonlocalStress::NonlocalStress(const TetMesh& mesh, const std::vector<TetGeometr
     cells_[cellKey(cellOf_[e][0], cellOf_[e][1], cellOf_[e][2])].push_back(e);
   }
   seen_.assign(nt, 0);
+  // a frame in which every tet is a candidate visits every tet of the 27 cells around each:
+  // bounded up front, never a frame of minutes (a radius of the body's size on the liver's
+  // 161 323 tets would be 2.6e10 pairs)
+  double pairs = 0;
+  for (const auto& [key, tets] : cells_) {
+    const long i = static_cast<long>(key >> 42) - 1,
+               j = static_cast<long>((key >> 21) & kCellMask) - 1,
+               k = static_cast<long>(key & kCellMask) - 1;
+    double around = 0;
+    for (long dk = -1; dk <= 1; ++dk)
+      for (long dj = -1; dj <= 1; ++dj)
+        for (long di = -1; di <= 1; ++di) {
+          if (i + di < 0 || j + dj < 0 || k + dk < 0) continue;
+          const auto it = cells_.find(cellKey(i + di, j + dj, k + dk));
+          if (it != cells_.end()) around += static_cast<double>(it->second.size());
+        }
+    pairs += static_cast<double>(tets.size()) * around;
+  }
+  ESIM_VERIFY(pairs <= kMaxPairs,
+              "material.critical_stress_radius_m = " + messageNumber(radiusM) +
+                  " m: a frame's average could visit " + messageNumber(pairs) +
+                  " pairs of tets on this mesh of " + std::to_string(nt) + " tets (at most " +
+                  messageNumber(kMaxPairs) +
+                  "); use a radius of a few elements (the nonlocal length, not the body's)");
 }
 
 // 21 bits a coordinate: a grid of 2 million cells a side (checked: a body 2e6 R long)
 std::uint64_t NonlocalStress::cellKey(long i, long j, long k) const {
-  constexpr long kMax = (1L << 21) - 1;
+  constexpr long kMax = static_cast<long>(kCellMask);
   ESIM_CHECK(i >= -1 && j >= -1 && k >= -1 && i < kMax && j < kMax && k < kMax);
   return (static_cast<std::uint64_t>(i + 1) << 42) | (static_cast<std::uint64_t>(j + 1) << 21) |
          static_cast<std::uint64_t>(k + 1);

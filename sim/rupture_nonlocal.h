@@ -31,7 +31,9 @@ namespace esim {
 class NonlocalStress {
  public:
   // radiusM > 0 [m]; geo: the mesh's tetGeometry (volumes). Every tet is indexed, removed
-  // or not (aliveness is read when averaging), so removals need no update.
+  // or not (aliveness is read when averaging), so removals need no update. Throws
+  // esim::Error (Input) naming material.critical_stress_radius_m when the radius is not
+  // positive or so wide that a frame could visit more than kMaxPairs pairs of tets.
   NonlocalStress(const TetMesh& mesh, const std::vector<TetGeometry>& geo, double radiusM);
 
   // the average s_e of tet e's alive neighbours' field values (e alive) [the field's unit]
@@ -43,6 +45,10 @@ class NonlocalStress {
                           double limit) const;
 
   double radiusM() const { return radiusM_; }
+
+  // the most pairs of tets a frame may visit (every tet a candidate): the constructor refuses
+  // a radius whose grid would visit more
+  static constexpr double kMaxPairs = 1e8;
 
  private:
   std::uint64_t cellKey(long i, long j, long k) const;

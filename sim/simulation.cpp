@@ -219,6 +219,9 @@ void validateSimulationMesh(const TetMesh& meshIn, const SimulationConfig& confi
                 "effects.structural_clamp_band_m = " + messageNumber(config.clampBandM) +
                     " m: no surface node lies within it of the lowest node (nothing holds the "
                     "tissue)");
+  // the nonlocal criterion's bound on a frame's work (its constructor refuses)
+  if (config.phases.rupture && config.criticalStressRadiusM > 0)
+    NonlocalStress(mesh, tetGeometry(mesh), config.criticalStressRadiusM);
 }
 
 // ---- building ----

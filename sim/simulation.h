@@ -212,7 +212,8 @@ void checkExplicitBound(const ThermalPhase& thermal, const SimulationConfig& con
 
 // Checks what the configuration needs of the mesh: a valid mesh, nodes on the return
 // electrode (electric), nodes in the clamp band (structural), the explicit bound (thermal),
-// the dense inverse's memory. `esim validate` runs it; the constructor makes the same checks.
+// the dense inverse's memory, the nonlocal criterion's work bound (rupture). `esim validate`
+// runs it; the constructor makes the same checks.
 void validateSimulationMesh(const TetMesh& mesh, const SimulationConfig& config);
 
 // ---- model and state ----

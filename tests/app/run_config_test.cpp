@@ -233,6 +233,12 @@ TEST(RunConfig, ValidateRunsTheSetUpChecks) {
                               "dense_memory_limit_mb: 1}}\n",
                               "d.yaml"),
                 "solvers.electric.dense_memory_limit_mb");
+  // a nonlocal radius of the body's size (needs the mesh's tets; the cut's physics on)
+  expectRefused(parseScenario("physics: [electric, thermal, boiling, structural, rupture]\n"
+                              "material: {critical_stress_radius_m: 0.05}\n"
+                              "mesh: {slab: {nodes: 8000}}\n",
+                              "n.yaml"),
+                "material.critical_stress_radius_m = 0.05 m: a frame's average could visit");
 }
 
 TEST(RunConfig, ChecksAreTheConstructorsChecks) {

@@ -110,6 +110,9 @@ const std::vector<Extreme>& extremes() {
       {"material.poisson_ratio", 0.5 - 1e-6, Outcome::Runs, ""},
       {"material.critical_stress_pa", 2.45e-2, Outcome::RunError, "every element"},
       {"material.critical_stress_pa", 1e12, Outcome::Runs, ""},
+      // the nonlocal criterion's radius: 0 (the paper's), and 5 cm, wider than the slab
+      {"material.critical_stress_radius_m", 0, Outcome::Runs, ""},
+      {"material.critical_stress_radius_m", 0.05, Outcome::Runs, ""},
       {"material.vapor_liquid_volume_ratio", 1, Outcome::Runs, ""},
       {"material.vapor_liquid_volume_ratio", 1e4, Outcome::Runs, ""},
       {"material.max_vapor_expansion", 0, Outcome::Runs, ""},

@@ -123,6 +123,27 @@ TEST(NonlocalStress, BrokenIsTheBruteForceSet) {
   }
 }
 
+// a radius of the body's size on ~19 000 tets: every frame could visit 3.6e8 pairs
+TEST(NonlocalStress, RefusesARadiusThatWouldMakeFramesOfMinutes) {
+  SlabSpec s;
+  s.sizeM = Vec3(0.03, 0.03, 0.01);
+  s.nodesPerAxis = {20, 20, 10};
+  const TetMesh m = makeSlab(s);
+  const auto geo = tetGeometry(m);
+  try {
+    NonlocalStress ns(m, geo, 0.05);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("material.critical_stress_radius_m = 0.05 m: a frame's "
+                                         "average could visit"),
+              std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find("(at most 1e+08)"), std::string::npos) << e.what();
+  }
+  NonlocalStress fine(m, geo, 0.001);  // a few elements: accepted
+  EXPECT_EQ(fine.radiusM(), 0.001);
+}
+
 TEST(NonlocalStress, RefusesARadiusThatIsNotPositive) {
   const TetMesh m = slab();
   const auto geo = tetGeometry(m);
