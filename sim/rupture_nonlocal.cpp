@@ -31,8 +31,13 @@ NonlocalStress::NonlocalStress(const TetMesh& mesh, const std::vector<TetGeometr
     volume_[e] = geo[e].volume;
     origin_ = origin_.cwiseMin(centroid_[e]);
   }
+  // cells of at least R (the 27 around a tet then hold every tet within R), and at most a
+  // million a side (a radius of 1e-9 m on a 6 cm body would overflow the cell keys)
+  Vec3 upper = origin_;
+  for (const Vec3& c : centroid_) upper = upper.cwiseMax(c);
+  cellM_ = std::max(radiusM_, (upper - origin_).maxCoeff() * 1e-6);
   for (int e = 0; e < nt; ++e) {
-    const Vec3 g = (centroid_[e] - origin_) / radiusM_;
+    const Vec3 g = (centroid_[e] - origin_) / cellM_;
     cellOf_[e] = {static_cast<long>(g.x()), static_cast<long>(g.y()), static_cast<long>(g.z())};
     cells_[cellKey(cellOf_[e][0], cellOf_[e][1], cellOf_[e][2])].push_back(e);
   }

@@ -6,16 +6,18 @@
 // region did not converge with the mesh (README, "What accuracy costs"). With a radius R > 0
 // the criterion compares the average of the von Mises stress over the alive tets whose
 // centroids lie within R of the tet's own centroid instead, weighted by volume and by the
-// bell 1 - d^2 / R^2 (the tet itself always counts, d = 0):
+// bell 1 - d^2 / R^2 (the tet itself always counts, d = 0; alone within R, s_e is its own
+// stress bit for bit, the paper's criterion):
 //   s_e = sum_j w_j V_j s_j / sum_j w_j V_j,
 // the classic nonlocal regularisation of element removal (Pijaudier-Cabot and Bazant 1987,
 // "Nonlocal damage theory", J. Eng. Mech. 113(10)): R is a length of the material, so the
 // removed region stops depending on the element size once the elements are smaller than R.
 //
 // The average is a convex combination of the local stresses, so it passes the critical
-// stress only within R of a tet whose own stress passes it: broken() averages only there
-// (a few hundred tets a frame on slab_cut) over a uniform grid of cell R, and its result is
-// the brute-force one exactly (the same sums in the same order).
+// stress only within R of a tet whose own stress passes it: broken() averages only there, over
+// a uniform grid of cells of R (or more, for a radius far below the body's size), and its
+// result is the brute-force one exactly (the same sums in the same order). On slab_cut at
+// R = 1 mm the rupture stage takes 0.5 ms median, 3 ms p95 (README, "A cut that converges").
 #pragma once
 
 #include <array>
@@ -56,6 +58,7 @@ class NonlocalStress {
   void forNeighbours(const TetMesh& mesh, int e, Visit&& visit) const;
 
   double radiusM_;
+  double cellM_ = 0;                                           // the grid's cell [m]: >= radiusM_
   Vec3 origin_;                                                // the grid's lower corner [m]
   std::vector<Vec3> centroid_;                                 // per tet [m]
   std::vector<double> volume_;                                 // per tet [m^3]

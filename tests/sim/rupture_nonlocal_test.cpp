@@ -81,6 +81,9 @@ TEST(NonlocalStress, ConstantStaysAndASmallRadiusIsTheLocalCriterion) {
     if (f[e] > 5e3) local.push_back(e);
   }
   EXPECT_EQ(narrow.broken(m, f, 5e3), local);
+  // far below the body's size (its grid then has cells wider than R)
+  const NonlocalStress tiny(m, geo, 1e-12);
+  EXPECT_EQ(tiny.broken(m, f, 5e3), local);
 }
 
 // two tets sharing a face: the weighted mean written out
