@@ -8,10 +8,6 @@
 
 namespace esim {
 
-namespace {
-constexpr std::uint64_t kCellMask = (1u << 21) - 1;  // one coordinate of a cell key
-}  // namespace
-
 NonlocalStress::NonlocalStress(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
                                double radiusM)
     : radiusM_(radiusM) {
@@ -47,17 +43,10 @@ NonlocalStress::NonlocalStress(const TetMesh& mesh, const std::vector<TetGeometr
   // 161 323 tets would be 2.6e10 pairs)
   double pairs = 0;
   for (const auto& [key, tets] : cells_) {
-    const long i = static_cast<long>(key >> 42) - 1,
-               j = static_cast<long>((key >> 21) & kCellMask) - 1,
-               k = static_cast<long>(key & kCellMask) - 1;
     double around = 0;
-    for (long dk = -1; dk <= 1; ++dk)
-      for (long dj = -1; dj <= 1; ++dj)
-        for (long di = -1; di <= 1; ++di) {
-          if (i + di < 0 || j + dj < 0 || k + dk < 0) continue;
-          const auto it = cells_.find(cellKey(i + di, j + dj, k + dk));
-          if (it != cells_.end()) around += static_cast<double>(it->second.size());
-        }
+    forCellsAround(cellOf_[tets.front()], [&](const std::vector<int>& cell) {
+      around += static_cast<double>(cell.size());
+    });
     pairs += static_cast<double>(tets.size()) * around;
   }
   ESIM_VERIFY(pairs <= kMaxPairs,
@@ -70,30 +59,36 @@ NonlocalStress::NonlocalStress(const TetMesh& mesh, const std::vector<TetGeometr
 
 // 21 bits a coordinate: a grid of 2 million cells a side (checked: a body 2e6 R long)
 std::uint64_t NonlocalStress::cellKey(long i, long j, long k) const {
-  constexpr long kMax = static_cast<long>(kCellMask);
+  constexpr long kMax = (1L << 21) - 1;
   ESIM_CHECK(i >= -1 && j >= -1 && k >= -1 && i < kMax && j < kMax && k < kMax);
   return (static_cast<std::uint64_t>(i + 1) << 42) | (static_cast<std::uint64_t>(j + 1) << 21) |
          static_cast<std::uint64_t>(k + 1);
+}
+
+// visit(tets) for each non-empty cell of the 27 around cell c (c included), in a fixed order
+template <class Visit>
+void NonlocalStress::forCellsAround(const std::array<long, 3>& c, Visit&& visit) const {
+  for (long dk = -1; dk <= 1; ++dk)
+    for (long dj = -1; dj <= 1; ++dj)
+      for (long di = -1; di <= 1; ++di) {
+        if (c[0] + di < 0 || c[1] + dj < 0 || c[2] + dk < 0) continue;
+        const auto it = cells_.find(cellKey(c[0] + di, c[1] + dj, c[2] + dk));
+        if (it != cells_.end()) visit(it->second);
+      }
 }
 
 // visit(j, w) for every alive tet j with its centroid within R of e's (e included), w the
 // bell 1 - d^2 / R^2; cells in a fixed order, tets ascending in each: a fixed sum order
 template <class Visit>
 void NonlocalStress::forNeighbours(const TetMesh& mesh, int e, Visit&& visit) const {
-  const auto& c = cellOf_[e];
   const double r2 = radiusM_ * radiusM_;
-  for (long dk = -1; dk <= 1; ++dk)
-    for (long dj = -1; dj <= 1; ++dj)
-      for (long di = -1; di <= 1; ++di) {
-        if (c[0] + di < 0 || c[1] + dj < 0 || c[2] + dk < 0) continue;
-        const auto it = cells_.find(cellKey(c[0] + di, c[1] + dj, c[2] + dk));
-        if (it == cells_.end()) continue;
-        for (int j : it->second) {
-          if (!mesh.isAlive(j)) continue;
-          const double d2 = (centroid_[j] - centroid_[e]).squaredNorm();
-          if (d2 < r2) visit(j, 1.0 - d2 / r2);
-        }
-      }
+  forCellsAround(cellOf_[e], [&](const std::vector<int>& cell) {
+    for (int j : cell) {
+      if (!mesh.isAlive(j)) continue;
+      const double d2 = (centroid_[j] - centroid_[e]).squaredNorm();
+      if (d2 < r2) visit(j, 1.0 - d2 / r2);
+    }
+  });
 }
 
 double NonlocalStress::average(const TetMesh& mesh, const std::vector<double>& field, int e) const {

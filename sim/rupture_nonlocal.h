@@ -55,6 +55,8 @@ class NonlocalStress {
  private:
   std::uint64_t cellKey(long i, long j, long k) const;
   template <class Visit>
+  void forCellsAround(const std::array<long, 3>& cell, Visit&& visit) const;
+  template <class Visit>
   void forNeighbours(const TetMesh& mesh, int e, Visit&& visit) const;
 
   double radiusM_;
