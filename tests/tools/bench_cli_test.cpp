@@ -44,6 +44,8 @@ TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
        "--structural: 'bar' is not full, local or coarse (solvers.structural.method)"},
       // an empty list ran nothing and exited 0
       {"bench cut --sizes 50 --strategy ,", "--strategy is empty; expected synchronous"},
+      {"bench cut --sizes 50 --repeat 0",
+       "--repeat must be in 1..100 (rounds of the whole table), got 0"},
       {"bench cut --sizes 50 --structural ''",
        "--structural (solvers.structural.method values, comma separated (full,local"},
       {"bench cut --sizes 50 --scenario /nonexistent/cut.yaml",
@@ -209,6 +211,51 @@ TEST_F(BenchCli, CutWritesTheIssuesColumns) {
   EXPECT_EQ(std::count(table.begin(), table.end(), '\n'), 3) << table;
   // the printed rows name the electric solver auto took for the size
   EXPECT_NE(r.output.find("  electric dense-inverse\n"), std::string::npos) << r.output;
+}
+
+// --repeat: the rounds run one after the other, each with every strategy (the CSV's rows in
+// that order, a round column), then each row's range and its ratio to the same round's update
+// row; the strategies are deterministic, so every round removes the same tets
+TEST_F(BenchCli, CutRepeatRunsRoundsAndComparesTheirRemovedSets) {
+  const auto r =
+      shell(esim("bench cut --sizes 1013 --frames 14 --strategy update,synchronous --repeat 2"));
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  const std::string table = readFile(csv_);
+  std::istringstream lines(table);
+  std::string line;
+  std::getline(lines, line);
+  EXPECT_EQ(line,
+            "strategy,nodes,frames,median_ms,p95_ms,max_ms,removed_tets,rebuilds,"
+            "rebuild_median_ms,waits,round");
+  std::vector<std::string> order;
+  std::vector<int> removed;
+  while (std::getline(lines, line)) {
+    const std::string strategy = line.substr(0, line.find(','));
+    const std::string round = line.substr(line.rfind(',') + 1);
+    order.push_back(strategy + " " + round);
+    int fields = 0;
+    size_t at = 0;
+    while (fields < 6) at = line.find(',', at) + 1, ++fields;
+    removed.push_back(std::stoi(line.substr(at)));
+  }
+  EXPECT_EQ(order,
+            (std::vector<std::string>{"update 1", "synchronous 1", "update 2", "synchronous 2"}))
+      << table;
+  ASSERT_EQ(removed.size(), 4u);
+  EXPECT_GT(removed[0], 0) << "nothing was removed: the check of the sets would be empty";
+  for (int k : removed) EXPECT_EQ(k, removed[0]) << table;
+  EXPECT_NE(r.output.find("round 2 of 2\n"), std::string::npos) << r.output;
+  const size_t summary = r.output.find("over 2 rounds");
+  ASSERT_NE(summary, std::string::npos) << r.output;
+  const std::string tail = r.output.substr(summary);
+  // the update row's ratio to itself, and both rows' removed sets the same in both rounds
+  EXPECT_NE(tail.find("1.00 / 1.00 / 1.00     1.00 / 1.00 / 1.00  " + std::to_string(removed[0]) +
+                      " tets, the same in every round\n"),
+            std::string::npos)
+      << tail;
+  // the heading, the columns, the two rows and the CSV's "wrote" line
+  EXPECT_EQ(std::count(tail.begin(), tail.end(), '\n'), 5) << tail;
+  EXPECT_EQ(tail.find("DIFFERENT"), std::string::npos) << tail;
 }
 
 // --stages prints the CPU the frames cost (every thread): under taskset one CPU, and at most

@@ -20,6 +20,13 @@
 // and the physics + render time per frame (interactive_median_ms, interactive_p95_ms: the
 // quantity of the 30 Hz target). In update mode the structural update's thread runs on
 // while the frame is drawn, as in esim run. Encoding (esim run's own thread) is left out.
+// --repeat N runs the whole table N times, round after round (each round every size,
+// strategy and method once, so that a machine's slow spell falls on all of them alike), adds
+// a round column to the CSV, and ends with each row's range over the rounds: median and p95
+// (lowest / median / highest round), their ratio to the same round's update row at that size
+// and structural method (the side-by-side ratio, one per round) and whether every round removed the
+// same tets in the same count (each strategy is deterministic: a difference is a finding, not
+// noise).
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -58,6 +65,16 @@ struct BenchCutOptions {
   double paceHz = 0;  // > 0: each frame starts on its tick of a loop at this rate (as a
                       // haptic or display loop runs), not right after the last one
   std::vector<std::string> overrides;  // --set KEY=VALUE, after the bench's own
+  int repeat = 1;                      // rounds of the whole table
+};
+
+// one row of the table (a size, strategy and method in one round): what --repeat sums up
+struct CutRow {
+  std::string label, strategy, method;
+  int nodes = 0;
+  double medianMs = 0, p95Ms = 0;
+  int removed = 0;
+  std::vector<std::uint8_t> alive;  // the removed set, compared between rounds
 };
 
 double quantile(std::vector<double> v, double q) {
@@ -77,6 +94,52 @@ std::vector<std::string> runSets(const BenchCutOptions& opt, int nodes, const st
   return sets;
 }
 
+// --repeat: each row's range over the rounds, its ratio to the update row of the same size
+// in the same round, and whether the rounds removed the same tets
+void printRounds(const std::vector<std::vector<CutRow>>& rounds) {
+  const size_t rows = rounds.front().size();
+  const auto range = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    char text[96];
+    std::snprintf(text, sizeof text, "%.2f / %.2f / %.2f", v.front(), v[v.size() / 2], v.back());
+    return std::string(text);
+  };
+  std::printf(
+      "over %zu rounds (each value: lowest / median / highest round; x update: the ratio to the "
+      "update row of the same size in the same round)\n",
+      rounds.size());
+  int width = 12;  // the labels' column
+  for (const CutRow& row : rounds.front())
+    width = std::max(width, static_cast<int>(row.label.size()));
+  std::printf("%-*s %7s %26s %26s %22s %22s  %s\n", width, "strategy", "nodes", "median_ms",
+              "p95_ms", "median x update", "p95 x update", "removed");
+  for (size_t k = 0; k < rows; ++k) {
+    std::vector<double> med, p95, medRatio, p95Ratio;
+    bool same = true;
+    std::string counts;
+    for (const std::vector<CutRow>& round : rounds) {
+      const CutRow& row = round[k];
+      med.push_back(row.medianMs);
+      p95.push_back(row.p95Ms);
+      same = same && row.alive == rounds.front()[k].alive;
+      counts += (counts.empty() ? "" : ", ") + std::to_string(row.removed);
+      for (const CutRow& other : round)
+        if (other.nodes == row.nodes && other.strategy == "update" && other.method == row.method &&
+            other.medianMs > 0 && other.p95Ms > 0) {
+          medRatio.push_back(row.medianMs / other.medianMs);
+          p95Ratio.push_back(row.p95Ms / other.p95Ms);
+        }
+    }
+    const CutRow& first = rounds.front()[k];
+    std::printf("%-*s %7d %26s %26s %22s %22s  %s\n", width, first.label.c_str(), first.nodes,
+                range(med).c_str(), range(p95).c_str(),
+                medRatio.size() == rounds.size() ? range(medRatio).c_str() : "-",
+                p95Ratio.size() == rounds.size() ? range(p95Ratio).c_str() : "-",
+                same ? (std::to_string(first.removed) + " tets, the same in every round").c_str()
+                     : ("DIFFERENT sets between rounds: " + counts + " tets").c_str());
+  }
+}
+
 int benchCut(const BenchCutOptions& opt) {
   const std::vector<int> sizes = app::parseNodeCounts(opt.sizes, "bench cut");
   std::vector<std::string> strategies =
@@ -90,6 +153,9 @@ int benchCut(const BenchCutOptions& opt) {
                 "--strategy: '" + s + "' is not synchronous, background, update or all");
   ESIM_VERIFY(opt.frames >= 0, "--frames must be >= 0");
   ESIM_VERIFY(opt.paceHz >= 0 && opt.paceHz <= 1e4, "--pace must be in 0..10000 Hz");
+  ESIM_VERIFY(
+      opt.repeat >= 1 && opt.repeat <= 100,
+      "--repeat must be in 1..100 (rounds of the whole table), got " + std::to_string(opt.repeat));
   const std::vector<std::string> methods = app::splitList(opt.structural);
   ESIM_VERIFY(!methods.empty(),
               "--structural is empty; expected full, local or coarse (comma separated)");
@@ -115,7 +181,8 @@ int benchCut(const BenchCutOptions& opt) {
                                           "removed_tets,rebuilds,rebuild_median_ms,waits") +
                                   (opt.render ? ",render_median_ms,render_p95_ms,"
                                                 "interactive_median_ms,interactive_p95_ms"
-                                              : ""));
+                                              : "") +
+                                  (opt.repeat > 1 ? ",round" : ""));
   const int structuralThreads = first->solvers.structuralSolveThreads;
   const std::string threadsNote =
       structuralThreads == 0 ? "1 (CHOLMOD's solve)" : std::to_string(structuralThreads);
@@ -137,156 +204,166 @@ int benchCut(const BenchCutOptions& opt) {
     std::printf(" %10s %10s %15s %15s", "render_med", "render_p95", "interactive_med",
                 "interactive_p95");
   std::printf("\n");
-  for (const int nodes : sizes)
-    for (const std::string& strategy : strategies) {
-      std::vector<std::uint8_t> fullAlive;  // the removed set of the full solve's run
-      for (const std::string& method : methods) {
-        const Scenario sc = loadScenario(opt.scenario, runSets(opt, nodes, strategy, method));
-        const SimulationConfig config = app::makeSimulationConfig(sc);
-        Simulation sim(app::buildMesh(sc), config);
-        const int frames =
-            opt.frames > 0 ? opt.frames
-                           : std::max(1, static_cast<int>(sc.time.durationS * sc.time.fps + 0.5));
-        std::vector<double> ms, rebuildMs, renderMs, frameMs;
-        std::vector<std::string> frameLines;  // --stages: what each frame spent, for the slowest
-        std::array<std::vector<double>, kStageCount> stageMs;
-        std::array<std::vector<double>, 4> partMs;   // update mode: the parts of a removal
-        std::vector<double> structuralWork, workMs;  // ... the structural updates' work, time
-        int waits = 0;
-        // --pace: frame f starts at its tick; a frame that overruns its tick makes the loop
-        // skip the ticks it covered (a real-time loop drops them), and counts as late
-        int late = 0;
-        const auto period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-            std::chrono::duration<double>(opt.paceHz > 0 ? 1.0 / opt.paceHz : 0.0));
-        auto next = std::chrono::steady_clock::now();
-        const auto loopStart = next;
-        const double cpuStartS = app::processCpuSeconds();  // --stages: the CPU the frames cost
-        for (int f = 0; f < frames; ++f) {
-          if (opt.paceHz > 0) {
-            std::this_thread::sleep_until(next);
-            next += period;
-          }
-          const FrameRecord& r = sim.step();
-          if (renderer) {  // the snapshot is timed into r's Snapshot stage (physics), as in run
-            const SurfaceSnapshot snap = sim.snapshot(displacementScale);
-            const auto t0 = std::chrono::steady_clock::now();
-            renderer->render(snap);
-            renderMs.push_back(
-                std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
-                    .count());
-            frameMs.push_back(r.physicsMs() + renderMs.back());
-          }
-          if (opt.paceHz > 0 && std::chrono::steady_clock::now() > next) {
-            ++late;
-            while (next < std::chrono::steady_clock::now()) next += period;
-          }
-          ms.push_back(r.physicsMs());
-          for (int s = 0; s < kStageCount; ++s)
-            if (r.status[s] == StageStatus::Ran) stageMs[s].push_back(r.ms[s]);
-          if (r.removedTets > 0) rebuildMs.push_back(r.ms[static_cast<int>(Stage::Rebuild)]);
-          if (r.removedTets > 0 && strategy == "update")
-            for (int k = 0; k < 3; ++k) partMs[k].push_back(r.updatePartMs[k]);
-          if (r.structuralUpdateMs > 0) {
-            partMs[3].push_back(r.structuralUpdateMs);
-            if (r.structuralUpdateWork > 0) {
-              structuralWork.push_back(r.structuralUpdateWork);
-              workMs.push_back(r.structuralUpdateMs);
+  std::vector<std::vector<CutRow>> rounds(opt.repeat);
+  for (int round = 0; round < opt.repeat; ++round)
+    for (const int nodes : sizes)
+      for (const std::string& strategy : strategies) {
+        std::vector<std::uint8_t> fullAlive;  // the removed set of the full solve's run
+        for (const std::string& method : methods) {
+          const Scenario sc = loadScenario(opt.scenario, runSets(opt, nodes, strategy, method));
+          const SimulationConfig config = app::makeSimulationConfig(sc);
+          Simulation sim(app::buildMesh(sc), config);
+          const int frames =
+              opt.frames > 0 ? opt.frames
+                             : std::max(1, static_cast<int>(sc.time.durationS * sc.time.fps + 0.5));
+          std::vector<double> ms, rebuildMs, renderMs, frameMs;
+          std::vector<std::string> frameLines;  // --stages: what each frame spent, for the slowest
+          std::array<std::vector<double>, kStageCount> stageMs;
+          std::array<std::vector<double>, 4> partMs;   // update mode: the parts of a removal
+          std::vector<double> structuralWork, workMs;  // ... the structural updates' work, time
+          int waits = 0;
+          // --pace: frame f starts at its tick; a frame that overruns its tick makes the loop
+          // skip the ticks it covered (a real-time loop drops them), and counts as late
+          int late = 0;
+          const auto period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+              std::chrono::duration<double>(opt.paceHz > 0 ? 1.0 / opt.paceHz : 0.0));
+          auto next = std::chrono::steady_clock::now();
+          const auto loopStart = next;
+          const double cpuStartS = app::processCpuSeconds();  // --stages: the CPU the frames cost
+          for (int f = 0; f < frames; ++f) {
+            if (opt.paceHz > 0) {
+              std::this_thread::sleep_until(next);
+              next += period;
+            }
+            const FrameRecord& r = sim.step();
+            if (renderer) {  // the snapshot is timed into r's Snapshot stage (physics), as in run
+              const SurfaceSnapshot snap = sim.snapshot(displacementScale);
+              const auto t0 = std::chrono::steady_clock::now();
+              renderer->render(snap);
+              renderMs.push_back(
+                  std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
+                      .count());
+              frameMs.push_back(r.physicsMs() + renderMs.back());
+            }
+            if (opt.paceHz > 0 && std::chrono::steady_clock::now() > next) {
+              ++late;
+              while (next < std::chrono::steady_clock::now()) next += period;
+            }
+            ms.push_back(r.physicsMs());
+            for (int s = 0; s < kStageCount; ++s)
+              if (r.status[s] == StageStatus::Ran) stageMs[s].push_back(r.ms[s]);
+            if (r.removedTets > 0) rebuildMs.push_back(r.ms[static_cast<int>(Stage::Rebuild)]);
+            if (r.removedTets > 0 && strategy == "update")
+              for (int k = 0; k < 3; ++k) partMs[k].push_back(r.updatePartMs[k]);
+            if (r.structuralUpdateMs > 0) {
+              partMs[3].push_back(r.structuralUpdateMs);
+              if (r.structuralUpdateWork > 0) {
+                structuralWork.push_back(r.structuralUpdateWork);
+                workMs.push_back(r.structuralUpdateMs);
+              }
+            }
+            if (r.rebuildWaitMs > 1.0) ++waits;
+            if (opt.stages) {
+              char line[256];
+              int len = std::snprintf(line, sizeof line, "frame %4d %8.3f ms, %3d tets removed:", f,
+                                      r.physicsMs(), r.removedTets);
+              for (int s = 0; s < kStageCount; ++s)
+                if (r.status[s] == StageStatus::Ran && r.ms[s] >= 0.1 * r.physicsMs() && len < 200)
+                  len += std::snprintf(line + len, sizeof line - len, " %s %.3f",
+                                       stageName(static_cast<Stage>(s)), r.ms[s]);
+              frameLines.push_back(line);
             }
           }
-          if (r.rebuildWaitMs > 1.0) ++waits;
-          if (opt.stages) {
-            char line[256];
-            int len = std::snprintf(line, sizeof line, "frame %4d %8.3f ms, %3d tets removed:", f,
-                                    r.physicsMs(), r.removedTets);
-            for (int s = 0; s < kStageCount; ++s)
-              if (r.status[s] == StageStatus::Ran && r.ms[s] >= 0.1 * r.physicsMs() && len < 200)
-                len += std::snprintf(line + len, sizeof line - len, " %s %.3f",
-                                     stageName(static_cast<Stage>(s)), r.ms[s]);
-            frameLines.push_back(line);
+          const double cpuMsPerFrame = 1e3 * (app::processCpuSeconds() - cpuStartS) / frames;
+          const double busyCpus =
+              1e-3 * cpuMsPerFrame * frames /
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - loopStart).count();
+          const double med = quantile(ms, 0.5), p95 = quantile(ms, 0.95),
+                       mx = *std::max_element(ms.begin(), ms.end()),
+                       rmed = quantile(rebuildMs, 0.5);
+          // removed-set difference against the full solve's run: tets removed by one only
+          const std::vector<std::uint8_t>& alive = sim.mesh().alive;
+          int differ = -1;
+          if (method == "full") {
+            fullAlive = alive;
+          } else if (fullAlive.size() == alive.size()) {
+            differ = 0;
+            for (size_t e = 0; e < alive.size(); ++e) differ += (alive[e] != fullAlive[e]);
           }
-        }
-        const double cpuMsPerFrame = 1e3 * (app::processCpuSeconds() - cpuStartS) / frames;
-        const double busyCpus =
-            1e-3 * cpuMsPerFrame * frames /
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - loopStart).count();
-        const double med = quantile(ms, 0.5), p95 = quantile(ms, 0.95),
-                     mx = *std::max_element(ms.begin(), ms.end()), rmed = quantile(rebuildMs, 0.5);
-        // removed-set difference against the full solve's run: tets removed by one only
-        const std::vector<std::uint8_t>& alive = sim.mesh().alive;
-        int differ = -1;
-        if (method == "full") {
-          fullAlive = alive;
-        } else if (fullAlive.size() == alive.size()) {
-          differ = 0;
-          for (size_t e = 0; e < alive.size(); ++e) differ += (alive[e] != fullAlive[e]);
-        }
-        std::string label = methods.size() > 1 ? strategy + "/" + method : strategy;
-        if (opt.paceHz > 0) label += "@" + messageNumber(opt.paceHz) + "Hz";
-        std::printf("%-12s %7d %6d %10.2f %9.2f %9.2f %8d %8d %11.2f %6d", label.c_str(),
-                    sim.mesh().numNodes(), frames, med, p95, mx, sim.removedTets(), sim.rebuilds(),
-                    rmed, waits);
-        if (renderer)
-          std::printf(" %10.2f %10.2f %15.2f %15.2f", quantile(renderMs, 0.5),
-                      quantile(renderMs, 0.95), quantile(frameMs, 0.5), quantile(frameMs, 0.95));
-        if (differ >= 0)
-          std::printf("  (%d tets removed by one of full/%s only)", differ, method.c_str());
-        if (opt.paceHz > 0) std::printf("  (%d frames ended after their tick)", late);
-        // which solver the scene's electric strategy (auto: by the mesh's size) took
-        if (const std::string electric = sim.electricSolverName(); !electric.empty())
-          std::printf("  electric %s", electric.c_str());
-        std::printf("\n");
-        if (opt.stages)  // the whole process's (every thread's) CPU over the frames
-          std::printf(
-              "  cpu            %.2f ms a frame, all threads; %.2f of %d CPUs busy (no "
-              "frame below %.2f ms on average here)\n",
-              cpuMsPerFrame, busyCpus, app::usableCpus(), cpuMsPerFrame / app::usableCpus());
-        if (opt.stages)
-          for (int s = 0; s < kStageCount; ++s)
-            if (!stageMs[s].empty())
-              std::printf("  %-14s ran %4zu  median %8.3f  p95 %8.3f  max %8.3f ms\n",
-                          stageName(static_cast<Stage>(s)), stageMs[s].size(),
-                          quantile(stageMs[s], 0.5), quantile(stageMs[s], 0.95),
-                          *std::max_element(stageMs[s].begin(), stageMs[s].end()));
-        if (opt.stages && !partMs[0].empty()) {
-          static const char* const kParts[4] = {"surface", "thermal", "electric", "structural*"};
-          for (int k = 0; k < 4; ++k)
-            if (!partMs[k].empty())
-              std::printf("    update %-10s %4zu  median %8.3f  p95 %8.3f  max %8.3f ms\n",
-                          kParts[k], partMs[k].size(), quantile(partMs[k], 0.5),
-                          quantile(partMs[k], 0.95),
-                          *std::max_element(partMs[k].begin(), partMs[k].end()));
-          std::printf("    (* on a thread from the removal to the next structural solve)\n");
-          double work = 0, seconds = 0;
-          for (size_t k = 0; k < structuralWork.size(); ++k) {
-            work += structuralWork[k];
-            seconds += workMs[k] * 1e-3;
-          }
-          if (work > 0)
-            std::printf(
-                "    structural* work (entries of L walked x columns passing; updates that "
-                "refactorized left out): median %.3g a removal, %.3g a second of their wall time\n",
-                quantile(structuralWork, 0.5), work / seconds);
-        }
-        if (opt.stages) {  // the slowest frames (what lies above the p95)
-          std::vector<int> order(frames);
-          for (int f = 0; f < frames; ++f) order[f] = f;
-          std::sort(order.begin(), order.end(), [&](int a, int b) { return ms[a] > ms[b]; });
-          const int shown = std::min(frames, std::max(3, frames / 20 + 1));
-          std::printf("  the %d slowest frames (stages over 10 %% of the frame):\n", shown);
-          for (int k = 0; k < shown; ++k) std::printf("    %s\n", frameLines[order[k]].c_str());
-        }
-        std::fflush(stdout);
-        if (csv) {
-          csv.out() << label << ',' << sim.mesh().numNodes() << ',' << frames << ',' << med << ','
-                    << p95 << ',' << mx << ',' << sim.removedTets() << ',' << sim.rebuilds() << ','
-                    << rmed << ',' << waits;
+          std::string label = methods.size() > 1 ? strategy + "/" + method : strategy;
+          if (opt.paceHz > 0) label += "@" + messageNumber(opt.paceHz) + "Hz";
+          rounds[round].push_back(
+              {label, strategy, method, sim.mesh().numNodes(), med, p95, sim.removedTets(), alive});
+          if (opt.repeat > 1 && rounds[round].size() == 1)
+            std::printf("round %d of %d\n", round + 1, opt.repeat);
+          std::printf("%-12s %7d %6d %10.2f %9.2f %9.2f %8d %8d %11.2f %6d", label.c_str(),
+                      sim.mesh().numNodes(), frames, med, p95, mx, sim.removedTets(),
+                      sim.rebuilds(), rmed, waits);
           if (renderer)
-            csv.out() << ',' << quantile(renderMs, 0.5) << ',' << quantile(renderMs, 0.95) << ','
-                      << quantile(frameMs, 0.5) << ',' << quantile(frameMs, 0.95);
-          csv.out() << '\n';
+            std::printf(" %10.2f %10.2f %15.2f %15.2f", quantile(renderMs, 0.5),
+                        quantile(renderMs, 0.95), quantile(frameMs, 0.5), quantile(frameMs, 0.95));
+          if (differ >= 0)
+            std::printf("  (%d tets removed by one of full/%s only)", differ, method.c_str());
+          if (opt.paceHz > 0) std::printf("  (%d frames ended after their tick)", late);
+          // which solver the scene's electric strategy (auto: by the mesh's size) took
+          if (const std::string electric = sim.electricSolverName(); !electric.empty())
+            std::printf("  electric %s", electric.c_str());
+          std::printf("\n");
+          if (opt.stages)  // the whole process's (every thread's) CPU over the frames
+            std::printf(
+                "  cpu            %.2f ms a frame, all threads; %.2f of %d CPUs busy (no "
+                "frame below %.2f ms on average here)\n",
+                cpuMsPerFrame, busyCpus, app::usableCpus(), cpuMsPerFrame / app::usableCpus());
+          if (opt.stages)
+            for (int s = 0; s < kStageCount; ++s)
+              if (!stageMs[s].empty())
+                std::printf("  %-14s ran %4zu  median %8.3f  p95 %8.3f  max %8.3f ms\n",
+                            stageName(static_cast<Stage>(s)), stageMs[s].size(),
+                            quantile(stageMs[s], 0.5), quantile(stageMs[s], 0.95),
+                            *std::max_element(stageMs[s].begin(), stageMs[s].end()));
+          if (opt.stages && !partMs[0].empty()) {
+            static const char* const kParts[4] = {"surface", "thermal", "electric", "structural*"};
+            for (int k = 0; k < 4; ++k)
+              if (!partMs[k].empty())
+                std::printf("    update %-10s %4zu  median %8.3f  p95 %8.3f  max %8.3f ms\n",
+                            kParts[k], partMs[k].size(), quantile(partMs[k], 0.5),
+                            quantile(partMs[k], 0.95),
+                            *std::max_element(partMs[k].begin(), partMs[k].end()));
+            std::printf("    (* on a thread from the removal to the next structural solve)\n");
+            double work = 0, seconds = 0;
+            for (size_t k = 0; k < structuralWork.size(); ++k) {
+              work += structuralWork[k];
+              seconds += workMs[k] * 1e-3;
+            }
+            if (work > 0)
+              std::printf(
+                  "    structural* work (entries of L walked x columns passing; updates that "
+                  "refactorized left out): median %.3g a removal, %.3g a second of their wall "
+                  "time\n",
+                  quantile(structuralWork, 0.5), work / seconds);
+          }
+          if (opt.stages) {  // the slowest frames (what lies above the p95)
+            std::vector<int> order(frames);
+            for (int f = 0; f < frames; ++f) order[f] = f;
+            std::sort(order.begin(), order.end(), [&](int a, int b) { return ms[a] > ms[b]; });
+            const int shown = std::min(frames, std::max(3, frames / 20 + 1));
+            std::printf("  the %d slowest frames (stages over 10 %% of the frame):\n", shown);
+            for (int k = 0; k < shown; ++k) std::printf("    %s\n", frameLines[order[k]].c_str());
+          }
+          std::fflush(stdout);
+          if (csv) {
+            csv.out() << label << ',' << sim.mesh().numNodes() << ',' << frames << ',' << med << ','
+                      << p95 << ',' << mx << ',' << sim.removedTets() << ',' << sim.rebuilds()
+                      << ',' << rmed << ',' << waits;
+            if (renderer)
+              csv.out() << ',' << quantile(renderMs, 0.5) << ',' << quantile(renderMs, 0.95) << ','
+                        << quantile(frameMs, 0.5) << ',' << quantile(frameMs, 0.95);
+            if (opt.repeat > 1) csv.out() << ',' << round + 1;
+            csv.out() << '\n';
+          }
         }
       }
-    }
+  if (opt.repeat > 1) printRounds(rounds);
   if (csv) {
     csv.commit();
     std::printf("wrote %s\n", opt.csv.c_str());
@@ -316,6 +393,11 @@ cli::Registrar registerBenchCut(
       app.add_option("--structural", opt->structural,
                      "solvers.structural.method values, comma separated (full,local,coarse: "
                      "each later method's removed set compared with the full one's)")
+          ->capture_default_str();
+      app.add_option("--repeat", opt->repeat,
+                     "N: the whole table N times, round after round, then each row's range over "
+                     "the rounds, its ratio to the same round's update row, and whether every "
+                     "round removed the same tets (CSV: a round column)")
           ->capture_default_str();
       app.add_flag("--stages", opt->stages, "per-stage median, p95 and max under each row");
       app.add_flag("--render", opt->render,
