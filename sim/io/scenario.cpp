@@ -122,7 +122,12 @@ void requireUtf8Text(const std::string& text, const std::string& where, bool lin
     const size_t newline = at == 0 ? std::string::npos : text.rfind('\n', at - 1);
     const size_t line = 1 + std::count(text.begin(), text.begin() + static_cast<long>(at), '\n');
     const size_t column = at - (newline == std::string::npos ? 0 : newline + 1) + 1;
-    place += ":" + std::to_string(line) + ":" + std::to_string(column);
+    // appended piece by piece: GCC 12 took ":" + std::to_string(line) for an overlapping
+    // memcpy (a -Wrestrict false positive in char_traits.h)
+    place += ':';
+    place += std::to_string(line);
+    place += ':';
+    place += std::to_string(column);
   }
   char byte[8];
   std::snprintf(byte, sizeof byte, "0x%02X", static_cast<unsigned char>(text[at]));
