@@ -121,6 +121,76 @@ Eigen::Matrix<double, 12, 12> elasticTetStiffness(const TetGeometry& g, double y
   return g.volume * b.transpose() * (elasticity(youngsModulusPa, poissonRatio) * b);
 }
 
+SparseMatrix assembleElasticLower(
+    int numNodes, const std::vector<Tet>& tets, const std::uint8_t* alive, const std::uint8_t* held,
+    const std::function<Eigen::Matrix<double, 12, 12>(int)>& elementStiffness) {
+  const int nt = static_cast<int>(tets.size());
+  const int nd = 3 * numNodes;
+  // node -> alive tets (ascending)
+  std::vector<int> start(static_cast<size_t>(numNodes) + 1, 0), tetsAt;
+  for (int t = 0; t < nt; ++t)
+    if (alive[t])
+      for (int v : tets[t]) ++start[v + 1];
+  for (int v = 0; v < numNodes; ++v) start[v + 1] += start[v];
+  tetsAt.resize(start[numNodes]);
+  {
+    std::vector<int> fill(start.begin(), start.end() - 1);
+    for (int t = 0; t < nt; ++t)
+      if (alive[t])
+        for (int v : tets[t]) tetsAt[fill[v]++] = t;
+  }
+  // the pattern, column by column: column dof 3 v + b holds the free dofs >= it of the nodes
+  // sharing an alive tet with v (ascending), or only its diagonal when held
+  std::vector<int> outer(static_cast<size_t>(nd) + 1, 0), inner, seen(numNodes, -1), near;
+  inner.reserve(static_cast<size_t>(start[numNodes]) * 6);
+  for (int v = 0; v < numNodes; ++v) {
+    near.clear();
+    for (int i = start[v]; i < start[v + 1]; ++i)
+      for (int u : tets[tetsAt[i]])
+        if (seen[u] != v) {
+          seen[u] = v;
+          near.push_back(u);
+        }
+    std::sort(near.begin(), near.end());
+    for (int b = 0; b < 3; ++b) {
+      const int col = 3 * v + b;
+      if (held[col]) {
+        inner.push_back(col);
+      } else {
+        for (int u : near)
+          for (int a = 0; a < 3; ++a) {
+            const int row = 3 * u + a;
+            if (row >= col && !held[row]) inner.push_back(row);
+          }
+      }
+      outer[col + 1] = static_cast<int>(inner.size());
+    }
+  }
+  SparseMatrix k(nd, nd);
+  k.resizeNonZeros(static_cast<Eigen::Index>(inner.size()));
+  std::copy(outer.begin(), outer.end(), k.outerIndexPtr());
+  std::copy(inner.begin(), inner.end(), k.innerIndexPtr());
+  double* value = k.valuePtr();
+  std::fill(value, value + inner.size(), -0.0);
+  for (int dof = 0; dof < nd; ++dof)
+    if (held[dof]) value[outer[dof]] = 1.0;
+  for (int t = 0; t < nt; ++t) {
+    if (!alive[t]) continue;
+    const Eigen::Matrix<double, 12, 12> ke = elementStiffness(t);
+    for (int j = 0; j < 12; ++j) {
+      const int dj = 3 * tets[t][j / 3] + j % 3;
+      if (held[dj]) continue;
+      const int* lo = inner.data() + outer[dj];
+      const int* hi = inner.data() + outer[dj + 1];
+      for (int i = 0; i < 12; ++i) {
+        const int di = 3 * tets[t][i / 3] + i % 3;
+        if (di >= dj && !held[di]) value[std::lower_bound(lo, hi, di) - inner.data()] += ke(i, j);
+      }
+    }
+  }
+  return k;
+}
+
 namespace {
 
 // tetStrain's body, inlined into the phase's per-tet stresses (a call a tet otherwise)
@@ -644,27 +714,8 @@ std::vector<std::vector<int>> StructuralPhase::Impl::splitPiece(const std::vecto
 // A over all 3n dofs, lower triangle: K from the alive tets on the free dofs, 1 on the
 // diagonal of the held ones
 SparseMatrix StructuralPhase::Impl::assemble(const StateView& s) const {
-  const int n = numDofs();
-  std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(tets.size() * 78 + (n - s.numFree));
-  for (size_t t = 0; t < tets.size(); ++t) {
-    if (!s.alive[t]) continue;
-    const Mat12 ke = elementStiffness(static_cast<int>(t));
-    for (int i = 0; i < 12; ++i) {
-      const int di = 3 * tets[t][i / 3] + i % 3;
-      if (s.held[di]) continue;
-      for (int j = 0; j < 12; ++j) {
-        const int dj = 3 * tets[t][j / 3] + j % 3;
-        if (!s.held[dj] && dj <= di) triplets.emplace_back(di, dj, ke(i, j));
-      }
-    }
-  }
-  for (int dof = 0; dof < n; ++dof)
-    if (s.held[dof]) triplets.emplace_back(dof, dof, 1.0);
-  SparseMatrix a(n, n);
-  a.setFromTriplets(triplets.begin(), triplets.end());
-  a.makeCompressed();
-  return a;
+  return assembleElasticLower(static_cast<int>(nodes.size()), tets, s.alive, s.held,
+                              [this](int t) { return elementStiffness(t); });
 }
 
 // a fresh supernodal factorization of A within the first analysis (A only loses entries)

@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <functional>
 #include <iostream>
 #include <new>
@@ -85,6 +86,49 @@ TEST(Structural, ClampedBodyIsHydrostatic) {
 
 // memory that runs out inside CHOLMOD is std::bad_alloc, the run's "out of memory" (it was
 // "CHOLMOD analysis failed (out of memory?)"), for the factor built for updates too
+// assembleElasticLower scatters into the pattern what the phase once assembled from
+// triplets: the same pattern and the same bits as setFromTriplets of the triplets emitted tet
+// by tet, with dead tets left out and held dofs (a clamped face, a node of dead tets only)
+// reduced to a 1 on their diagonal
+TEST(Structural, AssemblyInThePatternEqualsTripletsBitwise) {
+  const TetMesh mesh = distortedSlab();
+  const int nt = mesh.numTets(), nd = 3 * mesh.numNodes();
+  std::vector<std::uint8_t> alive(nt, 1), held(nd, 0);
+  for (int t = 0; t < nt; t += 7) alive[t] = 0;
+  for (int v = 0; v < mesh.numNodes(); ++v)
+    if (mesh.nodes[v].z() == 0)
+      for (int a = 0; a < 3; ++a) held[3 * v + a] = 1;
+  held[3 * 7 + 1] = 1;  // one component of one node
+  const std::vector<TetGeometry> geo = tetGeometry(mesh);
+  const auto ke = [&](int t) { return elasticTetStiffness(geo[t], kE, kNu); };
+  const SparseMatrix k =
+      assembleElasticLower(mesh.numNodes(), mesh.tets, alive.data(), held.data(), ke);
+  std::vector<Eigen::Triplet<double>> triplets;
+  for (int t = 0; t < nt; ++t) {
+    if (!alive[t]) continue;
+    const Eigen::Matrix<double, 12, 12> m = ke(t);
+    for (int i = 0; i < 12; ++i) {
+      const int di = 3 * mesh.tets[t][i / 3] + i % 3;
+      if (held[di]) continue;
+      for (int j = 0; j < 12; ++j) {
+        const int dj = 3 * mesh.tets[t][j / 3] + j % 3;
+        if (!held[dj] && dj <= di) triplets.emplace_back(di, dj, m(i, j));
+      }
+    }
+  }
+  for (int dof = 0; dof < nd; ++dof)
+    if (held[dof]) triplets.emplace_back(dof, dof, 1.0);
+  SparseMatrix ref(nd, nd);
+  ref.setFromTriplets(triplets.begin(), triplets.end());
+  ref.makeCompressed();
+  ASSERT_TRUE(k.isCompressed());
+  ASSERT_EQ(k.nonZeros(), ref.nonZeros());
+  EXPECT_GT(k.nonZeros(), nd);
+  EXPECT_TRUE(std::equal(k.outerIndexPtr(), k.outerIndexPtr() + nd + 1, ref.outerIndexPtr()));
+  EXPECT_TRUE(std::equal(k.innerIndexPtr(), k.innerIndexPtr() + k.nonZeros(), ref.innerIndexPtr()));
+  EXPECT_EQ(std::memcmp(k.valuePtr(), ref.valuePtr(), sizeof(double) * k.nonZeros()), 0);
+}
+
 TEST(Structural, MemoryThatRunsOutInCholmodIsBadAlloc) {
   const TetMesh mesh = distortedSlab();
   for (bool forUpdates : {false, true}) {
