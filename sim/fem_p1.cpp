@@ -41,26 +41,16 @@ std::vector<TetGeometry> tetGeometry(const TetMesh& mesh) {
 SparseMatrix assembleStiffness(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
                                const std::vector<double>& coeff) {
   const int n = mesh.numNodes();
-  // node -> alive tets (ascending)
-  std::vector<int> start(static_cast<size_t>(n) + 1, 0), tets;
-  for (int e = 0; e < mesh.numTets(); ++e)
-    if (mesh.isAlive(e))
-      for (int v : mesh.tets[e]) ++start[v + 1];
-  for (int v = 0; v < n; ++v) start[v + 1] += start[v];
-  tets.resize(start[n]);
-  {
-    std::vector<int> fill(start.begin(), start.end() - 1);
-    for (int e = 0; e < mesh.numTets(); ++e)
-      if (mesh.isAlive(e))
-        for (int v : mesh.tets[e]) tets[fill[v]++] = e;
-  }
+  const std::vector<std::uint8_t> all(mesh.alive.empty() ? mesh.tets.size() : 0, 1);
+  const Adjacency tets =
+      aliveTetsAtNodes(n, mesh.tets, mesh.alive.empty() ? all.data() : mesh.alive.data());
   // the pattern, column by column
   std::vector<int> outer(static_cast<size_t>(n) + 1, 0), inner, seen(n, -1);
-  inner.reserve(static_cast<size_t>(start[n]) * 4);
+  inner.reserve(tets.ids.size() * 4);
   for (int col = 0; col < n; ++col) {
     const size_t first = inner.size();
-    for (int i = start[col]; i < start[col + 1]; ++i)
-      for (int v : mesh.tets[tets[i]])
+    for (const int* t = tets.begin(col); t != tets.end(col); ++t)
+      for (int v : mesh.tets[*t])
         if (seen[v] != col) {
           seen[v] = col;
           inner.push_back(v);

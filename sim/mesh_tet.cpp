@@ -233,6 +233,22 @@ Adjacency nodeTets(const TetMesh& mesh) {
   return buildCsr(mesh.numNodes(), pairs);
 }
 
+Adjacency aliveTetsAtNodes(int numNodes, const std::vector<Tet>& tets, const std::uint8_t* alive) {
+  const int nt = static_cast<int>(tets.size());
+  Adjacency adj;
+  adj.offsets.assign(static_cast<size_t>(numNodes) + 1, 0);
+  for (int t = 0; t < nt; ++t)
+    if (alive[t])
+      for (int v : tets[t]) ++adj.offsets[v + 1];
+  for (int v = 0; v < numNodes; ++v) adj.offsets[v + 1] += adj.offsets[v];
+  adj.ids.resize(adj.offsets[numNodes]);
+  std::vector<int> fill(adj.offsets.begin(), adj.offsets.end() - 1);
+  for (int t = 0; t < nt; ++t)
+    if (alive[t])
+      for (int v : tets[t]) adj.ids[fill[v]++] = t;
+  return adj;
+}
+
 Adjacency tetNeighbours(const TetMesh& mesh) {
   struct Entry {
     Tri key;

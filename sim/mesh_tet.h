@@ -109,6 +109,10 @@ Adjacency nodeAdjacency(const TetMesh& mesh);
 // node -> alive tets containing it (sorted)
 Adjacency nodeTets(const TetMesh& mesh);
 
+// the alive tets (alive[t] != 0) at each node, ascending, by a counting sort (a tet listed
+// once for each of its 4 node slots): what the stiffness assemblies scatter along
+Adjacency aliveTetsAtNodes(int numNodes, const std::vector<Tet>& tets, const std::uint8_t* alive);
+
 // tet -> alive tets sharing a face (sorted)
 Adjacency tetNeighbours(const TetMesh& mesh);
 

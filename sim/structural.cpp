@@ -126,27 +126,15 @@ SparseMatrix assembleElasticLower(
     const std::function<Eigen::Matrix<double, 12, 12>(int)>& elementStiffness) {
   const int nt = static_cast<int>(tets.size());
   const int nd = 3 * numNodes;
-  // node -> alive tets (ascending)
-  std::vector<int> start(static_cast<size_t>(numNodes) + 1, 0), tetsAt;
-  for (int t = 0; t < nt; ++t)
-    if (alive[t])
-      for (int v : tets[t]) ++start[v + 1];
-  for (int v = 0; v < numNodes; ++v) start[v + 1] += start[v];
-  tetsAt.resize(start[numNodes]);
-  {
-    std::vector<int> fill(start.begin(), start.end() - 1);
-    for (int t = 0; t < nt; ++t)
-      if (alive[t])
-        for (int v : tets[t]) tetsAt[fill[v]++] = t;
-  }
+  const Adjacency tetsAt = aliveTetsAtNodes(numNodes, tets, alive);
   // the pattern, column by column: column dof 3 v + b holds the free dofs >= it of the nodes
   // sharing an alive tet with v (ascending), or only its diagonal when held
   std::vector<int> outer(static_cast<size_t>(nd) + 1, 0), inner, seen(numNodes, -1), near;
-  inner.reserve(static_cast<size_t>(start[numNodes]) * 6);
+  inner.reserve(tetsAt.ids.size() * 6);
   for (int v = 0; v < numNodes; ++v) {
     near.clear();
-    for (int i = start[v]; i < start[v + 1]; ++i)
-      for (int u : tets[tetsAt[i]])
+    for (const int* t = tetsAt.begin(v); t != tetsAt.end(v); ++t)
+      for (int u : tets[*t])
         if (seen[u] != v) {
           seen[u] = v;
           near.push_back(u);

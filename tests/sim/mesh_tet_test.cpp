@@ -47,6 +47,23 @@ TEST(MeshTet, NodeAdjacencyByHand) {
   EXPECT_EQ(std::vector<int>(tn.begin(1), tn.end(1)), (std::vector<int>{0}));
 }
 
+// the counting sort the assemblies use gives nodeTets' lists: alive tets only, ascending
+TEST(MeshTet, AliveTetsAtNodesEqualNodeTets) {
+  const TetMesh two = twoTets();
+  const Adjacency both = aliveTetsAtNodes(two.numNodes(), two.tets, two.alive.data());
+  EXPECT_EQ(std::vector<int>(both.begin(1), both.end(1)), (std::vector<int>{0, 1}));
+  EXPECT_EQ(std::vector<int>(both.begin(4), both.end(4)), (std::vector<int>{1}));
+  SlabSpec spec;
+  spec.nodesPerAxis = {4, 3, 3};
+  TetMesh slab = makeSlab(spec);
+  for (int t = 0; t < slab.numTets(); t += 3) slab.alive[t] = 0;
+  const Adjacency counted = aliveTetsAtNodes(slab.numNodes(), slab.tets, slab.alive.data());
+  const Adjacency sorted = nodeTets(slab);
+  EXPECT_EQ(counted.offsets, sorted.offsets);
+  EXPECT_EQ(counted.ids, sorted.ids);
+  EXPECT_LT(counted.ids.size(), 4u * slab.numTets());  // the dead ones left out
+}
+
 TEST(MeshTet, BoundaryFacesAreOutwardAndClosed) {
   const TetMesh m = twoTets();
   const auto faces = boundaryFaces(m);
