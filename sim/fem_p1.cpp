@@ -31,6 +31,15 @@ std::vector<TetGeometry> tetGeometry(const TetMesh& mesh) {
   return geo;
 }
 
+SparseMatrix patternOfZeros(int n, const std::vector<int>& outer, const std::vector<int>& inner) {
+  SparseMatrix k(n, n);
+  k.resizeNonZeros(static_cast<Eigen::Index>(inner.size()));
+  std::copy(outer.begin(), outer.end(), k.outerIndexPtr());
+  std::copy(inner.begin(), inner.end(), k.innerIndexPtr());
+  std::fill(k.valuePtr(), k.valuePtr() + inner.size(), -0.0);
+  return k;
+}
+
 // The pattern (each node's alive tets' nodes, rows ascending in each column) first, then
 // each element matrix scattered in ascending tet order onto -0.0, the additive identity: every
 // entry is summed left to right from its first tet's term, bitwise what setFromTriplets gave
@@ -58,12 +67,8 @@ SparseMatrix assembleStiffness(const TetMesh& mesh, const std::vector<TetGeometr
     std::sort(inner.begin() + static_cast<std::ptrdiff_t>(first), inner.end());
     outer[col + 1] = static_cast<int>(inner.size());
   }
-  SparseMatrix k(n, n);
-  k.resizeNonZeros(static_cast<Eigen::Index>(inner.size()));
-  std::copy(outer.begin(), outer.end(), k.outerIndexPtr());
-  std::copy(inner.begin(), inner.end(), k.innerIndexPtr());
+  SparseMatrix k = patternOfZeros(n, outer, inner);
   double* value = k.valuePtr();
-  std::fill(value, value + inner.size(), -0.0);
   for (int e = 0; e < mesh.numTets(); ++e) {
     if (!mesh.isAlive(e)) continue;
     const Eigen::Matrix4d ke = coeff[e] * geo[e].volume * geo[e].grad * geo[e].grad.transpose();

@@ -26,6 +26,11 @@ struct TetGeometry {
 // geometry of every tet (removed tets included; they are just not assembled)
 std::vector<TetGeometry> tetGeometry(const TetMesh& mesh);
 
+// an n x n compressed matrix of the column pattern (outer, inner: CSC, rows ascending in each
+// column), every value -0.0: the additive identity the assemblies scatter their element
+// matrices onto, so that each entry is bitwise the sum setFromTriplets gave
+SparseMatrix patternOfZeros(int n, const std::vector<int>& outer, const std::vector<int>& inner);
+
 // stiffness K (n x n, symmetric) with coefficient coeff[e] per tet
 SparseMatrix assembleStiffness(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
                                const std::vector<double>& coeff);

@@ -154,12 +154,8 @@ SparseMatrix assembleElasticLower(
       outer[col + 1] = static_cast<int>(inner.size());
     }
   }
-  SparseMatrix k(nd, nd);
-  k.resizeNonZeros(static_cast<Eigen::Index>(inner.size()));
-  std::copy(outer.begin(), outer.end(), k.outerIndexPtr());
-  std::copy(inner.begin(), inner.end(), k.innerIndexPtr());
+  SparseMatrix k = patternOfZeros(nd, outer, inner);
   double* value = k.valuePtr();
-  std::fill(value, value + inner.size(), -0.0);
   for (int dof = 0; dof < nd; ++dof)
     if (held[dof]) value[outer[dof]] = 1.0;
   for (int t = 0; t < nt; ++t) {
