@@ -50,9 +50,7 @@ SparseMatrix patternOfZeros(int n, const std::vector<int>& outer, const std::vec
 SparseMatrix assembleStiffness(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
                                const std::vector<double>& coeff) {
   const int n = mesh.numNodes();
-  const std::vector<std::uint8_t> all(mesh.alive.empty() ? mesh.tets.size() : 0, 1);
-  const Adjacency tets =
-      aliveTetsAtNodes(n, mesh.tets, mesh.alive.empty() ? all.data() : mesh.alive.data());
+  const Adjacency tets = nodeTets(mesh);
   // the pattern, column by column
   std::vector<int> outer(static_cast<size_t>(n) + 1, 0), inner, seen(n, -1);
   inner.reserve(tets.ids.size() * 4);

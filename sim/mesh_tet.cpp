@@ -224,13 +224,9 @@ Adjacency nodeAdjacency(const TetMesh& mesh) {
 }
 
 Adjacency nodeTets(const TetMesh& mesh) {
-  std::vector<std::pair<int, int>> pairs;
-  pairs.reserve(static_cast<size_t>(mesh.numAlive()) * 4);
-  for (int e = 0; e < mesh.numTets(); ++e) {
-    if (!mesh.isAlive(e)) continue;
-    for (int a = 0; a < 4; ++a) pairs.emplace_back(mesh.tets[e][a], e);
-  }
-  return buildCsr(mesh.numNodes(), pairs);
+  if (!mesh.alive.empty()) return aliveTetsAtNodes(mesh.numNodes(), mesh.tets, mesh.alive.data());
+  const std::vector<std::uint8_t> all(mesh.tets.size(), 1);
+  return aliveTetsAtNodes(mesh.numNodes(), mesh.tets, all.data());
 }
 
 Adjacency aliveTetsAtNodes(int numNodes, const std::vector<Tet>& tets, const std::uint8_t* alive) {

@@ -110,7 +110,8 @@ Adjacency nodeAdjacency(const TetMesh& mesh);
 Adjacency nodeTets(const TetMesh& mesh);
 
 // the alive tets (alive[t] != 0) at each node, ascending, by a counting sort (a tet listed
-// once for each of its 4 node slots): what the stiffness assemblies scatter along
+// once for each of its 4 node slots; validateMesh refuses an alive tet with a node twice):
+// nodeTets for a phase that keeps its tets and alive flags apart from a TetMesh
 Adjacency aliveTetsAtNodes(int numNodes, const std::vector<Tet>& tets, const std::uint8_t* alive);
 
 // tet -> alive tets sharing a face (sorted)
