@@ -84,8 +84,6 @@ TEST(Structural, ClampedBodyIsHydrostatic) {
   EXPECT_LT(phase.displacementM().cwiseAbs().maxCoeff(), 1e-15);
 }
 
-// memory that runs out inside CHOLMOD is std::bad_alloc, the run's "out of memory" (it was
-// "CHOLMOD analysis failed (out of memory?)"), for the factor built for updates too
 // assembleElasticLower scatters into the pattern what the phase once assembled from
 // triplets: the same pattern and the same bits as setFromTriplets of the triplets emitted tet
 // by tet, with dead tets left out and held dofs (a clamped face, a node of dead tets only)
@@ -129,6 +127,8 @@ TEST(Structural, AssemblyInThePatternEqualsTripletsBitwise) {
   EXPECT_EQ(std::memcmp(k.valuePtr(), ref.valuePtr(), sizeof(double) * k.nonZeros()), 0);
 }
 
+// memory that runs out inside CHOLMOD is std::bad_alloc, the run's "out of memory" (it was
+// "CHOLMOD analysis failed (out of memory?)"), for the factor built for updates too
 TEST(Structural, MemoryThatRunsOutInCholmodIsBadAlloc) {
   const TetMesh mesh = distortedSlab();
   for (bool forUpdates : {false, true}) {
