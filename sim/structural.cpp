@@ -123,13 +123,18 @@ Eigen::Matrix<double, 12, 12> elasticTetStiffness(const TetGeometry& g, double y
 
 SparseMatrix assembleElasticLower(
     int numNodes, const std::vector<Tet>& tets, const std::uint8_t* alive, const std::uint8_t* held,
-    const std::function<Eigen::Matrix<double, 12, 12>(int)>& elementStiffness) {
+    const std::function<Eigen::Matrix<double, 12, 12>(int)>& elementStiffness, const int* rowOfDof,
+    int numRows) {
   const int nt = static_cast<int>(tets.size());
   const int nd = 3 * numNodes;
+  const int m = rowOfDof ? numRows : nd;
+  // the result's row (and column) of a dof: -1 for a dof left out or held (a held dof keeps
+  // its diagonal only when every dof is kept)
+  const auto rowOf = [&](int dof) { return rowOfDof ? rowOfDof[dof] : dof; };
   const Adjacency tetsAt = aliveTetsAtNodes(numNodes, tets, alive);
   // the pattern, column by column: column dof 3 v + b holds the free dofs >= it of the nodes
   // sharing an alive tet with v (ascending), or only its diagonal when held
-  std::vector<int> outer(static_cast<size_t>(nd) + 1, 0), inner, seen(numNodes, -1), near;
+  std::vector<int> outer(static_cast<size_t>(m) + 1, 0), inner, seen(numNodes, -1), near;
   inner.reserve(tetsAt.ids.size() * 6);
   for (int v = 0; v < numNodes; ++v) {
     near.clear();
@@ -141,34 +146,35 @@ SparseMatrix assembleElasticLower(
         }
     std::sort(near.begin(), near.end());
     for (int b = 0; b < 3; ++b) {
-      const int col = 3 * v + b;
-      if (held[col]) {
+      const int col = rowOf(3 * v + b);
+      if (col < 0) continue;
+      if (held[3 * v + b]) {
         inner.push_back(col);
       } else {
         for (int u : near)
           for (int a = 0; a < 3; ++a) {
-            const int row = 3 * u + a;
-            if (row >= col && !held[row]) inner.push_back(row);
+            const int row = rowOf(3 * u + a);
+            if (row >= col && !held[3 * u + a]) inner.push_back(row);
           }
       }
       outer[col + 1] = static_cast<int>(inner.size());
     }
   }
-  SparseMatrix k = patternOfZeros(nd, outer, inner);
+  SparseMatrix k = patternOfZeros(m, outer, inner);
   double* value = k.valuePtr();
   for (int dof = 0; dof < nd; ++dof)
-    if (held[dof]) value[outer[dof]] = 1.0;
+    if (held[dof] && rowOf(dof) >= 0) value[outer[rowOf(dof)]] = 1.0;
   for (int t = 0; t < nt; ++t) {
     if (!alive[t]) continue;
     const Eigen::Matrix<double, 12, 12> ke = elementStiffness(t);
     for (int j = 0; j < 12; ++j) {
-      const int dj = 3 * tets[t][j / 3] + j % 3;
-      if (held[dj]) continue;
-      const int* lo = inner.data() + outer[dj];
-      const int* hi = inner.data() + outer[dj + 1];
+      const int dj = 3 * tets[t][j / 3] + j % 3, cj = rowOf(dj);
+      if (cj < 0 || held[dj]) continue;
+      const int* lo = inner.data() + outer[cj];
+      const int* hi = inner.data() + outer[cj + 1];
       for (int i = 0; i < 12; ++i) {
-        const int di = 3 * tets[t][i / 3] + i % 3;
-        if (di >= dj && !held[di]) value[std::lower_bound(lo, hi, di) - inner.data()] += ke(i, j);
+        const int di = 3 * tets[t][i / 3] + i % 3, ri = rowOf(di);
+        if (ri >= cj && !held[di]) value[std::lower_bound(lo, hi, ri) - inner.data()] += ke(i, j);
       }
     }
   }
@@ -1228,24 +1234,12 @@ bool StructuralPhase::Impl::buildRegion(const Eigen::AlignedBox3d& box) {
       }
   }
   std::sort(regionTets.begin(), regionTets.end());
-  // K_UU, lower triangle, in the order of regionDofs
-  std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(regionTets.size() * 78);
-  for (int t : regionTets) {
-    const Mat12 ke = elementStiffness(t);
-    for (int i = 0; i < 12; ++i) {
-      const int li = localOfDof[3 * tets[t][i / 3] + i % 3];
-      if (li < 0) continue;
-      for (int j = 0; j < 12; ++j) {
-        const int lj = localOfDof[3 * tets[t][j / 3] + j % 3];
-        if (lj >= 0 && lj <= li) triplets.emplace_back(li, lj, ke(i, j));
-      }
-    }
-  }
+  // K_UU, lower triangle, in the order of regionDofs (ascending): the region's tets scattered
+  // into its pattern as the whole body's K is
   const int m = static_cast<int>(regionDofs.size());
-  SparseMatrix kuu(m, m);
-  kuu.setFromTriplets(triplets.begin(), triplets.end());
-  kuu.makeCompressed();
+  const SparseMatrix kuu = assembleElasticLower(
+      n, tets, inRegion.data(), held.data(), [this](int t) { return elementStiffness(t); },
+      localOfDof.data(), m);
   cholmod_sparse view = cholmodViewLower(kuu);
   openblas_set_num_threads(1);
   // the ordering: the whole factor's, restricted to U (no ordering cost; measured at 50k

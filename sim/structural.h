@@ -297,9 +297,13 @@ Eigen::Matrix<double, 12, 12> elasticTetStiffness(const TetGeometry& g, double y
 // from its first tet's term, bitwise what Eigen's setFromTriplets gave for the triplets
 // emitted tet by tet (as fem_p1.h's assembleStiffness does for P1), without the 78 triplets a
 // tet (50 MB at 8000 nodes) and their sort. Measured in README, "Structural phase".
+// With rowOfDof (per dof of the body: its row in the result, ascending in the dof, or -1 for a
+// dof left out; held dofs left out), the result is numRows x numRows, K restricted to those
+// dofs: a region's K_UU, alive naming the tets that touch the region.
 Eigen::SparseMatrix<double, Eigen::ColMajor, int> assembleElasticLower(
     int numNodes, const std::vector<Tet>& tets, const std::uint8_t* alive, const std::uint8_t* held,
-    const std::function<Eigen::Matrix<double, 12, 12>(int)>& elementStiffness);
+    const std::function<Eigen::Matrix<double, 12, 12>(int)>& elementStiffness,
+    const int* rowOfDof = nullptr, int numRows = 0);
 // the strain of one tet (xx, yy, zz, 2yz, 2xz, 2xy) from its 4 nodes' displacements [m]
 // (3 each, x y z), as StructuralPhase's stresses take it
 std::array<double, 6> tetStrain(const TetGeometry& g, const std::array<const double*, 4>& u);

@@ -127,6 +127,54 @@ TEST(Structural, AssemblyInThePatternEqualsTripletsBitwise) {
   EXPECT_EQ(std::memcmp(k.valuePtr(), ref.valuePtr(), sizeof(double) * k.nonZeros()), 0);
 }
 
+// a region's K_UU (rows of some free dofs, the tets touching their nodes) is the body's K
+// restricted to them, bitwise what the triplets of those tets give
+TEST(Structural, RegionAssemblyInThePatternEqualsTripletsBitwise) {
+  const TetMesh mesh = distortedSlab();
+  const int nt = mesh.numTets(), nn = mesh.numNodes(), nd = 3 * nn;
+  std::vector<std::uint8_t> alive(nt, 1), held(nd, 0), touching(nt, 0);
+  for (int t = 0; t < nt; t += 5) alive[t] = 0;
+  for (int v = 0; v < nn; ++v)
+    if (mesh.nodes[v].z() == 0) held[3 * v + 2] = 1;
+  // U: the free dofs of the nodes with x < 0 (but one component of one of them)
+  std::vector<int> rowOfDof(nd, -1);
+  int m = 0;
+  for (int v = 0; v < nn; ++v)
+    for (int a = 0; a < 3; ++a)
+      if (mesh.nodes[v].x() < 0 && !held[3 * v + a] && !(v == 3 && a == 0))
+        rowOfDof[3 * v + a] = m++;
+  for (int t = 0; t < nt; ++t)
+    for (int v : mesh.tets[t])
+      if (alive[t] && rowOfDof[3 * v + 1] >= 0) touching[t] = 1;
+  ASSERT_GT(m, 30);
+  ASSERT_LT(m, nd / 2);
+  const std::vector<TetGeometry> geo = tetGeometry(mesh);
+  const auto ke = [&](int t) { return elasticTetStiffness(geo[t], kE, kNu); };
+  const SparseMatrix k =
+      assembleElasticLower(nn, mesh.tets, touching.data(), held.data(), ke, rowOfDof.data(), m);
+  std::vector<Eigen::Triplet<double>> triplets;
+  for (int t = 0; t < nt; ++t) {
+    if (!touching[t]) continue;
+    const Eigen::Matrix<double, 12, 12> e = ke(t);
+    for (int i = 0; i < 12; ++i)
+      for (int j = 0; j < 12; ++j) {
+        const int ri = rowOfDof[3 * mesh.tets[t][i / 3] + i % 3];
+        const int cj = rowOfDof[3 * mesh.tets[t][j / 3] + j % 3];
+        if (ri >= 0 && cj >= 0 && cj <= ri) triplets.emplace_back(ri, cj, e(i, j));
+      }
+  }
+  SparseMatrix ref(m, m);
+  ref.setFromTriplets(triplets.begin(), triplets.end());
+  ref.makeCompressed();
+  ASSERT_EQ(k.rows(), m);
+  ASSERT_TRUE(k.isCompressed());
+  ASSERT_EQ(k.nonZeros(), ref.nonZeros());
+  EXPECT_GT(k.nonZeros(), 3 * m);
+  EXPECT_TRUE(std::equal(k.outerIndexPtr(), k.outerIndexPtr() + m + 1, ref.outerIndexPtr()));
+  EXPECT_TRUE(std::equal(k.innerIndexPtr(), k.innerIndexPtr() + k.nonZeros(), ref.innerIndexPtr()));
+  EXPECT_EQ(std::memcmp(k.valuePtr(), ref.valuePtr(), sizeof(double) * k.nonZeros()), 0);
+}
+
 // memory that runs out inside CHOLMOD is std::bad_alloc, the run's "out of memory" (it was
 // "CHOLMOD analysis failed (out of memory?)"), for the factor built for updates too
 TEST(Structural, MemoryThatRunsOutInCholmodIsBadAlloc) {

@@ -131,8 +131,8 @@ int benchLocal(const BenchStructuralOptions& opt) {
       "along x; slack %.1f mm, full refresh every %d solves%s; one BLAS thread\n",
       opt.overload, critical, opt.frames, opt.stepMm, opt.slackMm, opt.refresh,
       opt.refreshOnThread ? " on a thread (fulls: the frame's own)" : "");
-  std::printf("%8s %8s %7s %9s %9s %9s %9s %6s %7s %10s %12s %10s %8s %6s\n", "nodes", "scene",
-              "method", "margin_mm", "med_ms", "mean_ms", "max_ms", "fulls", "builds",
+  std::printf("%8s %8s %7s %9s %9s %9s %9s %6s %7s %9s %10s %12s %10s %8s %6s\n", "nodes", "scene",
+              "method", "margin_mm", "med_ms", "mean_ms", "max_ms", "fulls", "builds", "build_ms",
               "region_dofs", "vm_maxerr_Pa", "vm_rel_l2", "set_diff", "above");
   for (const int nodes : sizes) {
     const BenchSlab b = benchSlab(nodes);
@@ -163,9 +163,9 @@ int benchLocal(const BenchStructuralOptions& opt) {
       int above = 0;
       for (double vm : truth.back()) above += vm >= critical;
       const Timing ft = timing(fullMs);
-      std::printf("%8d %8s %7s %9s %9.2f %9.2f %9.2f %6d %7d %10d %12s %10s %8s %6d\n",
+      std::printf("%8d %8s %7s %9s %9.2f %9.2f %9.2f %6d %7d %9s %10d %12s %10s %8s %6d\n",
                   b.mesh.numNodes(), scene, "full", "-", ft.median, ft.mean, ft.max, opt.frames, 0,
-                  full.numFreeDofs(), "-", "-", "-", above);
+                  "-", full.numFreeDofs(), "-", "-", "-", above);
       std::fflush(stdout);
       for (double marginMm : margins) {
         LocalSolveOptions lo;
@@ -175,7 +175,7 @@ int benchLocal(const BenchStructuralOptions& opt) {
         lo.refreshOnThread = opt.refreshOnThread;
         local.setSolveMethod(StructuralSolveMethod::full, lo);  // drops the reference
         local.setSolveMethod(StructuralSolveMethod::local, lo);
-        std::vector<double> ms;
+        std::vector<double> ms, buildMs;
         int fulls = 0, builds = 0, regionDofs = 0, setDiff = 0;
         double maxErr = 0, relL2 = 0;
         for (int k = 0; k < opt.frames; ++k) {
@@ -186,6 +186,7 @@ int benchLocal(const BenchStructuralOptions& opt) {
           const StructuralSolveStats& st = local.lastSolveStats();
           fulls += !st.local;
           builds += st.regionBuilt;
+          if (st.regionBuilt) buildMs.push_back(1e3 * st.regionFactorSeconds);
           regionDofs = std::max(regionDofs, st.regionDofs);
           double err2 = 0, norm2 = 0;
           int diff = 0;
@@ -200,9 +201,12 @@ int benchLocal(const BenchStructuralOptions& opt) {
           setDiff = std::max(setDiff, diff);
         }
         const Timing lt = timing(ms);
-        std::printf("%8d %8s %7s %9.1f %9.2f %9.2f %9.2f %6d %7d %10d %12.1f %10.1e %8d %6d\n",
+        char buildMedian[32] = "-";  // the region builds' median [ms]
+        if (!buildMs.empty())
+          std::snprintf(buildMedian, sizeof buildMedian, "%.2f", timing(buildMs).median);
+        std::printf("%8d %8s %7s %9.1f %9.2f %9.2f %9.2f %6d %7d %9s %10d %12.1f %10.1e %8d %6d\n",
                     b.mesh.numNodes(), scene, "local", marginMm, lt.median, lt.mean, lt.max, fulls,
-                    builds, regionDofs, maxErr, relL2, setDiff, above);
+                    builds, buildMedian, regionDofs, maxErr, relL2, setDiff, above);
         std::fflush(stdout);
       }
     }
