@@ -111,13 +111,16 @@ TEST(SweepCli, LocalSweepRecordsResumesAndVerifies) {
       << changed.output;
   fs::remove(dir / "runs/v0001/run/timing.csv");
   writeFile(dir / "runs/v0003/run/notes.txt", "added\n");
+  writeFile(dir / "runs/v0000/frame_0.png", "added next to run/\n");
   const Result more = esim("dataset verify " + dir.string());
   EXPECT_EQ(more.exitCode, 3) << more.output;
   EXPECT_NE(more.output.find("runs/v0001/run/timing.csv: missing"), std::string::npos)
       << more.output;
   EXPECT_NE(more.output.find("runs/v0003/run/notes.txt: not in the manifest"), std::string::npos)
       << more.output;
-  EXPECT_NE(more.output.find("3 problems"), std::string::npos) << more.output;
+  EXPECT_NE(more.output.find("runs/v0000/frame_0.png: not in the manifest"), std::string::npos)
+      << more.output;
+  EXPECT_NE(more.output.find("4 problems"), std::string::npos) << more.output;
   fs::remove_all(dir);
 }
 

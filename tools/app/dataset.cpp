@@ -247,13 +247,18 @@ VerifyReport verifyDataset(const fs::path& dir) {
       rep.problems.push_back(at + "files: expected an object {path: xxh3}, got " + files.dump());
       continue;
     }
-    // what is on disk now: scenario.yaml and everything under run/
+    // what is on disk now: scenario.yaml, everything under run/, and anything else in the
+    // variant's folder but the sweep's own log.txt and result.json (an added file there was
+    // not noticed)
     std::map<std::string, fs::path> onDisk;
     const fs::path vdir = dataset::variantDir(dir, id);
-    if (fs::is_regular_file(vdir / "scenario.yaml", ec))
-      onDisk[(vdir / "scenario.yaml").lexically_relative(dir).generic_string()] =
-          vdir / "scenario.yaml";
     const fs::path run = dataset::runDir(dir, id);
+    if (fs::is_directory(vdir, ec))
+      for (const fs::directory_entry& e : fs::directory_iterator(vdir, ec)) {
+        const std::string name = e.path().filename().string();
+        if (e.path() == run || name == "log.txt" || name == "result.json") continue;
+        onDisk[e.path().lexically_relative(dir).generic_string()] = e.path();
+      }
     if (fs::is_directory(run, ec))
       for (auto it = fs::recursive_directory_iterator(run);
            it != fs::recursive_directory_iterator(); ++it)
