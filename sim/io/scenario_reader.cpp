@@ -416,7 +416,15 @@ void applyOverride(YAML::Node& root, const std::string& text, const std::string&
   try {
     value = YAML::Load(valueText);
   } catch (const YAML::Exception& e) {
-    throw Error(where + "malformed value: " + e.msg);
+    // {t_s:0} is one plain scalar "t_s:0" to YAML, and yaml-cpp then only says that the map
+    // does not end
+    bool tightColon = false;
+    for (size_t i = valueText.find(':'); i != std::string::npos; i = valueText.find(':', i + 1))
+      tightColon |= i + 1 < valueText.size() && valueText[i + 1] != ' ';
+    throw Error(where + "malformed value: " + e.msg +
+                (tightColon ? " (in YAML flow style each ':' is followed by a space: "
+                              "[{t_s: 0, position_m: [0, 0, 0.01]}])"
+                            : ""));
   }
   if (!root.IsMap()) root = YAML::Node(YAML::NodeType::Map);
   setPath(root, keys, 0, value);

@@ -300,6 +300,9 @@ TEST(Scenario, BadOverridesAreErrors) {
       errorOf("", {"physics=[electric, thermal, boiling, structural, ruptur]"}),
       {"--set physics=", "physics[4]: unknown phase 'ruptur'", "did you mean 'rupture'?"});
   expectMessage(errorOf("", {"tool.path=[1"}), {"--set tool.path=[1", "malformed value"});
+  expectMessage(errorOf("", {"tool.path=[{t_s:0,position_m:[0,0,0.01]}]"}),
+                {"malformed value", "each ':' is followed by a space"});
+  EXPECT_EQ(errorOf("", {"tool.path=[1"}).find("followed by a space"), std::string::npos);
   // an index into a list: it listed the tool's keys as the ones expected
   expectMessage(errorOf("", {"tool.path[1].orientation_deg=[90, 0, 0]"}),
                 {"tool.path[1]: --set cannot pick one entry of a list; give the whole list "
