@@ -223,6 +223,33 @@ Adjacency nodeAdjacency(const TetMesh& mesh) {
   return buildCsr(mesh.numNodes(), pairs);
 }
 
+std::vector<int> nodePieces(const TetMesh& mesh, int* count) {
+  const int n = mesh.numNodes();
+  std::vector<int> root(n);
+  for (int v = 0; v < n; ++v) root[v] = v;
+  const auto find = [&](int v) {
+    while (root[v] != v) v = root[v] = root[root[v]];
+    return v;
+  };
+  std::vector<std::uint8_t> used(n, 0);
+  for (int e = 0; e < mesh.numTets(); ++e) {
+    if (!mesh.isAlive(e)) continue;
+    const Tet& t = mesh.tets[e];
+    for (int a = 0; a < 4; ++a) {
+      used[t[a]] = 1;
+      const int ra = find(t[a]), r0 = find(t[0]);
+      if (ra != r0) root[std::max(ra, r0)] = std::min(ra, r0);
+    }
+  }
+  // each root is its piece's lowest node (unions keep the lower root), seen first in order
+  std::vector<int> piece(n, -1);
+  int pieces = 0;
+  for (int v = 0; v < n; ++v)
+    if (used[v]) piece[v] = find(v) == v ? pieces++ : piece[find(v)];
+  if (count) *count = pieces;
+  return piece;
+}
+
 Adjacency nodeTets(const TetMesh& mesh) {
   if (!mesh.alive.empty()) return aliveTetsAtNodes(mesh.numNodes(), mesh.tets, mesh.alive.data());
   const std::vector<std::uint8_t> all(mesh.tets.size(), 1);

@@ -117,6 +117,11 @@ Adjacency aliveTetsAtNodes(int numNodes, const std::vector<Tet>& tets, const std
 // tet -> alive tets sharing a face (sorted)
 Adjacency tetNeighbours(const TetMesh& mesh);
 
+// the pieces of the alive tets connected through shared nodes (as a P1 field couples them):
+// per node its piece 0 .. count - 1, numbered in the order of their lowest node, or -1 for a
+// node in no alive tet; *count gets the number of pieces
+std::vector<int> nodePieces(const TetMesh& mesh, int* count);
+
 // quality of the alive tets
 MeshQuality meshQuality(const TetMesh& mesh);
 

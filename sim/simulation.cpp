@@ -133,6 +133,41 @@ std::vector<Support> clampedSupports(const TetMesh& mesh, const std::vector<int>
   return supports;
 }
 
+// "" when every piece of the mesh has a node on the return electrode; else what the pieces
+// without one are (a second body in a mesh file, a fragment): no current flows in them
+std::string unreturnedPiecesWarning(const TetMesh& mesh, const std::vector<int>& groundNodes) {
+  int count = 0;
+  const std::vector<int> piece = nodePieces(mesh, &count);
+  std::vector<std::uint8_t> grounded(count, 0);
+  for (int v : groundNodes)
+    if (piece[v] >= 0) grounded[piece[v]] = 1;
+  std::vector<int> nodes(count, 0);
+  std::vector<Eigen::AlignedBox3d> box(count);
+  for (int v = 0; v < mesh.numNodes(); ++v)
+    if (piece[v] >= 0 && !grounded[piece[v]]) {
+      ++nodes[piece[v]];
+      box[piece[v]].extend(mesh.nodes[v]);
+    }
+  int loose = 0, first = -1;
+  for (int p = 0; p < count; ++p)
+    if (!grounded[p]) {
+      ++loose;
+      if (first < 0) first = p;
+    }
+  if (loose == 0) return "";
+  const auto mm = [](const Vec3& p) {
+    char buf[96];
+    std::snprintf(buf, sizeof buf, "[%.1f, %.1f, %.1f]", 1e3 * p.x(), 1e3 * p.y(), 1e3 * p.z());
+    return std::string(buf);
+  };
+  return "the mesh is " + std::to_string(count) + " separate pieces, and " + std::to_string(loose) +
+         (loose == 1 ? " of them has" : " of them have") +
+         " no node on the return electrode (the first: " + std::to_string(nodes[first]) +
+         " nodes, from " + mm(box[first].min()) + " to " + mm(box[first].max()) +
+         " mm): no current flows in it, and a tool touching it delivers none (one body per "
+         "mesh file, or a return_electrode disc that reaches each piece)";
+}
+
 // median edge length of the tets [m]
 double medianEdgeLengthM(const TetMesh& mesh) {
   std::vector<double> edges;
@@ -253,8 +288,11 @@ void Simulation::buildInitialModel(TetMesh mesh) {
   m.initialFaces = std::move(initialFaces);
   const PhaseSet& ph = config_.phases;
   if (ph.electric) {
-    const size_t ground = returnElectrodeNodes(mesh, surfaceNodes, config_.returnElectrode).size();
+    const std::vector<int> groundNodes =
+        returnElectrodeNodes(mesh, surfaceNodes, config_.returnElectrode);
+    const size_t ground = groundNodes.size();
     ESIM_VERIFY(ground > 0, returnElectrodeMessage(config_.returnElectrode));
+    piecesWarning_ = unreturnedPiecesWarning(mesh, groundNodes);
     // auto: one strategy for the whole run, from the initial mesh (a rebuild keeps it)
     config_.electricSolver.strategy = resolveElectricStrategy(
         config_.electricSolver, static_cast<double>(mesh.numNodes() - ground),
@@ -1159,6 +1197,7 @@ std::string Simulation::noContactWarning() const {
 std::vector<std::string> Simulation::warnings() const {
   std::vector<std::string> w;
   const auto frames = [](int n) { return std::to_string(n) + (n == 1 ? " frame" : " frames"); };
+  if (!piecesWarning_.empty()) w.push_back(piecesWarning_);
   if (std::string nc = noContactWarning(); !nc.empty()) w.push_back(std::move(nc));
   if (framesContactByTet_ > 0)
     w.push_back(frames(framesContactByTet_) +

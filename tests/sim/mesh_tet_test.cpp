@@ -47,6 +47,28 @@ TEST(MeshTet, NodeAdjacencyByHand) {
   EXPECT_EQ(std::vector<int>(tn.begin(1), tn.end(1)), (std::vector<int>{0}));
 }
 
+// pieces through shared nodes: a tet touching another at one node is the same piece; a
+// dead tet joins nothing; a node in no alive tet is in none; pieces numbered by lowest node
+TEST(MeshTet, NodePiecesJoinThroughSharedNodes) {
+  TetMesh m;
+  for (int k = 0; k < 13; ++k) m.nodes.push_back(Vec3(k, (k * 7) % 5, (k * 3) % 4));
+  m.tets = {{5, 6, 7, 8}, {0, 1, 2, 3}, {3, 10, 11, 12}, {4, 8, 9, 2}, {0, 4, 5, 9}};
+  m.alive = {1, 1, 1, 1, 0};
+  int count = -1;
+  std::vector<int> piece = nodePieces(m, &count);
+  // {0,1,2,3} + {3,10,11,12} (node 3) + {4,8,9,2} (node 2) + {5,6,7,8} (node 8): one piece
+  EXPECT_EQ(count, 1);
+  EXPECT_EQ(piece, std::vector<int>(13, 0));
+  m.tets[3] = {4, 9, 12, 1};  // now {5,6,7,8} stands alone; 4 and 9 join through 12 and 1
+  piece = nodePieces(m, &count);
+  EXPECT_EQ(count, 2);
+  EXPECT_EQ(piece, (std::vector<int>{0, 0, 0, 0, 0, 1, 1, 1, 1, 0, 0, 0, 0}));
+  m.alive = {1, 1, 0, 0, 0};  // 9-12 and 4 in no alive tet
+  piece = nodePieces(m, &count);
+  EXPECT_EQ(count, 2);
+  EXPECT_EQ(piece, (std::vector<int>{0, 0, 0, 0, -1, 1, 1, 1, 1, -1, -1, -1, -1}));
+}
+
 // the alive tets at each node, ascending, against a search of every tet; a mesh without
 // alive flags counts every tet
 TEST(MeshTet, AliveTetsAtNodesAreEveryAliveTetAtTheNode) {

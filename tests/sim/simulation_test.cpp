@@ -675,6 +675,36 @@ TEST(SimulationGuards, ABuriedElectrodeDeliversCurrentAndSaysHow) {
   EXPECT_NE(air.warnings()[0].find("touched the tissue in none"), std::string::npos);
 }
 
+// a second body in the mesh, off the return electrode: named at set-up (it carries no current
+// whatever the tool does); one body, or both on the pad, say nothing
+TEST(SimulationGuards, APieceOffTheReturnElectrodeIsNamed) {
+  const TetMesh one = smallSlab();
+  TetMesh two = one;
+  for (const Vec3& p : one.nodes) two.nodes.push_back(p + Vec3(0.1, 0, 0));
+  const int n = one.numNodes();
+  for (const Tet& t : one.tets) two.tets.push_back({t[0] + n, t[1] + n, t[2] + n, t[3] + n});
+  two.alive.assign(two.tets.size(), 1);
+  Simulation sim(two, cutConfig(false));
+  const FrameRecord& r = sim.step();
+  EXPECT_GT(r.contactNodes, 0);
+  EXPECT_NEAR(r.returnCurrentA, r.toolCurrentA, 1e-9 * r.toolCurrentA);
+  ASSERT_EQ(sim.warnings().size(), 1u);
+  EXPECT_EQ(sim.warnings()[0],
+            "the mesh is 2 separate pieces, and 1 of them has no node on the return electrode "
+            "(the first: 3125 nodes, from [70.0, -30.0, 0.0] to [130.0, 30.0, 10.0] mm): no "
+            "current flows in it, and a tool touching it delivers none (one body per mesh file, "
+            "or a return_electrode disc that reaches each piece)");
+  SimulationConfig wide = cutConfig(false);
+  wide.returnElectrode.centerM = Vec3(0.05, 0, 0);
+  wide.returnElectrode.radiusM = 0.1;
+  Simulation both(two, wide);
+  both.step();
+  EXPECT_TRUE(both.warnings().empty()) << both.warnings()[0];
+  Simulation single(one, cutConfig(false));
+  single.step();
+  EXPECT_TRUE(single.warnings().empty()) << single.warnings()[0];
+}
+
 TEST(SimulationGuards, AToolThatNeverTouchesTheTissueSaysHowCloseItCame) {
   // the ball (radius 0.5 mm) 10 mm above a node of the slab's top face (z = 10 mm)
   SimulationConfig c = sphereAt(Vec3(0, 0, 0.02));
