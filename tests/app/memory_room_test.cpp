@@ -5,6 +5,7 @@
 #include "tools/app/memory_room.h"
 
 #include <gtest/gtest.h>
+#include <malloc.h>
 #include <sys/prctl.h>
 
 #include <cstdlib>
@@ -260,6 +261,42 @@ TEST(TransparentHugePages, AreOffUnlessAllowed) {
   EXPECT_EQ(prctl(PR_GET_THP_DISABLE, 0, 0, 0, 0), 1);
   unsetenv("ESIM_ALLOW_THP");
 }
+
+// blocks up to 64 MiB come from the heap (glibc would map one of 40 MiB on its own), larger
+// ones still get their own mapping; ESIM_DEFAULT_MALLOC=1 or GLIBC_TUNABLES leave glibc's
+// defaults. Not under the sanitizers, whose allocators take no mallopt.
+#if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
+TEST(Malloc, LargeBlocksComeFromTheHeapUnlessDefaultsAreAsked) {
+  const char* tunables = std::getenv("GLIBC_TUNABLES");
+  const std::string saved = tunables ? tunables : "";
+  unsetenv("GLIBC_TUNABLES");
+  unsetenv("ESIM_DEFAULT_MALLOC");
+  keepLargeBlocksInTheHeap();
+  EXPECT_EQ(mallocNote(), "blocks up to 64 MiB from the heap, up to 64 MiB kept free at its top");
+  const size_t mapped = mallinfo2().hblks;
+  auto* p = static_cast<volatile char*>(std::malloc(40 << 20));
+  ASSERT_NE(p, nullptr);
+  p[0] = 1;
+  EXPECT_EQ(mallinfo2().hblks, mapped) << "a 40 MiB block had a mapping of its own";
+  auto* q = static_cast<volatile char*>(std::malloc(100 << 20));
+  ASSERT_NE(q, nullptr);
+  q[0] = 1;
+  EXPECT_EQ(mallinfo2().hblks, mapped + 1);
+  std::free(const_cast<char*>(q));
+  std::free(const_cast<char*>(p));
+  setenv("ESIM_DEFAULT_MALLOC", "1", 1);
+  keepLargeBlocksInTheHeap();
+  EXPECT_EQ(mallocNote(), "glibc's defaults (ESIM_DEFAULT_MALLOC=1)");
+  unsetenv("ESIM_DEFAULT_MALLOC");
+  setenv("GLIBC_TUNABLES", "glibc.malloc.mmap_threshold=1048576", 1);
+  keepLargeBlocksInTheHeap();
+  EXPECT_EQ(mallocNote(), "glibc's defaults or GLIBC_TUNABLES");
+  if (saved.empty())
+    unsetenv("GLIBC_TUNABLES");
+  else
+    setenv("GLIBC_TUNABLES", saved.c_str(), 1);
+}
+#endif
 
 }  // namespace
 }  // namespace esim::app

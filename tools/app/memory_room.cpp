@@ -2,6 +2,7 @@
 #include "tools/app/memory_room.h"
 
 #include <fcntl.h>
+#include <malloc.h>
 #include <sys/prctl.h>
 #include <sys/resource.h>
 #include <unistd.h>
@@ -30,6 +31,7 @@ constexpr double kUnlimitedV1 = 1e18;
 
 std::string gAddressSpaceBound;  // what boundAddressSpace set (addressSpaceBound)
 std::string gHugePages;          // what disableTransparentHugePages did
+std::string gMalloc;             // what keepLargeBlocksInTheHeap did
 int gWatcherPipe = -1;           // watchOutOfMemory's write end, held by the watched process
 
 // a "Key:   N kB" line of a /proc file, in bytes (-1 if absent)
@@ -252,6 +254,24 @@ void disableTransparentHugePages() {
 }
 
 const std::string& transparentHugePagesNote() { return gHugePages; }
+
+void keepLargeBlocksInTheHeap() {
+  const char* keep = std::getenv("ESIM_DEFAULT_MALLOC");
+  if (keep && std::strcmp(keep, "1") == 0) {
+    gMalloc = "glibc's defaults (ESIM_DEFAULT_MALLOC=1)";
+    return;
+  }
+  if (std::getenv("GLIBC_TUNABLES")) {
+    gMalloc = "glibc's defaults or GLIBC_TUNABLES";
+    return;
+  }
+  constexpr int kBytes = 64 << 20;
+  gMalloc = mallopt(M_MMAP_THRESHOLD, kBytes) == 1 && mallopt(M_TRIM_THRESHOLD, kBytes) == 1
+                ? "blocks up to 64 MiB from the heap, up to 64 MiB kept free at its top"
+                : "glibc's defaults (mallopt refused)";
+}
+
+const std::string& mallocNote() { return gMalloc; }
 
 namespace {
 

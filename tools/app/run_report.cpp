@@ -206,6 +206,7 @@ nlohmann::json machineInfo() {
   j["openblas_core"] = core ? core : "";
   j["memory_bound"] = addressSpaceBound();  // empty: none set (tools/app/memory_room.h)
   j["transparent_huge_pages"] = transparentHugePagesNote();
+  j["malloc"] = mallocNote();
   return j;
 }
 

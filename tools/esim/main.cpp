@@ -67,6 +67,7 @@ int main(int argc, char** argv) {
   useFastBlasKernels(argv);
   esim::app::boundAddressSpace();
   esim::app::disableTransparentHugePages();  // before any thread (they inherit it)
+  esim::app::keepLargeBlocksInTheHeap();
   esim::app::watchOutOfMemory();  // after the exec of useFastBlasKernels, before any thread
   using namespace esim::cli;
   CLI::App app{
