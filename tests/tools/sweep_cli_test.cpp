@@ -112,6 +112,9 @@ TEST(SweepCli, LocalSweepRecordsResumesAndVerifies) {
   fs::remove(dir / "runs/v0001/run/timing.csv");
   writeFile(dir / "runs/v0003/run/notes.txt", "added\n");
   writeFile(dir / "runs/v0000/frame_0.png", "added next to run/\n");
+  fs::create_directories(dir / "runs/v0009/run");
+  writeFile(dir / "runs/v0009/run/video.mp4", "a variant the sweep never had\n");
+  writeFile(dir / "runs/notes.txt", "added beside the variants\n");
   const Result more = esim("dataset verify " + dir.string());
   EXPECT_EQ(more.exitCode, 3) << more.output;
   EXPECT_NE(more.output.find("runs/v0001/run/timing.csv: missing"), std::string::npos)
@@ -120,7 +123,10 @@ TEST(SweepCli, LocalSweepRecordsResumesAndVerifies) {
       << more.output;
   EXPECT_NE(more.output.find("runs/v0000/frame_0.png: not in the manifest"), std::string::npos)
       << more.output;
-  EXPECT_NE(more.output.find("4 problems"), std::string::npos) << more.output;
+  EXPECT_NE(more.output.find("runs/v0009: not in the manifest"), std::string::npos) << more.output;
+  EXPECT_NE(more.output.find("runs/notes.txt: not in the manifest"), std::string::npos)
+      << more.output;
+  EXPECT_NE(more.output.find("6 problems"), std::string::npos) << more.output;
   fs::remove_all(dir);
 }
 

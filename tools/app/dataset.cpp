@@ -199,7 +199,8 @@ VerifyReport verifyDataset(const fs::path& dir) {
   if (!fs::is_regular_file(manifest, ec))
     throw Error(dir.string() + ": no manifest.jsonl (not a sweep folder made by esim sweep)");
   VerifyReport rep;
-  std::set<std::string> ids;  // of the complete variants so far
+  std::set<std::string> ids;     // of the complete variants so far
+  std::set<std::string> listed;  // every id a line names, whatever its status
   std::istringstream in(readText(manifest));
   int lineNo = 0;
   for (std::string text; std::getline(in, text);) {
@@ -220,6 +221,8 @@ VerifyReport verifyDataset(const fs::path& dir) {
       continue;
     }
     ++rep.variants;
+    if (const auto named = line.find("id"); named != line.end() && named->is_string())
+      listed.insert(named->get<std::string>());
     const auto status = line.find("status");
     if (status == line.end() || !status->is_string()) {
       rep.problems.push_back(at + "status: expected a string (complete, failed, ...)");
@@ -301,6 +304,14 @@ VerifyReport verifyDataset(const fs::path& dir) {
     for (const auto& [rel, path] : onDisk)
       rep.problems.push_back(rel + ": not in the manifest (added after the run)");
   }
+  // runs/ holds the variants' folders only: anything else was added beside them
+  std::set<std::string> extra;
+  if (fs::is_directory(dir / "runs", ec))
+    for (const fs::directory_entry& e : fs::directory_iterator(dir / "runs", ec))
+      if (!listed.count(e.path().filename().string()))
+        extra.insert("runs/" + e.path().filename().string());
+  for (const std::string& rel : extra)
+    rep.problems.push_back(rel + ": not in the manifest (no variant has this name)");
   return rep;
 }
 

@@ -81,7 +81,8 @@ void writeManifest(const std::filesystem::path& dir);
 
 // `esim dataset verify DIR`: every file of every complete variant re-hashed against the
 // manifest; a file changed, missing, or not in the manifest (in run/ or beside it in the
-// variant's folder, but the sweep's log.txt and result.json) is a problem
+// variant's folder, but the sweep's log.txt and result.json; or in runs/ beside the
+// variants' folders) is a problem
 struct VerifyReport {
   int variants = 0, complete = 0, notComplete = 0;
   int filesChecked = 0;
