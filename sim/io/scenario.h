@@ -160,6 +160,10 @@ struct ScenarioTool {
   // nodes this close to the tool surface are in contact
   double contactDistanceM = scenario_detail::core().contactDistanceM;
   std::vector<ScenarioKeyframe> path{ScenarioKeyframe{}};
+  // the keyframes from a CSV file instead (a line t_s, x_m, y_m, z_m[, rx_deg, ry_deg,
+  // rz_deg]); as written, resolved like mesh.file.path; `path` then holds what it read
+  std::string pathFile;
+  std::string pathFileResolved;  // absolute (set by loading; not a scenario key)
   // [on, off) intervals [s]; the default [[0, inf]] is always on; [] is never on
   std::vector<std::array<double, 2>> generatorOnS{{0.0, std::numeric_limits<double>::infinity()}};
   bool operator==(const ScenarioTool&) const = default;

@@ -1,15 +1,19 @@
 // scenario_checks.cpp - the cross-field rules of a scenario (see scenario_checks.h).
 //
 // After the Reader has checked every field alone, checkScenario checks the rules between
-// fields, in this order: phase dependencies and the effects and heat sources they need;
-// the mesh (grid sizes, the planned cut, refinement, the mesh file, resolved through
-// resolveAsset); the frame count; the camera; the look (colour ranges, even video sizes,
-// MSAA). The first broken rule throws, located at the field it names.
+// fields, in this order: the tool path file (read into tool.path); phase dependencies and the
+// effects and heat sources they need; the mesh (grid sizes, the planned cut, refinement, the mesh
+// file, resolved through resolveAsset); the frame count; the camera; the look (colour ranges, even
+// video sizes, MSAA). The first broken rule throws, located at the field it names.
 #include "sim/io/scenario_checks.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 
 #include "sim/core_error.h"
 #include "sim/io/mesh_import.h"
@@ -28,10 +32,12 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// mesh.file.path resolved: the scenario's folder, the nearest ancestor holding assets/
-// (the repository root), then the working directory
+// a file named by `key` (mesh.file.path, tool.path_file) resolved: the scenario's folder, the
+// nearest ancestor holding assets/ (the repository root), then the working directory;
+// `expected` says what the file should be
 std::string resolveAsset(const std::string& path, const std::string& sourceName,
-                         const Reader& reader) {
+                         const Reader& reader, const std::string& key,
+                         const std::string& expected) {
   const fs::path p(path);
   std::vector<fs::path> tried;
   if (p.is_absolute()) {
@@ -58,15 +64,92 @@ std::string resolveAsset(const std::string& path, const std::string& sourceName,
     const fs::path full = fs::absolute(t, ec).lexically_normal();
     if (fs::is_regular_file(full, ec)) return full.string();
     if (fs::exists(full, ec))  // it said "not found" of a folder or a device
-      reader.fail("mesh.file.path",
-                  "mesh.file.path: '" + full.string() + "' is " +
-                      (fs::is_directory(full, ec) ? "a folder" : "not a regular file") +
-                      "; expected a closed surface file (OBJ, STL, PLY or glTF)");
+      reader.fail(key, key + ": '" + full.string() + "' is " +
+                           (fs::is_directory(full, ec) ? "a folder" : "not a regular file") +
+                           "; expected " + expected);
     const std::string n = full.string();
     if (std::find(names.begin(), names.end(), n) == names.end()) names.push_back(n);
   }
-  reader.fail("mesh.file.path",
-              "mesh.file.path: file '" + path + "' not found; tried " + joinList(names));
+  reader.fail(key, key + ": file '" + path + "' not found; tried " + joinList(names));
+}
+
+// tool.path_file read into s.tool.path: each line's numbers checked as tool.path's entries
+// are, named by file and line. Given with tool.path, the one set by an override (--set, a
+// sweep's value) replaces the one in the file; both in the file, or both overrides, is an
+// error.
+void readToolPathFile(Scenario& s, const Reader& r) {
+  const std::string key = "tool.path_file";
+  if (r.marks().count("tool.path")) {
+    const bool fileSet = r.fromOverride(key), listSet = r.fromOverride("tool.path");
+    if (listSet && !fileSet) {  // the list given by an override replaces the file
+      s.tool.pathFile.clear();
+      return;
+    }
+    if (fileSet == listSet)
+      r.fail(key, key +
+                      " and tool.path are both given; give one (the file's keyframes replace "
+                      "the list)");
+  }
+  const std::string file = resolveAsset(s.tool.pathFile, s.sourceName, r, key,
+                                        "a CSV file of keyframes (t_s, x_m, y_m, z_m a line)");
+  s.tool.pathFileResolved = file;
+  std::ifstream in(file, std::ios::binary);
+  if (!in) r.fail(key, key + ": cannot open '" + file + "'");
+  const auto& schema = keyframeSchema();  // t_s, position_m, orientation_deg
+  std::vector<ScenarioKeyframe> keys;
+  int lineNo = 0;
+  for (std::string line; std::getline(in, line);) {
+    ++lineNo;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    const size_t first = line.find_first_not_of(" \t");
+    if (first == std::string::npos || line[first] == '#') continue;
+    const std::string at = key + ": " + file + ":" + std::to_string(lineNo) + ": ";
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    for (std::string c; std::getline(ss, c, ',');) {
+      const size_t b = c.find_first_not_of(" \t"), e = c.find_last_not_of(" \t");
+      cells.push_back(b == std::string::npos ? "" : c.substr(b, e - b + 1));
+    }
+    if (keys.empty() && !cells.empty() && cells[0] == "t_s") {  // the names' line
+      const std::vector<std::string> names{"t_s",    "x_m",    "y_m",   "z_m",
+                                           "rx_deg", "ry_deg", "rz_deg"};
+      if ((cells.size() != 4 && cells.size() != 7) ||
+          !std::equal(cells.begin(), cells.end(), names.begin()))
+        r.fail(key, at + "expected the names t_s,x_m,y_m,z_m (and rx_deg,ry_deg,rz_deg), got '" +
+                        line + "'");
+      continue;
+    }
+    if (cells.size() != 4 && cells.size() != 7)
+      r.fail(key, at +
+                      "expected 4 numbers (t_s, x_m, y_m, z_m) or 7 (and rx_deg, ry_deg, "
+                      "rz_deg), got " +
+                      std::to_string(cells.size()) + " fields");
+    double v[7] = {0, 0, 0, 0, 0, 0, 0};
+    static const char* kNames[7] = {"t_s", "x_m", "y_m", "z_m", "rx_deg", "ry_deg", "rz_deg"};
+    for (size_t c = 0; c < cells.size(); ++c) {
+      const Range& range = schema[c == 0 ? 0 : c < 4 ? 1 : 2].range;
+      char* end = nullptr;
+      errno = 0;
+      v[c] = std::strtod(cells[c].c_str(), &end);
+      if (cells[c].empty() || *end != '\0' || errno == ERANGE || !std::isfinite(v[c]))
+        r.fail(key, at + kNames[c] + " = '" + cells[c] + "': expected a finite number in " +
+                        formatRange(range));
+      if (!range.contains(v[c]))
+        r.fail(key,
+               at + kNames[c] + " = " + formatNumber(v[c]) + " is outside " + formatRange(range));
+    }
+    ScenarioKeyframe k;
+    k.timeS = v[0];
+    k.positionM = Vec3(v[1], v[2], v[3]);
+    k.orientationDeg = Vec3(v[4], v[5], v[6]);
+    if (!keys.empty() && !(k.timeS > keys.back().timeS))
+      r.fail(key, at + "t_s = " + formatNumber(k.timeS) + " is not after the line before's " +
+                      formatNumber(keys.back().timeS) + "; keyframe times must strictly increase");
+    keys.push_back(k);
+  }
+  if (in.bad()) r.fail(key, key + ": reading '" + file + "' failed");
+  if (keys.empty()) r.fail(key, key + ": '" + file + "' holds no keyframe (t_s, x_m, y_m, z_m)");
+  s.tool.path = std::move(keys);
 }
 
 // physics: each phase has the phases it builds on, and a heat source
@@ -141,7 +224,8 @@ void checkMesh(Scenario& s, const Reader& r) {
   if (s.mesh.source == MeshSource::File) {
     if (s.mesh.file.path.empty())
       r.fail("mesh.source", "mesh.source = file needs mesh.file.path (a surface file)");
-    s.mesh.file.resolvedPath = resolveAsset(s.mesh.file.path, s.sourceName, r);
+    s.mesh.file.resolvedPath = resolveAsset(s.mesh.file.path, s.sourceName, r, "mesh.file.path",
+                                            "a closed surface file (OBJ, STL, PLY or glTF)");
   }
 }
 
@@ -190,6 +274,7 @@ void checkLook(const Scenario& s, const Reader& r) {
 }  // namespace
 
 void checkScenario(Scenario& s, const Reader& r) {
+  if (!s.tool.pathFile.empty()) readToolPathFile(s, r);
   checkPhases(s, r);
   checkEffects(s, r);
   checkMesh(s, r);

@@ -69,11 +69,25 @@ std::string closestName(const std::string& word, const std::vector<std::string>&
 // ---- Reader ----
 
 // where a field's value came from: "--set k=v", "file:line:col" or "file"
+namespace {
+
+// is `path` the override's key or a field under it?
+bool underKey(const std::string& path, const std::string& key) {
+  return path == key || (path.size() > key.size() && path.compare(0, key.size(), key) == 0 &&
+                         (path[key.size()] == '.' || path[key.size()] == '['));
+}
+
+}  // namespace
+
+bool Reader::fromOverride(const std::string& path) const {
+  for (const auto& [key, text] : overrides_)
+    if (underKey(path, key)) return true;
+  return false;
+}
+
 std::string Reader::where(const std::string& path, const YAML::Mark& mark) const {
   for (const auto& [key, text] : overrides_)
-    if (path == key || (path.size() > key.size() && path.compare(0, key.size(), key) == 0 &&
-                        (path[key.size()] == '.' || path[key.size()] == '[')))
-      return source_ + ": --set " + text;
+    if (underKey(path, key)) return source_ + ": --set " + text;
   if (mark.is_null()) return source_;
   return source_ + ":" + std::to_string(mark.line + 1) + ":" + std::to_string(mark.column + 1);
 }

@@ -26,6 +26,9 @@ class Reader {
   // remembers an override so messages about its fields point at it
   void noteOverride(const std::string& path, const std::string& text) { overrides_[path] = text; }
 
+  // was this field (or a group above it) given by an override?
+  bool fromOverride(const std::string& path) const;
+
   // where a field's value came from: "--set k=v", "file:line:col" or "file"
   std::string where(const std::string& path, const YAML::Mark& mark) const;
   std::string where(const std::string& path) const;

@@ -202,6 +202,10 @@ const std::vector<Field>& schema() {
                  "keyframes {t_s, position_m, orientation_deg}: tip position linear, orientation "
                  "slerp, held before the first and after the last",
                  ESIM_REF(tool.path)});
+    f.push_back(text("tool.path_file", ESIM_REF(tool.pathFile),
+                     "CSV of keyframes instead of tool.path, one a line: t_s, x_m, y_m, z_m and "
+                     "optionally rx_deg, ry_deg, rz_deg (a first line of these names, blank "
+                     "lines and lines starting with # are skipped); found like mesh.file.path"));
     f.push_back({"tool.generator_on",
                  Kind::Intervals,
                  "s",

@@ -453,6 +453,73 @@ TEST(Scenario, UnknownPhaseSuggestsTheClosestPhase) {
                 {"physics[1]: phase 'electric' is listed twice"});
 }
 
+// tool.path_file: a CSV of keyframes read into tool.path (names line, comments, blank lines,
+// CRLF, 4 or 7 columns); each bad line named by file and line with what was expected; given
+// with tool.path, the override wins, else both are an error; the written scenario names the
+// file and holds no keyframes, and reads back the same
+TEST(Scenario, ToolPathFileIsReadAndCheckedLineByLine) {
+  const fs::path dir = fs::temp_directory_path() / "esim_scenario_test_path_file";
+  fs::create_directories(dir);
+  const std::string yaml = "tool:\n  path_file: path.csv\n";
+  const auto load = [&](const std::string& csv, const std::vector<std::string>& overrides = {}) {
+    std::ofstream(dir / "path.csv", std::ios::binary) << csv;
+    return parseScenario(yaml, (dir / "x.yaml").string(), overrides);
+  };
+  const auto fails = [&](const std::string& csv, const std::vector<std::string>& overrides = {}) {
+    try {
+      load(csv, overrides);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("(no error)");
+  };
+  const Scenario s = load(
+      "# a recorded path\nt_s,x_m,y_m,z_m,rx_deg,ry_deg,rz_deg\n\n0, 0.01, -0.02, 0.0095, 0, 15, "
+      "0\r\n0.5,0.02,-0.02,0.0095,0,15,90\n");
+  ASSERT_EQ(s.tool.path.size(), 2u);
+  EXPECT_EQ(s.tool.path[1].timeS, 0.5);
+  EXPECT_EQ(s.tool.path[0].positionM, Vec3(0.01, -0.02, 0.0095));
+  EXPECT_EQ(s.tool.path[1].orientationDeg, Vec3(0, 15, 90));
+  EXPECT_EQ(s.tool.pathFileResolved, (dir / "path.csv").lexically_normal().string());
+  const std::string written = scenarioToYaml(s);
+  EXPECT_NE(written.find("path_file: \"path.csv\""), std::string::npos) << written;
+  EXPECT_EQ(written.find("t_s:"), std::string::npos) << "no keyframes written";
+  EXPECT_EQ(parseScenario(written, (dir / "y.yaml").string()).tool, s.tool);
+  EXPECT_EQ(load("0,0,0,0.01\n").tool.path[0].orientationDeg, Vec3(0, 0, 0));
+  const std::string file = (dir / "path.csv").lexically_normal().string();
+  const std::string at = "x.yaml:2:14: tool.path_file: ";
+  expectMessage(fails("0,0,0,0.01\n0,0,0,0.02\n"),
+                {at + file +
+                 ":2: t_s = 0 is not after the line before's 0; keyframe times must "
+                 "strictly increase"});
+  expectMessage(fails("0,0,0\n"),
+                {file + ":1: expected 4 numbers (t_s, x_m, y_m, z_m) or 7", "got 3 fields"});
+  expectMessage(fails("t_s,x_m,y_m,z_m\n0,0,0,abc\n"),
+                {file + ":2: z_m = 'abc': expected a finite number in [-10, 10]"});
+  expectMessage(fails("0,0,0,0.01,0,0,1000\n"),
+                {file + ":1: rz_deg = 1000 is outside [-720, 720]"});
+  expectMessage(fails("0,1e400,0,0\n"), {file + ":1: x_m = '1e400': expected a finite number"});
+  expectMessage(fails("t_s,x,y,z\n0,0,0,0\n"),
+                {file + ":1: expected the names t_s,x_m,y_m,z_m (and rx_deg,ry_deg,rz_deg)"});
+  expectMessage(fails("# nothing\n\n"), {"holds no keyframe"});
+  // with tool.path: an override replaces the other; both in one place is an error
+  const std::string list = "tool.path=[{t_s: 0, position_m: [0, 0, 0.02]}]";
+  const Scenario listWins = load("0,0,0,0.01\n", {list});
+  EXPECT_EQ(listWins.tool.path[0].positionM, Vec3(0, 0, 0.02));
+  EXPECT_TRUE(listWins.tool.pathFile.empty());
+  const Scenario fileWins = parseScenario("tool: {path: [{t_s: 0, position_m: [0, 0, 0.02]}]}\n",
+                                          (dir / "x.yaml").string(), {"tool.path_file=path.csv"});
+  EXPECT_EQ(fileWins.tool.path[0].positionM, Vec3(0, 0, 0.01));
+  expectMessage(fails("0,0,0,0.01\n", {list, "tool.path_file=path.csv"}),
+                {"tool.path_file and tool.path are both given; give one"});
+  expectMessage(
+      errorOf("tool:\n  path: [{t_s: 0, position_m: [0, 0, 0.01]}]\n  path_file: p.csv\n"),
+      {"bad.yaml:3:14: tool.path_file and tool.path are both given"});
+  expectMessage(errorOf("tool:\n  path_file: no_such_path.csv\n"),
+                {"bad.yaml:2:14: tool.path_file: file 'no_such_path.csv' not found; tried "});
+  fs::remove_all(dir);
+}
+
 TEST(Scenario, MissingAssetListsThePathsTried) {
   const std::string msg =
       errorOf("mesh:\n  source: file\n  file:\n    path: assets/no_such_organ.obj\n");

@@ -388,11 +388,14 @@ std::vector<std::string> allRunOptions(const SweepSpec& spec, const SweepOptions
   return o;
 }
 
-// the variant as its run reads it: fully resolved, a mesh file by its absolute path
+// the variant as its run reads it: fully resolved, a mesh file and a tool path file by their
+// absolute paths
 std::string variantYaml(const SweepVariant& v) {
   Scenario s = v.scenario;
   if (s.mesh.source == MeshSource::File && !s.mesh.file.resolvedPath.empty())
     s.mesh.file.path = fs::absolute(s.mesh.file.resolvedPath).lexically_normal().string();
+  if (!s.tool.pathFileResolved.empty())
+    s.tool.pathFile = fs::absolute(s.tool.pathFileResolved).lexically_normal().string();
   return scenarioToYaml(s);
 }
 
