@@ -130,6 +130,38 @@ TEST(SweepCli, LocalSweepRecordsResumesAndVerifies) {
   fs::remove_all(dir);
 }
 
+// a grid over tool.path_file runs recorded paths: each variant's scenario.yaml names its CSV
+// by absolute path (the variant runs on its own, from any folder), and the two paths give
+// two different runs
+TEST(SweepCli, AGridOverToolPathFilesRunsEachPath) {
+  const fs::path dir = tempDir("path_files");
+  const fs::path in = tempDir("path_files_in");
+  fs::create_directories(in);
+  writeFile(in / "left.csv", "t_s,x_m,y_m,z_m\n0,-0.02,0,0.0098\n0.5,-0.01,0,0.0098\n");
+  writeFile(in / "right.csv", "t_s,x_m,y_m,z_m\n0,0.02,0,0.0098\n0.5,0.01,0,0.0098\n");
+  writeFile(in / "base.yaml",
+            "time: {duration_s: 0.2}\nlook: {width: 160, height: 90, msaa: 0}\ntool:\n"
+            "  path_file: left.csv\n");
+  writeFile(in / "sweep.yaml",
+            "name: paths\nbase: base.yaml\ngrid:\n  tool.path_file: [left.csv, right.csv]\n");
+  const Result r =
+      esim("sweep " + (in / "sweep.yaml").string() + " -o " + dir.string() + " --workers 2");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  const auto lines = manifest(dir);
+  ASSERT_EQ(lines.size(), 2u);
+  for (int i = 0; i < 2; ++i) {
+    const std::string yaml =
+        readFile(dir / "runs" / lines[i]["id"].get<std::string>() / "scenario.yaml");
+    const std::string want = (in / (i == 0 ? "left.csv" : "right.csv")).string();
+    EXPECT_NE(yaml.find("path_file: \"" + want + "\""), std::string::npos) << yaml;
+    EXPECT_EQ(yaml.find("t_s:"), std::string::npos) << "the keyframes stay in the file";
+    EXPECT_EQ(lines[i]["status"], "complete");
+  }
+  EXPECT_NE(lines[0]["frames_xxh3"], lines[1]["frames_xxh3"]) << "the two paths drew alike";
+  fs::remove_all(dir);
+  fs::remove_all(in);
+}
+
 // an edited manifest is reported line by line (exit 3), never an internal error: a line that
 // was a number, a status that was a number, or files that were a list ended in a JSON type
 // error (exit 4); a repeated id, a hash that is not a string and a path outside the variant's
