@@ -93,8 +93,21 @@ void readToolPathFile(Scenario& s, const Reader& r) {
   const std::string file = resolveAsset(s.tool.pathFile, s.sourceName, r, key,
                                         "a CSV file of keyframes (t_s, x_m, y_m, z_m a line)");
   s.tool.pathFileResolved = file;
-  std::ifstream in(file, std::ios::binary);
-  if (!in) r.fail(key, key + ": cannot open '" + file + "'");
+  std::ifstream stream(file, std::ios::binary);
+  if (!stream) r.fail(key, key + ": cannot open '" + file + "'");
+  // read whole, bounded (a regular file can be endless: /proc/kcore)
+  constexpr size_t kMaxBytes = size_t{64} << 20;  // ~3 million keyframes
+  std::string text;
+  char chunk[1 << 16];
+  while (stream.read(chunk, sizeof chunk) || stream.gcount() > 0) {
+    text.append(chunk, static_cast<size_t>(stream.gcount()));
+    if (text.size() > kMaxBytes)
+      r.fail(key, key + ": '" + file +
+                      "' is more than 64 MiB; expected a CSV of keyframes "
+                      "(t_s, x_m, y_m, z_m a line)");
+  }
+  if (stream.bad()) r.fail(key, key + ": reading '" + file + "' failed");
+  std::istringstream in(text);
   const auto& schema = keyframeSchema();  // t_s, position_m, orientation_deg
   std::vector<ScenarioKeyframe> keys;
   int lineNo = 0;
@@ -147,7 +160,6 @@ void readToolPathFile(Scenario& s, const Reader& r) {
                       formatNumber(keys.back().timeS) + "; keyframe times must strictly increase");
     keys.push_back(k);
   }
-  if (in.bad()) r.fail(key, key + ": reading '" + file + "' failed");
   if (keys.empty()) r.fail(key, key + ": '" + file + "' holds no keyframe (t_s, x_m, y_m, z_m)");
   s.tool.path = std::move(keys);
 }

@@ -502,6 +502,7 @@ TEST(Scenario, ToolPathFileIsReadAndCheckedLineByLine) {
   expectMessage(fails("t_s,x,y,z\n0,0,0,0\n"),
                 {file + ":1: expected the names t_s,x_m,y_m,z_m (and rx_deg,ry_deg,rz_deg)"});
   expectMessage(fails("# nothing\n\n"), {"holds no keyframe"});
+  expectMessage(fails(std::string((64 << 20) + 1, '#')), {"is more than 64 MiB"});
   // with tool.path: an override replaces the other; both in one place is an error
   const std::string list = "tool.path=[{t_s: 0, position_m: [0, 0, 0.02]}]";
   const Scenario listWins = load("0,0,0,0.01\n", {list});
