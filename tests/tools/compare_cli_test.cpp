@@ -229,6 +229,33 @@ TEST_F(CompareCli, AnEditedHashesFileIsRefusedAtItsField) {
   fs::remove_all(edited);
 }
 
+// what differs in the inputs is said: the scenario (another voltage) or, the scenario the
+// same, the content of a file it names (a tool path CSV edited between two runs: its name,
+// and so the scenario's hash, unchanged)
+TEST_F(CompareCli, DifferentInputsAreNamed) {
+  const Result same = esim("compare " + a_.string() + " " + b_.string());
+  EXPECT_NE(same.output.find("inputs        same"), std::string::npos) << same.output;
+  const Result voltage = esim("compare " + a_.string() + " " + c_.string());
+  EXPECT_NE(voltage.output.find("inputs        DIFFERENT: the scenario (hash "), std::string::npos)
+      << voltage.output;
+  const fs::path dir = temp("inputs");
+  fs::create_directories(dir);
+  const auto runWith = [&](const std::string& csv, const std::string& name) {
+    std::ofstream(dir / "path.csv") << csv;
+    std::ofstream(dir / "s.yaml")
+        << "tool: {path_file: path.csv}\nlook: {width: 160, height: 90}\n";
+    return esim("run " + (dir / "s.yaml").string() + " --frames 2 -q -o " + (dir / name).string());
+  };
+  ASSERT_EQ(runWith("t_s,x_m,y_m,z_m\n0,0,0,0.0098\n", "one").exitCode, 0);
+  ASSERT_EQ(runWith("t_s,x_m,y_m,z_m\n0,0.001,0,0.0098\n", "two").exitCode, 0);
+  const Result edited = esim("compare " + (dir / "one").string() + " " + (dir / "two").string());
+  EXPECT_NE(edited.output.find("inputs        DIFFERENT: tool.path_file's content"),
+            std::string::npos)
+      << edited.output;
+  EXPECT_EQ(edited.output.find("the scenario (hash"), std::string::npos) << edited.output;
+  fs::remove_all(dir);
+}
+
 TEST_F(CompareCli, AMissingRunIsNamed) {
   const Result r = esim("compare " + a_.string() + " /nonexistent/run");
   EXPECT_EQ(r.exitCode, 2) << r.output;

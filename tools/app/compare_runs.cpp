@@ -5,6 +5,7 @@
 #include <fstream>
 #include <iomanip>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <sstream>
 #include <vector>
 
@@ -115,6 +116,26 @@ CompareResult compareRuns(const std::string& runA, const std::string& runB,
   const int w = a.at("width"), h = a.at("height");
   r.sameRenderer = a.value("renderer", nlohmann::json()) == b.value("renderer", nlohmann::json()) &&
                    a.value("libraries", "") == b.value("libraries", "");
+  {
+    std::vector<std::string> differ;
+    const std::string ha = a.value("scenario_hash", ""), hb = b.value("scenario_hash", "");
+    if (ha != hb) differ.push_back("the scenario (hash " + ha + " vs " + hb + ")");
+    const nlohmann::json none = nlohmann::json::object();
+    const nlohmann::json& ia = a.contains("input_files") ? a["input_files"] : none;
+    const nlohmann::json& ib = b.contains("input_files") ? b["input_files"] : none;
+    std::set<std::string> keys;
+    for (const nlohmann::json* in : {&ia, &ib})
+      if (in->is_object())
+        for (auto it = in->begin(); it != in->end(); ++it) keys.insert(it.key());
+    const auto content = [](const nlohmann::json& in, const std::string& k) {
+      return in.is_object() && in.contains(k) && in[k].is_object()
+                 ? in[k].value("xxh3", nlohmann::json())
+                 : nlohmann::json();
+    };
+    for (const std::string& k : keys)
+      if (content(ia, k) != content(ib, k)) differ.push_back(k + "'s content");
+    for (const std::string& d : differ) r.inputsDiffer += (r.inputsDiffer.empty() ? "" : ", ") + d;
+  }
   const auto& fa = a.at("frames");
   const auto& fb = b.at("frames");
   r.framesA = static_cast<int>(fa.size());
@@ -159,6 +180,7 @@ CompareResult compareRuns(const std::string& runA, const std::string& runB,
                           {"frames_a", r.framesA},
                           {"frames_b", r.framesB},
                           {"same_renderer_and_libraries", r.sameRenderer},
+                          {"inputs_differ", r.inputsDiffer},
                           {"identical", r.identical()},
                           {"thresholds",
                            {{"pixel_diff_levels", kPixelDiffThreshold},

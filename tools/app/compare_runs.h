@@ -18,7 +18,10 @@ struct FrameDiff {
 
 struct CompareResult {
   int framesA = 0, framesB = 0;
-  bool sameRenderer = false;     // renderer strings and library versions equal
+  bool sameRenderer = false;  // renderer strings and library versions equal
+  // what differs in the runs' inputs ("" when nothing): the scenario's hash, the content of
+  // a file it names (hashes.json's input_files)
+  std::string inputsDiffer;
   std::vector<FrameDiff> diffs;  // frames whose exact hash differs
   bool identical() const { return framesA == framesB && diffs.empty(); }
   bool withinTolerance() const;

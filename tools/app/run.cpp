@@ -39,6 +39,7 @@
 #include "sim/io/scenario.h"
 #include "sim/io/vtu.h"
 #include "sim/simulation.h"
+#include "tools/app/dataset.h"
 #include "tools/app/exit_codes.h"
 #include "tools/app/json_text.h"
 #include "tools/app/memory_room.h"
@@ -570,6 +571,19 @@ nlohmann::json timingExtra(const Setup& s, const FrameOutputs& out, const LoopRe
   nlohmann::json extra;
   extra["scenario"] = sc.name;
   extra["scenario_hash"] = hashToHex(scenarioHash(sc));
+  // the files the scenario names, by content: the scenario's hash covers their names only
+  nlohmann::json inputs = nlohmann::json::object();
+  const auto input = [&](const char* key, const std::string& path) {
+    if (path.empty()) return;
+    try {
+      inputs[key] = {{"path", path}, {"xxh3", hashFile(path)}};
+    } catch (const Error& e) {
+      inputs[key] = {{"path", path}, {"xxh3", nullptr}, {"error", e.what()}};
+    }
+  };
+  input("mesh.file.path", sc.mesh.source == MeshSource::File ? sc.mesh.file.resolvedPath : "");
+  input("tool.path_file", sc.tool.pathFileResolved);
+  extra["input_files"] = inputs;
   const PhaseSet& ph = sim.config().phases;
   nlohmann::json physics = nlohmann::json::array();
   for (const auto& [on, name] : {std::pair{ph.electric, "electric"},
@@ -654,6 +668,7 @@ nlohmann::json hashesJson(const Setup& s, const FrameOutputs& out, const nlohman
   hj["libraries"] = VideoEncoder::libraryVersions();
   hj["png_every"] = sc.output.pngEvery;
   hj["scenario_hash"] = extra["scenario_hash"];
+  hj["input_files"] = extra["input_files"];
   hj["complete"] = extra["complete"];
   return hj;
 }

@@ -39,6 +39,10 @@ int runCompare(const CompareOptions& o) {
   std::cout << "esim compare " << o.runA << " " << o.runB << "\n";
   std::cout << "  frames        " << r.framesA << " vs " << r.framesB << "\n";
   std::cout << "  renderer/libs " << (r.sameRenderer ? "same" : "DIFFERENT") << "\n";
+  std::cout << "  inputs        "
+            << (r.inputsDiffer.empty() ? "same (the scenario's hash and the files it names)"
+                                       : "DIFFERENT: " + r.inputsDiffer)
+            << "\n";
   const auto printReport = [&] {
     if (report.empty())
       std::cout << "  report        none (--report DIR writes compare.json and the diff PNGs)\n";
