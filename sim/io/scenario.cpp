@@ -201,16 +201,22 @@ std::string quoteInMessage(const std::string& text) {
   return out;
 }
 
-std::string readYamlText(std::istream& in, const std::string& name, const std::string& what) {
-  std::string text;
+bool readAtMost(std::istream& in, const std::string& name, size_t maxBytes, std::string& text) {
+  text.clear();
   char chunk[1 << 16];
   while (in.read(chunk, sizeof chunk) || in.gcount() > 0) {
     text.append(chunk, static_cast<size_t>(in.gcount()));
-    if (text.size() > kMaxYamlBytes)
-      throw Error(name + ": more than " + std::to_string(kMaxYamlBytes >> 20) + " MiB; a " + what +
-                  " is a short YAML file (is this the right file?)");
+    if (text.size() > maxBytes) return false;
   }
   if (in.bad()) throw Error(name + ": read failed", ErrorKind::Run);
+  return true;
+}
+
+std::string readYamlText(std::istream& in, const std::string& name, const std::string& what) {
+  std::string text;
+  if (!readAtMost(in, name, kMaxYamlBytes, text))
+    throw Error(name + ": more than " + std::to_string(kMaxYamlBytes >> 20) + " MiB; a " + what +
+                " is a short YAML file (is this the right file?)");
   return text;
 }
 

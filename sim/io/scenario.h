@@ -350,6 +350,10 @@ Scenario loadScenario(const std::string& path, const std::vector<std::string>& o
 // video) given as the scenario was read until memory ran out
 inline constexpr size_t kMaxYamlBytes = size_t{16} << 20;
 
+// the whole of `in` into text, or false as soon as it holds more than maxBytes (an endless
+// file: /dev/zero, /proc/kcore); a failed read throws Error "NAME: read failed" (run)
+bool readAtMost(std::istream& in, const std::string& name, size_t maxBytes, std::string& text);
+
 // the whole of `in` (a scenario or sweep file, standard input), at most kMaxYamlBytes: more
 // throws Error "NAME: more than 16 MiB; a WHAT is a short YAML file (...)"
 std::string readYamlText(std::istream& in, const std::string& name, const std::string& what);

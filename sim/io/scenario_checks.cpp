@@ -98,17 +98,13 @@ void readToolPathFile(Scenario& s, const Reader& r) {
   // read whole, bounded (a regular file can be endless: /proc/kcore)
   constexpr size_t kMaxBytes = size_t{64} << 20;  // ~3 million keyframes
   std::string text;
-  char chunk[1 << 16];
-  while (stream.read(chunk, sizeof chunk) || stream.gcount() > 0) {
-    text.append(chunk, static_cast<size_t>(stream.gcount()));
-    if (text.size() > kMaxBytes)
-      r.fail(key, key + ": '" + file +
-                      "' is more than 64 MiB; expected a CSV of keyframes "
-                      "(t_s, x_m, y_m, z_m a line)");
-  }
-  if (stream.bad()) r.fail(key, key + ": reading '" + file + "' failed");
+  if (!readAtMost(stream, file, kMaxBytes, text))
+    r.fail(key,
+           key + ": '" + file +
+               "' is more than 64 MiB; expected a CSV of keyframes (t_s, x_m, y_m, z_m a line)");
   std::istringstream in(text);
   const auto& schema = keyframeSchema();  // t_s, position_m, orientation_deg
+  static const char* const kColumns[7] = {"t_s", "x_m", "y_m", "z_m", "rx_deg", "ry_deg", "rz_deg"};
   std::vector<ScenarioKeyframe> keys;
   int lineNo = 0;
   for (std::string line; std::getline(in, line);) {
@@ -123,11 +119,9 @@ void readToolPathFile(Scenario& s, const Reader& r) {
       const size_t b = c.find_first_not_of(" \t"), e = c.find_last_not_of(" \t");
       cells.push_back(b == std::string::npos ? "" : c.substr(b, e - b + 1));
     }
-    if (keys.empty() && !cells.empty() && cells[0] == "t_s") {  // the names' line
-      const std::vector<std::string> names{"t_s",    "x_m",    "y_m",   "z_m",
-                                           "rx_deg", "ry_deg", "rz_deg"};
+    if (keys.empty() && !cells.empty() && cells[0] == kColumns[0]) {  // the names' line
       if ((cells.size() != 4 && cells.size() != 7) ||
-          !std::equal(cells.begin(), cells.end(), names.begin()))
+          !std::equal(cells.begin(), cells.end(), kColumns))
         r.fail(key, at + "expected the names t_s,x_m,y_m,z_m (and rx_deg,ry_deg,rz_deg), got '" +
                         line + "'");
       continue;
@@ -138,18 +132,17 @@ void readToolPathFile(Scenario& s, const Reader& r) {
                       "rz_deg), got " +
                       std::to_string(cells.size()) + " fields");
     double v[7] = {0, 0, 0, 0, 0, 0, 0};
-    static const char* kNames[7] = {"t_s", "x_m", "y_m", "z_m", "rx_deg", "ry_deg", "rz_deg"};
     for (size_t c = 0; c < cells.size(); ++c) {
       const Range& range = schema[c == 0 ? 0 : c < 4 ? 1 : 2].range;
       char* end = nullptr;
       errno = 0;
       v[c] = std::strtod(cells[c].c_str(), &end);
       if (cells[c].empty() || *end != '\0' || errno == ERANGE || !std::isfinite(v[c]))
-        r.fail(key, at + kNames[c] + " = '" + cells[c] + "': expected a finite number in " +
+        r.fail(key, at + kColumns[c] + " = '" + cells[c] + "': expected a finite number in " +
                         formatRange(range));
       if (!range.contains(v[c]))
         r.fail(key,
-               at + kNames[c] + " = " + formatNumber(v[c]) + " is outside " + formatRange(range));
+               at + kColumns[c] + " = " + formatNumber(v[c]) + " is outside " + formatRange(range));
     }
     ScenarioKeyframe k;
     k.timeS = v[0];

@@ -88,9 +88,8 @@ std::string scenarioToYaml(const Scenario& s) {
       open.push_back(parts[i]);
     }
     const std::string indent(2 * (parts.size() - 1), ' ');
-    if (f.kind == Kind::Keyframes && !s.tool.pathFile.empty()) {
-      continue;  // read from tool.path_file (written below)
-    } else if (f.kind == Kind::Keyframes) {
+    if (f.kind == Kind::Keyframes) {
+      if (!s.tool.pathFile.empty()) continue;  // the keyframes stay in tool.path_file
       out += indent + parts.back() + ":\n";
       for (const auto& k : s.tool.path) out += indent + "  - " + formatKeyframe(k) + "\n";
     } else {
