@@ -7,11 +7,13 @@
 #include <gtest/gtest.h>
 #include <malloc.h>
 #include <sys/prctl.h>
+#include <sys/resource.h>
 
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <vector>
 
 #include "tests/scratch_dir_util.h"
 
@@ -227,6 +229,60 @@ TEST_F(MemoryGuardTest, WithoutAnyLimitItIsTheMachinesMemoryAndUnknownNeverStops
   write("proc/meminfo", "MemAvailable:   20000 kB\nSwapFree:       0 kB\n");  // 20.48 MB
   const std::string why = machineOnly.check();
   EXPECT_EQ(why.rfind("memory: the machine has 20 MB available, under the ", 0), 0u) << why;
+}
+
+// each check bounds what the next frame may add to the address space: RLIMIT_AS at what is
+// mapped now + the room left - the 32 MB kept for the reports, said by frameBound(); an
+// allocation past it is refused, one within it given; unbound() and the guard's end put the
+// bound before it back
+TEST_F(MemoryGuardTest, EachCheckBoundsWhatTheNextFrameMayMap) {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  GTEST_SKIP() << "the sanitizers map terabytes: no address-space bound under them";
+#else
+  const auto soft = [] {
+    rlimit l{};
+    EXPECT_EQ(getrlimit(RLIMIT_AS, &l), 0);
+    return l.rlim_cur;
+  };
+  const auto mappedBytes = [] {  // VmSize of this process
+    std::ifstream in("/proc/self/status");
+    std::string line;
+    while (std::getline(in, line))
+      if (line.rfind("VmSize:", 0) == 0) return 1024.0 * std::stod(line.substr(7));
+    return -1.0;
+  };
+  const rlim_t before = soft();
+  {
+    MemoryGuard guard(root_);
+    EXPECT_EQ(guard.frameBound(), "");
+    used(700e6, 400000, 400000);  // 300 MB left
+    EXPECT_EQ(guard.check(), "");
+    EXPECT_NEAR(static_cast<double>(soft()), mappedBytes() + 268e6, 8e6);
+    const std::string group = (root_ / "sys/fs/cgroup/memory/job").string();
+    EXPECT_EQ(guard.frameBound(), "a frame may map 268 MB more: its memory cgroup " + group +
+                                      " has 300 MB left of "
+                                      "1000 MB");
+    EXPECT_THROW(std::vector<char>(static_cast<std::size_t>(400e6)), std::bad_alloc);
+    EXPECT_NO_THROW(std::vector<char>(static_cast<std::size_t>(100e6)));
+    guard.unbound();
+    EXPECT_EQ(soft(), before);
+    EXPECT_EQ(guard.frameBound(), "");
+    EXPECT_EQ(guard.check(), "");  // bounded again
+    EXPECT_NE(soft(), before);
+  }
+  EXPECT_EQ(soft(), before);
+  {
+    MemoryGuard guard(root_);
+    used(900e6, 400000, 400000);  // 100 MB left: 68 MB more
+    EXPECT_EQ(guard.check(), "");
+    EXPECT_EQ(guard.frameBound(), "a frame may map 68 MB more: its memory cgroup " +
+                                      (root_ / "sys/fs/cgroup/memory/job").string() +
+                                      " has 100 MB left of 1000 MB");
+    EXPECT_THROW(std::vector<char>(static_cast<std::size_t>(100e6)), std::bad_alloc);
+  }
+  EXPECT_EQ(soft(), before);
+  EXPECT_NO_THROW(std::vector<char>(static_cast<std::size_t>(400e6)));
+#endif
 }
 
 TEST(MemoryShare, OnlyAPositiveCountIsAShare) {

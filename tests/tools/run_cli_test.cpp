@@ -805,6 +805,92 @@ TEST(RunCli, ARunNearItsMemoryLimitStopsWithItsReports) {
   fs::remove_all(root);
 }
 
+// A frame that asks for more than the room left (a rebuild's second model, a workspace the run
+// has not needed before: ESIM_FAULT=alloc@N:MB stands for one) was given it and then killed by
+// the kernel with no reports, the guard between frames seeing nothing coming. Between frames
+// the address space is bounded by the room left (a folder standing for "/": its v1 group has
+// 300 MB left), so that frame gets std::bad_alloc: exit 1, the frames before it kept with
+// every report, the bound named. A frame that fits goes on, and without the guard nothing
+// bounds the frame (the same 600 MB are given).
+TEST(RunCli, AFrameAskingForMoreThanTheRoomStopsWithItsReports) {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  GTEST_SKIP() << "the sanitizers map terabytes: esim sets no address-space bound under them";
+#endif
+  const fs::path root = tempOut("memory_room_frame");
+  const auto write = [&root](const std::string& rel, const std::string& text) {
+    fs::create_directories((root / rel).parent_path());
+    std::ofstream(root / rel) << text;
+  };
+  write("proc/meminfo", "MemAvailable:   9765625 kB\nSwapFree:       0 kB\n");
+  write("proc/self/cgroup", "4:memory:/job\n");
+  write("sys/fs/cgroup/memory/job/memory.limit_in_bytes", "1000000000\n");
+  write("sys/fs/cgroup/memory/job/memory.usage_in_bytes", "700000000\n");
+  const fs::path out = tempOut("memory_frame");
+  const fs::path partial = out.string() + ".partial";
+  const auto run = [&](const std::string& fault, const std::string& more = "") {
+    fs::remove_all(out);
+    fs::remove_all(partial);
+    return shell("ESIM_FAULT=" + fault + " ESIM_MEMORY_ROOT=" + root.string() + " " + ESIM_EXE +
+                 " run scenarios/paper_slab.yaml --frames 6" + kSmall + more + " -o " +
+                 out.string());
+  };
+  Result r = run("alloc@3:600");
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  EXPECT_NE(
+      r.output.find("esim: error: frame 3: out of memory (a smaller mesh, or another "
+                    "electric strategy: see timing.json's electric_memory_mb); a frame may "
+                    "map 268 MB more: its memory cgroup " +
+                    (root / "sys/fs/cgroup/memory/job").string() + " has 300 MB left of 1000 MB\n"),
+      std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(out));
+  ASSERT_TRUE(fs::exists(partial / "timing.json")) << r.output;
+  const auto timing = nlohmann::json::parse(readFile(partial / "timing.json"));
+  EXPECT_FALSE(timing["complete"].get<bool>());
+  EXPECT_EQ(timing["frames"].get<int>(), 3);
+  EXPECT_EQ(videoFrames(partial / "video.mp4"), 3);
+  EXPECT_EQ(nlohmann::json::parse(readFile(partial / "hashes.json"))["frames"].size(), 3u);
+  // a frame within the room, and the same 600 MB without the guard, go on to the end
+  r = run("alloc@3:200");
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+  r = run("alloc@3:600", " --no-memory-guard");
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+  fs::remove_all(out);
+  fs::remove_all(partial);
+  fs::remove_all(root);
+}
+
+// The same in a real memory cgroup (where this machine gives one of our own): the first
+// removal of a synchronous rebuild builds a second model (~150 MB more at its peak) where
+// 330 MB allow less; it was killed by the kernel (exit 137, no reports) and now stops in that
+// frame with its reports
+TEST(RunCli, ARebuildThatOutgrowsItsCgroupStopsWithItsReports) {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  GTEST_SKIP() << "the sanitizers map terabytes: esim sets no address-space bound under them";
+#endif
+  const OwnMemoryCgroup group("330000000");
+  if (group.enter.empty()) GTEST_SKIP() << "no memory cgroup of our own here (root, cgroupfs)";
+  const fs::path out = tempOut("cgroup_rebuild");
+  const fs::path partial = out.string() + ".partial";
+  fs::remove_all(partial);
+  const Result r = shell("sh -c '" + group.enter + ESIM_EXE +
+                         " run scenarios/slab_cut.yaml --frames 12 --no-video -q -o " +
+                         out.string() + " --set solvers.rebuild.mode=synchronous'");
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  EXPECT_NE(r.output.find(": out of memory ("), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("; a frame may map "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(" more: its memory cgroup " + group.dir.string() + " has "),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("out-of-memory killer"), std::string::npos) << r.output;
+  ASSERT_TRUE(fs::exists(partial / "timing.json")) << r.output;
+  const auto timing = nlohmann::json::parse(readFile(partial / "timing.json"));
+  EXPECT_FALSE(timing["complete"].get<bool>());
+  EXPECT_GE(timing["frames"].get<int>(), 1);
+  EXPECT_LT(timing["frames"].get<int>(), 12);
+  fs::remove_all(partial);
+}
+
 // a video that cannot be finished after the last frame (a disk that fills at the end,
 // injected): the run failed, exit 1, its reports in DIR.partial marked incomplete with the
 // reason (it escaped as bad input, exit 2, with no reports)

@@ -156,7 +156,48 @@ MemoryGuard::MemoryGuard(fs::path root) : root_(std::move(root)) {}
 namespace {
 constexpr double kGuardMarginBytes = 32e6;  // the reports and the video's end
 constexpr double kGuardDropFactor = 1.5;    // the next frame may take more than any before
+
+std::string mb(double bytes) { return std::to_string(std::lround(bytes / 1e6)) + " MB"; }
+
+// where the room is, for messages: "its memory cgroup DIR has 47 MB left of 300 MB"
+std::string whereRoom(const MemoryRoom& room) {
+  return room.cgroup.empty() ? "the machine has " + mb(room.bytes) + " available"
+                             : "its memory cgroup " + room.cgroup.string() + " has " +
+                                   mb(room.bytes) + " left of " + mb(room.cgroupLimitBytes);
+}
 }  // namespace
+
+void MemoryGuard::boundNextFrame(const MemoryRoom& room) {
+#if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
+  // what this process maps (the real one: root_ stands for "/" in tests, for the room only)
+  const double mapped = procBytes("/proc/self/status", "VmSize");
+  rlimit limit{};
+  if (mapped < 0 || room.bytes < 0 || getrlimit(RLIMIT_AS, &limit) != 0) return;
+  if (!haveStartLimit_) {
+    startLimit_ = limit.rlim_cur;
+    haveStartLimit_ = true;
+  }
+  const int share = memoryShareFromEnvironment();
+  const double more = std::max(0.0, room.bytes / share - kGuardMarginBytes);
+  double bound = mapped + more;
+  if (startLimit_ != RLIM_INFINITY) bound = std::min(bound, static_cast<double>(startLimit_));
+  if (limit.rlim_max != RLIM_INFINITY) bound = std::min(bound, static_cast<double>(limit.rlim_max));
+  limit.rlim_cur = static_cast<rlim_t>(bound);
+  if (setrlimit(RLIMIT_AS, &limit) != 0) return;
+  frameBound_ = "a frame may map " + mb(bound - mapped) + " more: " + whereRoom(room) +
+                (share > 1 ? " (this run's share: 1 of " + std::to_string(share) + ")" : "");
+#else
+  (void)room;
+#endif
+}
+
+void MemoryGuard::unbound() {
+  if (!haveStartLimit_) return;
+  rlimit limit{};
+  if (getrlimit(RLIMIT_AS, &limit) != 0) return;
+  limit.rlim_cur = static_cast<rlim_t>(startLimit_);
+  if (setrlimit(RLIMIT_AS, &limit) == 0) frameBound_.clear();
+}
 
 double MemoryGuard::reserveBytes() const {
   return kGuardMarginBytes + kGuardDropFactor * maxDrop_ + maxTransient_;
@@ -181,15 +222,13 @@ std::string MemoryGuard::check() {
     resetPeak();
   }
   const double reserve = reserveBytes();
-  if (room.bytes >= reserve) return "";
-  const auto mb = [](double bytes) { return std::to_string(std::lround(bytes / 1e6)) + " MB"; };
-  const std::string where = room.cgroup.empty()
-                                ? "the machine has " + mb(room.bytes) + " available"
-                                : "its memory cgroup " + room.cgroup.string() + " has " +
-                                      mb(room.bytes) + " left of " + mb(room.cgroupLimitBytes);
-  return "memory: " + where + ", under the " + mb(reserve) + " this run keeps in reserve (" +
-         mb(kGuardMarginBytes) + ", 1.5 times the " + mb(maxDrop_) +
-         " the hungriest frame took, and " + mb(maxTransient_) +
+  if (room.bytes >= reserve) {
+    boundNextFrame(room);
+    return "";
+  }
+  return "memory: " + whereRoom(room) + ", under the " + mb(reserve) +
+         " this run keeps in reserve (" + mb(kGuardMarginBytes) + ", 1.5 times the " +
+         mb(maxDrop_) + " the hungriest frame took, and " + mb(maxTransient_) +
          " a frame held only for a while); it stopped here, before the kernel's out-of-memory "
          "killer would end it without its reports. It needs more: a coarser mesh "
          "(mesh.slab.nodes, mesh.file.cell_size_m), fewer phases, another electric strategy, or "
@@ -207,6 +246,7 @@ void MemoryGuard::released() {
   const MemoryRoom room = memoryRoom(root_, 1);
   if (room.bytes >= 0) lastRoom_ = room.bytes;
   if (peakReset_) resetPeak();
+  boundNextFrame(room);
 }
 
 fs::path memoryRootFromEnvironment() {

@@ -100,6 +100,9 @@ class MemoryGuard {
   // and sys/fs/cgroup/...); empty: no guard (check() reads nothing and says nothing). The
   // first check() takes the room it finds as its start.
   explicit MemoryGuard(std::filesystem::path root = "/");
+  ~MemoryGuard() { unbound(); }
+  MemoryGuard(const MemoryGuard&) = delete;
+  MemoryGuard& operator=(const MemoryGuard&) = delete;
   // after a frame: "" while the room is known and over the reserve (or unknown), else why the
   // run stops: "memory: its memory cgroup DIR has 50 MB left of 550 MB, under the 61 MB this
   // run keeps in reserve (...)"
@@ -108,6 +111,21 @@ class MemoryGuard {
   // again, so that the next check measures the next frame from here (the peak before the
   // release is no frame's transient)
   void released();
+  // Each check() and released() also bounds what the next frame may add to the address space
+  // (RLIMIT_AS): what is mapped now + the room left (its share: ESIM_MEMORY_SHARE) - the 32
+  // MB kept for the reports, never above the bound found at the first check. A frame that asks
+  // for more than the room (a rebuild's second model, a refactorization's workspace the run
+  // has not needed before) gets std::bad_alloc and the run stops with its reports (exit 1),
+  // where the kernel's out-of-memory killer ended it with none (measured: `esim run
+  // scenarios/slab_cut.yaml --set solvers.rebuild.mode=synchronous` in a cgroup v1 group
+  // limited to 330 MB, exit 137 before). The bound counts mappings, not the pages touched: a
+  // frame that touches pages mapped before (a malloc arena's reserve) is not bounded by it.
+  // Not under the sanitizers (they map terabytes). unbound() (and the destructor) puts the
+  // first check's bound back, for the reports.
+  void unbound();
+  // the bound the last check set, for an out-of-memory message: "a frame may map 85 MB more:
+  // its memory cgroup DIR has 117 MB left of 330 MB"; "" when none is set
+  const std::string& frameBound() const { return frameBound_; }
   double reserveBytes() const;                      // as of the last check
   double minRoomBytes() const { return minRoom_; }  // the least room seen (< 0: unknown)
   // the largest peak resident memory read (< 0: none). check() sets the kernel's peak back
@@ -116,13 +134,17 @@ class MemoryGuard {
 
  private:
   void resetPeak();  // the kernel's peak set back to the resident memory (clear_refs 5)
+  void boundNextFrame(const MemoryRoom& room);  // RLIMIT_AS (see unbound)
   std::filesystem::path root_;
   double lastRoom_ = -1;  // the room at the last check (< 0: none yet)
   double minRoom_ = -1;
-  double maxDrop_ = 0;       // largest drop of the room between two checks [bytes]
-  bool peakReset_ = false;   // the last check set the kernel's peak back (clear_refs 5)
-  double maxTransient_ = 0;  // largest VmHWM - VmRSS since such a reset [bytes]
-  double peakSeen_ = -1;     // the largest VmHWM read [bytes]
+  double maxDrop_ = 0;            // largest drop of the room between two checks [bytes]
+  bool peakReset_ = false;        // the last check set the kernel's peak back (clear_refs 5)
+  double maxTransient_ = 0;       // largest VmHWM - VmRSS since such a reset [bytes]
+  double peakSeen_ = -1;          // the largest VmHWM read [bytes]
+  bool haveStartLimit_ = false;   // startLimit_ read (at the first bound)
+  unsigned long startLimit_ = 0;  // RLIMIT_AS's soft limit before the first bound (rlim_t)
+  std::string frameBound_;        // what the last bound set ("" none)
 };
 
 // the root ESIM_MEMORY_ROOT names (a test's folder standing for "/"), else "/"

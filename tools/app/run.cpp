@@ -19,6 +19,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <exception>
 #include <filesystem>
 #include <fstream>
@@ -29,6 +30,7 @@
 #include <new>
 #include <optional>
 #include <sstream>
+#include <system_error>
 #include <thread>
 
 #include "render/image_hash.h"
@@ -157,13 +159,21 @@ Setup setUp(const RunOptions& opt, Scenario scenario) {
 // only by chance (memory running out in the middle of a run): ESIM_FAULT=bad_alloc@N makes
 // frame N throw std::bad_alloc after its physics, as if an allocation had failed;
 // ESIM_FAULT=draw@N makes drawing frame N fail (on the drawing thread when there is one);
-// ESIM_FAULT=video_close@0 makes closing the video fail (a disk that fills at the end).
-// -1: none.
+// ESIM_FAULT=video_close@0 makes closing the video fail (a disk that fills at the end);
+// ESIM_FAULT=alloc@N:MB makes frame N take MB megabytes more (see runLoop). -1: none.
 int injectedFaultFrame(const char* kind) {
   const char* spec = std::getenv("ESIM_FAULT");
   const std::string prefix = std::string(kind) + "@";
   if (!spec || std::string(spec).rfind(prefix, 0) != 0) return -1;
   return std::atoi(spec + prefix.size());
+}
+
+// the MB of ESIM_FAULT=kind@N:MB (0 without it)
+std::size_t injectedFaultMegabytes(const char* kind) {
+  const char* spec = std::getenv("ESIM_FAULT");
+  if (!spec || std::string(spec).rfind(std::string(kind) + "@", 0) != 0) return 0;
+  const char* colon = std::strchr(spec, ':');
+  return colon ? static_cast<std::size_t>(std::max(0L, std::atol(colon + 1))) : 0;
 }
 
 class FrameOutputs {
@@ -837,6 +847,11 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) 
   loop.maxTemperatureSeenC = loop.temperatureNowC = s.sim->temperatureC().maxCoeff();
   Progress progress(s.frames, quiet);
   const int badAllocFrame = injectedFaultFrame("bad_alloc");
+  // ESIM_FAULT=alloc@N:MB: frame N takes MB megabytes more (touched) and holds them to the
+  // end of the run, as a frame that needs a new large block (a rebuild's second model) does
+  const int allocFrame = injectedFaultFrame("alloc");
+  const std::size_t allocBytes = allocFrame < 0 ? 0 : injectedFaultMegabytes("alloc") << 20;
+  std::vector<char> allocBlock;
   // memory left between frames: under the reserve, the electric column cache gives memory
   // back, else the run stops after a whole frame, reports written, rather than be killed in
   // the next one (memory_room.h; off with --no-memory-guard)
@@ -865,6 +880,12 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) 
       progress.update(static_cast<int>(loop.records.size()), loop.records.back().timeS);
     }
   };
+  // the address-space bound in force, for an out-of-memory message ("; a frame may map ...")
+  const auto boundNote = [&memory]() -> std::string {
+    const std::string& bound =
+        memory.frameBound().empty() ? addressSpaceBound() : memory.frameBound();
+    return bound.empty() ? "" : "; " + bound;
+  };
   // a frame that failed (its outputs, or an earlier frame's drawing): the frames before it
   // are kept; false for a stop asked inside the frame (the frame dropped, no failure)
   const auto failed = [&](int f, std::exception_ptr error) {
@@ -883,10 +904,16 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) 
       loop.failure = "frame " + std::to_string(f) +
                      ": out of memory (a smaller mesh, or another electric strategy: see "
                      "timing.json's electric_memory_mb)" +
-                     (addressSpaceBound().empty() ? "" : "; " + addressSpaceBound());
+                     boundNote();
     } catch (const fs::filesystem_error& e) {
       loop.failureKind = ErrorKind::Run;
       loop.failure = "frame " + std::to_string(f) + ": " + e.what();
+    } catch (const std::system_error& e) {
+      // a thread the frame needed could not be started (std::async, std::thread: its stack
+      // refused under the address-space bound, or the user's thread limit, ulimit -u)
+      loop.failureKind = ErrorKind::Run;
+      loop.failure = "frame " + std::to_string(f) + ": a thread could not be started (" + e.what() +
+                     "): out of memory or of threads (ulimit -u)" + boundNote();
     } catch (const Error& e) {
       // the run cannot go on (a failed solve, all tissue gone, a tool reaching the return
       // electrode): the frames so far are kept
@@ -898,6 +925,9 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) 
       loop.failure = at != std::string::npos && what.find(' ') == at + 1
                          ? what
                          : "frame " + std::to_string(f) + ": " + what;
+    } catch (const std::exception& e) {  // a defect: said as one, the frames so far kept
+      loop.failureKind = ErrorKind::Internal;
+      loop.failure = "frame " + std::to_string(f) + ": internal error: " + e.what();
     }
   };
   for (int f = 0; f < s.frames && !gStop; ++f) {
@@ -906,6 +936,7 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) 
     try {
       FrameRecord rec = s.sim->step();
       if (f == badAllocFrame) throw std::bad_alloc();
+      if (f == allocFrame) std::vector<char>(allocBytes).swap(allocBlock);  // touched (zeroed)
       totals.push_back(
           {s.sim->energyDeliveredJ(), s.sim->maxTemperatureSeenC(), rec.maxTemperatureC});
       finished(out.add(f, *s.sim, rec));
