@@ -749,6 +749,29 @@ TEST(RunCli, OutOfMemoryMidRunKeepsTheFramesMarkedPartial) {
   fs::remove_all(partial);
 }
 
+// a thread a frame needs that cannot be started (std::async and std::thread throw
+// std::system_error: the address-space bound refused its stack, or ulimit -u; injected,
+// ESIM_FAULT=thread@N) ends the run like memory that runs out: exit 1, named, the frames
+// before it kept with their reports (it escaped as an internal error, exit 4, with none)
+TEST(RunCli, AThreadThatCannotBeStartedKeepsTheFramesBeforeIt) {
+  const fs::path out = tempOut("thread_run");
+  const fs::path partial = out.string() + ".partial";
+  const Result r = runWithFault("thread@2", 6, out);
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  EXPECT_NE(r.output.find("esim: error: frame 2: a thread could not be started (thread "
+                          "(injected: ESIM_FAULT): Resource temporarily unavailable): out of "
+                          "memory or of threads (ulimit -u)"),
+            std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(out));
+  ASSERT_TRUE(fs::exists(partial / "timing.json")) << r.output;
+  const auto timing = nlohmann::json::parse(readFile(partial / "timing.json"));
+  EXPECT_FALSE(timing["complete"].get<bool>());
+  EXPECT_EQ(timing["frames"].get<int>(), 2);
+  EXPECT_EQ(videoFrames(partial / "video.mp4"), 2);
+  fs::remove_all(partial);
+}
+
 // a run whose memory cgroup has almost nothing left (ESIM_MEMORY_ROOT: a folder standing for
 // "/", whose v1 group has 20 MB left of 1 GB, under the guard's 32 MB reserve) stops after a
 // whole frame with its reports, exit 1, instead of being killed by the kernel with none; with

@@ -160,7 +160,8 @@ Setup setUp(const RunOptions& opt, Scenario scenario) {
 // frame N throw std::bad_alloc after its physics, as if an allocation had failed;
 // ESIM_FAULT=draw@N makes drawing frame N fail (on the drawing thread when there is one);
 // ESIM_FAULT=video_close@0 makes closing the video fail (a disk that fills at the end);
-// ESIM_FAULT=alloc@N:MB makes frame N take MB megabytes more (see runLoop). -1: none.
+// ESIM_FAULT=alloc@N:MB makes frame N take MB megabytes more (see runLoop);
+// ESIM_FAULT=thread@N makes frame N fail to start a thread. -1: none.
 int injectedFaultFrame(const char* kind) {
   const char* spec = std::getenv("ESIM_FAULT");
   const std::string prefix = std::string(kind) + "@";
@@ -852,6 +853,7 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) 
   const int allocFrame = injectedFaultFrame("alloc");
   const std::size_t allocBytes = allocFrame < 0 ? 0 : injectedFaultMegabytes("alloc") << 20;
   std::vector<char> allocBlock;
+  const int threadFaultFrame = injectedFaultFrame("thread");  // ESIM_FAULT=thread@N
   // memory left between frames: under the reserve, the electric column cache gives memory
   // back, else the run stops after a whole frame, reports written, rather than be killed in
   // the next one (memory_room.h; off with --no-memory-guard)
@@ -937,6 +939,9 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) 
       FrameRecord rec = s.sim->step();
       if (f == badAllocFrame) throw std::bad_alloc();
       if (f == allocFrame) std::vector<char>(allocBytes).swap(allocBlock);  // touched (zeroed)
+      if (f == threadFaultFrame)  // what std::thread throws when no thread can be had
+        throw std::system_error(std::make_error_code(std::errc::resource_unavailable_try_again),
+                                "thread (injected: ESIM_FAULT)");
       totals.push_back(
           {s.sim->energyDeliveredJ(), s.sim->maxTemperatureSeenC(), rec.maxTemperatureC});
       finished(out.add(f, *s.sim, rec));
