@@ -31,6 +31,7 @@
 #include <set>
 #include <sstream>
 #include <thread>
+#include <tuple>
 
 #include "render/image_hash.h"
 #include "sim/core_error.h"
@@ -329,6 +330,7 @@ struct VariantJob {
   std::vector<std::string> runOptions;
   std::string exe;
   bool ownGroup = false;
+  json extra = json::object();  // fields added to the result (memory_retry)
 };
 
 // what runVariant returns when another process runs the variant (nothing was touched)
@@ -375,9 +377,22 @@ json runVariant(const VariantJob& job, const std::function<void(pid_t)>& started
       result["cpu_s"] = std::round(cpuS * 1000.0) / 1000.0;
     }
   }
+  for (auto it = job.extra.begin(); it != job.extra.end(); ++it) result[it.key()] = it.value();
   writeResult(job.dir, job.id, result);
   writeManifest(job.dir);
   return result;
+}
+
+// a run that stopped for memory: its guard between frames, an allocation or a thread refused,
+// the kernel's out-of-memory kill (the messages of run.cpp, memory_room.cpp, main.cpp and
+// variantResult). Beside other runs it had a share of the memory; alone it may fit.
+bool stoppedForMemory(const json& r) {
+  if (r.value("status", "") != "failed") return false;
+  const std::string m = r.value("message", "");
+  for (const char* mark :
+       {"out of memory", ": memory: ", "out-of-memory killer", "a thread could not be started"})
+    if (m.find(mark) != std::string::npos) return true;
+  return m.rfind("memory: ", 0) == 0;
 }
 
 // ---- the folder ----
@@ -612,76 +627,106 @@ void runLocal(const fs::path& dir, const std::string& name,
               bool quiet) {
   std::mutex mu;
   std::condition_variable cv;
-  std::size_t next = 0;
   std::set<pid_t> running;
   std::vector<std::string> busy;  // variants another process was running (not touched)
-  int complete = 0, failed = 0, active = 0;
+  int complete = 0, failed = 0;
   double wallSum = 0;
   ProgressLine progress(name, total, quiet);
-  const int nThreads = std::max(1, std::min<int>(workers, static_cast<int>(jobs.size())));
-  // the runs at once share the memory there is: each bounds itself to its share
-  // (memory_room.h; they inherit the environment, set before any thread of ours starts)
-  if (nThreads > 1) ::setenv("ESIM_MEMORY_SHARE", std::to_string(nThreads).c_str(), 1);
-  std::vector<std::thread> threads;
-  for (int w = 0; w < nThreads; ++w) {
-    ++active;
-    threads.emplace_back([&] {
-      for (;;) {
-        const SweepVariant* v = nullptr;
-        {
-          std::lock_guard<std::mutex> lock(mu);
-          if (gSignals > 0 || next >= jobs.size()) break;
-          v = jobs[next++];
-        }
-        VariantJob job{dir, v->id, v->index, runOptions, exe, true};
-        const json r = runVariant(
-            job,
-            [&](pid_t pid) {
-              std::lock_guard<std::mutex> lock(mu);
-              running.insert(pid);
-              // started just as a stop came: it stops too
-              if (gSignals > 0) ::kill(pid, gLastSignal.load());
-            },
-            [&](pid_t pid) {
-              std::lock_guard<std::mutex> lock(mu);
-              running.erase(pid);
-            });
-        std::lock_guard<std::mutex> lock(mu);
-        if (r.value("status", "") == kBusy) {
-          busy.push_back(v->id);
-          continue;
-        }
-        (r.value("status", "") == "complete" ? complete : failed)++;
-        wallSum += r.value("wall_s", 0.0);
-        cv.notify_all();
-      }
-      std::lock_guard<std::mutex> lock(mu);
-      --active;
-      cv.notify_all();
-    });
-  }
+  // variants that stopped for memory beside others: run again one at a time, after the rest
+  std::vector<std::pair<const SweepVariant*, std::string>> alone;
   int forwarded = 0;
-  std::unique_lock<std::mutex> lock(mu);
-  while (active > 0) {
-    cv.wait_for(lock, std::chrono::milliseconds(200));
-    // each signal we got is passed on once to every running child
-    const int got = gSignals;
-    if (got > forwarded) {
-      for (pid_t pid : running) ::kill(pid, gLastSignal.load());
-      if (forwarded == 0 && !quiet)
-        std::fprintf(stderr,
-                     "\nsweep: stopping: %zu running variant%s finish their frame "
-                     "(again to end them at once); no new one starts\n",
-                     running.size(), running.size() == 1 ? "" : "s");
-      forwarded = got;
+  // runs the list, nThreads at once
+  const auto phase = [&](const std::vector<std::pair<const SweepVariant*, std::string>>& list,
+                         int nThreads, bool retry) {
+    std::size_t next = 0;
+    int active = 0;
+    // the runs at once share the memory there is: each bounds itself to its share
+    // (memory_room.h; they inherit the environment, set before any thread of ours starts)
+    if (nThreads > 1)
+      ::setenv("ESIM_MEMORY_SHARE", std::to_string(nThreads).c_str(), 1);
+    else
+      ::unsetenv("ESIM_MEMORY_SHARE");
+    std::vector<std::thread> threads;
+    for (int w = 0; w < nThreads; ++w) {
+      ++active;
+      threads.emplace_back([&] {
+        for (;;) {
+          const SweepVariant* v = nullptr;
+          std::string before;  // retry: the message of the run that stopped for memory
+          {
+            std::lock_guard<std::mutex> lock(mu);
+            if (gSignals > 0 || next >= list.size()) break;
+            std::tie(v, before) = list[next++];
+          }
+          VariantJob job{dir, v->id, v->index, runOptions, exe, true};
+          if (retry) job.extra["memory_retry"] = {{"workers", workers}, {"message", before}};
+          const json r = runVariant(
+              job,
+              [&](pid_t pid) {
+                std::lock_guard<std::mutex> lock(mu);
+                running.insert(pid);
+                // started just as a stop came: it stops too
+                if (gSignals > 0) ::kill(pid, gLastSignal.load());
+              },
+              [&](pid_t pid) {
+                std::lock_guard<std::mutex> lock(mu);
+                running.erase(pid);
+              });
+          std::lock_guard<std::mutex> lock(mu);
+          if (r.value("status", "") == kBusy) {
+            busy.push_back(v->id);
+            continue;
+          }
+          const bool done = r.value("status", "") == "complete";
+          if (retry && done) --failed;  // counted failed by the first phase
+          if (!retry) (done ? complete : failed)++;
+          if (retry && done) ++complete;
+          if (!retry && nThreads > 1 && stoppedForMemory(r))
+            alone.emplace_back(v, r.value("message", ""));
+          wallSum += r.value("wall_s", 0.0);
+          cv.notify_all();
+        }
+        std::lock_guard<std::mutex> lock(mu);
+        --active;
+        cv.notify_all();
+      });
     }
-    const int done = complete + failed;
-    progress.show(complete, failed, static_cast<int>(running.size()), earlier,
-                  done ? wallSum / done : 0, nThreads);
+    std::unique_lock<std::mutex> lock(mu);
+    while (active > 0) {
+      cv.wait_for(lock, std::chrono::milliseconds(200));
+      // each signal we got is passed on once to every running child
+      const int got = gSignals;
+      if (got > forwarded) {
+        for (pid_t pid : running) ::kill(pid, gLastSignal.load());
+        if (forwarded == 0 && !quiet)
+          std::fprintf(stderr,
+                       "\nsweep: stopping: %zu running variant%s finish their frame "
+                       "(again to end them at once); no new one starts\n",
+                       running.size(), running.size() == 1 ? "" : "s");
+        forwarded = got;
+      }
+      const int done = complete + failed;
+      progress.show(complete, failed, static_cast<int>(running.size()), earlier,
+                    done ? wallSum / done : 0, nThreads);
+    }
+    lock.unlock();
+    for (auto& t : threads) t.join();
+  };
+  std::vector<std::pair<const SweepVariant*, std::string>> all;
+  for (const SweepVariant* v : jobs) all.emplace_back(v, "");
+  const int nThreads = std::max(1, std::min<int>(workers, static_cast<int>(jobs.size())));
+  phase(all, nThreads, false);
+  if (!alone.empty() && gSignals == 0) {
+    std::sort(alone.begin(), alone.end(),
+              [](const auto& a, const auto& b) { return a.first->index < b.first->index; });
+    if (!quiet)
+      std::fprintf(stderr,
+                   "\nsweep: %zu variant%s stopped for memory beside other runs: run again one "
+                   "at a time\n",
+                   alone.size(), alone.size() == 1 ? "" : "s");
+    phase(alone, 1, true);
   }
   progress.show(complete, failed, 0, earlier, 0, nThreads, true);
-  lock.unlock();
-  for (auto& t : threads) t.join();
   if (!busy.empty()) {  // (even with -q: these were not run)
     std::sort(busy.begin(), busy.end());
     std::string ids;
