@@ -16,7 +16,8 @@
 // video (its path), video_xxh3, frames_xxh3 (hashes.json's hash over all frames),
 // labels_xxh3 (over the files under labels/, null when the run wrote none) and files: every
 // file of runs/<id>/ the run made, recursively (scenario.yaml and everything in run/), path
-// relative to DIR -> xxh3-64 of its bytes (16 hex digits).
+// relative to DIR -> xxh3-64 of its bytes (16 hex digits); memory_retry ({workers, message})
+// when a local sweep ran the variant again alone after it stopped for memory beside others.
 // The manifest is rewritten whole (a new file renamed over the old, under an flock on
 // DIR/.lock) from sweep.json and the result.json files each time a variant ends, by
 // whichever process ran it: the local sweep, or a Slurm task.
