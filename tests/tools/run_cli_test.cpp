@@ -772,6 +772,42 @@ TEST(RunCli, AThreadThatCannotBeStartedKeepsTheFramesBeforeIt) {
   fs::remove_all(partial);
 }
 
+// a camera that sees none of the tissue gave a video of the background alone, silently: its
+// eye inside the tissue (drawn from outside only), or pointed away. Said at set-up on stderr
+// and in the run's warnings (the summary, timing.json, a sweep's manifest); the run goes on
+TEST(RunCli, ACameraThatSeesNoTissueIsWarnedOf) {
+  const fs::path out = tempOut("camera_blind");
+  const auto run = [&out](const std::string& camera) {
+    fs::remove_all(out);
+    return esimRun("scenarios/paper_slab.yaml --frames 2 --no-video" + std::string(kSmall) +
+                   camera + " -o " + out.string());
+  };
+  Result r = run(" --set camera.eye_m=[0,0,0.005] --set camera.target_m=[0.01,0,0.005]");
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+  const std::string inside =
+      "camera.eye_m [0.0, 0.0, 5.0] mm is inside the tissue, whose surface is drawn from outside "
+      "only: the frames show the background; put the eye outside the tissue";
+  EXPECT_NE(r.output.find("esim: warning: " + inside + "\n"), std::string::npos) << r.output;
+  auto warnings = nlohmann::json::parse(readFile(out / "timing.json"))["warnings"];
+  ASSERT_EQ(warnings.size(), 1u) << warnings.dump();
+  EXPECT_EQ(warnings[0], inside);
+  EXPECT_NE(readFile(out / "summary.txt").find("  WARNING       " + inside), std::string::npos);
+  r = run(" --set camera.eye_m=[0,-0.1,0.05] --set camera.target_m=[0,-0.2,0.05]");
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_NE(r.output.find("esim: warning: the camera sees none of the tissue (camera.eye_m [0.0, "
+                          "-100.0, 50.0] mm, camera.target_m [0.0, -200.0, 50.0] mm, "
+                          "camera.fov_deg "),
+            std::string::npos)
+      << r.output;
+  // the scene's own camera sees it: no such warning
+  r = run("");
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_EQ(r.output.find("esim: warning:"), std::string::npos) << r.output;
+  warnings = nlohmann::json::parse(readFile(out / "timing.json"))["warnings"];
+  EXPECT_TRUE(warnings.empty()) << warnings.dump();
+  fs::remove_all(out);
+}
+
 // a run whose memory cgroup has almost nothing left (ESIM_MEMORY_ROOT: a folder standing for
 // "/", whose v1 group has 20 MB left of 1 GB, under the guard's 32 MB reserve) stops after a
 // whole frame with its reports, exit 1, instead of being killed by the kernel with none; with

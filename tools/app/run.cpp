@@ -37,6 +37,7 @@
 #include "render/image_png.h"
 #include "render/renderer.h"
 #include "render/video_encoder.h"
+#include "render/view_check.h"
 #include "sim/core_error.h"
 #include "sim/io/scenario.h"
 #include "sim/io/vtu.h"
@@ -103,7 +104,30 @@ struct Setup {
   double meshS = 0, setupS = 0, rssAfterSetupMb = 0;
   std::unique_ptr<Simulation> sim;
   std::unique_ptr<Renderer> renderer;  // null when nothing is drawn
+  std::string viewWarning;             // the camera sees no tissue ("" when it does)
 };
+
+// a camera that sees none of the tissue at the start: the video would be the background
+// alone (render/view_check.h); the tissue does not move, only deforms, so it never would
+std::string viewWarning(const RenderOptions& o, Simulation& sim, const Scenario& sc) {
+  const ViewCheck v = checkView(o, sim.snapshot(sc.look.displacementScale));
+  if (v.seesSurface) return "";
+  const auto mm = [](const Vec3& p) {
+    char b[96];
+    std::snprintf(b, sizeof b, "[%.1f, %.1f, %.1f] mm", p[0] * 1e3, p[1] * 1e3, p[2] * 1e3);
+    return std::string(b);
+  };
+  const std::string eye = "camera.eye_m " + mm(sc.camera.eyeM);
+  if (v.eyeInside)
+    return eye +
+           " is inside the tissue, whose surface is drawn from outside only: the frames "
+           "show the background; put the eye outside the tissue";
+  return "the camera sees none of the tissue (" + eye + ", camera.target_m " +
+         mm(sc.camera.targetM) + ", camera.fov_deg " +
+         std::to_string(std::lround(sc.camera.fovDeg)) +
+         "): the frames show the background; point camera.target_m at the "
+         "tissue";
+}
 
 // the mesh, phases and renderer of a loaded scenario; throws Error (nothing written)
 Setup setUp(const RunOptions& opt, Scenario scenario) {
@@ -150,6 +174,11 @@ Setup setUp(const RunOptions& opt, Scenario scenario) {
   s.rssAfterSetupMb = peakRssMb();
   if (s.video || sc.output.pngEvery > 0 || sc.output.hashes || s.labels.enabled)
     s.renderer = std::make_unique<Renderer>(makeRenderOptions(sc));
+  if (s.renderer) {
+    s.viewWarning = viewWarning(s.renderer->options(), *s.sim, sc);
+    if (!s.viewWarning.empty())  // (even with -q: it says the video will show nothing)
+      std::fprintf(stderr, "esim: warning: %s\n", s.viewWarning.c_str());
+  }
   return s;
 }
 
@@ -520,8 +549,10 @@ double runPeakMb(const LoopResult& loop) {
   return std::max(peakRssMb(), loop.peakResidentBytes / 1048576.0);
 }
 
-std::vector<std::string> runWarnings(const Simulation& sim, double maxTemperatureSeenC) {
+std::vector<std::string> runWarnings(const Setup& s, double maxTemperatureSeenC) {
+  const Simulation& sim = *s.sim;
   std::vector<std::string> warnings = sim.warnings();
+  if (!s.viewWarning.empty()) warnings.push_back(s.viewWarning);
   if (maxTemperatureSeenC > kImplausibleTemperatureC) {
     // the remedies: a lower voltage, and what the scene does not do yet
     const SimulationConfig& c = sim.config();
@@ -639,7 +670,7 @@ nlohmann::json timingExtra(const Setup& s, const FrameOutputs& out, const LoopRe
                     {"limit_mb", c.limitBytes / 1048576.0},
                     {"freed_mb", c.freedBytes / 1048576.0}});
   extra["electric_cache_cuts"] = cuts;
-  extra["warnings"] = runWarnings(sim, loop.maxTemperatureSeenC);
+  extra["warnings"] = runWarnings(s, loop.maxTemperatureSeenC);
   if (sim.config().phases.structural)
     extra["structural"] = {
         {"removed_tets", sim.removedTets()},
@@ -774,7 +805,7 @@ std::string summaryText(const Setup& s, const FrameOutputs& out, const LoopResul
   sum.precision(1);
   sum << "  temperature   max " << loop.maxTemperatureSeenC << " C (now " << loop.temperatureNowC
       << " C)\n";
-  for (const std::string& w : runWarnings(sim, loop.maxTemperatureSeenC))
+  for (const std::string& w : runWarnings(s, loop.maxTemperatureSeenC))
     sum << "  WARNING       " << w << "\n";
   sum.precision(3);
   sum << "  energy        " << loop.energyJ << " J delivered, peak power " << loop.peakPowerW

@@ -1,0 +1,25 @@
+// view_check.h - does the camera see the tissue at all? A set-up check for a video of the
+// background alone: a camera whose eye is inside the tissue (its surface is drawn from
+// outside only: the back faces are culled) or whose view holds none of it (pointed away, or
+// too close to an edge) gives frames without tissue, silently (measured: `esim run
+// scenarios/slab_cut.yaml --set camera.eye_m=[0,0,0.005] --set camera.target_m=[0.01,0,0.005]`
+// wrote 120 frames of the background gradient and no warning).
+// Pure geometry in double precision, no GL: the camera of RenderOptions (eye, target, up,
+// vertical field of view, the frame's aspect) against the snapshot's surface.
+#pragma once
+
+#include "render/renderer.h"
+#include "sim/snapshot.h"
+
+namespace esim {
+
+struct ViewCheck {
+  bool eyeInside = false;    // the eye inside the closed surface (parity of a ray's crossings)
+  bool seesSurface = false;  // a surface vertex in the view, or a ray through the view's centre
+                             // or one of its corners hits a triangle
+  int verticesInView = 0;    // surface vertices inside the view (in front of the eye)
+};
+
+ViewCheck checkView(const RenderOptions& o, const SurfaceSnapshot& snap);
+
+}  // namespace esim
