@@ -60,10 +60,9 @@ ViewCheck checkView(const RenderOptions& o, const SurfaceSnapshot& snap) {
   // rays: a generic direction for the parity (no symmetry of a box or a slab lies along it),
   // then the view's centre and corners
   const D3 generic = unit({0.5727, 0.6143, 0.5432});
-  const std::array<D3, 5> view{fwd, along(right, camUp, fwd, tanX, tanY, 1),
-                               along(right, camUp, fwd, -tanX, tanY, 1),
-                               along(right, camUp, fwd, tanX, -tanY, 1),
-                               along(right, camUp, fwd, -tanX, -tanY, 1)};
+  const std::array<D3, 5> view{
+      fwd, along(right, camUp, fwd, tanX, tanY, 1), along(right, camUp, fwd, -tanX, tanY, 1),
+      along(right, camUp, fwd, tanX, -tanY, 1), along(right, camUp, fwd, -tanX, -tanY, 1)};
   int crossings = 0;
   bool viewRayHits = false;
   for (int t = 0; t < snap.numTriangles(); ++t) {
