@@ -38,25 +38,39 @@ bool rayHits(const D3& eye, const D3& d, const D3& a, const D3& b, const D3& c) 
   return dot(e2, q) / det > 0;
 }
 
+// the camera's frame: eye, forward, right, up, and the half-angles' tangents
+struct Camera {
+  D3 eye, fwd, right, up;
+  double tanX, tanY;
+  explicit Camera(const RenderOptions& o) {
+    eye = {o.eyeM[0], o.eyeM[1], o.eyeM[2]};
+    fwd = unit(sub({o.targetM[0], o.targetM[1], o.targetM[2]}, eye));
+    right = unit(cross(fwd, {o.up[0], o.up[1], o.up[2]}));
+    up = cross(right, fwd);
+    tanY = std::tan(o.fovDeg * M_PI / 360.0);
+    tanX = tanY * o.width / o.height;
+  }
+  bool sees(const D3& point) const {
+    const D3 p = sub(point, eye);
+    const double z = dot(p, fwd);
+    return z > 0 && std::abs(dot(p, right)) <= z * tanX && std::abs(dot(p, up)) <= z * tanY;
+  }
+};
+
 }  // namespace
+
+bool inView(const RenderOptions& o, const std::array<double, 3>& p) { return Camera(o).sees(p); }
 
 ViewCheck checkView(const RenderOptions& o, const SurfaceSnapshot& snap) {
   ViewCheck r;
-  const D3 eye{o.eyeM[0], o.eyeM[1], o.eyeM[2]};
-  const D3 fwd = unit(sub({o.targetM[0], o.targetM[1], o.targetM[2]}, eye));
-  const D3 right = unit(cross(fwd, {o.up[0], o.up[1], o.up[2]}));
-  const D3 camUp = cross(right, fwd);
-  const double tanY = std::tan(o.fovDeg * M_PI / 360.0);
-  const double tanX = tanY * o.width / o.height;
+  const Camera cam(o);
+  const D3& eye = cam.eye;
+  const D3 &fwd = cam.fwd, &right = cam.right, &camUp = cam.up;
+  const double tanX = cam.tanX, tanY = cam.tanY;
   const auto vertex = [&snap](int v) {
     return D3{snap.positionsM[3 * v], snap.positionsM[3 * v + 1], snap.positionsM[3 * v + 2]};
   };
-  for (int v = 0; v < snap.numVertices(); ++v) {
-    const D3 p = sub(vertex(v), eye);
-    const double z = dot(p, fwd);
-    if (z > 0 && std::abs(dot(p, right)) <= z * tanX && std::abs(dot(p, camUp)) <= z * tanY)
-      ++r.verticesInView;
-  }
+  for (int v = 0; v < snap.numVertices(); ++v) r.verticesInView += cam.sees(vertex(v));
   // rays: a generic direction for the parity (no symmetry of a box or a slab lies along it),
   // then the view's centre and corners
   const D3 generic = unit({0.5727, 0.6143, 0.5432});

@@ -8,6 +8,8 @@
 // vertical field of view, the frame's aspect) against the snapshot's surface.
 #pragma once
 
+#include <array>
+
 #include "render/renderer.h"
 #include "sim/snapshot.h"
 
@@ -21,5 +23,9 @@ struct ViewCheck {
 };
 
 ViewCheck checkView(const RenderOptions& o, const SurfaceSnapshot& snap);
+
+// is the point p [m] inside the camera's view (in front of the eye, within its field of view;
+// not whether something hides it)?
+bool inView(const RenderOptions& o, const std::array<double, 3>& p);
 
 }  // namespace esim

@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 namespace esim {
 namespace {
 
@@ -68,6 +70,18 @@ TEST(ViewCheck, AFaceFillingTheViewIsSeenWithNoVertexInIt) {
   v = checkView(o, cube());
   EXPECT_EQ(v.verticesInView, 0);
   EXPECT_TRUE(v.seesSurface);
+}
+
+// a point in the view: in front of the eye, within both half-angles (35 deg vertical, 16:9)
+TEST(ViewCheck, APointIsInViewWithinTheFieldOfViewInFrontOfTheEye) {
+  const RenderOptions o = camera({0, 0, 0}, {1, 0, 0});  // looking along +x, up +z
+  EXPECT_TRUE(inView(o, {1, 0, 0}));
+  EXPECT_FALSE(inView(o, {-1, 0, 0}));  // behind
+  const double tanY = std::tan(17.5 * M_PI / 180.0), tanX = tanY * 1280 / 720;
+  EXPECT_TRUE(inView(o, {1, 0, 0.99 * tanY}));   // just inside the top edge
+  EXPECT_FALSE(inView(o, {1, 0, 1.01 * tanY}));  // just outside it
+  EXPECT_TRUE(inView(o, {1, -0.99 * tanX, 0}));  // the right edge (right = -y here)
+  EXPECT_FALSE(inView(o, {1, -1.01 * tanX, 0}));
 }
 
 }  // namespace

@@ -773,8 +773,9 @@ TEST(RunCli, AThreadThatCannotBeStartedKeepsTheFramesBeforeIt) {
 }
 
 // a camera that sees none of the tissue gave a video of the background alone, silently: its
-// eye inside the tissue (drawn from outside only), or pointed away. Said at set-up on stderr
-// and in the run's warnings (the summary, timing.json, a sweep's manifest); the run goes on
+// eye inside the tissue (drawn from outside only), or pointed away; or one whose view misses
+// the tool in most frames. Said at set-up on stderr and in the run's warnings (the summary,
+// timing.json, a sweep's manifest); the run goes on
 TEST(RunCli, ACameraThatSeesNoTissueIsWarnedOf) {
   const fs::path out = tempOut("camera_blind");
   const auto run = [&out](const std::string& camera) {
@@ -797,6 +798,17 @@ TEST(RunCli, ACameraThatSeesNoTissueIsWarnedOf) {
   EXPECT_NE(r.output.find("esim: warning: the camera sees none of the tissue (camera.eye_m [0.0, "
                           "-100.0, 50.0] mm, camera.target_m [0.0, -200.0, 50.0] mm, "
                           "camera.fov_deg "),
+            std::string::npos)
+      << r.output;
+  // a view of a corner of the slab, away from the tool's path: the cut happens off screen
+  r =
+      run(" --set camera.eye_m=[0.04,0.04,0.05] --set camera.target_m=[0.045,0.045,0] --set "
+          "camera.fov_deg=10");
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_NE(r.output.find("esim: warning: the tool's tip is outside the camera's view in 2 of 2 "
+                          "frames (camera.eye_m [40.0, 40.0, 50.0] mm, camera.target_m [45.0, "
+                          "45.0, 0.0] mm, camera.fov_deg 10): the video shows little of the cut; "
+                          "point camera.target_m at the tool's path\n"),
             std::string::npos)
       << r.output;
   // the scene's own camera sees it: no such warning

@@ -108,25 +108,36 @@ struct Setup {
 };
 
 // a camera that sees none of the tissue at the start: the video would be the background
-// alone (render/view_check.h); the tissue does not move, only deforms, so it never would
-std::string viewWarning(const RenderOptions& o, Simulation& sim, const Scenario& sc) {
+// alone (render/view_check.h; the tissue does not move, only deforms, so it never would); or
+// whose view misses the tool's tip in most of the run's frames (the cut happens off screen)
+std::string viewWarning(const RenderOptions& o, Simulation& sim, const Scenario& sc, int frames) {
   const ViewCheck v = checkView(o, sim.snapshot(sc.look.displacementScale));
-  if (v.seesSurface) return "";
   const auto mm = [](const Vec3& p) {
     char b[96];
     std::snprintf(b, sizeof b, "[%.1f, %.1f, %.1f] mm", p[0] * 1e3, p[1] * 1e3, p[2] * 1e3);
     return std::string(b);
   };
   const std::string eye = "camera.eye_m " + mm(sc.camera.eyeM);
+  const std::string camera = eye + ", camera.target_m " + mm(sc.camera.targetM) +
+                             ", camera.fov_deg " + std::to_string(std::lround(sc.camera.fovDeg));
   if (v.eyeInside)
     return eye +
            " is inside the tissue, whose surface is drawn from outside only: the frames "
            "show the background; put the eye outside the tissue";
-  return "the camera sees none of the tissue (" + eye + ", camera.target_m " +
-         mm(sc.camera.targetM) + ", camera.fov_deg " +
-         std::to_string(std::lround(sc.camera.fovDeg)) +
-         "): the frames show the background; point camera.target_m at the "
-         "tissue";
+  if (!v.seesSurface)
+    return "the camera sees none of the tissue (" + camera +
+           "): the frames show the background; point camera.target_m at the tissue";
+  // the tool's tip at each frame's time
+  const ToolPath& path = sim.config().toolPath;
+  int outside = 0;
+  for (int f = 0; f < frames; ++f) {
+    const Vec3 tip = path.positionAt(f / sc.time.fps);
+    outside += !inView(o, {tip[0], tip[1], tip[2]});
+  }
+  if (2 * outside <= frames) return "";
+  return "the tool's tip is outside the camera's view in " + std::to_string(outside) + " of " +
+         std::to_string(frames) + " frames (" + camera +
+         "): the video shows little of the cut; point camera.target_m at the tool's path";
 }
 
 // the mesh, phases and renderer of a loaded scenario; throws Error (nothing written)
@@ -175,7 +186,7 @@ Setup setUp(const RunOptions& opt, Scenario scenario) {
   if (s.video || sc.output.pngEvery > 0 || sc.output.hashes || s.labels.enabled)
     s.renderer = std::make_unique<Renderer>(makeRenderOptions(sc));
   if (s.renderer) {
-    s.viewWarning = viewWarning(s.renderer->options(), *s.sim, sc);
+    s.viewWarning = viewWarning(s.renderer->options(), *s.sim, sc, s.frames);
     if (!s.viewWarning.empty())  // (even with -q: it says the video will show nothing)
       std::fprintf(stderr, "esim: warning: %s\n", s.viewWarning.c_str());
   }
