@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "render/renderer.h"
+#include "render/vec3d.h"
 #include "sim/core_error.h"
 
 namespace esim {
@@ -43,17 +44,12 @@ const std::array<const char*, kLabelStateCount>& labelStateNames() {
 
 namespace {
 
-using D3 = std::array<double, 3>;
+using render_detail::cross;
+using render_detail::D3;
+using render_detail::dot;
+using render_detail::normalized;
+using render_detail::sub;
 
-D3 sub(const D3& a, const D3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
-double dot(const D3& a, const D3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-D3 cross(const D3& a, const D3& b) {
-  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-}
-D3 normalized(const D3& a) {
-  const double n = std::sqrt(dot(a, a));
-  return {a[0] / n, a[1] / n, a[2] / n};
-}
 D3 toD3(const std::array<float, 3>& a) { return {a[0], a[1], a[2]}; }
 
 }  // namespace

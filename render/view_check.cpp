@@ -1,27 +1,20 @@
-// view_check.cpp - see view_check.h
+// view_check.cpp - see view_check.h. The camera is the one the label files publish
+// (render/labels.h's CameraModel: the renderer's lookAt and perspective in double).
 #include "render/view_check.h"
 
 #include <array>
 #include <cmath>
 
+#include "render/labels.h"
+#include "render/vec3d.h"
+
 namespace esim {
 namespace {
 
-using D3 = std::array<double, 3>;
-
-D3 sub(const D3& a, const D3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
-double dot(const D3& a, const D3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-D3 cross(const D3& a, const D3& b) {
-  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-}
-D3 unit(const D3& a) {
-  const double n = std::sqrt(dot(a, a));
-  return n > 0 ? D3{a[0] / n, a[1] / n, a[2] / n} : D3{0, 0, 1};
-}
-D3 along(const D3& a, const D3& b, const D3& c, double x, double y, double z) {
-  return {a[0] * x + b[0] * y + c[0] * z, a[1] * x + b[1] * y + c[1] * z,
-          a[2] * x + b[2] * y + c[2] * z};
-}
+using render_detail::cross;
+using render_detail::D3;
+using render_detail::dot;
+using render_detail::sub;
 
 // the ray eye + t d (t > 0) crosses triangle (a, b, c) (Moller-Trumbore)
 bool rayHits(const D3& eye, const D3& d, const D3& a, const D3& b, const D3& c) {
@@ -38,45 +31,41 @@ bool rayHits(const D3& eye, const D3& d, const D3& a, const D3& b, const D3& c) 
   return dot(e2, q) / det > 0;
 }
 
-// the camera's frame: eye, forward, right, up, and the half-angles' tangents
-struct Camera {
-  D3 eye, fwd, right, up;
-  double tanX, tanY;
-  explicit Camera(const RenderOptions& o) {
-    eye = {o.eyeM[0], o.eyeM[1], o.eyeM[2]};
-    fwd = unit(sub({o.targetM[0], o.targetM[1], o.targetM[2]}, eye));
-    right = unit(cross(fwd, {o.up[0], o.up[1], o.up[2]}));
-    up = cross(right, fwd);
-    tanY = std::tan(o.fovDeg * M_PI / 360.0);
-    tanX = tanY * o.width / o.height;
-  }
-  bool sees(const D3& point) const {
-    const D3 p = sub(point, eye);
-    const double z = dot(p, fwd);
-    return z > 0 && std::abs(dot(p, right)) <= z * tanX && std::abs(dot(p, up)) <= z * tanY;
-  }
-};
+// p's pixel within the frame, in front of the eye
+bool sees(const CameraModel& c, const D3& p) {
+  const D3 px = projectToPixel(c, p);
+  return px[2] > 0 && px[0] >= -0.5 && px[0] <= c.width - 0.5 && px[1] >= -0.5 &&
+         px[1] <= c.height - 0.5;
+}
+
+// the world direction through pixel (u, v) (the camera's rotation rows: right, down, forward)
+D3 rayThrough(const CameraModel& c, double u, double v) {
+  const double x = (u - c.cx) / c.fx, y = (v - c.cy) / c.fy;
+  const auto& r = c.rotation;
+  return {r[0] * x + r[3] * y + r[6], r[1] * x + r[4] * y + r[7], r[2] * x + r[5] * y + r[8]};
+}
 
 }  // namespace
 
-bool inView(const RenderOptions& o, const std::array<double, 3>& p) { return Camera(o).sees(p); }
+bool inView(const RenderOptions& o, const std::array<double, 3>& p) {
+  return sees(cameraModel(o), p);
+}
 
 ViewCheck checkView(const RenderOptions& o, const SurfaceSnapshot& snap) {
   ViewCheck r;
-  const Camera cam(o);
-  const D3& eye = cam.eye;
-  const D3 &fwd = cam.fwd, &right = cam.right, &camUp = cam.up;
-  const double tanX = cam.tanX, tanY = cam.tanY;
+  const CameraModel cam = cameraModel(o);
+  const D3& eye = cam.eyeM;
   const auto vertex = [&snap](int v) {
     return D3{snap.positionsM[3 * v], snap.positionsM[3 * v + 1], snap.positionsM[3 * v + 2]};
   };
-  for (int v = 0; v < snap.numVertices(); ++v) r.verticesInView += cam.sees(vertex(v));
+  for (int v = 0; v < snap.numVertices(); ++v) r.verticesInView += sees(cam, vertex(v));
   // rays: a generic direction for the parity (no symmetry of a box or a slab lies along it),
   // then the view's centre and corners
-  const D3 generic = unit({0.5727, 0.6143, 0.5432});
-  const std::array<D3, 5> view{
-      fwd, along(right, camUp, fwd, tanX, tanY, 1), along(right, camUp, fwd, -tanX, tanY, 1),
-      along(right, camUp, fwd, tanX, -tanY, 1), along(right, camUp, fwd, -tanX, -tanY, 1)};
+  const D3 generic{0.5727, 0.6143, 0.5432};
+  const double w = cam.width - 0.5, h = cam.height - 0.5;
+  const std::array<D3, 5> view{rayThrough(cam, cam.cx, cam.cy), rayThrough(cam, -0.5, -0.5),
+                               rayThrough(cam, w, -0.5), rayThrough(cam, -0.5, h),
+                               rayThrough(cam, w, h)};
   int crossings = 0;
   bool viewRayHits = false;
   for (int t = 0; t < snap.numTriangles(); ++t) {

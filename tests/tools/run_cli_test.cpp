@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -46,6 +47,19 @@ int videoFrames(const fs::path& video) {
       "stream=nb_read_frames -of csv=p=0 " +
       video.string());
   return r.exitCode == 0 && !r.output.empty() ? std::atoi(r.output.c_str()) : -1;
+}
+
+// a run that failed after `frames` frames: never renamed as complete, its DIR.partial with
+// timing.json saying so, and a playable video of those frames; DIR.partial removed after
+void expectFailedWithFramesKept(const fs::path& out, int frames, const std::string& output) {
+  const fs::path partial = out.string() + ".partial";
+  EXPECT_FALSE(fs::exists(out));
+  ASSERT_TRUE(fs::exists(partial / "timing.json")) << output;
+  const auto timing = nlohmann::json::parse(readFile(partial / "timing.json"));
+  EXPECT_FALSE(timing["complete"].get<bool>());
+  EXPECT_EQ(timing["frames"].get<int>(), frames);
+  EXPECT_EQ(videoFrames(partial / "video.mp4"), frames);
+  fs::remove_all(partial);
 }
 
 TEST(RunCli, EveryShippedScenarioRuns) {
@@ -736,17 +750,10 @@ TEST(RunCli, AFrameThatCannotBeDrawnKeepsTheFramesBeforeIt) {
 // reason, and a playable video of those frames
 TEST(RunCli, OutOfMemoryMidRunKeepsTheFramesMarkedPartial) {
   const fs::path out = tempOut("oom_run");
-  const fs::path partial = out.string() + ".partial";
   const Result r = runWithFault("bad_alloc@4", 10, out);
   EXPECT_EQ(r.exitCode, 1) << r.output;
   EXPECT_NE(r.output.find("frame 4: out of memory"), std::string::npos) << r.output;
-  EXPECT_FALSE(fs::exists(out));
-  ASSERT_TRUE(fs::exists(partial / "timing.json")) << r.output;
-  const auto timing = nlohmann::json::parse(readFile(partial / "timing.json"));
-  EXPECT_FALSE(timing["complete"].get<bool>());
-  EXPECT_EQ(timing["frames"].get<int>(), 4);
-  EXPECT_EQ(videoFrames(partial / "video.mp4"), 4);
-  fs::remove_all(partial);
+  expectFailedWithFramesKept(out, 4, r.output);
 }
 
 // a thread a frame needs that cannot be started (std::async and std::thread throw
@@ -755,7 +762,6 @@ TEST(RunCli, OutOfMemoryMidRunKeepsTheFramesMarkedPartial) {
 // before it kept with their reports (it escaped as an internal error, exit 4, with none)
 TEST(RunCli, AThreadThatCannotBeStartedKeepsTheFramesBeforeIt) {
   const fs::path out = tempOut("thread_run");
-  const fs::path partial = out.string() + ".partial";
   const Result r = runWithFault("thread@2", 6, out);
   EXPECT_EQ(r.exitCode, 1) << r.output;
   EXPECT_NE(r.output.find("esim: error: frame 2: a thread could not be started (thread "
@@ -763,13 +769,7 @@ TEST(RunCli, AThreadThatCannotBeStartedKeepsTheFramesBeforeIt) {
                           "memory or of threads (ulimit -u)"),
             std::string::npos)
       << r.output;
-  EXPECT_FALSE(fs::exists(out));
-  ASSERT_TRUE(fs::exists(partial / "timing.json")) << r.output;
-  const auto timing = nlohmann::json::parse(readFile(partial / "timing.json"));
-  EXPECT_FALSE(timing["complete"].get<bool>());
-  EXPECT_EQ(timing["frames"].get<int>(), 2);
-  EXPECT_EQ(videoFrames(partial / "video.mp4"), 2);
-  fs::remove_all(partial);
+  expectFailedWithFramesKept(out, 2, r.output);
 }
 
 // a camera that sees none of the tissue gave a video of the background alone, silently: its
@@ -824,16 +824,25 @@ TEST(RunCli, ACameraThatSeesNoTissueIsWarnedOf) {
 // "/", whose v1 group has 20 MB left of 1 GB, under the guard's 32 MB reserve) stops after a
 // whole frame with its reports, exit 1, instead of being killed by the kernel with none; with
 // 100 MB left the same run completes and reports the least room it saw
-TEST(RunCli, ARunNearItsMemoryLimitStopsWithItsReports) {
-  const fs::path root = tempOut("memory_root");
-  const auto write = [&root](const std::string& rel, const std::string& text) {
+// a folder standing for "/" (ESIM_MEMORY_ROOT) whose process is in a v1 memory cgroup "job"
+// of 1 GB with `usage` bytes used, on a machine with 10 GB available; returns its writer
+// (a path under it, the text), to change a file later
+std::function<void(const std::string&, const std::string&)> fakeMemoryRoot(
+    const fs::path& root, const std::string& usage) {
+  const auto write = [root](const std::string& rel, const std::string& text) {
     fs::create_directories((root / rel).parent_path());
     std::ofstream(root / rel) << text;
   };
   write("proc/meminfo", "MemAvailable:   9765625 kB\nSwapFree:       0 kB\n");
   write("proc/self/cgroup", "4:memory:/job\n");
   write("sys/fs/cgroup/memory/job/memory.limit_in_bytes", "1000000000\n");
-  write("sys/fs/cgroup/memory/job/memory.usage_in_bytes", "980000000\n");
+  write("sys/fs/cgroup/memory/job/memory.usage_in_bytes", usage + "\n");
+  return write;
+}
+
+TEST(RunCli, ARunNearItsMemoryLimitStopsWithItsReports) {
+  const fs::path root = tempOut("memory_root");
+  const auto write = fakeMemoryRoot(root, "980000000");
   const fs::path out = tempOut("memory_low");
   const fs::path partial = out.string() + ".partial";
   fs::remove_all(partial);
@@ -888,14 +897,7 @@ TEST(RunCli, AFrameAskingForMoreThanTheRoomStopsWithItsReports) {
   GTEST_SKIP() << "the sanitizers map terabytes: esim sets no address-space bound under them";
 #endif
   const fs::path root = tempOut("memory_room_frame");
-  const auto write = [&root](const std::string& rel, const std::string& text) {
-    fs::create_directories((root / rel).parent_path());
-    std::ofstream(root / rel) << text;
-  };
-  write("proc/meminfo", "MemAvailable:   9765625 kB\nSwapFree:       0 kB\n");
-  write("proc/self/cgroup", "4:memory:/job\n");
-  write("sys/fs/cgroup/memory/job/memory.limit_in_bytes", "1000000000\n");
-  write("sys/fs/cgroup/memory/job/memory.usage_in_bytes", "700000000\n");
+  fakeMemoryRoot(root, "700000000");
   const fs::path out = tempOut("memory_frame");
   const fs::path partial = out.string() + ".partial";
   const auto run = [&](const std::string& fault, const std::string& more = "") {
@@ -914,13 +916,8 @@ TEST(RunCli, AFrameAskingForMoreThanTheRoomStopsWithItsReports) {
                     (root / "sys/fs/cgroup/memory/job").string() + " has 300 MB left of 1000 MB\n"),
       std::string::npos)
       << r.output;
-  EXPECT_FALSE(fs::exists(out));
-  ASSERT_TRUE(fs::exists(partial / "timing.json")) << r.output;
-  const auto timing = nlohmann::json::parse(readFile(partial / "timing.json"));
-  EXPECT_FALSE(timing["complete"].get<bool>());
-  EXPECT_EQ(timing["frames"].get<int>(), 3);
-  EXPECT_EQ(videoFrames(partial / "video.mp4"), 3);
   EXPECT_EQ(nlohmann::json::parse(readFile(partial / "hashes.json"))["frames"].size(), 3u);
+  expectFailedWithFramesKept(out, 3, r.output);
   // a frame within the room, and the same 600 MB without the guard, go on to the end
   r = run("alloc@3:200");
   EXPECT_EQ(r.exitCode, 0) << r.output;
