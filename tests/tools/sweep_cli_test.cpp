@@ -445,6 +445,37 @@ TEST(SweepCli, AVariantThatStoppedForMemoryBesideOthersRunsAgainAlone) {
   fs::remove_all(root);
 }
 
+// a complete variant may still not be what a dataset wants (here a camera pointed away from
+// the tissue: the video is the background alone): its warnings are in its manifest line, and
+// the sweep's last lines say which variants have some
+TEST(SweepCli, CompleteVariantsWithWarningsAreListedAtTheEnd) {
+  const fs::path dir = tempDir("warned");
+  const fs::path spec = tempDir("warned_spec.yaml");
+  writeFile(spec, std::string("base: ") + ESIM_SOURCE_DIR +
+                      "/scenarios/paper_slab_506.yaml\n"
+                      "set:\n"
+                      "  time.duration_s: 0.1\n"
+                      "  look.width: 160\n"
+                      "  look.height: 90\n"
+                      "grid:\n"
+                      "  camera.target_m: [[0, 0, 0.005], [0, -1, 0.05]]\n");
+  const Result r = esim("sweep " + spec.string() + " -o " + dir.string());
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+  const std::string blind = "the camera sees none of the tissue (camera.eye_m ";
+  EXPECT_NE(r.output.find("sweep: 2 variants: 2 complete\n  1 complete variant has warnings "
+                          "(the manifest's \"warnings\"):\n    v0001: " +
+                          blind),
+            std::string::npos)
+      << r.output;
+  const auto lines = manifest(dir);
+  ASSERT_EQ(lines.size(), 2u);
+  EXPECT_TRUE(lines[0]["warnings"].empty()) << lines[0].dump();
+  ASSERT_EQ(lines[1]["warnings"].size(), 1u) << lines[1].dump();
+  EXPECT_EQ(lines[1]["warnings"][0].get<std::string>().rfind(blind, 0), 0u) << lines[1].dump();
+  fs::remove_all(dir);
+  fs::remove(spec);
+}
+
 TEST(SweepCli, AnInterruptedSweepStopsItsRunsAndRunsThemAgain) {
   const fs::path dir = tempDir("interrupted");
   const fs::path spec = tempDir("interrupted_spec.yaml");

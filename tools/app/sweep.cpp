@@ -505,6 +505,7 @@ std::vector<const SweepVariant*> toRun(const fs::path& dir, const std::vector<Sw
 struct Tally {
   int complete = 0, failed = 0, interrupted = 0, pending = 0;
   std::vector<std::string> failures;  // "v0003 failed: ..."
+  std::vector<std::string> warned;    // complete with warnings: "v0003: <its first warning>"
 };
 
 Tally tally(const fs::path& dir) {
@@ -513,6 +514,11 @@ Tally tally(const fs::path& dir) {
     const std::string s = line.value("status", "");
     if (s == "complete") {
       ++t.complete;
+      const json w = line.value("warnings", json::array());
+      if (w.is_array() && !w.empty() && w[0].is_string())
+        t.warned.push_back(
+            line.value("id", "") + ": " + w[0].get<std::string>() +
+            (w.size() > 1 ? " (and " + std::to_string(w.size() - 1) + " more)" : ""));
     } else if (s == "pending") {
       ++t.pending;
     } else {
@@ -567,6 +573,16 @@ int finalReport(const fs::path& dir, std::size_t total, bool quiet) {
     if (t.pending) std::cout << ", " << t.pending << " not run";
     std::cout << "\n";
     for (const auto& f : t.failures) std::cout << "  " << f << "\n";
+    // a complete run may still not be what a dataset wants (a camera that sees no tissue,
+    // tissue past 300 C): said here, each variant's in the manifest's warnings
+    if (!t.warned.empty()) {
+      std::cout << "  " << t.warned.size() << " complete variant"
+                << (t.warned.size() == 1 ? " has" : "s have")
+                << " warnings (the manifest's \"warnings\"):\n";
+      for (size_t i = 0; i < t.warned.size() && i < 5; ++i)
+        std::cout << "    " << t.warned[i] << "\n";
+      if (t.warned.size() > 5) std::cout << "    ...\n";
+    }
     if (t.failed)
       std::cout << "  (failed variants run again with --retry-failed; each has its "
                    "runs/<id>/log.txt)\n";
