@@ -694,9 +694,12 @@ void runLocal(const fs::path& dir, const std::string& name,
             continue;
           }
           const bool done = r.value("status", "") == "complete";
-          if (retry && done) --failed;  // counted failed by the first phase
-          if (!retry) (done ? complete : failed)++;
-          if (retry && done) ++complete;
+          if (!retry) {
+            (done ? complete : failed)++;
+          } else if (done) {  // counted failed by the first phase
+            --failed;
+            ++complete;
+          }
           if (!retry && nThreads > 1 && stoppedForMemory(r))
             alone.emplace_back(v, r.value("message", ""));
           wallSum += r.value("wall_s", 0.0);
