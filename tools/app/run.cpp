@@ -104,7 +104,7 @@ struct Setup {
   double meshS = 0, setupS = 0, rssAfterSetupMb = 0;
   std::unique_ptr<Simulation> sim;
   std::unique_ptr<Renderer> renderer;  // null when nothing is drawn
-  std::string viewWarning;             // the camera sees no tissue ("" when it does)
+  std::string viewWarning;             // the camera sees no tissue or misses the tool ("": no)
 };
 
 // a camera that sees none of the tissue at the start: the video would be the background
@@ -209,7 +209,7 @@ int injectedFaultFrame(const char* kind) {
   return std::atoi(spec + prefix.size());
 }
 
-// the MB of ESIM_FAULT=kind@N:MB (0 without it)
+// the MB (1e6 bytes) of ESIM_FAULT=kind@N:MB (0 without it)
 std::size_t injectedFaultMegabytes(const char* kind) {
   const char* spec = std::getenv("ESIM_FAULT");
   if (!spec || std::string(spec).rfind(std::string(kind) + "@", 0) != 0) return 0;
@@ -893,7 +893,7 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) 
   // ESIM_FAULT=alloc@N:MB: frame N takes MB megabytes more (touched) and holds them to the
   // end of the run, as a frame that needs a new large block (a rebuild's second model) does
   const int allocFrame = injectedFaultFrame("alloc");
-  const std::size_t allocBytes = allocFrame < 0 ? 0 : injectedFaultMegabytes("alloc") << 20;
+  const std::size_t allocBytes = allocFrame < 0 ? 0 : injectedFaultMegabytes("alloc") * 1000000;
   std::vector<char> allocBlock;
   const int threadFaultFrame = injectedFaultFrame("thread");  // ESIM_FAULT=thread@N
   // memory left between frames: under the reserve, the electric column cache gives memory
