@@ -47,6 +47,18 @@ fs::path tempDir(const std::string& name) {
 
 const std::string kTiny = "scenarios/sweeps/paper_slab_tiny_4.yaml";
 
+// a sweep file over the paper's 506-node slab, 0.1 s at 160 x 90, with more `set:` lines and
+// its grid in `more`
+void writeTinySpec(const fs::path& spec, const std::string& more) {
+  writeFile(spec, std::string("base: ") + ESIM_SOURCE_DIR +
+                      "/scenarios/paper_slab_506.yaml\n"
+                      "set:\n"
+                      "  time.duration_s: 0.1\n"
+                      "  look.width: 160\n"
+                      "  look.height: 90\n" +
+                      more);
+}
+
 TEST(SweepCli, LocalSweepRecordsResumesAndVerifies) {
   const fs::path dir = tempDir("local");
   const Result r = esim("sweep " + kTiny + " -o " + dir.string() + " --workers 2");
@@ -345,16 +357,11 @@ TEST(SweepCli, AFailedVariantIsRecordedAndTheOthersGoOn) {
   const fs::path dir = tempDir("failed");
   const fs::path spec = tempDir("failed_spec.yaml");
   // pcg capped at 2 iterations cannot reach 1e-12: that variant's first solve fails
-  writeFile(spec, std::string("base: ") + ESIM_SOURCE_DIR +
-                      "/scenarios/paper_slab_506.yaml\n"
-                      "set:\n"
-                      "  time.duration_s: 0.1\n"
-                      "  look.width: 160\n"
-                      "  look.height: 90\n"
-                      "  solvers.electric.strategy: pcg\n"
-                      "  solvers.electric.tolerance: 1.0e-12\n"
-                      "grid:\n"
-                      "  solvers.electric.max_iterations: [2, 1000]\n");
+  writeTinySpec(spec,
+                "  solvers.electric.strategy: pcg\n"
+                "  solvers.electric.tolerance: 1.0e-12\n"
+                "grid:\n"
+                "  solvers.electric.max_iterations: [2, 1000]\n");
   const std::string cmd = "sweep " + spec.string() + " -o " + dir.string() + " --workers 2";
   const Result r = esim(cmd);
   EXPECT_EQ(r.exitCode, 1) << r.output;
@@ -451,14 +458,9 @@ TEST(SweepCli, AVariantThatStoppedForMemoryBesideOthersRunsAgainAlone) {
 TEST(SweepCli, CompleteVariantsWithWarningsAreListedAtTheEnd) {
   const fs::path dir = tempDir("warned");
   const fs::path spec = tempDir("warned_spec.yaml");
-  writeFile(spec, std::string("base: ") + ESIM_SOURCE_DIR +
-                      "/scenarios/paper_slab_506.yaml\n"
-                      "set:\n"
-                      "  time.duration_s: 0.1\n"
-                      "  look.width: 160\n"
-                      "  look.height: 90\n"
-                      "grid:\n"
-                      "  camera.target_m: [[0, 0, 0.005], [0, -1, 0.05]]\n");
+  writeTinySpec(spec,
+                "grid:\n"
+                "  camera.target_m: [[0, 0, 0.005], [0, -1, 0.05]]\n");
   const Result r = esim("sweep " + spec.string() + " -o " + dir.string());
   EXPECT_EQ(r.exitCode, 0) << r.output;
   const std::string blind = "the camera sees none of the tissue (camera.eye_m ";
