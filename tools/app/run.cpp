@@ -211,9 +211,8 @@ int injectedFaultFrame(const char* kind) {
 
 // the MB (1e6 bytes) of ESIM_FAULT=kind@N:MB (0 without it)
 std::size_t injectedFaultMegabytes(const char* kind) {
-  const char* spec = std::getenv("ESIM_FAULT");
-  if (!spec || std::string(spec).rfind(std::string(kind) + "@", 0) != 0) return 0;
-  const char* colon = std::strchr(spec, ':');
+  if (injectedFaultFrame(kind) < 0) return 0;
+  const char* colon = std::strchr(std::getenv("ESIM_FAULT"), ':');
   return colon ? static_cast<std::size_t>(std::max(0L, std::atol(colon + 1))) : 0;
 }
 
@@ -955,9 +954,13 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) 
     } catch (const std::system_error& e) {
       // a thread the frame needed could not be started (std::async, std::thread: its stack
       // refused under the address-space bound, or the user's thread limit, ulimit -u)
-      loop.failureKind = ErrorKind::Run;
-      loop.failure = "frame " + std::to_string(f) + ": a thread could not be started (" + e.what() +
-                     "): out of memory or of threads (ulimit -u)" + boundNote();
+      const bool noThread = e.code() == std::errc::resource_unavailable_try_again ||
+                            e.code() == std::errc::not_enough_memory;
+      loop.failureKind = noThread ? ErrorKind::Run : ErrorKind::Internal;
+      loop.failure = "frame " + std::to_string(f) + ": " +
+                     (noThread ? "a thread could not be started (" + std::string(e.what()) +
+                                     "): out of memory or of threads (ulimit -u)" + boundNote()
+                               : "internal error: " + std::string(e.what()));
     } catch (const Error& e) {
       // the run cannot go on (a failed solve, all tissue gone, a tool reaching the return
       // electrode): the frames so far are kept
