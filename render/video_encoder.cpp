@@ -12,6 +12,7 @@ extern "C" {
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <iostream>
 
@@ -77,6 +78,85 @@ const AVCodec* findEncoder(const VideoEncoder::Options& o, std::string& notes) {
   return codec;
 }
 
+// the fragmented MP4 `in` copied packet by packet into the regular MP4 `out` (its index
+// in front: movflags +faststart) with the encoder's stream parameters `par` and rate. The
+// fragmented file has no edit list, so its first frame shows at the encoder's delay (two
+// frames with B-frames): every timestamp is moved back by the first packet's (the key
+// frame shown first), which gives the regular file its edit list and frame 0 at t = 0, as
+// the encoder made them. The bytes depend only on the packets (AVFMT_FLAG_BITEXACT when
+// bitexact).
+void remuxToRegularMp4(const std::string& in, const std::string& out, const AVCodecParameters* par,
+                       AVRational frameRate, bool bitexact) {
+  AVFormatContext* ic = nullptr;
+  AVFormatContext* oc = nullptr;
+  AVPacket* pkt = av_packet_alloc();
+  const auto cleanup = [&] {
+    av_packet_free(&pkt);
+    avformat_close_input(&ic);
+    if (oc) {
+      if (oc->pb) avio_closep(&oc->pb);
+      avformat_free_context(oc);
+      oc = nullptr;
+    }
+  };
+  try {
+    ESIM_VERIFY(pkt, "video: out of memory allocating a packet");
+    int rc = avformat_open_input(&ic, in.c_str(), nullptr, nullptr);
+    ESIM_VERIFY(rc >= 0, "video: cannot read back '" + in + "': " + avError(rc));
+    ESIM_VERIFY(ic->nb_streams == 1, "video: '" + in + "' has " + std::to_string(ic->nb_streams) +
+                                         " streams, expected 1");
+    const AVStream* is = ic->streams[0];
+    rc = avformat_alloc_output_context2(&oc, nullptr, "mp4", out.c_str());
+    ESIM_VERIFY(rc >= 0 && oc, "video: cannot create an MP4 muxer: " + avError(rc));
+    if (bitexact) oc->flags |= AVFMT_FLAG_BITEXACT;
+    AVStream* os = avformat_new_stream(oc, nullptr);
+    ESIM_VERIFY(os, "video: cannot add a stream to the MP4 muxer");
+    rc = avcodec_parameters_copy(os->codecpar, par);
+    ESIM_VERIFY(rc >= 0, "video: codec parameters: " + avError(rc));
+    // the extradata as the MP4 stores it (H.264: avcC), since the packets read back are
+    // in the MP4's form (length-prefixed NAL units), not the encoder's Annex B
+    if (is->codecpar->extradata_size > 0) {
+      av_freep(&os->codecpar->extradata);
+      os->codecpar->extradata = static_cast<std::uint8_t*>(
+          av_mallocz(is->codecpar->extradata_size + AV_INPUT_BUFFER_PADDING_SIZE));
+      ESIM_VERIFY(os->codecpar->extradata, "video: out of memory copying the extradata");
+      std::memcpy(os->codecpar->extradata, is->codecpar->extradata, is->codecpar->extradata_size);
+      os->codecpar->extradata_size = is->codecpar->extradata_size;
+    }
+    os->codecpar->codec_tag = 0;
+    os->time_base = is->time_base;
+    os->avg_frame_rate = frameRate;
+    os->sample_aspect_ratio = par->sample_aspect_ratio;
+    rc = avio_open(&oc->pb, out.c_str(), AVIO_FLAG_WRITE);
+    ESIM_VERIFY(rc >= 0, "video.path: cannot open '" + out + "' for writing: " + avError(rc));
+    AVDictionary* muxOpts = nullptr;
+    av_dict_set(&muxOpts, "movflags", "+faststart", 0);
+    rc = avformat_write_header(oc, &muxOpts);
+    av_dict_free(&muxOpts);
+    ESIM_VERIFY(rc >= 0, "video: cannot write the MP4 header to '" + out + "': " + avError(rc));
+    std::int64_t shift = AV_NOPTS_VALUE;
+    while ((rc = av_read_frame(ic, pkt)) >= 0) {
+      if (shift == AV_NOPTS_VALUE) shift = pkt->pts != AV_NOPTS_VALUE ? pkt->pts : 0;
+      if (pkt->pts != AV_NOPTS_VALUE) pkt->pts -= shift;
+      if (pkt->dts != AV_NOPTS_VALUE) pkt->dts -= shift;
+      pkt->stream_index = 0;
+      av_packet_rescale_ts(pkt, is->time_base, os->time_base);
+      pkt->pos = -1;
+      rc = av_interleaved_write_frame(oc, pkt);
+      ESIM_VERIFY(rc >= 0, "video: writing '" + out + "' failed: " + avError(rc));
+    }
+    ESIM_VERIFY(rc == AVERROR_EOF, "video: reading back '" + in + "' failed: " + avError(rc));
+    rc = av_write_trailer(oc);
+    ESIM_VERIFY(rc >= 0, "video: finishing '" + out + "' failed: " + avError(rc));
+    rc = avio_closep(&oc->pb);
+    ESIM_VERIFY(rc >= 0, "video: finishing '" + out + "' failed: " + avError(rc));
+  } catch (...) {
+    cleanup();
+    throw;
+  }
+  cleanup();
+}
+
 }  // namespace
 
 struct VideoEncoder::Av {
@@ -95,7 +175,7 @@ struct VideoEncoder::Av {
   // the MP4 muxer on tmpPath, the opened encoder, its stream and the open output file
   void openContainer(const AVCodec* encoder, const Options& o, const std::string& tmpPath,
                      const std::string& codecName);
-  // the MP4 header (movflags +faststart); libav's return code
+  // the fragmented MP4's header (see writeHeader); libav's return code
   int writeHeader();
   // colour conversion RGB24 (full range) -> YUV420P (limited), BT.709 matrix; the frame
   // and the packet
@@ -183,7 +263,11 @@ void VideoEncoder::Av::openContainer(const AVCodec* encoder, const Options& o,
 
 int VideoEncoder::Av::writeHeader() {
   AVDictionary* muxOpts = nullptr;
-  av_dict_set(&muxOpts, "movflags", "+faststart", 0);
+  // fragmented while it grows: a fragment from each key frame, written out when the next
+  // key frame comes (fmt->flush_packets), so a process killed mid-run leaves a file that
+  // plays up to its last fragment; close() rewrites it as one regular MP4
+  av_dict_set(&muxOpts, "movflags", "+frag_keyframe+empty_moov+default_base_moof", 0);
+  fmt->flush_packets = 1;
   const int rc = avformat_write_header(fmt, &muxOpts);
   av_dict_free(&muxOpts);
   return rc;
@@ -279,21 +363,28 @@ void VideoEncoder::close() {
   notEmpty_.notify_one();
   thread_.join();
   std::exception_ptr err = error_;
+  const std::string regularPath = opt_.path + ".regular.partial";
   if (!err) {
-    // the trailer was written by the thread; close the file and publish it
+    // the trailer was written by the thread; close the fragmented file, rewrite it as one
+    // regular MP4 and publish that
     avio_closep(&av_->fmt->pb);
-    std::error_code ec;
-    std::filesystem::rename(tmpPath_, opt_.path, ec);
-    if (ec)
-      err = std::make_exception_ptr(Error("video.path: cannot rename '" + tmpPath_ + "' to '" +
-                                          opt_.path + "': " + ec.message()));
+    try {
+      remuxToRegularMp4(tmpPath_, regularPath, av_->stream->codecpar, av_->codec->framerate,
+                        opt_.reproducible);
+      std::error_code ec;
+      std::filesystem::rename(regularPath, opt_.path, ec);
+      if (ec)
+        throw Error("video.path: cannot rename '" + regularPath + "' to '" + opt_.path +
+                    "': " + ec.message());
+    } catch (...) {
+      err = std::current_exception();
+    }
   }
   av_.reset();
-  if (err) {
-    std::error_code ec;
-    std::filesystem::remove(tmpPath_, ec);
-    std::rethrow_exception(err);
-  }
+  std::error_code ec;
+  std::filesystem::remove(regularPath, ec);
+  std::filesystem::remove(tmpPath_, ec);
+  if (err) std::rethrow_exception(err);
 }
 
 void VideoEncoder::fail() {

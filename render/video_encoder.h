@@ -2,7 +2,8 @@
 //
 // Pipeline (all on the encoder's own thread, fed by a bounded queue):
 //   RGB24 (full range) --swscale, BT.709 matrix--> YUV420P (limited range)
-//   --libx264, CRF + preset--> MP4 (movflags +faststart)
+//   --libx264, CRF + preset--> MP4, fragmented while it grows (a fragment from each key
+//   frame, every 2 s), rewritten by close() as one regular MP4 (movflags +faststart)
 // Stream tags: BT.709 primaries, transfer and matrix, limited ("tv") range.
 // Timing: codec time base 1/fps (the rate as a fraction), pts = frame index, every packet's
 // duration is one frame, so N frames last exactly N/fps seconds (the last one included).
@@ -15,8 +16,10 @@
 // (H.264, bit rate from the frame size) -> mpeg4 (MPEG-4 Part 2, constant
 // quantiser from crf); the choice and the reason are printed on stderr once and
 // kept in notes(). With allowFallback = false a missing encoder is an error.
-// Files: frames go to "<path>.partial", renamed to <path> by close(); on an
-// error the partial file is removed. The destructor closes an open encoder.
+// Files: frames go to "<path>.partial", a fragmented MP4 that plays up to its last
+// fragment if the process is killed; close() rewrites it as "<path>.regular.partial",
+// renamed to <path>, and removes the fragmented file; on an error both are removed.
+// The destructor closes an open encoder.
 // Logging: if libav's log level is still its default (info), open() lowers it to
 // warnings, so libx264's per-file banner does not flood stderr.
 // Ownership: push() takes the frame by value (moved into the queue).

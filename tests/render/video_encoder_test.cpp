@@ -1,6 +1,7 @@
 // Tests for render/video_encoder.cpp: read the MP4 back with libavformat and check
 // codec, frame count, duration, pixel format, colour tags, faststart, BT.709
-// matrix, reproducible bytes, fallback and error handling.
+// matrix, reproducible bytes, fallback and error handling, and the partial file that
+// plays while the video grows.
 #include "render/video_encoder.h"
 
 #include <gtest/gtest.h>
@@ -10,9 +11,12 @@ extern "C" {
 #include <libavformat/avformat.h>
 }
 
+#include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <thread>
 
 #include "render/image_hash.h"
 #include "sim/core_error.h"
@@ -256,6 +260,35 @@ TEST(VideoEncoder, PartialFileWhileOpenAndBadInput) {
   preset.preset = "warp9";
   EXPECT_THROW(VideoEncoder().open(preset), Error);
   EXPECT_FALSE(std::filesystem::exists(preset.path + ".partial"));
+}
+
+// while the video grows, its partial file is a fragmented MP4 that plays up to its last
+// fragment (a fragment from each key frame, every 2 s): what a killed process leaves is
+// readable. close() rewrites it as one regular MP4 (index in front) of every frame.
+TEST(VideoEncoder, ThePartialFilePlaysUpToItsLastFragment) {
+  const std::string path = tempPath("growing.mp4");
+  std::filesystem::remove(path);
+  VideoEncoder enc;
+  enc.open(smallOptions(path));
+  for (int i = 0; i < 130; ++i) enc.push(frameAt(i));
+  for (int wait = 0; wait < 1000 && enc.framesEncoded() < 130; ++wait)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  ASSERT_EQ(enc.framesEncoded(), 130);
+  const Probe growing = probe(path + ".partial");
+  EXPECT_EQ(growing.codec, AV_CODEC_ID_H264);
+  EXPECT_GE(growing.decoded, 60);  // frames 0-59, and 60-119 once key frame 120 is out
+  EXPECT_LE(growing.decoded, 120);
+  EXPECT_EQ(growing.decoded % 60, 0);
+  EXPECT_EQ(topLevelBoxes(fileBytes(path + ".partial")).at(1), "moov");  // empty, in front
+  enc.close();
+  const Probe done = probe(path);
+  EXPECT_EQ(done.decoded, 130);
+  EXPECT_NEAR(done.streamSeconds, 130 / 30.0, 1e-9);
+  EXPECT_NEAR(done.formatSeconds, 130 / 30.0, 1e-3);  // (the movie header's ms)
+  const auto boxes = topLevelBoxes(fileBytes(path));
+  EXPECT_EQ(std::count(boxes.begin(), boxes.end(), "moof"), 0) << "one regular MP4";
+  EXPECT_FALSE(std::filesystem::exists(path + ".partial"));
+  EXPECT_FALSE(std::filesystem::exists(path + ".regular.partial"));
 }
 
 TEST(VideoEncoder, DestructorFinishesAnOpenVideo) {

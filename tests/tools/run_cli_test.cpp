@@ -619,6 +619,25 @@ TEST(RunCli, AKillByTheOutOfMemoryKillerIsNamedWithTheLimit) {
   fs::remove_all(out.string() + ".partial");
 }
 
+// A run killed mid-way (the kernel's out-of-memory killer, a scheduler's kill -9, a
+// container stopped) writes no reports, but its video so far plays: the MP4 is fragmented
+// while it grows (a fragment from each key frame, 60 frames at 30 fps), and was a file
+// without its index, which nothing could read
+TEST(RunCli, AKilledRunLeavesAVideoThatPlaysUpToItsLastFragment) {
+  const fs::path out = tempOut("killed_video");
+  fs::remove_all(out.string() + ".partial");
+  const Result r = shell("ESIM_FAULT=kill@150 " + std::string(ESIM_EXE) +
+                         " run scenarios/paper_slab.yaml --frames 200 -o " + out.string() + kSmall);
+  ASSERT_EQ(r.exitCode, 128 + 9) << r.output;
+  EXPECT_FALSE(fs::exists(out));
+  const fs::path video = out.string() + ".partial/video.mp4.partial";
+  ASSERT_TRUE(fs::exists(video));
+  const int frames = videoFrames(video);
+  EXPECT_GE(frames, 60) << "the first fragment";
+  EXPECT_LE(frames, 151);
+  fs::remove_all(out.string() + ".partial");
+}
+
 // a disk that fills while the reports are written (a file size limit stands for it: trace.json
 // of 60 frames is 40 kB): exit 1, the run kept in DIR.partial, the failure named, and no
 // report cut short (timing.csv was left empty, and the message was only "write failed")

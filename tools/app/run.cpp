@@ -201,7 +201,8 @@ Setup setUp(const RunOptions& opt, Scenario scenario) {
 // ESIM_FAULT=draw@N makes drawing frame N fail (on the drawing thread when there is one);
 // ESIM_FAULT=video_close@0 makes closing the video fail (a disk that fills at the end);
 // ESIM_FAULT=alloc@N:MB makes frame N take MB megabytes more (see runLoop);
-// ESIM_FAULT=thread@N makes frame N fail to start a thread. -1: none.
+// ESIM_FAULT=thread@N makes frame N fail to start a thread;
+// ESIM_FAULT=kill@N kills the process after frame N (see frameLoop). -1: none.
 int injectedFaultFrame(const char* kind) {
   const char* spec = std::getenv("ESIM_FAULT");
   const std::string prefix = std::string(kind) + "@";
@@ -895,6 +896,9 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) 
   const std::size_t allocBytes = allocFrame < 0 ? 0 : injectedFaultMegabytes("alloc") * 1000000;
   std::vector<char> allocBlock;
   const int threadFaultFrame = injectedFaultFrame("thread");  // ESIM_FAULT=thread@N
+  // ESIM_FAULT=kill@N: the process is killed (SIGKILL) once frame N is handed to its
+  // outputs, as the kernel's out-of-memory killer or a scheduler's kill -9 would
+  const int killFrame = injectedFaultFrame("kill");
   // memory left between frames: under the reserve, the electric column cache gives memory
   // back, else the run stops after a whole frame, reports written, rather than be killed in
   // the next one (memory_room.h; off with --no-memory-guard)
@@ -990,6 +994,7 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) 
       totals.push_back(
           {s.sim->energyDeliveredJ(), s.sim->maxTemperatureSeenC(), rec.maxTemperatureC});
       finished(out.add(f, *s.sim, rec));
+      if (f == killFrame) ::raise(SIGKILL);
     } catch (...) {
       failed(f, std::current_exception());
       break;
