@@ -1,8 +1,13 @@
 // run_report_test.cpp - the timing reports of a run (tools/app/run_report.cpp) on records
-// made up inline: their structure, and per-stage sums that match the frame totals.
+// made up inline: their structure, per-stage sums that match the frame totals, and the rows
+// streamed while a run goes.
 #include "tools/app/run_report.h"
 
 #include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
 
 #include "tests/app/timing_reports_check.h"
 
@@ -125,6 +130,29 @@ TEST(RunReport, AbsentStagesHaveNoColumnAndNoEvent) {
   const nlohmann::json trace = chromeTrace(records, {0, 33333});
   EXPECT_EQ(trace["traceEvents"].size(), 6u);
   test::checkTimingReports(csv, timingJson(records, {}), trace, 1e-4);
+}
+
+// the rows streamed as the frames are done are timing.csv's, byte for byte; remove() takes
+// the file away; a file that cannot be written is no error (nothing is left)
+TEST(RunReport, TheStreamedRowsAreTimingCsvs) {
+  const std::vector<FrameRecord> records = structuralFrames();
+  const auto dir = std::filesystem::temp_directory_path() / "esim_run_report_test";
+  std::filesystem::create_directories(dir);
+  const std::string path = (dir / "timing.csv.partial").string();
+  TimingCsvStream stream(path);
+  EXPECT_FALSE(std::filesystem::exists(path));  // nothing before the first frame
+  for (const FrameRecord& r : records) stream.add(r);
+  std::ifstream in(path, std::ios::binary);
+  const std::string streamed{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  EXPECT_EQ(streamed, timingCsv(records));
+  stream.remove();
+  EXPECT_FALSE(std::filesystem::exists(path));
+  stream.add(records[0]);  // removed: the stream has stopped
+  EXPECT_FALSE(std::filesystem::exists(path));
+  TimingCsvStream nowhere((dir / "no such folder" / "timing.csv.partial").string());
+  EXPECT_NO_THROW(nowhere.add(records[0]));
+  EXPECT_NO_THROW(nowhere.remove());
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

@@ -87,6 +87,9 @@ TEST(RunCli, VideoAndSummary) {
   ASSERT_EQ(r.exitCode, 0) << r.output;
   ASSERT_TRUE(fs::exists(out / "video.mp4"));
   EXPECT_GT(fs::file_size(out / "video.mp4"), 1000u);
+  // what was written while the run went is gone: the fragmented video, the rows streamed
+  for (const char* name : {"video.mp4.partial", "video.mp4.regular.partial", "timing.csv.partial"})
+    EXPECT_FALSE(fs::exists(out / name)) << name;
   EXPECT_NE(r.output.find("frames      15 of 15"), std::string::npos) << r.output;
   // the solver the default (auto) took for the paper's 1026 nodes, in the summary and report
   EXPECT_NE(r.output.find("electric    dense-inverse (solvers.electric.strategy auto)"),
@@ -620,10 +623,11 @@ TEST(RunCli, AKillByTheOutOfMemoryKillerIsNamedWithTheLimit) {
 }
 
 // A run killed mid-way (the kernel's out-of-memory killer, a scheduler's kill -9, a
-// container stopped) writes no reports, but its video so far plays: the MP4 is fragmented
-// while it grows (a fragment from each key frame, 60 frames at 30 fps), and was a file
-// without its index, which nothing could read
-TEST(RunCli, AKilledRunLeavesAVideoThatPlaysUpToItsLastFragment) {
+// container stopped) writes no reports at the end, but its video so far plays: the MP4 is
+// fragmented while it grows (a fragment from each key frame, 60 frames at 30 fps), and was a
+// file without its index, which nothing could read. timing.csv's rows are streamed to
+// timing.csv.partial as the frames are done.
+TEST(RunCli, AKilledRunLeavesAVideoThatPlaysAndTheRowsOfItsFrames) {
   const fs::path out = tempOut("killed_video");
   fs::remove_all(out.string() + ".partial");
   const Result r = shell("ESIM_FAULT=kill@150 " + std::string(ESIM_EXE) +
@@ -635,6 +639,23 @@ TEST(RunCli, AKilledRunLeavesAVideoThatPlaysUpToItsLastFragment) {
   const int frames = videoFrames(video);
   EXPECT_GE(frames, 60) << "the first fragment";
   EXPECT_LE(frames, 151);
+  // a row per frame done, whole, in order: frame 150 was handed to the drawing thread when
+  // the process was killed, frame 149 at least was done
+  const std::string csv = readFile(out.string() + ".partial/timing.csv.partial");
+  ASSERT_FALSE(csv.empty());
+  EXPECT_EQ(csv.back(), '\n');
+  std::istringstream lines(csv);
+  std::string line;
+  std::getline(lines, line);
+  EXPECT_EQ(line.rfind("frame,time_s,move_tool_ms,", 0), 0u) << line;
+  int rows = 0;
+  while (std::getline(lines, line)) {
+    EXPECT_EQ(line.rfind(std::to_string(rows) + ",", 0), 0u) << line;
+    ++rows;
+  }
+  EXPECT_GE(rows, 150);
+  EXPECT_LE(rows, 151);
+  EXPECT_GE(rows, frames);
   fs::remove_all(out.string() + ".partial");
 }
 

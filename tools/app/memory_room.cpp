@@ -351,8 +351,8 @@ std::string oomMessage() {
   return what +
          ". It needed more: a coarser mesh (mesh.slab.nodes, mesh.file.cell_size_m), fewer "
          "phases, another electric strategy, or more memory (Slurm --mem, docker --memory). A "
-         "run keeps what it wrote so far in DIR.partial (its video.mp4.partial plays up to the "
-         "last key frame, every 2 s).\n";
+         "run keeps what it wrote so far in DIR.partial: video.mp4.partial plays up to the last "
+         "key frame (every 2 s), timing.csv.partial has a row per frame done.\n";
 }
 
 }  // namespace

@@ -885,7 +885,8 @@ std::string writeReports(const Setup& s, const FrameOutputs& out, const LoopResu
 // 30 000-node mesh; the contact set's own columns stay whatever the cap)
 constexpr double kMinElectricCacheBytes = 64.0 * 1048576.0;
 
-LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) {
+LoopResult frameLoop(Setup& s, FrameOutputs& out, TimingCsvStream& csv, bool quiet,
+                     bool memoryGuard) {
   LoopResult loop;
   loop.maxTemperatureSeenC = loop.temperatureNowC = s.sim->temperatureC().maxCoeff();
   Progress progress(s.frames, quiet);
@@ -924,6 +925,7 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, bool quiet, bool memoryGuard) 
       loop.frameDoneUs.push_back(d.doneUs);
       loop.renderStartUs.push_back(d.renderStartUs);
       loop.records.push_back(std::move(d.record));
+      csv.add(loop.records.back());
       progress.update(static_cast<int>(loop.records.size()), loop.records.back().timeS);
     }
   };
@@ -1064,7 +1066,9 @@ int runScenario(const RunOptions& opt) {
     throw;
   }
   // ---- 4. frames ----
-  LoopResult loop = frameLoop(s, *out, opt.quiet, !opt.noMemoryGuard);
+  // (timing.csv's rows as the frames are done: what a killed run leaves of its reports)
+  TimingCsvStream csv((output.partial() / "timing.csv.partial").string());
+  LoopResult loop = frameLoop(s, *out, csv, opt.quiet, !opt.noMemoryGuard);
   // ---- 5. close the video, write the reports, rename when complete ----
   // (a video that cannot be finished, a disk full at the end, fails the run: exit 1, its
   // reports in DIR.partial; it escaped as a bad input, exit 2, without them)
@@ -1089,6 +1093,7 @@ int runScenario(const RunOptions& opt) {
   std::string summary;
   try {
     summary = writeReports(s, *out, loop, output.partial(), where, opt.plots);
+    csv.remove();  // timing.csv has every row
   } catch (const Error& e) {
     // a disk that filled: the run's own failure first (often the same cause), then the reports'
     // (it said only "timing.csv: write failed"); the run stays in DIR.partial

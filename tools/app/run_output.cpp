@@ -51,14 +51,15 @@ bool runFile(const std::string& sub, const std::string& file) {
   const std::string name = withoutTmp(file);
   if (sub.empty())
     for (const char* n :
-         {".esim-run", "video.mp4", "video.mp4.partial", "timing.csv", "timing.json", "trace.json",
-          "scenario.yaml", "hashes.json", "summary.txt", "timing.png"})
+         {".esim-run", "video.mp4", "video.mp4.partial", "video.mp4.regular.partial", "timing.csv",
+          "timing.csv.partial", "timing.json", "trace.json", "scenario.yaml", "hashes.json",
+          "summary.txt", "timing.png"})
       if (name == n) return true;
   if (sub == "frames") return isNumberedName(name, "frame_", ".png");
   if (sub == "fields") return isNumberedName(name, "frame_", ".vtu");
   if (sub == "labels") {
     for (const char* n : {"camera.json", "classes.json", "coco.json", "frames.jsonl", "preview.mp4",
-                          "preview.mp4.partial"})
+                          "preview.mp4.partial", "preview.mp4.regular.partial"})
       if (name == n) return true;
     return isNumberedName(name, "depth_", ".png") || isNumberedName(name, "mask_", ".png");
   }

@@ -1,12 +1,14 @@
 // run_report.cpp - timing statistics and report files (see run_report.h).
 #include "tools/app/run_report.h"
 
+#include <fcntl.h>
 #include <sched.h>
 #include <sys/utsname.h>
 #include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -73,43 +75,98 @@ double interactiveMs(const FrameRecord& r) {
   return r.physicsMs() + r.ms[static_cast<int>(Stage::Render)];
 }
 
-std::string timingCsv(const std::vector<FrameRecord>& records) {
+namespace {
+
+void timingCsvHeader(std::ostream& os, const std::vector<Stage>& present, bool structural) {
+  os << "frame,time_s";
+  for (Stage s : present) os << ',' << stageName(s) << "_ms";
+  os << ",interactive_ms,over_budget,generator_on,contacts,power_w,max_temperature_c";
+  os << (structural ? ",rebuild_wait_ms,max_von_mises_pa,removed_tets\n" : "\n");
+}
+
+void timingCsvRow(std::ostream& os, const FrameRecord& r, const std::vector<Stage>& present,
+                  bool structural) {
+  os.setf(std::ios::fixed);
+  os.precision(4);
+  os << r.frame << ',' << r.timeS;
+  for (Stage s : present) {
+    const int i = static_cast<int>(s);
+    if (r.status[i] == StageStatus::Skipped)
+      os << ",skipped";
+    else if (r.status[i] == StageStatus::Absent)
+      os << ",";
+    else
+      os << ',' << r.ms[i];
+  }
+  const double im = interactiveMs(r);
+  os << ',' << im << ',' << (im > kBudgetMs ? 1 : 0) << ',' << (r.generatorOn ? 1 : 0) << ','
+     << r.contactNodes << ',';
+  os.precision(6);
+  os << r.powerW << ',' << r.maxTemperatureC;
+  if (structural) {
+    os.precision(4);
+    os << ',' << r.rebuildWaitMs;
+    os.precision(6);
+    os << ',' << r.maxVonMisesPa << ',' << r.removedTets;
+  }
+  os << '\n';
+}
+
+// the stage columns of these records: a stage the scene did not build has none
+std::vector<Stage> presentStages(const std::vector<FrameRecord>& records) {
   std::vector<Stage> present;
   for (int s = 0; s < kStageCount; ++s)
     if (stagePresent(records, static_cast<Stage>(s))) present.push_back(static_cast<Stage>(s));
-  std::ostringstream os;
-  os << "frame,time_s";
-  for (Stage s : present) os << ',' << stageName(s) << "_ms";
-  const bool structural = stagePresent(records, Stage::SolveStress);
-  os << ",interactive_ms,over_budget,generator_on,contacts,power_w,max_temperature_c";
-  os << (structural ? ",rebuild_wait_ms,max_von_mises_pa,removed_tets\n" : "\n");
-  os.setf(std::ios::fixed);
-  for (const auto& r : records) {
-    os.precision(4);
-    os << r.frame << ',' << r.timeS;
-    for (Stage s : present) {
-      const int i = static_cast<int>(s);
-      if (r.status[i] == StageStatus::Skipped)
-        os << ",skipped";
-      else if (r.status[i] == StageStatus::Absent)
-        os << ",";
-      else
-        os << ',' << r.ms[i];
-    }
-    const double im = interactiveMs(r);
-    os << ',' << im << ',' << (im > kBudgetMs ? 1 : 0) << ',' << (r.generatorOn ? 1 : 0) << ','
-       << r.contactNodes << ',';
-    os.precision(6);
-    os << r.powerW << ',' << r.maxTemperatureC;
-    if (structural) {
-      os.precision(4);
-      os << ',' << r.rebuildWaitMs;
-      os.precision(6);
-      os << ',' << r.maxVonMisesPa << ',' << r.removedTets;
-    }
-    os << '\n';
+  return present;
+}
+
+// the whole of `text` to fd, retried across partial writes; false on an error
+bool writeAll(int fd, const std::string& text) {
+  size_t done = 0;
+  while (done < text.size()) {
+    const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return false;
+    done += static_cast<size_t>(n);
   }
+  return true;
+}
+
+}  // namespace
+
+std::string timingCsv(const std::vector<FrameRecord>& records) {
+  const std::vector<Stage> present = presentStages(records);
+  const bool structural = stagePresent(records, Stage::SolveStress);
+  std::ostringstream os;
+  timingCsvHeader(os, present, structural);
+  for (const auto& r : records) timingCsvRow(os, r, present, structural);
   return os.str();
+}
+
+void TimingCsvStream::add(const FrameRecord& record) {
+  if (stopped_) return;
+  std::ostringstream os;
+  if (fd_ < 0) {
+    const std::vector<FrameRecord> first{record};
+    present_ = presentStages(first);
+    structural_ = stagePresent(first, Stage::SolveStress);
+    fd_ = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (fd_ < 0) {
+      stopped_ = true;
+      return;
+    }
+    timingCsvHeader(os, present_, structural_);
+  }
+  timingCsvRow(os, record, present_, structural_);
+  if (!writeAll(fd_, os.str())) remove();  // (a cut row is never left)
+}
+
+void TimingCsvStream::remove() {
+  stopped_ = true;
+  if (fd_ < 0) return;
+  ::close(fd_);
+  fd_ = -1;
+  ::unlink(path_.c_str());
 }
 
 nlohmann::json timingJson(const std::vector<FrameRecord>& records, const nlohmann::json& extra) {

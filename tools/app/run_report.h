@@ -38,6 +38,25 @@ constexpr double kBudgetMs = 1000.0 / 30.0;
 // a stage the scene did not build has no column; "skipped" where it had nothing to do
 std::string timingCsv(const std::vector<FrameRecord>& records);
 
+// timing.csv's rows written as the frames are done, so that a run killed mid-way (the
+// kernel's out-of-memory killer, kill -9) leaves the rows of its frames: the header and a
+// row per add(), each flushed whole, in `path` (DIR.partial/timing.csv.partial), with the
+// columns of the first record (the scene's phases). The run's own timing.csv replaces it
+// (remove()). A write that fails removes the file and stops the stream: never a cut row,
+// never the run's failure (the reports at the end say what the disk did).
+class TimingCsvStream {
+ public:
+  explicit TimingCsvStream(std::string path) : path_(std::move(path)) {}
+  void add(const FrameRecord& record);
+  void remove();
+
+ private:
+  std::string path_;
+  std::vector<Stage> present_;
+  bool structural_ = false, stopped_ = false;
+  int fd_ = -1;
+};
+
 // timing.json: per stage and in total mean/p50/p95/p99/max, frames over budget, machine
 nlohmann::json timingJson(const std::vector<FrameRecord>& records, const nlohmann::json& extra);
 
