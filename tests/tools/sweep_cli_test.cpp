@@ -389,6 +389,29 @@ TEST(SweepCli, AFailedVariantIsRecordedAndTheOthersGoOn) {
   fs::remove(spec);
 }
 
+// A variant killed (kill -9, the kernel's out-of-memory killer) writes no timing.json: its
+// manifest line takes the frames it had done from the rows it streamed (timing.csv.partial),
+// and says them; its run.partial/ keeps a video that plays
+TEST(SweepCli, AKilledVariantIsRecordedWithTheFramesItHadDone) {
+  const fs::path dir = tempDir("killed");
+  const fs::path spec = tempDir("killed_spec.yaml");
+  writeTinySpec(spec, "grid:\n  tool.voltage_v: [60]\n");
+  const Result r = shell("ESIM_FAULT=kill@2 " + std::string(ESIM_EXE) + " sweep " + spec.string() +
+                         " -o " + dir.string() + " --workers 1");
+  EXPECT_EQ(r.exitCode, 1) << r.output;
+  const auto lines = manifest(dir);
+  ASSERT_EQ(lines.size(), 1u);
+  EXPECT_EQ(lines[0]["status"], "failed");
+  EXPECT_EQ(lines[0]["frames"], 2) << lines[0].dump();  // frame 2 was being drawn
+  EXPECT_EQ(lines[0]["message"].get<std::string>().rfind(
+                "ended by signal 9 (Killed) after 2 frames: ", 0),
+            0u)
+      << lines[0].dump();
+  EXPECT_TRUE(fs::exists(dir / "runs" / "v0000" / "run.partial" / "video.mp4.partial"));
+  fs::remove_all(dir);
+  fs::remove(spec);
+}
+
 // Two runs at once each have half the memory left (ESIM_MEMORY_SHARE); a variant that stops
 // for memory beside another may fit alone, and was recorded failed. Such variants now run
 // again one at a time after the others, the manifest saying so (memory_retry: the workers and

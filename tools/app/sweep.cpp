@@ -231,6 +231,16 @@ std::string lastErrorLine(const fs::path& log) {
   return last;
 }
 
+// the frames a killed run had done: the rows of its timing.csv.partial (streamed as the
+// frames are done); -1 without it
+int streamedFrames(const fs::path& partial) {
+  std::error_code ec;
+  if (!fs::is_regular_file(partial / "timing.csv.partial", ec)) return -1;
+  const std::string csv = readText(partial / "timing.csv.partial");
+  const long lines = std::count(csv.begin(), csv.end(), '\n');
+  return static_cast<int>(std::max(0L, lines - 1));
+}
+
 // ---- one variant ----
 
 // xxh3-64 over "path\thash\n" of the files under labels/ (null when there are none)
@@ -265,7 +275,11 @@ json variantResult(const fs::path& dir, const std::string& id, int index, int st
   std::error_code ec;
   const bool complete = exited && code == 0 && fs::is_directory(run, ec);
   const json timing = readJsonFile((complete ? run : partial) / "timing.json");
-  r["frames"] = timing.is_object() ? timing.value("frames", json(nullptr)) : json(nullptr);
+  // (a run killed before its reports: the rows it streamed)
+  const int streamed = timing.is_object() || complete ? -1 : streamedFrames(partial);
+  r["frames"] = timing.is_object() ? timing.value("frames", json(nullptr))
+                : streamed >= 0    ? json(streamed)
+                                   : json(nullptr);
   r["peak_rss_mb"] =
       timing.is_object() ? timing.value("peak_rss_mb", json(nullptr)) : json(nullptr);
   // the run's own warnings (e.g. tissue past 300 C): a dataset may want to leave them out
@@ -303,7 +317,8 @@ json variantResult(const fs::path& dir, const std::string& id, int index, int st
   }
   if (status >= 0 && WIFSIGNALED(status)) {
     const int sig = WTERMSIG(status);
-    message = "ended by signal " + std::to_string(sig) + " (" + strsignal(sig) + ")";
+    message = "ended by signal " + std::to_string(sig) + " (" + strsignal(sig) + ")" +
+              (streamed >= 0 ? " after " + std::to_string(streamed) + " frames" : "");
     if (sig == SIGKILL && !stopping) {
       // the run's out-of-memory watcher (memory_room.h) writes its line to the log once the
       // run has ended: a moment after this wait returned
