@@ -2,8 +2,10 @@
 // (render/labels.h's CameraModel: the renderer's lookAt and perspective in double).
 #include "render/view_check.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 
 #include "render/labels.h"
 #include "render/vec3d.h"
@@ -16,8 +18,9 @@ using render_detail::D3;
 using render_detail::dot;
 using render_detail::sub;
 
-// the ray eye + t d (t > 0) crosses triangle (a, b, c) (Moller-Trumbore)
-bool rayHits(const D3& eye, const D3& d, const D3& a, const D3& b, const D3& c) {
+// the ray eye + t d crosses triangle (a, b, c) at t in (0, tMax) (Moller-Trumbore)
+bool rayHits(const D3& eye, const D3& d, const D3& a, const D3& b, const D3& c,
+             double tMax = INFINITY) {
   const D3 e1 = sub(b, a), e2 = sub(c, a);
   const D3 p = cross(d, e2);
   const double det = dot(e1, p);
@@ -28,7 +31,12 @@ bool rayHits(const D3& eye, const D3& d, const D3& a, const D3& b, const D3& c) 
   const D3 q = cross(s, e1);
   const double v = dot(d, q) / det;
   if (v < 0 || u + v > 1) return false;
-  return dot(e2, q) / det > 0;
+  const double t = dot(e2, q) / det;
+  return t > 0 && t < tMax;
+}
+
+D3 vertexOf(const SurfaceSnapshot& snap, std::uint32_t v) {
+  return D3{snap.positionsM[3 * v], snap.positionsM[3 * v + 1], snap.positionsM[3 * v + 2]};
 }
 
 // p's pixel within the frame, in front of the eye
@@ -51,13 +59,26 @@ bool inView(const RenderOptions& o, const std::array<double, 3>& p) {
   return sees(cameraModel(o), p);
 }
 
+bool hiddenBySurface(const RenderOptions& o, const SurfaceSnapshot& snap,
+                     const std::array<double, 3>& p) {
+  const D3 eye = cameraModel(o).eyeM;
+  const D3 d = sub(D3{p[0], p[1], p[2]}, eye);
+  // short of p by a micrometre: a point on the surface is not hidden by itself
+  const double tMax = 1 - 1e-6 / std::max(1e-12, std::sqrt(dot(d, d)));
+  for (int t = 0; t < snap.numTriangles(); ++t) {
+    const std::uint32_t* tri = &snap.triangles[3 * t];
+    if (rayHits(eye, d, vertexOf(snap, tri[0]), vertexOf(snap, tri[1]), vertexOf(snap, tri[2]),
+                tMax))
+      return true;
+  }
+  return false;
+}
+
 ViewCheck checkView(const RenderOptions& o, const SurfaceSnapshot& snap) {
   ViewCheck r;
   const CameraModel cam = cameraModel(o);
   const D3& eye = cam.eyeM;
-  const auto vertex = [&snap](int v) {
-    return D3{snap.positionsM[3 * v], snap.positionsM[3 * v + 1], snap.positionsM[3 * v + 2]};
-  };
+  const auto vertex = [&snap](int v) { return vertexOf(snap, static_cast<std::uint32_t>(v)); };
   for (int v = 0; v < snap.numVertices(); ++v) r.verticesInView += sees(cam, vertex(v));
   // rays: a generic direction for the parity (no symmetry of a box or a slab lies along it),
   // then the view's centre and corners

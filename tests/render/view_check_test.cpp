@@ -1,6 +1,6 @@
 // view_check_test.cpp - does the camera see the tissue (render/view_check.h): a cube's
-// surface seen from outside, from inside, looked away from, and a quad filling the view with
-// every vertex outside it
+// surface seen from outside, from inside, looked away from, a quad filling the view with
+// every vertex outside it, and points the cube hides
 #include "render/view_check.h"
 
 #include <gtest/gtest.h>
@@ -49,6 +49,19 @@ TEST(ViewCheck, AnEyeInsideTheSurfaceSeesNothingOfIt) {
   }
   // just outside a face, looking along it: outside
   EXPECT_FALSE(checkView(camera({1.01f, 0.5f, 0.5f}, {1.01f, 2, 0.5f}), cube()).eyeInside);
+}
+
+// a point behind the cube, on it, in front of it, or inside it, from an eye in front
+TEST(ViewCheck, APointBehindTheSurfaceIsHidden) {
+  const RenderOptions o = camera({0.5f, -3, 0.5f}, {0.5f, 0.5f, 0.5f});
+  const SurfaceSnapshot c = cube();
+  EXPECT_TRUE(hiddenBySurface(o, c, {0.5, 2, 0.5}));    // behind it
+  EXPECT_TRUE(hiddenBySurface(o, c, {0.3, 0.5, 0.6}));  // inside it
+  EXPECT_TRUE(hiddenBySurface(o, c, {0.5, 1, 0.5}));    // on its far face
+  EXPECT_FALSE(hiddenBySurface(o, c, {0.5, 0, 0.5}));   // on its near face: not by itself
+  EXPECT_FALSE(hiddenBySurface(o, c, {0.5, -1, 0.5}));  // in front of it
+  EXPECT_FALSE(hiddenBySurface(o, c, {0.5, 2, 1.5}));   // behind, but above it
+  EXPECT_FALSE(hiddenBySurface(o, SurfaceSnapshot{}, {0.5, 2, 0.5}));  // nothing to hide it
 }
 
 TEST(ViewCheck, ACameraLookingAwaySeesNothing) {

@@ -851,6 +851,14 @@ TEST(RunCli, ACameraThatSeesNoTissueIsWarnedOf) {
                           "point camera.target_m at the tool's path\n"),
             std::string::npos)
       << r.output;
+  // from below the slab: the tissue hides the tool
+  r = run(" --set camera.eye_m=[-0.035,-0.03,-0.03] --set camera.target_m=[-0.035,0,0.005]");
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_NE(r.output.find("esim: warning: the tissue hides the tool in 2 of 2 frames checked "
+                          "(its axis from the tip up, as the tissue is at the start; camera.eye_m "
+                          "[-35.0, -30.0, -30.0] mm, "),
+            std::string::npos)
+      << r.output;
   // the scene's own camera sees it: no such warning
   r = run("");
   EXPECT_EQ(r.exitCode, 0) << r.output;

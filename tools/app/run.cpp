@@ -109,9 +109,11 @@ struct Setup {
 
 // a camera that sees none of the tissue at the start: the video would be the background
 // alone (render/view_check.h; the tissue does not move, only deforms, so it never would); or
-// whose view misses the tool's tip in most of the run's frames (the cut happens off screen)
+// whose view misses the tool's tip in most of the run's frames (the cut happens off screen),
+// or for which the tissue hides the tool in most of them (seen from below or through a side)
 std::string viewWarning(const RenderOptions& o, Simulation& sim, const Scenario& sc, int frames) {
-  const ViewCheck v = checkView(o, sim.snapshot(sc.look.displacementScale));
+  const SurfaceSnapshot snap = sim.snapshot(sc.look.displacementScale);
+  const ViewCheck v = checkView(o, snap);
   const auto mm = [](const Vec3& p) {
     char b[96];
     std::snprintf(b, sizeof b, "[%.1f, %.1f, %.1f] mm", p[0] * 1e3, p[1] * 1e3, p[2] * 1e3);
@@ -134,10 +136,35 @@ std::string viewWarning(const RenderOptions& o, Simulation& sim, const Scenario&
     const Vec3 tip = path.positionAt(f / sc.time.fps);
     outside += !inView(o, {tip[0], tip[1], tip[2]});
   }
-  if (2 * outside <= frames) return "";
-  return "the tool's tip is outside the camera's view in " + std::to_string(outside) + " of " +
-         std::to_string(frames) + " frames (" + camera +
-         "): the video shows little of the cut; point camera.target_m at the tool's path";
+  if (2 * outside > frames)
+    return "the tool's tip is outside the camera's view in " + std::to_string(outside) + " of " +
+           std::to_string(frames) + " frames (" + camera +
+           "): the video shows little of the cut; point camera.target_m at the tool's path";
+  // the tool hidden by the tissue (as it is at the start) in up to 60 of the frames: every
+  // point of its axis, from the tip (in the tissue while it cuts) to the electrode's length,
+  // 1 mm apart, out of view or behind the surface
+  const int checked = std::min(frames, 60);
+  const double lengthM = sim.config().electrode.lengthM;
+  const int points = 1 + static_cast<int>(std::ceil(lengthM / 0.001));
+  int hidden = 0;
+  for (int k = 0; k < checked; ++k) {
+    const double t = (checked > 1 ? k * (frames - 1.0) / (checked - 1) : 0.0) / sc.time.fps;
+    const Vec3 axis = path.orientationAt(t) * Vec3::UnitZ();
+    bool seen = false;
+    for (int i = 0; i < points && !seen; ++i) {
+      const Vec3 q = path.positionAt(t) + (lengthM * i / (points - 1)) * axis;
+      seen = inView(o, {q[0], q[1], q[2]}) && !hiddenBySurface(o, snap, {q[0], q[1], q[2]});
+    }
+    hidden += !seen;
+  }
+  if (2 * hidden <= checked) return "";
+  return "the tissue hides the tool in " + std::to_string(hidden) + " of " +
+         std::to_string(checked) +
+         " frames checked (its axis from the tip up, as the tissue is "
+         "at the start; " +
+         camera +
+         "): the video shows little of the cut; put camera.eye_m on the tool's side of the "
+         "tissue";
 }
 
 // the mesh, phases and renderer of a loaded scenario; throws Error (nothing written)
