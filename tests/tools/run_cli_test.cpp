@@ -833,32 +833,26 @@ TEST(RunCli, ACameraThatSeesNoTissueIsWarnedOf) {
   ASSERT_EQ(warnings.size(), 1u) << warnings.dump();
   EXPECT_EQ(warnings[0], inside);
   EXPECT_NE(readFile(out / "summary.txt").find("  WARNING       " + inside), std::string::npos);
-  r = run(" --set camera.eye_m=[0,-0.1,0.05] --set camera.target_m=[0,-0.2,0.05]");
-  EXPECT_EQ(r.exitCode, 0) << r.output;
-  EXPECT_NE(r.output.find("esim: warning: the camera sees none of the tissue (camera.eye_m [0.0, "
-                          "-100.0, 50.0] mm, camera.target_m [0.0, -200.0, 50.0] mm, "
-                          "camera.fov_deg "),
-            std::string::npos)
-      << r.output;
+  // the run with this camera goes on, warned with this text
+  const auto warned = [&run](const std::string& camera, const std::string& warning) {
+    const Result w = run(camera);
+    EXPECT_EQ(w.exitCode, 0) << w.output;
+    EXPECT_NE(w.output.find("esim: warning: " + warning), std::string::npos) << w.output;
+  };
+  warned(" --set camera.eye_m=[0,-0.1,0.05] --set camera.target_m=[0,-0.2,0.05]",
+         "the camera sees none of the tissue (camera.eye_m [0.0, -100.0, 50.0] mm, "
+         "camera.target_m [0.0, -200.0, 50.0] mm, camera.fov_deg ");
   // a view of a corner of the slab, away from the tool's path: the cut happens off screen
-  r =
-      run(" --set camera.eye_m=[0.04,0.04,0.05] --set camera.target_m=[0.045,0.045,0] --set "
-          "camera.fov_deg=10");
-  EXPECT_EQ(r.exitCode, 0) << r.output;
-  EXPECT_NE(r.output.find("esim: warning: the tool's tip is outside the camera's view in 2 of 2 "
-                          "frames (camera.eye_m [40.0, 40.0, 50.0] mm, camera.target_m [45.0, "
-                          "45.0, 0.0] mm, camera.fov_deg 10): the video shows little of the cut; "
-                          "point camera.target_m at the tool's path\n"),
-            std::string::npos)
-      << r.output;
+  warned(
+      " --set camera.eye_m=[0.04,0.04,0.05] --set camera.target_m=[0.045,0.045,0] --set "
+      "camera.fov_deg=10",
+      "the tool's tip is outside the camera's view in 2 of 2 frames (camera.eye_m [40.0, 40.0, "
+      "50.0] mm, camera.target_m [45.0, 45.0, 0.0] mm, camera.fov_deg 10): the video shows "
+      "little of the cut; point camera.target_m at the tool's path\n");
   // from below the slab: the tissue hides the tool
-  r = run(" --set camera.eye_m=[-0.035,-0.03,-0.03] --set camera.target_m=[-0.035,0,0.005]");
-  EXPECT_EQ(r.exitCode, 0) << r.output;
-  EXPECT_NE(r.output.find("esim: warning: the tissue hides the tool in 2 of 2 frames checked "
-                          "(its axis from the tip up, as the tissue is at the start; camera.eye_m "
-                          "[-35.0, -30.0, -30.0] mm, "),
-            std::string::npos)
-      << r.output;
+  warned(" --set camera.eye_m=[-0.035,-0.03,-0.03] --set camera.target_m=[-0.035,0,0.005]",
+         "the tissue hides the tool in 2 of 2 frames checked (its axis from the tip up, as the "
+         "tissue is at the start; camera.eye_m [-35.0, -30.0, -30.0] mm, ");
   // the scene's own camera sees it: no such warning
   r = run("");
   EXPECT_EQ(r.exitCode, 0) << r.output;
