@@ -364,6 +364,7 @@ void VideoEncoder::close() {
   thread_.join();
   std::exception_ptr err = error_;
   const std::string regularPath = opt_.path + ".regular.partial";
+  bool keepFragmented = false;  // complete, and its rewrite failed: it stays, and plays
   if (!err) {
     // the trailer was written by the thread; close the fragmented file, rewrite it as one
     // regular MP4 and publish that
@@ -376,14 +377,18 @@ void VideoEncoder::close() {
       if (ec)
         throw Error("video.path: cannot rename '" + regularPath + "' to '" + opt_.path +
                     "': " + ec.message());
-    } catch (...) {
-      err = std::current_exception();
+    } catch (const std::exception& e) {
+      keepFragmented = true;
+      const auto* known = dynamic_cast<const Error*>(&e);
+      err = std::make_exception_ptr(Error(std::string(e.what()) + "; every frame is kept in '" +
+                                              tmpPath_ + "' (a fragmented MP4, which plays)",
+                                          known ? known->kind() : ErrorKind::Run));
     }
   }
   av_.reset();
   std::error_code ec;
-  std::filesystem::remove(regularPath, ec);
-  std::filesystem::remove(tmpPath_, ec);
+  if (std::filesystem::is_regular_file(regularPath, ec)) std::filesystem::remove(regularPath, ec);
+  if (!keepFragmented) std::filesystem::remove(tmpPath_, ec);
   if (err) std::rethrow_exception(err);
 }
 

@@ -18,7 +18,9 @@
 // kept in notes(). With allowFallback = false a missing encoder is an error.
 // Files: frames go to "<path>.partial", a fragmented MP4 that plays up to its last
 // fragment if the process is killed; close() rewrites it as "<path>.regular.partial",
-// renamed to <path>, and removes the fragmented file; on an error both are removed.
+// renamed to <path>, and removes the fragmented file. On an error both are removed,
+// except when only that rewrite failed: the fragmented file, complete, stays (the error
+// says so).
 // The destructor closes an open encoder.
 // Logging: if libav's log level is still its default (info), open() lowers it to
 // warnings, so libx264's per-file banner does not flood stderr.

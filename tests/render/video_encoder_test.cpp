@@ -291,6 +291,33 @@ TEST(VideoEncoder, ThePartialFilePlaysUpToItsLastFragment) {
   EXPECT_FALSE(std::filesystem::exists(path + ".regular.partial"));
 }
 
+// the rewrite as a regular MP4 cannot be written (a folder has its name, standing for a
+// disk that fills): close() fails saying so, and the fragmented file, complete, stays and
+// plays every frame; the folder, not the encoder's, stays too
+TEST(VideoEncoder, AFailedRewriteKeepsTheFragmentedVideo) {
+  const std::string path = tempPath("rewrite_fails.mp4");
+  std::filesystem::remove(path);
+  std::filesystem::remove(path + ".partial");
+  std::filesystem::create_directories(path + ".regular.partial");
+  VideoEncoder enc;
+  enc.open(smallOptions(path));
+  for (int i = 0; i < 30; ++i) enc.push(frameAt(i));
+  try {
+    enc.close();
+    ADD_FAILURE() << "close() succeeded";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("; every frame is kept in '" + path +
+                                         ".partial' (a fragmented MP4, which plays)"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_FALSE(std::filesystem::exists(path));
+  EXPECT_EQ(probe(path + ".partial").decoded, 30);
+  EXPECT_TRUE(std::filesystem::is_directory(path + ".regular.partial"));
+  std::filesystem::remove(path + ".partial");
+  std::filesystem::remove(path + ".regular.partial");
+}
+
 TEST(VideoEncoder, DestructorFinishesAnOpenVideo) {
   const std::string path = tempPath("dtor.mp4");
   std::filesystem::remove(path);
