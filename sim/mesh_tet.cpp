@@ -201,6 +201,53 @@ double surfaceArea(const TetMesh& mesh, const std::vector<BoundaryFace>& faces) 
   return area;
 }
 
+double pointTriangleDistance(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return ap.norm();  // vertex a
+  const Vec3 bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return bp.norm();  // vertex b
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return (p - (a + d1 / (d1 - d3) * ab)).norm();  // edge ab
+  const Vec3 cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return cp.norm();  // vertex c
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return (p - (a + d2 / (d2 - d6) * ac)).norm();  // edge ac
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0)  // edge bc
+    return (p - (b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b))).norm();
+  const double denom = 1 / (va + vb + vc);  // inside the face
+  return (p - (a + ab * (vb * denom) + ac * (vc * denom))).norm();
+}
+
+double signedDistanceToSurface(const TetMesh& mesh, const std::vector<BoundaryFace>& faces,
+                               const Vec3& p) {
+  // a generic direction (no symmetry of a box or a slab lies along it) for the parity
+  const Vec3 d = Vec3(0.5727, 0.6143, 0.5432).normalized();
+  int crossings = 0;
+  double nearest = INFINITY;
+  for (const BoundaryFace& f : faces) {
+    const Vec3& a = mesh.nodes[f.nodes[0]];
+    const Vec3& b = mesh.nodes[f.nodes[1]];
+    const Vec3& c = mesh.nodes[f.nodes[2]];
+    nearest = std::min(nearest, pointTriangleDistance(p, a, b, c));
+    // Moller-Trumbore: the ray p + t d, t > 0, through the triangle
+    const Vec3 e1 = b - a, e2 = c - a, q = d.cross(e2);
+    const double det = e1.dot(q);
+    if (std::abs(det) < 1e-30) continue;
+    const Vec3 s = p - a;
+    const double u = s.dot(q) / det;
+    if (u < 0 || u > 1) continue;
+    const Vec3 r = s.cross(e1);
+    const double v = d.dot(r) / det;
+    if (v < 0 || u + v > 1) continue;
+    crossings += e2.dot(r) / det > 0;
+  }
+  return crossings % 2 == 1 ? -nearest : nearest;
+}
+
 std::vector<int> boundaryNodes(const TetMesh& mesh, const std::vector<BoundaryFace>& faces) {
   std::vector<std::uint8_t> mark(mesh.nodes.size(), 0);
   for (const auto& f : faces)

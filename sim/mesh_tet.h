@@ -100,6 +100,15 @@ BoundaryNodeChange updateBoundaryNodes(const TetMesh& mesh,
 // total area of the given faces [m^2]
 double surfaceArea(const TetMesh& mesh, const std::vector<BoundaryFace>& faces);
 
+// the distance from p to triangle (a, b, c) [m] (its closest point: Ericson, Real-Time
+// Collision Detection, 5.1.5)
+double pointTriangleDistance(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);
+
+// p's distance to the closed surface of `faces` [m], negative inside it (a ray from p
+// crosses the faces an odd number of times); +inf without faces
+double signedDistanceToSurface(const TetMesh& mesh, const std::vector<BoundaryFace>& faces,
+                               const Vec3& p);
+
 // sorted ids of the nodes on the given faces
 std::vector<int> boundaryNodes(const TetMesh& mesh, const std::vector<BoundaryFace>& faces);
 

@@ -425,6 +425,7 @@ class Simulation {
   int recomputedFrames_ = 0;              // frames computed again after swaps
   int framesContactByTet_ = 0, framesToolSwept_ = 0, framesBoilingUnconverged_ = 0;
   std::string piecesWarning_;   // set-up: pieces of the mesh with no return-electrode node
+  std::string depthWarning_;    // set-up: the tool's path deeper than its contact distance
   int framesMaxPrinciple_ = 0;  // frames whose temperature left its bounds
   int framesSubgrid_ = 0;       // frames the sub-grid contact model carried the contact
   // electric: frames with the generator on, and with the tool in contact

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <iterator>
 
 #include "sim/core_error.h"
@@ -122,6 +123,32 @@ TEST(MeshTet, RemovalChangesBoundaryAndCompacts) {
   EXPECT_EQ(c.nodeSets.at("apex"), (std::vector<int>{3}));
   EXPECT_TRUE(c.nodeSets.at("origin").empty());
   EXPECT_NEAR(meshVolume(c), 1.0 / 3.0, 1e-15);
+}
+
+// the nearest point of a triangle in each of its regions: the face, an edge, a vertex
+TEST(MeshTet, PointTriangleDistanceInEachRegion) {
+  const Vec3 a(0, 0, 0), b(1, 0, 0), c(0, 1, 0);
+  EXPECT_NEAR(pointTriangleDistance(Vec3(0.25, 0.25, 2), a, b, c), 2.0, 1e-15);         // face
+  EXPECT_NEAR(pointTriangleDistance(Vec3(0.5, -3, 4), a, b, c), 5.0, 1e-15);            // edge ab
+  EXPECT_NEAR(pointTriangleDistance(Vec3(-3, 0.5, 4), a, b, c), 5.0, 1e-15);            // edge ac
+  EXPECT_NEAR(pointTriangleDistance(Vec3(1, 1, 0), a, b, c), std::sqrt(0.5), 1e-15);    // bc
+  EXPECT_NEAR(pointTriangleDistance(Vec3(-1, -1, 0), a, b, c), std::sqrt(2.0), 1e-15);  // a
+  EXPECT_NEAR(pointTriangleDistance(Vec3(3, -4, 0) + b, a, b, c), 5.0, 1e-15);          // vertex b
+  EXPECT_NEAR(pointTriangleDistance(Vec3(-3, 4, 0) + c, a, b, c), 5.0, 1e-15);          // vertex c
+}
+
+// a 60 x 60 x 10 mm slab: inside negative (the nearest face), outside positive
+TEST(MeshTet, SignedDistanceToTheSurfaceIsNegativeInside) {
+  SlabSpec spec;
+  spec.sizeM = Vec3(0.06, 0.06, 0.01);
+  spec.nodesPerAxis = {7, 7, 3};
+  const TetMesh mesh = makeSlab(spec);
+  const std::vector<BoundaryFace> faces = boundaryFaces(mesh);
+  EXPECT_NEAR(signedDistanceToSurface(mesh, faces, Vec3(0.001, 0.002, 0.006)), -0.004, 1e-12);
+  EXPECT_NEAR(signedDistanceToSurface(mesh, faces, Vec3(0.001, 0.002, 0.0098)), -0.0002, 1e-12);
+  EXPECT_NEAR(signedDistanceToSurface(mesh, faces, Vec3(0.001, 0.002, 0.013)), 0.003, 1e-12);
+  EXPECT_NEAR(signedDistanceToSurface(mesh, faces, Vec3(0.034, 0, 0.005)), 0.004, 1e-12);
+  EXPECT_EQ(signedDistanceToSurface(mesh, {}, Vec3::Zero()), INFINITY);
 }
 
 TEST(MeshTet, QualityOfRegularTet) {

@@ -666,13 +666,36 @@ TEST(SimulationGuards, ABuriedElectrodeDeliversCurrentAndSaysHow) {
   EXPECT_EQ(r.contactNodes, 1);
   EXPECT_GT(r.powerW, 0.0);
   EXPECT_NEAR(r.returnCurrentA, r.toolCurrentA, 1e-9 * r.toolCurrentA);
-  ASSERT_EQ(sim.warnings().size(), 1u);
-  EXPECT_NE(sim.warnings()[0].find("tool.contact_distance_m"), std::string::npos);
+  ASSERT_EQ(sim.warnings().size(), 2u);  // the set-up's depth (below), then the fallback
+  EXPECT_EQ(sim.warnings()[0].rfind("the tool reaches 4.5 mm under the tissue's surface", 0), 0u)
+      << sim.warnings()[0];
+  EXPECT_NE(sim.warnings()[1].find("tool.contact_distance_m"), std::string::npos);
   // above the tissue: no contact, no fallback
   Simulation air(smallSlab(), sphereAt(Vec3(0.0013, 0.0013, 0.02)));
   EXPECT_EQ(air.step().contactNodes, 0);
   ASSERT_EQ(air.warnings().size(), 1u);
   EXPECT_NE(air.warnings()[0].find("touched the tissue in none"), std::string::npos);
+}
+
+// Contact is found among the surface's nodes: a tool deeper than its contact distance
+// touches the tissue only where it enters it (liver_cut's blade ran 3.4-3.7 mm deep). The
+// set-up says so, with the depth and when; a tip 0.2 mm in, a sphere resting on the face, or
+// a blade going down to the contact distance and 1 mm more, say nothing.
+TEST(SimulationGuards, AToolDeeperThanItsContactDistanceIsNamedAtSetUp) {
+  SimulationConfig deep = cutConfig(false);
+  deep.toolPath.keys[1].positionM.z() = 0.006;  // down to 4 mm under the top face at 0.5 s
+  Simulation sim(smallSlab(), deep);
+  ASSERT_EQ(sim.warnings().size(), 1u);
+  EXPECT_EQ(sim.warnings()[0],
+            "the tool reaches 4.0 mm under the tissue's surface at t = 0.50 s (tool.path; the "
+            "surface as it is at the start): contact is found among the surface's nodes, so a "
+            "tool deeper than tool.contact_distance_m (0.8 mm) touches the tissue only where it "
+            "enters it; keep the tip within that of the surface");
+  EXPECT_TRUE(Simulation(smallSlab(), cutConfig(false)).warnings().empty());
+  EXPECT_TRUE(Simulation(smallSlab(), sphereAt(Vec3(0, 0, 0.0103))).warnings().empty());
+  SimulationConfig edge = cutConfig(false);
+  edge.toolPath.keys[1].positionM.z() = 0.0083;  // 1.7 mm: under 0.8 + 1 mm
+  EXPECT_TRUE(Simulation(smallSlab(), edge).warnings().empty());
 }
 
 // a second body in the mesh, off the return electrode: named at set-up (it carries no current
