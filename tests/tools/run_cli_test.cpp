@@ -862,6 +862,26 @@ TEST(RunCli, ACameraThatSeesNoTissueIsWarnedOf) {
   fs::remove_all(out);
 }
 
+// what the set-up finds (here a tool path 4 mm under the surface, deeper than its contact
+// distance: sim/simulation.cpp) is said before the frames, even with -q, and the summary
+// and timing.json repeat it
+TEST(RunCli, ASetUpWarningIsSaidBeforeTheFrames) {
+  const fs::path out = tempOut("setup_warning");
+  const Result r = esimRun(
+      "scenarios/slab_cut.yaml --frames 1 --no-video -q --set mesh.slab.nodes=1013 --set "
+      "'tool.path=[{t_s: 0, position_m: [0.001, 0, 0.006], orientation_deg: [0, 0, 0]}]' -o " +
+      out.string());
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  const std::string warning = "the tool reaches 4.0 mm under the tissue's surface at t = 0.00 s";
+  const size_t said = r.output.find("esim: warning: " + warning);
+  ASSERT_NE(said, std::string::npos) << r.output;
+  EXPECT_LT(said, r.output.find("esim run slab_cut")) << r.output;  // before the summary
+  const auto warnings = nlohmann::json::parse(readFile(out / "timing.json"))["warnings"];
+  ASSERT_EQ(warnings.size(), 1u) << warnings.dump();
+  EXPECT_EQ(warnings[0].get<std::string>().rfind(warning, 0), 0u);
+  fs::remove_all(out);
+}
+
 // a run whose memory cgroup has almost nothing left (ESIM_MEMORY_ROOT: a folder standing for
 // "/", whose v1 group has 20 MB left of 1 GB, under the guard's 32 MB reserve) stops after a
 // whole frame with its reports, exit 1, instead of being killed by the kernel with none; with

@@ -206,6 +206,10 @@ Setup setUp(const RunOptions& opt, Scenario scenario) {
     const auto t1 = Clock::now();
     s.sim = std::make_unique<Simulation>(std::move(mesh), config);
     s.setupS = secondsSince(t1);
+    // what the set-up found (a piece off the return electrode, a tool path under the
+    // surface), before a run of minutes: even with -q, as the summary will repeat it
+    for (const std::string& w : s.sim->warnings())
+      std::fprintf(stderr, "esim: warning: %s\n", w.c_str());
   } catch (const Error& e) {
     rethrowNamingScenario(e, sc);
   }
