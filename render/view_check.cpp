@@ -9,29 +9,19 @@
 
 #include "render/labels.h"
 #include "render/vec3d.h"
+#include "sim/ray_triangle.h"
 
 namespace esim {
 namespace {
 
-using render_detail::cross;
 using render_detail::D3;
 using render_detail::dot;
 using render_detail::sub;
 
-// the ray eye + t d crosses triangle (a, b, c) at t in (0, tMax) (Moller-Trumbore)
+// the ray eye + t d crosses triangle (a, b, c) at t in (0, tMax)
 bool rayHits(const D3& eye, const D3& d, const D3& a, const D3& b, const D3& c,
              double tMax = INFINITY) {
-  const D3 e1 = sub(b, a), e2 = sub(c, a);
-  const D3 p = cross(d, e2);
-  const double det = dot(e1, p);
-  if (std::abs(det) < 1e-30) return false;  // parallel to the triangle
-  const D3 s = sub(eye, a);
-  const double u = dot(s, p) / det;
-  if (u < 0 || u > 1) return false;
-  const D3 q = cross(s, e1);
-  const double v = dot(d, q) / det;
-  if (v < 0 || u + v > 1) return false;
-  const double t = dot(e2, q) / det;
+  const double t = rayTriangleT(eye.data(), d.data(), a.data(), b.data(), c.data());
   return t > 0 && t < tMax;
 }
 
@@ -80,9 +70,8 @@ ViewCheck checkView(const RenderOptions& o, const SurfaceSnapshot& snap) {
   const D3& eye = cam.eyeM;
   const auto vertex = [&snap](int v) { return vertexOf(snap, static_cast<std::uint32_t>(v)); };
   for (int v = 0; v < snap.numVertices(); ++v) r.verticesInView += sees(cam, vertex(v));
-  // rays: a generic direction for the parity (no symmetry of a box or a slab lies along it),
-  // then the view's centre and corners
-  const D3 generic{0.5727, 0.6143, 0.5432};
+  // rays: the generic direction for the parity, then the view's centre and corners
+  const D3 generic{kGenericRayDirection[0], kGenericRayDirection[1], kGenericRayDirection[2]};
   const double w = cam.width - 0.5, h = cam.height - 0.5;
   const std::array<D3, 5> view{rayThrough(cam, cam.cx, cam.cy), rayThrough(cam, -0.5, -0.5),
                                rayThrough(cam, w, -0.5), rayThrough(cam, -0.5, h),

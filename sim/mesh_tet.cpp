@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "sim/core_error.h"
+#include "sim/ray_triangle.h"
 
 namespace esim {
 
@@ -224,26 +225,14 @@ double pointTriangleDistance(const Vec3& p, const Vec3& a, const Vec3& b, const 
 
 double signedDistanceToSurface(const TetMesh& mesh, const std::vector<BoundaryFace>& faces,
                                const Vec3& p) {
-  // a generic direction (no symmetry of a box or a slab lies along it) for the parity
-  const Vec3 d = Vec3(0.5727, 0.6143, 0.5432).normalized();
-  int crossings = 0;
+  int crossings = 0;  // of the ray from p along the generic direction (the parity)
   double nearest = INFINITY;
   for (const BoundaryFace& f : faces) {
     const Vec3& a = mesh.nodes[f.nodes[0]];
     const Vec3& b = mesh.nodes[f.nodes[1]];
     const Vec3& c = mesh.nodes[f.nodes[2]];
     nearest = std::min(nearest, pointTriangleDistance(p, a, b, c));
-    // Moller-Trumbore: the ray p + t d, t > 0, through the triangle
-    const Vec3 e1 = b - a, e2 = c - a, q = d.cross(e2);
-    const double det = e1.dot(q);
-    if (std::abs(det) < 1e-30) continue;
-    const Vec3 s = p - a;
-    const double u = s.dot(q) / det;
-    if (u < 0 || u > 1) continue;
-    const Vec3 r = s.cross(e1);
-    const double v = d.dot(r) / det;
-    if (v < 0 || u + v > 1) continue;
-    crossings += e2.dot(r) / det > 0;
+    crossings += rayTriangleT(p.data(), kGenericRayDirection, a.data(), b.data(), c.data()) > 0;
   }
   return crossings % 2 == 1 ? -nearest : nearest;
 }

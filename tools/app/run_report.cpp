@@ -161,6 +161,10 @@ void TimingCsvStream::add(const FrameRecord& record) {
   if (!writeAll(fd_, os.str())) remove();  // (a cut row is never left)
 }
 
+TimingCsvStream::~TimingCsvStream() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
 void TimingCsvStream::remove() {
   stopped_ = true;
   if (fd_ < 0) return;

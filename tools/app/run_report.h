@@ -47,6 +47,9 @@ std::string timingCsv(const std::vector<FrameRecord>& records);
 class TimingCsvStream {
  public:
   explicit TimingCsvStream(std::string path) : path_(std::move(path)) {}
+  ~TimingCsvStream();  // closes the file, which stays (a run that ended before its reports)
+  TimingCsvStream(const TimingCsvStream&) = delete;
+  TimingCsvStream& operator=(const TimingCsvStream&) = delete;
   void add(const FrameRecord& record);
   void remove();
 
