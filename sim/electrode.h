@@ -9,8 +9,11 @@
 //           {|x| <= widthM/2, y = 0, 0 <= z <= lengthM}; its tip edge passes
 //           through the tip point.
 // electrodeDistance is the signed distance to the electrode surface [m] (<= 0
-// inside). Contact rule: the surface nodes with distance <= contactDistanceM are
-// held at the tool voltage. Contact sets are sorted node ids (deterministic).
+// inside). Contact rule: the candidate nodes with distance <= contactDistanceM are
+// held at the tool voltage; the candidates are the tissue's surface nodes (the paper's
+// rule: a tool that touches the tissue from outside) or every node of the tissue
+// (ContactNodes::Volume: a tool pushed into it, a needle, a buried ball). Contact sets
+// are sorted node ids (deterministic).
 // Return electrode: a disc pad (centre, normal, radius) pressed on the mesh; the
 // surface nodes within toleranceM of its plane and within radiusM of its centre
 // are grounded (0 V).
@@ -26,6 +29,9 @@
 #include "sim/snapshot.h"
 
 namespace esim {
+
+// which nodes the tool may touch (tool.contact; the order of its names)
+enum class ContactNodes : int { Surface = 0, Volume = 1 };
 
 struct ElectrodeShape {
   ElectrodeKind kind = ElectrodeKind::Blade;

@@ -247,6 +247,32 @@ std::vector<int> boundaryNodes(const TetMesh& mesh, const std::vector<BoundaryFa
   return ids;
 }
 
+std::vector<int> aliveNodes(const TetMesh& mesh) {
+  std::vector<std::uint8_t> mark(mesh.nodes.size(), 0);
+  for (int t = 0; t < mesh.numTets(); ++t)
+    if (mesh.isAlive(t))
+      for (int v : mesh.tets[t]) mark[v] = 1;
+  std::vector<int> ids;
+  for (int i = 0; i < mesh.numNodes(); ++i)
+    if (mark[i]) ids.push_back(i);
+  return ids;
+}
+
+std::vector<int> nodesWithoutAliveTets(const TetMesh& mesh, const Adjacency& nodeTets,
+                                       const std::vector<int>& removed) {
+  std::vector<int> out;
+  for (int e : removed)
+    for (int v : mesh.tets[e]) {
+      bool held = false;
+      for (const int* t = nodeTets.begin(v); t != nodeTets.end(v) && !held; ++t)
+        held = mesh.isAlive(*t);
+      if (!held) out.push_back(v);
+    }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
+}
+
 Adjacency nodeAdjacency(const TetMesh& mesh) {
   std::vector<std::pair<int, int>> pairs;
   pairs.reserve(static_cast<size_t>(mesh.numAlive()) * 12);

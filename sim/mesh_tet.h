@@ -112,6 +112,15 @@ double signedDistanceToSurface(const TetMesh& mesh, const std::vector<BoundaryFa
 // sorted ids of the nodes on the given faces
 std::vector<int> boundaryNodes(const TetMesh& mesh, const std::vector<BoundaryFace>& faces);
 
+// sorted ids of the nodes of the alive tets
+std::vector<int> aliveNodes(const TetMesh& mesh);
+
+// the nodes of the `removed` tets that no alive tet holds any more (sorted), after their
+// alive flags were cleared; nodeTets: the tets at each node of an alive set holding the
+// current one (as for updateBoundaryNodes). Cost: the removed tets' nodes and their tets
+std::vector<int> nodesWithoutAliveTets(const TetMesh& mesh, const Adjacency& nodeTets,
+                                       const std::vector<int>& removed);
+
 // node-node adjacency through alive tets (sorted, without the node itself)
 Adjacency nodeAdjacency(const TetMesh& mesh);
 

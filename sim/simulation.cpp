@@ -101,6 +101,11 @@ void validateSimulationConfig(const SimulationConfig& config) {
     validateThermalParams(tp);
   }
   if (config.subgrid.mode != SubgridMode::Off) {
+    ESIM_VERIFY(config.contactNodes == ContactNodes::Surface,
+                std::string("subgrid_contact.mode = ") + subgridModeName(config.subgrid.mode) +
+                    " with tool.contact = volume: the sub-grid contact model is of a tool at "
+                    "the tissue's surface (a flat contact under it); set one of them off or "
+                    "to surface");
     ESIM_VERIFY(ph.electric && ph.thermal,
                 std::string("subgrid_contact.mode = ") + subgridModeName(config.subgrid.mode) +
                     ": the sub-grid contact model needs the electric and thermal phases; add "
@@ -135,14 +140,15 @@ std::vector<Support> clampedSupports(const TetMesh& mesh, const std::vector<int>
 }
 
 // "" unless the tool's path goes deeper under the tissue's surface (as it is at the start)
-// than its contact distance and 1 mm more: contact is found among the surface's nodes, so
-// such a tool touches the tissue only where it enters it (liver_cut's path ran 3.4-3.7 mm
-// deep, its comment said 0.4 mm). The blade's tip, or the sphere's deepest point, at 61
-// times over the path's span.
+// than its contact distance and 1 mm more while contact is found among the surface's nodes
+// (tool.contact: surface): such a tool touches the tissue only where it enters it
+// (liver_cut's path ran 3.4-3.7 mm deep, its comment said 0.4 mm). The blade's tip, or the
+// sphere's deepest point, at 61 times over the path's span.
 std::string toolDepthWarning(const TetMesh& mesh, const std::vector<BoundaryFace>& surface,
                              const SimulationConfig& config) {
   const ToolPath& path = config.toolPath;
-  if (path.keys.empty() || surface.empty()) return "";
+  if (path.keys.empty() || surface.empty() || config.contactNodes == ContactNodes::Volume)
+    return "";
   const double t0 = path.keys.front().timeS, t1 = path.keys.back().timeS;
   const int samples = t1 > t0 ? 61 : 1;
   double deepestM = 0, atS = t0;
@@ -164,7 +170,7 @@ std::string toolDepthWarning(const TetMesh& mesh, const std::vector<BoundaryFace
          "among the surface's nodes, so a tool deeper than tool.contact_distance_m (" +
          messageNumber(config.contactDistanceM * 1e3) +
          " mm) touches the tissue only where it enters it; keep the tip within that of the "
-         "surface";
+         "surface, or set tool.contact: volume for a tool inside the tissue";
 }
 
 // "" when every piece of the mesh has a node on the return electrode; else what the pieces
@@ -463,6 +469,11 @@ namespace {
 
 // surface vertex numbering, triangles and cut walls of the snapshot: fixed until the
 // topology changes
+// the nodes the tool may touch (tool.contact): the surface's, or those of the alive tets
+const std::vector<int>& contactCandidates(const SimModel& m) {
+  return m.volumeNodes.empty() ? m.surfaceNodes : m.volumeNodes;
+}
+
 void buildSnapshotTopology(SimModel& m) {
   m.surfaceVertexOf.assign(m.mesh.numNodes(), -1);
   m.surfacePositionsM.clear();
@@ -518,6 +529,8 @@ std::unique_ptr<SimModel> Simulation::buildModel(std::vector<std::uint8_t> alive
   m.initialSurface = base.initialSurface;
   m.surface = boundaryFaces(m.mesh);
   m.surfaceNodes = boundaryNodes(m.mesh, m.surface);
+  if (config_.phases.electric && config_.contactNodes == ContactNodes::Volume)
+    m.volumeNodes = aliveNodes(m.mesh);
   buildSnapshotTopology(m);
   checkInterrupt();  // between the phases' builds: a stop waits for one factorization at most
   // concurrent: the structural phase is built on a thread of its own meanwhile (it reads the
@@ -556,11 +569,11 @@ std::unique_ptr<SimModel> Simulation::buildModel(std::vector<std::uint8_t> alive
     m.ground = returnElectrodeNodes(m.mesh, m.surfaceNodes, config_.returnElectrode);
     ESIM_RUN_CHECK(!m.ground.empty(),
                    "rupture: the cut removed all the tissue on the return electrode");
-    m.contactFinder = ContactFinder(m.mesh, m.surfaceNodes);
+    m.contactFinder = ContactFinder(m.mesh, contactCandidates(m));
     m.sigmaAssembled = std::move(sigma);
     m.stiffness = assembleStiffness(m.mesh, *m.geo, m.sigmaAssembled);
     m.electric = makeElectricSolver(config_.electricSolver);
-    m.electric->setContactCandidates(m.surfaceNodes);
+    m.electric->setContactCandidates(contactCandidates(m));
     m.electric->setMatrix(m.stiffness, m.ground);
     if (prefetchTo >= prefetchFrom)
       m.electric->prefetch(scriptedContacts(m.contactFinder, m.ground, prefetchFrom, prefetchTo));
@@ -640,14 +653,24 @@ void Simulation::updateModel(const std::vector<int>& broken, FrameRecord& rec) {
       ESIM_RUN_CHECK(!ground.empty(),
                      "rupture: the cut removed all the tissue on the return electrode");
       m.ground = std::move(ground);
-      m.contactFinder.update(m.mesh, moved.left, moved.joined);
+      if (config_.contactNodes == ContactNodes::Volume) {
+        // the candidates are the nodes of alive tets: those whose last tet broke leave
+        const std::vector<int> gone = nodesWithoutAliveTets(m.mesh, *m.nodeTets, broken);
+        std::vector<int> kept;
+        std::set_difference(m.volumeNodes.begin(), m.volumeNodes.end(), gone.begin(), gone.end(),
+                            std::back_inserter(kept));
+        m.volumeNodes = std::move(kept);
+        m.contactFinder.update(m.mesh, gone, {});
+      } else {
+        m.contactFinder.update(m.mesh, moved.left, moved.joined);
+      }
       // the entries of the removed tets summed again (bitwise a fresh assembly; the others
       // untouched: what updateMatrix reads the change from), then the solver's low-rank
       // update, then the new candidates (the capacitance cache is kept; new surface nodes
       // get their columns on first touch)
       removeFromStiffness(m.stiffness, m.mesh, *m.geo, m.sigmaAssembled, *m.nodeTets, broken);
       m.electric->updateMatrix(m.stiffness, m.ground);
-      m.electric->setContactCandidates(m.surfaceNodes);
+      m.electric->setContactCandidates(contactCandidates(m));
       // the columns the scripted tool will need on the new surface in the next second, on a
       // thread while the frame is drawn (the next solve joins it): not solved on first touch
       if (config_.prefetchUntilS > 0) {

@@ -152,6 +152,9 @@ struct SimulationConfig {
   double conductivityS_m = 0.144;  // sigma at the initial temperature [S/m]
   double toolVoltageV = 72;
   double contactDistanceM = 0.0008;
+  // the contact rule's candidates: the surface's nodes (the paper), or every node of the
+  // alive tets (a tool inside the tissue is held at its voltage along all of its length)
+  ContactNodes contactNodes = ContactNodes::Surface;
   ElectrodeShape electrode;
   ReturnElectrode returnElectrode;
   ToolPath toolPath;
@@ -233,7 +236,9 @@ struct SimModel {
   std::shared_ptr<const Adjacency> nodeTets;
   std::vector<int> surfaceNodes;  // sorted
   std::vector<int> ground;        // return-electrode nodes (electric)
-  ContactFinder contactFinder;    // over surfaceNodes (electric)
+  // tool.contact volume: every node of an alive tet (sorted; electric); empty otherwise
+  std::vector<int> volumeNodes;
+  ContactFinder contactFinder;  // over the contact candidates: surfaceNodes or volumeNodes
   // the snapshot's surface: fixed until the topology changes
   std::vector<int> surfaceVertexOf;             // node -> snapshot vertex (-1 inside)
   std::vector<float> surfacePositionsM;         // snapshot vertex positions [m]

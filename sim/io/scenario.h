@@ -159,6 +159,8 @@ struct ScenarioTool {
   double voltageV = scenario_detail::core().toolVoltageV;
   // nodes this close to the tool surface are in contact
   double contactDistanceM = scenario_detail::core().contactDistanceM;
+  // the nodes it may touch: surface | volume
+  ContactNodes contact = scenario_detail::core().contactNodes;
   std::vector<ScenarioKeyframe> path{ScenarioKeyframe{}};
   // the keyframes from a CSV file instead (a line t_s, x_m, y_m, z_m[, rx_deg, ry_deg,
   // rz_deg]); as written, resolved like mesh.file.path; `path` then holds what it read

@@ -193,7 +193,11 @@ const std::vector<Field>& schema() {
     f.push_back(number("tool.voltage_v", ESIM_REF(tool.voltageV), "V", closed(0.0, 1e4),
                        "tool potential while the generator is on (paper: 72 V)"));
     f.push_back(number("tool.contact_distance_m", ESIM_REF(tool.contactDistanceM), "m",
-                       closed(0.0, 0.1), "surface nodes this close to the tool are in contact"));
+                       closed(0.0, 0.1), "nodes this close to the tool are in contact"));
+    f.push_back(choice("tool.contact", ESIM_ENUM_REF(tool.contact), {"surface", "volume"},
+                       "the nodes the tool may touch: the tissue's surface (the paper: a tool "
+                       "at the surface) or its whole volume (a tool pushed into the tissue, a "
+                       "needle, a buried ball)"));
     f.push_back({"tool.path",
                  Kind::Keyframes,
                  "",

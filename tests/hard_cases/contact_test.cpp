@@ -235,6 +235,49 @@ TEST(HardContact, ToolInsideTheTissue) {
   EXPECT_TRUE(hard::contains(sim.warnings()[1], "10 frames"));
 }
 
+// the same ball with tool.contact: volume. It reaches a node (1.1 mm off its line, 1.3 mm of
+// reach) only within 0.69 mm of each node's x: those frames hold the nodes in reach, the
+// others fall back to the tet's node; the set-up says nothing of the depth. Falling through
+// the slab within one frame, it touches every node on its line, the three inside too.
+TEST(HardContact, ToolInsideTheTissueWithVolumeContact) {
+  SimulationConfig c = hard::toolAt(ElectrodeKind::Sphere, Vec3::Zero(), true);
+  c.contactNodes = ContactNodes::Volume;
+  hard::moveTool(c, Vec3(-0.01, 0.0011, 0.005), 0, Vec3(0.01, 0.0011, 0.005), 10 * c.frameDtS);
+  Simulation sim(makeSlab(hard::smallSlabSpec()), c);
+  FrameChecker check(sim, jouleHeating());
+  int touched = 0, byTet = 0;
+  for (int f = 0; f < 11; ++f) {
+    const FrameRecord& r = check.step();
+    ASSERT_TRUE(check.ok());
+    EXPECT_GT(r.toolCurrentA, 0.0) << "frame " << f;
+    if (r.contactByTet) {
+      ++byTet;
+      continue;
+    }
+    ++touched;
+    for (int v : sim.contactNodes())
+      EXPECT_LE(electrodeDistance(c.electrode, sim.state().pose, sim.mesh().nodes[v]),
+                c.contactDistanceM)
+          << "frame " << f;
+  }
+  EXPECT_GT(touched, 0);
+  EXPECT_GT(byTet, 0);
+  for (const std::string& w : sim.warnings())
+    EXPECT_FALSE(hard::contains(w, "under the tissue's surface")) << w;
+
+  SimulationConfig fall = offCentrePad(hard::toolAt(ElectrodeKind::Sphere, Vec3::Zero(), true));
+  fall.contactNodes = ContactNodes::Volume;
+  const double dt = fall.frameDtS;
+  hard::moveTool(fall, Vec3(-0.01, -0.01, kLz + 0.005), dt, Vec3(-0.01, -0.01, -0.005), 2 * dt);
+  Simulation through(makeSlab(hard::smallSlabSpec()), fall);
+  FrameChecker checkThrough(through, jouleHeating());
+  for (int f = 0; f < 4; ++f) {
+    const FrameRecord& r = checkThrough.step();
+    ASSERT_TRUE(checkThrough.ok());
+    if (f == 2) EXPECT_EQ(r.contactNodes, 5);  // the five nodes on its line, z = 0 to 10 mm
+  }
+}
+
 // a blade pressed 0.2 mm into the top face sweeps across the whole 60 mm slab (from 10 mm
 // before it to 10 mm past it) within one frame
 TEST(HardContact, ToolAcrossTheTissueInOneFrame) {

@@ -860,6 +860,9 @@ TEST(Scenario, EveryChoiceRoundTripsThroughItsEnum) {
   EXPECT_GT(checked, 20);
   const Scenario sphere = parseScenario("tool: {shape: sphere}\n", "c.yaml");
   EXPECT_EQ(sphere.tool.shape, ElectrodeKind::Sphere);
+  EXPECT_EQ(sphere.tool.contact, ContactNodes::Surface);
+  const Scenario inside = parseScenario("tool: {contact: volume}\n", "c.yaml");
+  EXPECT_EQ(inside.tool.contact, ContactNodes::Volume);
   const Scenario pcg = parseScenario("solvers: {electric: {strategy: pcg}}\n", "c.yaml");
   EXPECT_EQ(pcg.solvers.electricStrategy, ElectricStrategy::Pcg);
   const Scenario bg = parseScenario("solvers: {rebuild: {mode: background}}\n", "c.yaml");

@@ -271,5 +271,32 @@ TEST(MeshTet, UpdateBoundaryNodesIsTheBoundaryNodesOfTheAliveSet) {
   EXPECT_GT(leftAny, 0);    // nodes orphaned
 }
 
+// aliveNodes: the nodes of the alive tets; nodesWithoutAliveTets after each batch of random
+// removals is exactly what aliveNodes lost (tool.contact volume's candidates)
+TEST(MeshTet, NodesWithoutAliveTetsAreWhatTheAliveNodesLost) {
+  TetMesh pair = twoTets();
+  EXPECT_EQ(aliveNodes(pair), (std::vector<int>{0, 1, 2, 3, 4}));
+  pair.alive = {1, 0};
+  EXPECT_EQ(aliveNodes(pair), (std::vector<int>{0, 1, 2, 3}));
+  EXPECT_EQ(nodesWithoutAliveTets(pair, nodeTets(twoTets()), {1}), std::vector<int>{4});
+  TetMesh mesh = removalSlab();
+  const Adjacency tetsAt = nodeTets(mesh);
+  std::vector<int> nodes = aliveNodes(mesh);
+  EXPECT_EQ(static_cast<int>(nodes.size()), mesh.numNodes());
+  unsigned seed = 91;
+  int lost = 0;
+  while (mesh.numAlive() > 5) {
+    const std::vector<int> removed = removeRandomBatch(mesh, seed, 9);
+    const std::vector<int> fresh = aliveNodes(mesh);
+    std::vector<int> gone;
+    std::set_difference(nodes.begin(), nodes.end(), fresh.begin(), fresh.end(),
+                        std::back_inserter(gone));
+    ASSERT_EQ(nodesWithoutAliveTets(mesh, tetsAt, removed), gone) << mesh.numAlive();
+    lost += static_cast<int>(gone.size());
+    nodes = fresh;
+  }
+  EXPECT_GT(lost, 0);
+}
+
 }  // namespace
 }  // namespace esim

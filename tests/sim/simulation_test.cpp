@@ -690,13 +690,146 @@ TEST(SimulationGuards, AToolDeeperThanItsContactDistanceIsNamedAtSetUp) {
             "the tool reaches 4.0 mm under the tissue's surface at t = 0.50 s (tool.path; the "
             "surface as it is at the start): contact is found among the surface's nodes, so a "
             "tool deeper than tool.contact_distance_m (0.8 mm) touches the tissue only where it "
-            "enters it; keep the tip within that of the surface");
+            "enters it; keep the tip within that of the surface, or set tool.contact: volume for "
+            "a tool inside the tissue");
+  deep.contactNodes = ContactNodes::Volume;  // then it touches the tissue along its depth
+  EXPECT_TRUE(Simulation(smallSlab(), deep).warnings().empty());
   EXPECT_TRUE(Simulation(smallSlab(), cutConfig(false)).warnings().empty());
   EXPECT_TRUE(Simulation(smallSlab(), sphereAt(Vec3(0, 0, 0.0103))).warnings().empty());
   SimulationConfig edge = cutConfig(false);
   edge.toolPath.keys[1].positionM.z() = 0.0083;  // 1.7 mm: under 0.8 + 1 mm
   EXPECT_TRUE(Simulation(smallSlab(), edge).warnings().empty());
 }
+
+}  // namespace guards
+
+// ---- tool.contact: volume, a tool inside the tissue ----
+
+namespace volume_contact {
+
+// A plate held inside the tissue: the blade turned flat (local y, its thickness, along world
+// z; its axis along -y), 80 x 80 mm, its mid-plane on the node layer z = 5 mm of the 60 x 60 x
+// 10 mm slab, the whole bottom face on the return electrode. With every node of that layer
+// at V the field below is that of a parallel-plate capacitor, phi = V z / h (h = 5 mm), and
+// above it phi = V: both lie in the P1 space, so the discrete current is exactly
+// sigma V A / h and the power sigma V^2 A / h.
+SimulationConfig buriedPlate(ContactNodes rule) {
+  SimulationConfig c;
+  c.phases.electric = true;
+  c.contactNodes = rule;
+  c.returnElectrode.radiusM = 0.05;  // the whole bottom face (half diagonal 42.4 mm)
+  c.electrode.kind = ElectrodeKind::Blade;
+  c.electrode.widthM = 0.08;
+  c.electrode.lengthM = 0.08;
+  ToolKeyframe k;
+  k.positionM = Vec3(0, 0.04, 0.005);
+  k.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Vec3::UnitX()));
+  c.toolPath.keys = {k};
+  c.toolPath.generatorOnS = {{0.0, 10.0}};
+  return c;
+}
+
+TEST(VolumeContact, APlateInsideTheTissueDrawsTheParallelPlateCurrent) {
+  const double sigma = SimulationConfig{}.conductivityS_m, volts = SimulationConfig{}.toolVoltageV;
+  const double area = 0.06 * 0.06, h = 0.005;
+  for (ElectricStrategy s : {ElectricStrategy::DenseInverse, ElectricStrategy::Capacitance,
+                             ElectricStrategy::Refactor, ElectricStrategy::Pcg}) {
+    SimulationConfig c = buriedPlate(ContactNodes::Volume);
+    c.electricSolver.strategy = s;
+    c.electricSolver.pcgTolerance = 1e-12;
+    Simulation sim(smallSlab(), c);
+    const FrameRecord& r = sim.step();
+    EXPECT_EQ(r.contactNodes, 25 * 25) << "strategy " << static_cast<int>(s);
+    EXPECT_FALSE(r.contactByTet);
+    EXPECT_NEAR(r.toolCurrentA, sigma * volts * area / h, 1e-9 * sigma * volts * area / h);
+    EXPECT_NEAR(r.powerW, sigma * volts * volts * area / h, 1e-9 * r.powerW);
+    EXPECT_NEAR(r.returnCurrentA, r.toolCurrentA, 1e-9 * r.toolCurrentA);
+    for (int v = 0; v < sim.mesh().numNodes(); ++v) {
+      const double z = sim.mesh().nodes[v].z();
+      EXPECT_NEAR(sim.potentialV()[v], z < h ? volts * z / h : volts, 1e-9 * volts) << v;
+    }
+    EXPECT_TRUE(sim.warnings().empty()) << sim.warnings()[0];
+  }
+  // the paper's rule holds only the layer's nodes on the side faces: far less current
+  Simulation surface(smallSlab(), buriedPlate(ContactNodes::Surface));
+  const FrameRecord& r = surface.step();
+  EXPECT_EQ(r.contactNodes, 4 * 24);
+  EXPECT_LT(r.powerW, 0.9 * sigma * volts * volts * area / h);
+}
+
+// a ball of 2.5 mm radius half sunk into the top face (its centre 2.5 mm under it, off the
+// grid's lines): it reaches nodes of the top face and of the two layers under it
+SimulationConfig sphereAtDepth() {
+  SimulationConfig c = buriedPlate(ContactNodes::Surface);
+  c.electrode.kind = ElectrodeKind::Sphere;
+  c.electrode.radiusM = 0.0025;
+  c.toolPath.keys[0].positionM = Vec3(0.0013, 0.0007, 0.0075);
+  c.toolPath.keys[0].orientation = Eigen::Quaterniond::Identity();
+  return c;
+}
+
+// the contact set is every node of an alive tet within the contact distance (brute force over
+// the nodes); the surface rule's is the part of it on the surface
+TEST(VolumeContact, TheContactsAreTheNodesWithinReach) {
+  SimulationConfig c = sphereAtDepth();
+  std::vector<size_t> counts;
+  for (ContactNodes rule : {ContactNodes::Volume, ContactNodes::Surface}) {
+    c.contactNodes = rule;
+    Simulation sim(smallSlab(), c);
+    sim.step();
+    const TetMesh& mesh = sim.mesh();
+    const std::vector<int> candidates =
+        rule == ContactNodes::Volume ? aliveNodes(mesh) : sim.model().surfaceNodes;
+    std::vector<int> expected;
+    for (int v : candidates)
+      if (electrodeDistance(c.electrode, sim.state().pose, mesh.nodes[v]) <= c.contactDistanceM)
+        expected.push_back(v);
+    ASSERT_FALSE(expected.empty());
+    EXPECT_EQ(sim.contactNodes(), expected);
+    counts.push_back(expected.size());
+  }
+  EXPECT_GT(counts[0], counts[1]) << "the ball reaches no node under the surface";
+}
+
+// a blade drawn 2 mm deep through the slab (its edge reaches the node layer 2.5 mm under the
+// top face) at 400 V: the update mode removes the same tets in the same frames as the
+// synchronous rebuild, with the same fields to 1e-9, and every frame's contacts are nodes of
+// the tets alive when it began (a node whose last tet broke is no longer touched)
+TEST(VolumeContact, UpdateModeCutsLikeTheSynchronousRebuild) {
+  auto run = [](RebuildMode mode) {
+    SimulationConfig c = fullCutConfig(mode);
+    c.contactNodes = ContactNodes::Volume;
+    for (ToolKeyframe& k : c.toolPath.keys) k.positionM.z() = 0.008;
+    auto sim = std::make_unique<Simulation>(smallSlab(), c);
+    std::vector<int> removed;
+    int interior = 0;
+    for (int f = 0; f < 45; ++f) {
+      const std::vector<int> alive = aliveNodes(sim->mesh());
+      const std::vector<int> surface = sim->model().surfaceNodes;
+      removed.push_back(sim->step().removedTets);
+      for (int v : sim->contactNodes()) {
+        EXPECT_TRUE(std::binary_search(alive.begin(), alive.end(), v)) << "frame " << f;
+        interior += !std::binary_search(surface.begin(), surface.end(), v);
+      }
+    }
+    EXPECT_GT(interior, 0) << "no node under the surface was touched";
+    return std::make_pair(std::move(sim), removed);
+  };
+  const auto [sync, syncRemoved] = run(RebuildMode::Synchronous);
+  const auto [upd, updRemoved] = run(RebuildMode::Update);
+  ASSERT_GT(sync->removedTets(), 0) << "the scene does not cut";
+  EXPECT_EQ(syncRemoved, updRemoved);
+  EXPECT_EQ(sync->mesh().alive, upd->mesh().alive);
+  auto rel = [](const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+    return (a - b).norm() / std::max(b.norm(), 1e-300);
+  };
+  EXPECT_LT(rel(upd->temperatureC(), sync->temperatureC()), 1e-9);
+  EXPECT_LT(rel(upd->potentialV(), sync->potentialV()), 1e-9);
+}
+
+}  // namespace volume_contact
+
+namespace guards {
 
 // a second body in the mesh, off the return electrode: named at set-up (it carries no current
 // whatever the tool does); one body, or both on the pad, say nothing

@@ -292,6 +292,21 @@ TEST(SubgridContactSimulation, AutoIsOffWhereTheMeshResolvesTheContact) {
   EXPECT_EQ(a.subgridStoredEnergyJ(), 0.0);
 }
 
+// the model is of a flat contact under a tool at the surface: not with tool.contact volume
+TEST(SubgridContactSimulation, IsNotForAToolInsideTheTissue) {
+  SimulationConfig c = ballConfig(SubgridMode::On, false);
+  c.contactNodes = ContactNodes::Volume;
+  try {
+    Simulation sim(smallSlab(), c);
+    ADD_FAILURE() << "accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "subgrid_contact.mode = on with tool.contact = volume: the sub-grid contact model is "
+              "of a tool at the tissue's surface (a flat contact under it); set one of them off "
+              "or to surface");
+  }
+}
+
 TEST(SubgridContactSimulation, NeedsTheElectricAndThermalPhases) {
   SimulationConfig c = ballConfig(SubgridMode::Auto, false);
   c.phases.thermal = c.phases.boiling = false;

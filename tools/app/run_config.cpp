@@ -18,6 +18,7 @@ void mapElectric(const Scenario& s, SimulationConfig& c) {
   c.conductivityS_m = m.electricConductivitySPerM;
   c.toolVoltageV = s.tool.voltageV;
   c.contactDistanceM = s.tool.contactDistanceM;
+  c.contactNodes = s.tool.contact;
   c.electrode.kind = s.tool.shape;
   c.electrode.radiusM = s.tool.radiusM;
   c.electrode.lengthM = s.tool.lengthM;
