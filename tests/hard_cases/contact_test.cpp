@@ -274,7 +274,9 @@ TEST(HardContact, ToolInsideTheTissueWithVolumeContact) {
   for (int f = 0; f < 4; ++f) {
     const FrameRecord& r = checkThrough.step();
     ASSERT_TRUE(checkThrough.ok());
-    if (f == 2) EXPECT_EQ(r.contactNodes, 5);  // the five nodes on its line, z = 0 to 10 mm
+    if (f == 2) {
+      EXPECT_EQ(r.contactNodes, 5);  // the five nodes on its line, z = 0 to 10 mm
+    }
   }
 }
 

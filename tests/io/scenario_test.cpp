@@ -167,9 +167,10 @@ TEST(Scenario, EveryShippedScenarioLoadsAndRoundTrips) {
     if (s.mesh.source == MeshSource::Slab) {
       const double below = s.tool.shape == ElectrodeKind::Sphere ? s.tool.radiusM : 0.0;
       const ToolPath path = makeToolPath(s);
-      for (int f = 0; f < frameCount(s); ++f)
-        if (path.generatorOnAt(f / s.time.fps))
-          EXPECT_LT(path.positionAt(f / s.time.fps).z() - below, s.mesh.slab.sizeM.z()) << f;
+      for (int f = 0; f < frameCount(s); ++f) {
+        if (!path.generatorOnAt(f / s.time.fps)) continue;
+        EXPECT_LT(path.positionAt(f / s.time.fps).z() - below, s.mesh.slab.sizeM.z()) << f;
+      }
     }
     // parse(toYaml(s)) == s, and the text is a fixed point
     const std::string yaml = scenarioToYaml(s);
@@ -267,10 +268,11 @@ TEST(Scenario, ShippedToolsTouchTheTissueOnEveryFrame) {
       deepestM = std::max(deepestM, nearest);
       insideM = std::max(insideM, -signedDistanceToSurface(mesh, faces, low));
     }
-    if (volume)
+    if (volume) {
       EXPECT_GT(insideM, s.tool.contactDistanceM + 0.001);
-    else
+    } else {
       EXPECT_LE(deepestM, 0.001);
+    }
   }
 }
 
