@@ -173,13 +173,20 @@ SimulationConfig offCentrePad(SimulationConfig c) {
   return c;
 }
 
-// a ball falls through the 10 mm slab within one frame: the contacts along its path (top and
-// bottom nodes on its line) carry the current of that frame; before and after, nothing
-TEST(HardContact, ToolThroughTheTissueInOneFrame) {
+// a ball that falls through the 10 mm slab within one frame (the third), on the line of a
+// column of nodes, away from the return pad
+SimulationConfig ballFallingThrough(ContactNodes rule) {
   SimulationConfig c = offCentrePad(hard::toolAt(ElectrodeKind::Sphere, Vec3::Zero(), true));
+  c.contactNodes = rule;
   const double dt = c.frameDtS;
   hard::moveTool(c, Vec3(-0.01, -0.01, kLz + 0.005), dt, Vec3(-0.01, -0.01, -0.005), 2 * dt);
-  Simulation sim(makeSlab(hard::smallSlabSpec()), c);
+  return c;
+}
+
+// the falling ball's contacts along its path (top and bottom nodes on its line) carry the
+// current of that frame; before and after, nothing
+TEST(HardContact, ToolThroughTheTissueInOneFrame) {
+  Simulation sim(makeSlab(hard::smallSlabSpec()), ballFallingThrough(ContactNodes::Surface));
   FrameChecker check(sim, jouleHeating());
   for (int f = 0; f < 6; ++f) {
     const FrameRecord& r = check.step();
@@ -265,11 +272,7 @@ TEST(HardContact, ToolInsideTheTissueWithVolumeContact) {
   for (const std::string& w : sim.warnings())
     EXPECT_FALSE(hard::contains(w, "under the tissue's surface")) << w;
 
-  SimulationConfig fall = offCentrePad(hard::toolAt(ElectrodeKind::Sphere, Vec3::Zero(), true));
-  fall.contactNodes = ContactNodes::Volume;
-  const double dt = fall.frameDtS;
-  hard::moveTool(fall, Vec3(-0.01, -0.01, kLz + 0.005), dt, Vec3(-0.01, -0.01, -0.005), 2 * dt);
-  Simulation through(makeSlab(hard::smallSlabSpec()), fall);
+  Simulation through(makeSlab(hard::smallSlabSpec()), ballFallingThrough(ContactNodes::Volume));
   FrameChecker checkThrough(through, jouleHeating());
   for (int f = 0; f < 4; ++f) {
     const FrameRecord& r = checkThrough.step();
