@@ -165,6 +165,47 @@ TEST(HardContact, ContactOnTheWholeTopFace) {
   }
 }
 
+// tool.contact volume, a tool holding every node but the return pad's: a plate inside the
+// slab (the blade laid flat, 7.5 mm thick) over the four node layers z = 2.5 .. 10 mm, the pad
+// under the whole bottom face. No node is left free; the field is that of the plate and the
+// pad 2.5 mm apart, I = sigma A V / h, its Joule heat in the bottom layer of cells only. Every
+// electric strategy takes the empty free set.
+TEST(HardContact, ContactOnEveryNodeButTheReturnPad) {
+  const double side = 0.06, sigma = 0.144, volts = 72, h = kLz / 4;
+  for (ElectricStrategy s : {ElectricStrategy::DenseInverse, ElectricStrategy::Capacitance,
+                             ElectricStrategy::Refactor, ElectricStrategy::Pcg}) {
+    SimulationConfig c =
+        hard::toolAt(ElectrodeKind::Blade, Vec3(0, side / 2 + 0.001, 0.00625), true);
+    c.contactNodes = ContactNodes::Volume;
+    c.electricSolver.strategy = s;
+    c.toolPath.keys[0].orientation = eulerXyzDegToQuaternion(Vec3(90, 0, 0));  // axis along -y
+    c.electrode.radiusM = 0.00375;
+    c.electrode.widthM = side + 0.002;
+    c.electrode.lengthM = side + 0.002;
+    c.returnElectrode.radiusM = 0.05;  // the whole bottom face
+    Simulation sim(makeSlab(hard::smallSlabSpec()), c);
+    FrameChecker check(sim, jouleHeating());
+    const double current = sigma * side * side * volts / h;
+    for (int f = 0; f < 3; ++f) {
+      const FrameRecord& r = check.step();
+      ASSERT_TRUE(check.ok()) << "strategy " << static_cast<int>(s);
+      EXPECT_EQ(r.contactNodes, 4 * 25 * 25);
+      EXPECT_NEAR(r.toolCurrentA, current, 1e-9 * current);
+      double heated = 0;
+      for (int e = 0; e < sim.mesh().numTets(); ++e) {
+        double zMax = 0;
+        for (int v : sim.mesh().tets[e]) zMax = std::max(zMax, sim.mesh().nodes[v].z());
+        if (zMax > h * (1 + 1e-9)) {
+          EXPECT_EQ(sim.joulePowerW_m3()[e], 0.0);
+        } else {
+          heated += sim.joulePowerW_m3()[e] * tetVolume(sim.mesh(), e);
+        }
+      }
+      EXPECT_NEAR(heated, volts * current, 1e-9 * volts * current);
+    }
+  }
+}
+
 // the return pad off-centre (x, y > 5 mm), so that a tool reaching the bottom face away from
 // it is a contact, not a short circuit
 SimulationConfig offCentrePad(SimulationConfig c) {
