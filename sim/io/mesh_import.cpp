@@ -1,7 +1,12 @@
 // mesh_import.cpp - assimp surface reading, surface checks, Mesh_3 front end.
 //
 // 1. readSurface: assimp -> concatenated triangles, vertices welded by exact position
-//    (a PLY header is checked first: assimp hangs on one without end_header).
+//    (a PLY header is checked first: assimp hangs on one without end_header). assimp runs
+//    in a child process (fork), which sends the triangles back through a pipe: a damaged
+//    file that makes assimp corrupt its heap or abort (found by tests/fuzz/fuzz_surface:
+//    ASan "CHECK failed" in assimp's delete after garbage OBJ and PLY input, never
+//    reproduced by one input alone) kills the child, and the run gets an input error naming
+//    the file and the signal instead of a crash or a corrupted heap.
 // 2. checkSurface: topology checks in plain C++ (sorted edge lists), then the CGAL
 //    self-intersection test (mesh_cgal.cpp).
 // 3. tetrahedralize: option checks and a size guard, Mesh_3, validateMesh.
@@ -9,14 +14,22 @@
 
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
+#include <fcntl.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <assimp/Importer.hpp>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
+#include <csignal>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <new>
 #include <numbers>
 #include <sstream>
 
@@ -74,22 +87,10 @@ void checkPlyHeader(const std::string& path) {
 }  // namespace
 
 // ---- reading ----
-SurfaceMesh readSurface(const std::string& path, double scaleToMetres) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  ESIM_VERIFY(fs::exists(path, ec), path + ": file not found");
-  ESIM_VERIFY(fs::is_regular_file(path, ec),
-              path + ": cannot read surface mesh: not a regular file");
-  ESIM_VERIFY(std::isfinite(scaleToMetres) && scaleToMetres > 0,
-              path + ": scale to metres must be a positive number");
+namespace {
 
-  std::string ext = fs::path(path).extension().string();
-  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  ESIM_VERIFY(ext != ".vtu", path +
-                                 ": a tet mesh (.vtu, e.g. the fields of esim run --fields) is "
-                                 "not a surface; expected a closed surface (OBJ, STL, PLY, OFF, "
-                                 "glTF), which is meshed with CGAL (esim mesh-info reads .vtu)");
-  checkPlyHeader(path);
+// assimp's part of readSurface (in the child process)
+SurfaceMesh importSurface(const std::string& path, double scaleToMetres) {
   // import only, then our checks, then the post-processing: assimp's loaders can hand on
   // faces of 0 indices, indices past the vertices and primitive-type flags that disagree
   // with the faces, and its Triangulate step aborts the process on the latter
@@ -162,6 +163,144 @@ SurfaceMesh readSurface(const std::string& path, double scaleToMetres) {
   ESIM_VERIFY(!surface.triangles.empty(),
               path + ": surface mesh has no triangles (" + std::to_string(scene->mNumMeshes) +
                   " meshes of points or lines only); expected a closed triangulated surface");
+  return surface;
+}
+
+// the child's answer on the pipe: one byte, then
+//   'S': int64 vertex count, int64 triangle count, the vertices (3 doubles each), the
+//        triangles (3 ints each);
+//   'E': the message of the input error (esim::Error) it threw;  'M': out of memory;
+//   'X': the message of any other exception (an internal error)
+bool writeAll(int fd, const void* data, size_t size) {
+  const char* p = static_cast<const char*>(data);
+  while (size > 0) {
+    const ssize_t n = ::write(fd, p, size);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return false;
+    p += n;
+    size -= static_cast<size_t>(n);
+  }
+  return true;
+}
+
+[[noreturn]] void childReads(int fd, const std::string& path, double scaleToMetres) {
+  if (const char* fault = std::getenv("ESIM_FAULT"); fault && std::strcmp(fault, "reader") == 0)
+    std::raise(SIGSEGV);  // tests: a reader that crashes
+  std::string reply;
+  try {
+    const SurfaceMesh surface = importSurface(path, scaleToMetres);
+    const std::int64_t counts[2] = {static_cast<std::int64_t>(surface.vertices.size()),
+                                    static_cast<std::int64_t>(surface.triangles.size())};
+    bool ok = writeAll(fd, "S", 1) && writeAll(fd, counts, sizeof counts);
+    for (const Vec3& v : surface.vertices) {
+      const double xyz[3] = {v.x(), v.y(), v.z()};
+      ok = ok && writeAll(fd, xyz, sizeof xyz);
+    }
+    for (const Tri& t : surface.triangles) ok = ok && writeAll(fd, t.data(), 3 * sizeof(int));
+    ::_exit(ok ? 0 : 3);
+  } catch (const Error& e) {
+    reply = std::string("E") + e.what();
+  } catch (const std::bad_alloc&) {
+    reply = "M";
+  } catch (const std::exception& e) {
+    reply = std::string("X") + e.what();
+  }
+  ::_exit(writeAll(fd, reply.data(), reply.size()) ? 0 : 3);
+}
+
+}  // namespace
+
+SurfaceMesh readSurface(const std::string& path, double scaleToMetres) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  ESIM_VERIFY(fs::exists(path, ec), path + ": file not found");
+  ESIM_VERIFY(fs::is_regular_file(path, ec),
+              path + ": cannot read surface mesh: not a regular file");
+  ESIM_VERIFY(std::isfinite(scaleToMetres) && scaleToMetres > 0,
+              path + ": scale to metres must be a positive number");
+
+  std::string ext = fs::path(path).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  ESIM_VERIFY(ext != ".vtu", path +
+                                 ": a tet mesh (.vtu, e.g. the fields of esim run --fields) is "
+                                 "not a surface; expected a closed surface (OBJ, STL, PLY, OFF, "
+                                 "glTF), which is meshed with CGAL (esim mesh-info reads .vtu)");
+  checkPlyHeader(path);
+
+  int fds[2];
+  if (::pipe2(fds, O_CLOEXEC) != 0)
+    throw Error("readSurface: pipe: " + std::string(std::strerror(errno)), ErrorKind::Internal);
+  const pid_t pid = ::fork();
+  const int forkErrno = errno;
+  if (pid == 0) {
+    ::close(fds[0]);
+    childReads(fds[1], path, scaleToMetres);
+  }
+  ::close(fds[1]);
+  if (pid < 0) {
+    ::close(fds[0]);
+    if (forkErrno == ENOMEM || forkErrno == EAGAIN) throw std::bad_alloc();
+    throw Error("readSurface: fork: " + std::string(std::strerror(forkErrno)), ErrorKind::Internal);
+  }
+  std::string reply;
+  char buffer[1 << 16];
+  for (;;) {
+    const ssize_t n = ::read(fds[0], buffer, sizeof buffer);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;
+    reply.append(buffer, static_cast<size_t>(n));
+  }
+  ::close(fds[0]);
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (WIFSIGNALED(status)) {
+    const int sig = WTERMSIG(status);
+    const char* name = ::strsignal(sig);
+    throw Error(path + ": cannot read surface mesh: the reader (assimp) crashed on it (signal " +
+                std::to_string(sig) + ", " + (name ? name : "?") +
+                "): a damaged file? expected OBJ, STL, PLY or glTF/GLB with triangles");
+  }
+  if (reply.empty())
+    throw Error("readSurface: the reader process sent nothing (exit status " +
+                    std::to_string(WEXITSTATUS(status)) + ")",
+                ErrorKind::Internal);
+  switch (reply[0]) {
+    case 'E':
+      throw Error(reply.substr(1));
+    case 'M':
+      throw std::bad_alloc();
+    case 'S':
+      break;
+    default:
+      throw Error("readSurface: the reader process failed: " + reply.substr(1),
+                  ErrorKind::Internal);
+  }
+  std::int64_t counts[2];
+  if (reply.size() < 1 + sizeof counts)
+    throw Error("readSurface: a short answer from the reader", ErrorKind::Internal);
+  std::memcpy(counts, reply.data() + 1, sizeof counts);
+  const size_t expected = 1 + sizeof counts + static_cast<size_t>(counts[0]) * 3 * sizeof(double) +
+                          static_cast<size_t>(counts[1]) * 3 * sizeof(int);
+  if (!(counts[0] >= 0 && counts[1] >= 0 && reply.size() == expected && WIFEXITED(status) &&
+        WEXITSTATUS(status) == 0))
+    throw Error("readSurface: a damaged answer from the reader (" + std::to_string(reply.size()) +
+                    " bytes, exit status " + std::to_string(WEXITSTATUS(status)) + ")",
+                ErrorKind::Internal);
+  SurfaceMesh surface;
+  const char* p = reply.data() + 1 + sizeof counts;
+  surface.vertices.resize(static_cast<size_t>(counts[0]));
+  for (Vec3& v : surface.vertices) {
+    double xyz[3];
+    std::memcpy(xyz, p, sizeof xyz);
+    p += sizeof xyz;
+    v = Vec3(xyz[0], xyz[1], xyz[2]);
+  }
+  surface.triangles.resize(static_cast<size_t>(counts[1]));
+  for (Tri& t : surface.triangles) {
+    std::memcpy(t.data(), p, 3 * sizeof(int));
+    p += 3 * sizeof(int);
+  }
   return surface;
 }
 

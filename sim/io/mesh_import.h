@@ -80,8 +80,11 @@ inline constexpr double kMaxSceneTets = 2e7;
 // with the option or scenario key at fault
 std::string slabTooLarge(const SlabSpec& spec);
 
-// Reads a surface with assimp. Throws "<path>: file not found",
-// "<path>: cannot read surface mesh: <reason>" or "<path>: ... no triangles".
+// Reads a surface with assimp, in a child process (fork; the triangles come back through a
+// pipe): a file that crashes assimp or corrupts its heap ends the child, not this process.
+// Throws "<path>: file not found", "<path>: cannot read surface mesh: <reason>" (the reader
+// crashed: "... the reader (assimp) crashed on it (signal N, name) ...") or
+// "<path>: ... no triangles"; std::bad_alloc when memory runs out.
 SurfaceMesh readSurface(const std::string& path, double scaleToMetres = 1.0);
 
 // Volume enclosed by the surface [m^3], divergence theorem; negative if inward.

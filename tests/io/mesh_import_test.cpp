@@ -453,6 +453,27 @@ TEST(MeshImport, GarbageFileIsReported) {
   fs::remove_all(dir);
 }
 
+// assimp reads in a child process: a reader that crashes (a damaged file that corrupts its
+// heap: tests/fuzz/fuzz_surface found such inputs) is an input error naming the file and the
+// signal, and this process goes on (ESIM_FAULT=reader: the child raises SIGSEGV before
+// reading); the same file read again after it is the cube
+TEST(MeshImport, AReaderThatCrashesIsAnInputErrorNamingTheFile) {
+  const fs::path dir = tempDir();
+  const std::string path = writeObj(dir / "cube.obj", makeBox({0, 0, 0}, {0.01, 0.01, 0.01}));
+  ASSERT_EQ(::setenv("ESIM_FAULT", "reader", 1), 0);
+  const std::string msg = errorOf([&] { readSurface(path); });
+  ::unsetenv("ESIM_FAULT");
+  EXPECT_EQ(msg, path +
+                     ": cannot read surface mesh: the reader (assimp) crashed on it (signal 11, "
+                     "Segmentation fault): a damaged file? expected OBJ, STL, PLY or glTF/GLB "
+                     "with triangles");
+  const SurfaceMesh cube = readSurface(path);
+  EXPECT_EQ(cube.vertices.size(), 8u);
+  EXPECT_EQ(cube.triangles.size(), 12u);
+  EXPECT_NEAR(enclosedVolume(cube), 1e-6, 1e-12);  // assimp keeps floats
+  fs::remove_all(dir);
+}
+
 // a tet mesh (the .vtu fields of esim run --fields) given as a scene's surface: said so,
 // with what is expected (assimp said "No suitable reader found for the file format")
 TEST(MeshImport, ATetMeshFileIsNotASurface) {
