@@ -254,17 +254,19 @@ SurfaceMesh readSurface(const std::string& path, double scaleToMetres) {
   int status = 0;
   while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
   }
-  if (WIFSIGNALED(status)) {
-    const int sig = WTERMSIG(status);
-    const char* name = ::strsignal(sig);
-    throw Error(path + ": cannot read surface mesh: the reader (assimp) crashed on it (signal " +
-                std::to_string(sig) + ", " + (name ? name : "?") +
+  // a child killed by a signal, or one that did not end with exit status 0 after its whole
+  // answer (under a sanitizer a crash is its report and exit status 1), crashed on the file
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 || reply.empty()) {
+    std::string how;
+    if (WIFSIGNALED(status)) {
+      const char* name = ::strsignal(WTERMSIG(status));
+      how = "signal " + std::to_string(WTERMSIG(status)) + ", " + (name ? name : "?");
+    } else {
+      how = "exit status " + std::to_string(WEXITSTATUS(status));
+    }
+    throw Error(path + ": cannot read surface mesh: the reader (assimp) crashed on it (" + how +
                 "): a damaged file? expected OBJ, STL, PLY or glTF/GLB with triangles");
   }
-  if (reply.empty())
-    throw Error("readSurface: the reader process sent nothing (exit status " +
-                    std::to_string(WEXITSTATUS(status)) + ")",
-                ErrorKind::Internal);
   switch (reply[0]) {
     case 'E':
       throw Error(reply.substr(1));
@@ -282,10 +284,9 @@ SurfaceMesh readSurface(const std::string& path, double scaleToMetres) {
   std::memcpy(counts, reply.data() + 1, sizeof counts);
   const size_t expected = 1 + sizeof counts + static_cast<size_t>(counts[0]) * 3 * sizeof(double) +
                           static_cast<size_t>(counts[1]) * 3 * sizeof(int);
-  if (!(counts[0] >= 0 && counts[1] >= 0 && reply.size() == expected && WIFEXITED(status) &&
-        WEXITSTATUS(status) == 0))
+  if (!(counts[0] >= 0 && counts[1] >= 0 && reply.size() == expected))
     throw Error("readSurface: a damaged answer from the reader (" + std::to_string(reply.size()) +
-                    " bytes, exit status " + std::to_string(WEXITSTATUS(status)) + ")",
+                    " bytes)",
                 ErrorKind::Internal);
   SurfaceMesh surface;
   const char* p = reply.data() + 1 + sizeof counts;
