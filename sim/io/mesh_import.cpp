@@ -15,6 +15,7 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include <fcntl.h>
+#include <poll.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -22,6 +23,7 @@
 #include <assimp/Importer.hpp>
 #include <cctype>
 #include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <csignal>
 #include <cstdlib>
@@ -184,8 +186,11 @@ bool writeAll(int fd, const void* data, size_t size) {
 }
 
 [[noreturn]] void childReads(int fd, const std::string& path, double scaleToMetres) {
-  if (const char* fault = std::getenv("ESIM_FAULT"); fault && std::strcmp(fault, "reader") == 0)
-    std::raise(SIGSEGV);  // tests: a reader that crashes
+  if (const char* fault = std::getenv("ESIM_FAULT")) {  // tests: a reader that crashes, hangs
+    if (std::strcmp(fault, "reader") == 0) std::raise(SIGSEGV);
+    if (std::strcmp(fault, "reader_hang") == 0)
+      for (;;) ::pause();
+  }
   std::string reply;
   try {
     const SurfaceMesh surface = importSurface(path, scaleToMetres);
@@ -210,7 +215,7 @@ bool writeAll(int fd, const void* data, size_t size) {
 
 }  // namespace
 
-SurfaceMesh readSurface(const std::string& path, double scaleToMetres) {
+SurfaceMesh readSurface(const std::string& path, double scaleToMetres, double timeoutS) {
   namespace fs = std::filesystem;
   std::error_code ec;
   ESIM_VERIFY(fs::exists(path, ec), path + ": file not found");
@@ -242,16 +247,46 @@ SurfaceMesh readSurface(const std::string& path, double scaleToMetres) {
     if (forkErrno == ENOMEM || forkErrno == EAGAIN) throw std::bad_alloc();
     throw Error("readSurface: fork: " + std::string(std::strerror(forkErrno)), ErrorKind::Internal);
   }
+  // the answer, read as it comes (the child blocks on a full pipe), up to the deadline; a stop
+  // asked meanwhile (checkInterrupt, every 0.1 s) or the deadline ends the child
+  int status = 0;
+  const auto endChild = [&] {
+    ::close(fds[0]);
+    ::kill(pid, SIGKILL);
+    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+    }
+  };
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeoutS);
   std::string reply;
   char buffer[1 << 16];
   for (;;) {
+    try {
+      checkInterrupt();
+    } catch (...) {
+      endChild();
+      throw;
+    }
+    const double leftS =
+        std::chrono::duration<double>(deadline - std::chrono::steady_clock::now()).count();
+    if (leftS <= 0) {
+      endChild();
+      throw Error(path + ": cannot read surface mesh: the reader (assimp) did not finish within " +
+                  messageNumber(timeoutS) +
+                  " s: a damaged file? expected OBJ, STL, PLY or glTF/GLB with triangles");
+    }
+    pollfd pfd{fds[0], POLLIN, 0};
+    const int ready = ::poll(&pfd, 1, static_cast<int>(std::min(100.0, leftS * 1e3)) + 1);
+    if (ready < 0 && errno != EINTR) {
+      endChild();
+      throw Error("readSurface: poll: " + std::string(std::strerror(errno)), ErrorKind::Internal);
+    }
+    if (ready <= 0) continue;
     const ssize_t n = ::read(fds[0], buffer, sizeof buffer);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) break;
     reply.append(buffer, static_cast<size_t>(n));
   }
   ::close(fds[0]);
-  int status = 0;
   while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
   }
   // a child killed by a signal, or one that did not end with exit status 0 after its whole

@@ -81,11 +81,15 @@ inline constexpr double kMaxSceneTets = 2e7;
 std::string slabTooLarge(const SlabSpec& spec);
 
 // Reads a surface with assimp, in a child process (fork; the triangles come back through a
-// pipe): a file that crashes assimp or corrupts its heap ends the child, not this process.
+// pipe): a file that crashes assimp or corrupts its heap ends the child, not this process,
+// and so does one it reads for longer than timeoutS [s] (the child is killed; assimp 5.2
+// spins forever on some damaged files), or a stop asked meanwhile (checkInterrupt).
 // Throws "<path>: file not found", "<path>: cannot read surface mesh: <reason>" (the reader
-// crashed: "... the reader (assimp) crashed on it (signal N, name) ...") or
-// "<path>: ... no triangles"; std::bad_alloc when memory runs out.
-SurfaceMesh readSurface(const std::string& path, double scaleToMetres = 1.0);
+// crashed: "... the reader (assimp) crashed on it (signal N, name) ..."; or "... did not
+// finish within T s ...") or "<path>: ... no triangles"; std::bad_alloc when memory runs
+// out; Interrupted on a stop.
+SurfaceMesh readSurface(const std::string& path, double scaleToMetres = 1.0,
+                        double timeoutS = 600.0);
 
 // Volume enclosed by the surface [m^3], divergence theorem; negative if inward.
 double enclosedVolume(const SurfaceMesh& surface);

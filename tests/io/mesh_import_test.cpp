@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -456,8 +457,9 @@ TEST(MeshImport, GarbageFileIsReported) {
 // assimp reads in a child process: a reader that crashes (a damaged file that corrupts its
 // heap: tests/fuzz/fuzz_surface found such inputs) is an input error naming the file and the
 // signal, and this process goes on (ESIM_FAULT=reader: the child raises SIGSEGV before
-// reading); the same file read again after it is the cube
-TEST(MeshImport, AReaderThatCrashesIsAnInputErrorNamingTheFile) {
+// reading); one that hangs is killed at its deadline; the same file read again after them
+// is the cube
+TEST(MeshImport, AReaderThatCrashesOrHangsIsAnInputError) {
   const fs::path dir = tempDir();
   const std::string path = writeObj(dir / "cube.obj", makeBox({0, 0, 0}, {0.01, 0.01, 0.01}));
   ASSERT_EQ(::setenv("ESIM_FAULT", "reader", 1), 0);
@@ -469,6 +471,18 @@ TEST(MeshImport, AReaderThatCrashesIsAnInputErrorNamingTheFile) {
                               : "signal 11, Segmentation fault";
   EXPECT_EQ(msg, path + ": cannot read surface mesh: the reader (assimp) crashed on it (" + how +
                      "): a damaged file? expected OBJ, STL, PLY or glTF/GLB with triangles");
+  // a reader that never returns (assimp 5.2 spins on some damaged files): killed at the
+  // deadline, the same kind of error
+  ASSERT_EQ(::setenv("ESIM_FAULT", "reader_hang", 1), 0);
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::string hung = errorOf([&] { readSurface(path, 1.0, 0.5); });
+  const double tookS = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ::unsetenv("ESIM_FAULT");
+  EXPECT_EQ(hung, path +
+                      ": cannot read surface mesh: the reader (assimp) did not finish within 0.5 "
+                      "s: a damaged file? expected OBJ, STL, PLY or glTF/GLB with triangles");
+  EXPECT_GE(tookS, 0.5);
+  EXPECT_LT(tookS, 10.0);
   const SurfaceMesh cube = readSurface(path);
   EXPECT_EQ(cube.vertices.size(), 8u);
   EXPECT_EQ(cube.triangles.size(), 12u);
