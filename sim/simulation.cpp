@@ -467,13 +467,14 @@ void Simulation::computeEigenstrain() {
 
 namespace {
 
-// surface vertex numbering, triangles and cut walls of the snapshot: fixed until the
-// topology changes
 // the nodes the tool may touch (tool.contact): the surface's, or those of the alive tets
+// (volumeNodes is filled exactly for the volume rule)
 const std::vector<int>& contactCandidates(const SimModel& m) {
   return m.volumeNodes.empty() ? m.surfaceNodes : m.volumeNodes;
 }
 
+// surface vertex numbering, triangles and cut walls of the snapshot: fixed until the
+// topology changes
 void buildSnapshotTopology(SimModel& m) {
   m.surfaceVertexOf.assign(m.mesh.numNodes(), -1);
   m.surfacePositionsM.clear();

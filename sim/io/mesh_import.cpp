@@ -91,6 +91,9 @@ void checkPlyHeader(const std::string& path) {
 // ---- reading ----
 namespace {
 
+// the answer's bytes are the vectors' own: both ends are this binary
+static_assert(sizeof(Vec3) == 3 * sizeof(double) && sizeof(Tri) == 3 * sizeof(int));
+
 // assimp's part of readSurface (in the child process)
 SurfaceMesh importSurface(const std::string& path, double scaleToMetres) {
   // import only, then our checks, then the post-processing: assimp's loaders can hand on
@@ -169,8 +172,8 @@ SurfaceMesh importSurface(const std::string& path, double scaleToMetres) {
 }
 
 // the child's answer on the pipe: one byte, then
-//   'S': int64 vertex count, int64 triangle count, the vertices (3 doubles each), the
-//        triangles (3 ints each);
+//   'S': int64 vertex count, int64 triangle count, the vertices' and the triangles' bytes
+//        (3 doubles, 3 ints each: the vectors' own layout);
 //   'E': the message of the input error (esim::Error) it threw;  'M': out of memory;
 //   'X': the message of any other exception (an internal error)
 bool writeAll(int fd, const void* data, size_t size) {
@@ -196,12 +199,9 @@ bool writeAll(int fd, const void* data, size_t size) {
     const SurfaceMesh surface = importSurface(path, scaleToMetres);
     const std::int64_t counts[2] = {static_cast<std::int64_t>(surface.vertices.size()),
                                     static_cast<std::int64_t>(surface.triangles.size())};
-    bool ok = writeAll(fd, "S", 1) && writeAll(fd, counts, sizeof counts);
-    for (const Vec3& v : surface.vertices) {
-      const double xyz[3] = {v.x(), v.y(), v.z()};
-      ok = ok && writeAll(fd, xyz, sizeof xyz);
-    }
-    for (const Tri& t : surface.triangles) ok = ok && writeAll(fd, t.data(), 3 * sizeof(int));
+    const bool ok = writeAll(fd, "S", 1) && writeAll(fd, counts, sizeof counts) &&
+                    writeAll(fd, surface.vertices.data(), surface.vertices.size() * sizeof(Vec3)) &&
+                    writeAll(fd, surface.triangles.data(), surface.triangles.size() * sizeof(Tri));
     ::_exit(ok ? 0 : 3);
   } catch (const Error& e) {
     reply = std::string("E") + e.what();
@@ -317,8 +317,8 @@ SurfaceMesh readSurface(const std::string& path, double scaleToMetres, double ti
   if (reply.size() < 1 + sizeof counts)
     throw Error("readSurface: a short answer from the reader", ErrorKind::Internal);
   std::memcpy(counts, reply.data() + 1, sizeof counts);
-  const size_t expected = 1 + sizeof counts + static_cast<size_t>(counts[0]) * 3 * sizeof(double) +
-                          static_cast<size_t>(counts[1]) * 3 * sizeof(int);
+  const size_t expected = 1 + sizeof counts + static_cast<size_t>(counts[0]) * sizeof(Vec3) +
+                          static_cast<size_t>(counts[1]) * sizeof(Tri);
   if (!(counts[0] >= 0 && counts[1] >= 0 && reply.size() == expected))
     throw Error("readSurface: a damaged answer from the reader (" + std::to_string(reply.size()) +
                     " bytes)",
@@ -326,17 +326,12 @@ SurfaceMesh readSurface(const std::string& path, double scaleToMetres, double ti
   SurfaceMesh surface;
   const char* p = reply.data() + 1 + sizeof counts;
   surface.vertices.resize(static_cast<size_t>(counts[0]));
-  for (Vec3& v : surface.vertices) {
-    double xyz[3];
-    std::memcpy(xyz, p, sizeof xyz);
-    p += sizeof xyz;
-    v = Vec3(xyz[0], xyz[1], xyz[2]);
-  }
   surface.triangles.resize(static_cast<size_t>(counts[1]));
-  for (Tri& t : surface.triangles) {
-    std::memcpy(t.data(), p, 3 * sizeof(int));
-    p += 3 * sizeof(int);
-  }
+  if (!surface.vertices.empty())
+    std::memcpy(surface.vertices.data()->data(), p, surface.vertices.size() * sizeof(Vec3));
+  if (!surface.triangles.empty())
+    std::memcpy(surface.triangles.data(), p + surface.vertices.size() * sizeof(Vec3),
+                surface.triangles.size() * sizeof(Tri));
   return surface;
 }
 

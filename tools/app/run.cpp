@@ -234,7 +234,8 @@ Setup setUp(const RunOptions& opt, Scenario scenario) {
 // ESIM_FAULT=alloc@N:MB makes frame N take MB megabytes more (see runLoop);
 // ESIM_FAULT=thread@N makes frame N fail to start a thread;
 // ESIM_FAULT=kill@N kills the process after frame N (see frameLoop). -1: none.
-// (ESIM_FAULT=reader, read in sim/io/mesh_import.cpp, makes the surface reader's child crash.)
+// (ESIM_FAULT=reader / reader_hang, read in sim/io/mesh_import.cpp, make the surface
+// reader's child crash / never return.)
 int injectedFaultFrame(const char* kind) {
   const char* spec = std::getenv("ESIM_FAULT");
   const std::string prefix = std::string(kind) + "@";
