@@ -282,8 +282,10 @@ struct StructuralPhase::Impl {
   std::vector<Vec3> nodes;  // positions [m] (the supports' rigid-motion test)
   std::vector<Tet> tets;    // copied from the mesh: the phase outlives no mesh
   std::vector<TetGeometry> geo;
-  Mat6 d;                    // elasticity (Voigt); stress = D (B_e u_e - eps*)
-  double bulkModulusPa = 0;  // lambda + 2 mu / 3: D eps* = K_b e_v (1, 1, 1, 0, 0, 0)
+  Mat6 d;                        // elasticity (Voigt); stress = D (B_e u_e - eps*); with the
+                                 // volumetric strain at the nodes its deviatoric part D_dev
+  double bulkModulusPa = 0;      // lambda + 2 mu / 3: D eps* = K_b e_v (1, 1, 1, 0, 0, 0)
+  bool nodalVolumetric = false;  // StructuralOptions::volumetric == nodal (structural.h)
   std::vector<Support> supports;
   Adjacency tetsOfNode;      // every tet, removed or not
   Adjacency supportsOfNode;  // ascending support indices per node
@@ -511,6 +513,12 @@ struct StructuralPhase::Impl {
   void classifyPieces(std::vector<int>& newlyHeld);
   std::vector<std::vector<int>> splitPiece(const std::vector<int>& seeds);
   SparseMatrix assemble(const StateView& s) const;
+  SparseMatrix assembleNodal(const StateView& s) const;
+  // volumetric strain at the nodes: V_n over the alive tets, and sum_{e at n} (V_e / 4) x_e
+  // for a per-tet x (into out, one per node)
+  void nodeVolumes(const StateView& s, std::vector<double>& out) const;
+  void nodeSums(const StateView& s, const std::function<double(int)>& x,
+                std::vector<double>& out) const;
   void factorize(cholmod_common& c, const StateView& s);
   void toSimplicial(cholmod_common& c, cholmod_factor* f);
   Voigt elasticStress(int t, const Eigen::VectorXd& disp) const;
@@ -704,8 +712,117 @@ std::vector<std::vector<int>> StructuralPhase::Impl::splitPiece(const std::vecto
 // A over all 3n dofs, lower triangle: K from the alive tets on the free dofs, 1 on the
 // diagonal of the held ones
 SparseMatrix StructuralPhase::Impl::assemble(const StateView& s) const {
+  if (nodalVolumetric) return assembleNodal(s);
   return assembleElasticLower(static_cast<int>(nodes.size()), tets, s.alive, s.held,
                               [this](int t) { return elementStiffness(t); });
+}
+
+void StructuralPhase::Impl::nodeVolumes(const StateView& s, std::vector<double>& out) const {
+  nodeSums(
+      s, [](int) { return 1.0; }, out);
+}
+
+void StructuralPhase::Impl::nodeSums(const StateView& s, const std::function<double(int)>& x,
+                                     std::vector<double>& out) const {
+  out.assign(nodes.size(), 0.0);
+  for (size_t t = 0; t < tets.size(); ++t) {
+    if (!s.alive[t]) continue;
+    const double share = geo[t].volume / 4 * x(static_cast<int>(t));
+    for (int v : tets[t]) out[v] += share;
+  }
+}
+
+// A over all 3n dofs, lower triangle, with the volumetric strain at the nodes (structural.h,
+// VolumetricStrain): sum_e V_e B_e' D_dev B_e + sum_n K_b V_n g_n g_n', g_n = grad theta_n =
+// sum_{e at n} (V_e / 4) b_e / V_n over the alive tets (b_e: grad N_i per component). Column
+// 3 v + b holds the free dofs >= it of the nodes two rings from v (through alive tets).
+SparseMatrix StructuralPhase::Impl::assembleNodal(const StateView& s) const {
+  const int n = static_cast<int>(nodes.size()), nd = 3 * n;
+  // nodes sharing an alive tet with v (v included), ascending
+  std::vector<int> ringStart(n + 1, 0), ring;
+  {
+    std::vector<int> seen(n, -1), near;
+    for (int v = 0; v < n; ++v) {
+      near.clear();
+      for (const int* t = tetsOfNode.begin(v); t != tetsOfNode.end(v); ++t) {
+        if (!s.alive[*t]) continue;
+        for (int u : tets[*t])
+          if (seen[u] != v) {
+            seen[u] = v;
+            near.push_back(u);
+          }
+      }
+      std::sort(near.begin(), near.end());
+      ring.insert(ring.end(), near.begin(), near.end());
+      ringStart[v + 1] = static_cast<int>(ring.size());
+    }
+  }
+  // the pattern: two rings
+  std::vector<int> outer(static_cast<size_t>(nd) + 1, 0), inner, seen(n, -1), near;
+  for (int v = 0; v < n; ++v) {
+    near.clear();
+    for (int i = ringStart[v]; i < ringStart[v + 1]; ++i)
+      for (int j = ringStart[ring[i]]; j < ringStart[ring[i] + 1]; ++j)
+        if (seen[ring[j]] != v) {
+          seen[ring[j]] = v;
+          near.push_back(ring[j]);
+        }
+    std::sort(near.begin(), near.end());
+    for (int b = 0; b < 3; ++b) {
+      const int col = 3 * v + b;
+      if (s.held[col]) {
+        inner.push_back(col);
+      } else {
+        for (int u : near)
+          for (int a = 0; a < 3; ++a)
+            if (3 * u + a >= col && !s.held[3 * u + a]) inner.push_back(3 * u + a);
+      }
+      outer[col + 1] = static_cast<int>(inner.size());
+    }
+  }
+  SparseMatrix k = patternOfZeros(nd, outer, inner);
+  double* value = k.valuePtr();
+  const auto add = [&](int row, int col, double x) {
+    if (row < col || s.held[row] || s.held[col]) return;
+    const int* lo = inner.data() + outer[col];
+    const int* hi = inner.data() + outer[col + 1];
+    value[std::lower_bound(lo, hi, row) - inner.data()] += x;
+  };
+  for (int dof = 0; dof < nd; ++dof)
+    if (s.held[dof]) value[outer[dof]] = 1.0;
+  // the deviatoric part, tet by tet
+  for (size_t t = 0; t < tets.size(); ++t) {
+    if (!s.alive[t]) continue;
+    const Mat12 ke = elementStiffness(static_cast<int>(t));
+    for (int j = 0; j < 12; ++j)
+      for (int i = 0; i < 12; ++i)
+        add(3 * tets[t][i / 3] + i % 3, 3 * tets[t][j / 3] + j % 3, ke(i, j));
+  }
+  // the volumetric part, node by node: g_n over the dofs of its ring
+  std::vector<double> volume;
+  nodeVolumes(s, volume);
+  std::vector<int> local(n, -1);
+  std::vector<double> g;
+  for (int v = 0; v < n; ++v) {
+    if (volume[v] <= 0) continue;
+    const int count = ringStart[v + 1] - ringStart[v];
+    for (int i = 0; i < count; ++i) local[ring[ringStart[v] + i]] = i;
+    g.assign(3 * static_cast<size_t>(count), 0.0);
+    for (const int* t = tetsOfNode.begin(v); t != tetsOfNode.end(v); ++t) {
+      if (!s.alive[*t]) continue;
+      const double share = geo[*t].volume / 4 / volume[v];
+      for (int i = 0; i < 4; ++i)
+        for (int a = 0; a < 3; ++a) g[3 * local[tets[*t][i]] + a] += share * geo[*t].grad(i, a);
+    }
+    const double scale = bulkModulusPa * volume[v];
+    for (int j = 0; j < 3 * count; ++j) {
+      if (g[j] == 0) continue;
+      const int col = 3 * ring[ringStart[v] + j / 3] + j % 3;
+      for (int i = 0; i < 3 * count; ++i)
+        if (g[i] != 0) add(3 * ring[ringStart[v] + i / 3] + i % 3, col, scale * g[i] * g[j]);
+    }
+  }
+  return k;
 }
 
 // a fresh supernodal factorization of A within the first analysis (A only loses entries)
@@ -735,8 +852,10 @@ void StructuralPhase::Impl::factorize(cholmod_common& c, const StateView& s) {
     rowOfDof.assign(numDofs(), 0);
     for (int k = 0; k < numDofs(); ++k) rowOfDof[perm[k]] = k;
   }
-  if (factor) cholmod_free_factor(&factor, &c);
-  factor = cholmod_copy_factor(symbolic, &c);
+  // at the nodes the factor is never updated: it stays supernodal and is refactorized in place
+  // (a new copy of the analysis and the conversion to LDL' were most of a removal's time)
+  if (factor && !(nodalVolumetric && factor->is_super)) cholmod_free_factor(&factor, &c);
+  if (!factor) factor = cholmod_copy_factor(symbolic, &c);
   if (factor == nullptr) throw std::bad_alloc();  // (copying fails only so)
   openblas_set_num_threads(1);                    // see the header: BLAS threads only spin here
   const int ok = cholmod_factorize(&view, factor, &c);
@@ -765,19 +884,32 @@ std::vector<int> StructuralPhase::Impl::rowPattern(int dof, const Target& target
   std::vector<int> out, path;
   RowMarks& rm = *target.marks;
   ++rm.stamp;
+  // the nodes coupled to v in the first A: those of its tets, and with the volumetric strain at
+  // the nodes those two rings out (every tet at a node of v's tets)
+  std::vector<int> coupled;
   for (const int* t = tetsOfNode.begin(v); t != tetsOfNode.end(v); ++t)
-    for (int w : tets[*t])
-      for (int a = 0; a < 3; ++a) {
-        int j = rowOf[3 * w + a];
-        path.clear();
-        while (j >= 0 && j < k && rm.mark[j] != rm.stamp) {
-          path.push_back(j);
-          j = l.parent(j);
-        }
-        if (j != k && (j < 0 || j > k)) continue;  // not below k in the tree: L(k, .) = 0
-        for (int p : path) rm.mark[p] = rm.stamp;
-        out.insert(out.end(), path.begin(), path.end());
+    for (int w : tets[*t]) {
+      if (!nodalVolumetric) {
+        coupled.push_back(w);
+        continue;
       }
+      for (const int* t2 = tetsOfNode.begin(w); t2 != tetsOfNode.end(w); ++t2)
+        coupled.insert(coupled.end(), tets[*t2].begin(), tets[*t2].end());
+    }
+  std::sort(coupled.begin(), coupled.end());
+  coupled.erase(std::unique(coupled.begin(), coupled.end()), coupled.end());
+  for (int w : coupled)
+    for (int a = 0; a < 3; ++a) {
+      int j = rowOf[3 * w + a];
+      path.clear();
+      while (j >= 0 && j < k && rm.mark[j] != rm.stamp) {
+        path.push_back(j);
+        j = l.parent(j);
+      }
+      if (j != k && (j < 0 || j > k)) continue;  // not below k in the tree: L(k, .) = 0
+      for (int p : path) rm.mark[p] = rm.stamp;
+      out.insert(out.end(), path.begin(), path.end());
+    }
   std::sort(out.begin(), out.end());
   return out;
 }
@@ -859,9 +991,25 @@ void StructuralPhase::Impl::loadVector(const std::vector<double>& ev, const Stat
                                        Eigen::VectorXd& f) const {
   const int nt = static_cast<int>(tets.size());
   f.setZero(numDofs());
+  // with the volumetric strain at the nodes, f = sum_n K_b V_n theta*_n g_n = sum_e V_e K_b
+  // (mean of theta* over the tet's nodes) b_e
+  std::vector<double> volume, thetaStar;
+  if (nodalVolumetric) {
+    nodeVolumes(s, volume);
+    nodeSums(
+        s, [&](int t) { return ev[t]; }, thetaStar);
+    for (size_t v = 0; v < volume.size(); ++v)
+      if (volume[v] > 0) thetaStar[v] /= volume[v];
+  }
   for (int t = 0; t < nt; ++t) {
-    if (!s.alive[t] || ev[t] == 0) continue;
-    const double load = geo[t].volume * bulkModulusPa * ev[t];
+    if (!s.alive[t]) continue;
+    double e = ev[t];
+    if (nodalVolumetric) {
+      e = 0;
+      for (int v : tets[t]) e += thetaStar[v] / 4;
+    }
+    if (e == 0) continue;
+    const double load = geo[t].volume * bulkModulusPa * e;
     for (int i = 0; i < 4; ++i)
       for (int a = 0; a < 3; ++a) {
         const int dof = 3 * tets[t][i] + a;
@@ -1272,6 +1420,27 @@ bool StructuralPhase::Impl::buildRegion(const Eigen::AlignedBox3d& box) {
 void StructuralPhase::Impl::outputs(const std::vector<double>& ev, From from) {
   const int nt = static_cast<int>(tets.size());
   const bool store = from == From::solution && method == StructuralSolveMethod::local;
+  // with the volumetric strain at the nodes (only with the full method): theta - theta* per
+  // node, its mean over a tet's nodes gives the tet's pressure
+  std::vector<double> excess;
+  if (nodalVolumetric) {
+    const StateView s = current();
+    std::vector<double> volume, star;
+    nodeVolumes(s, volume);
+    nodeSums(
+        s, [&](int t) { return ev[t]; }, star);
+    nodeSums(
+        s,
+        [&](int t) {
+          double div = 0;
+          for (int i = 0; i < 4; ++i)
+            for (int a = 0; a < 3; ++a) div += geo[t].grad(i, a) * u(3 * tets[t][i] + a);
+          return div;
+        },
+        excess);
+    for (size_t v = 0; v < excess.size(); ++v)
+      excess[v] = volume[v] > 0 ? (excess[v] - star[v]) / volume[v] : 0.0;
+  }
   runTwoShares(nt >= kMinTetsForTwoShares ? solveThreads : 1, [&](int share) {
     for (int t = share * nt / 2, end = (share + 1) * nt / 2; t < end; ++t) {
       if (!alive[t]) {
@@ -1282,8 +1451,13 @@ void StructuralPhase::Impl::outputs(const std::vector<double>& ev, From from) {
       const bool fresh = from == From::solution || (from == From::region && inRegion[t]);
       const Voigt s = fresh ? elasticStress(t, u) : refElastic[t];
       if (store) refElastic[t] = s;
-      // sigma = D B u - K_b e_v (1, 1, 1, 0, 0, 0)
-      const double p = bulkModulusPa * ev[t];
+      // sigma = D B u - K_b e_v (1, 1, 1, 0, 0, 0); at the nodes D_dev B u + K_b (mean of
+      // theta - theta* over the tet's nodes) (1, 1, 1, 0, 0, 0)
+      double p = bulkModulusPa * ev[t];
+      if (nodalVolumetric) {
+        p = 0;
+        for (int v : tets[t]) p -= bulkModulusPa * excess[v] / 4;
+      }
       stress[t] = {s(0) - p, s(1) - p, s(2) - p, s(3), s(4), s(5)};
       vonMisesPa[t] = vonMises(stress[t]);
     }
@@ -1528,6 +1702,12 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
                                                           const Target& target) {
   cholmod_factor*& factor = *target.factor;
   const std::vector<int>& rowOfDof = *target.rowOf;
+  if (nodalVolumetric && !newlyFreed.empty()) {  // rows added back would need the nodes'
+    factorize(cm, s);  // volumetric terms too: refactorized (whole factor: full method only)
+    stats.refactorized = true;
+    stats.seconds = secondsSince(t0);
+    return stats;
+  }
   // 4. C C' = the removed tets' stiffness on the dofs free before and after. Tets that share
   // a node are summed first (one group per connected cluster, up to kMaxGroupDofs free dofs),
   // and the group's matrix G (positive semidefinite), its dofs in ascending rows of L, is
@@ -1718,6 +1898,54 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
     return true;
   };
   for (const std::vector<int>& group : groups) stats.groupsSplit += addSplit(addSplit, group);
+  // With the volumetric strain at the nodes (the dev part above: elementStiffness is
+  // V B' D_dev B then), node n of a removed tet changes its term K_b V_n g_n g_n' to the one
+  // over the tets left: the new terms are added first (L D L' + W W': positive definite
+  // throughout), the old ones go with C's downdate. Columns sqrt(K_b V_n) g_n on the dofs free
+  // after the removal (the rows held were deleted), rows of L ascending.
+  std::vector<int> wp{0}, wi;
+  std::vector<double> wx;
+  if (nodalVolumetric) {
+    std::vector<int> touched;
+    for (int t : removed) touched.insert(touched.end(), tets[t].begin(), tets[t].end());
+    std::sort(touched.begin(), touched.end());
+    touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+    const auto isRemoved = [&](int t) {
+      return std::binary_search(removed.begin(), removed.end(), t);
+    };
+    std::vector<std::pair<int, double>> col;
+    const auto column = [&](int v, bool before, std::vector<int>& outP, std::vector<int>& outI,
+                            std::vector<double>& outX) {
+      double volume = 0;
+      col.clear();
+      for (const int* t = tetsOfNode.begin(v); t != tetsOfNode.end(v); ++t) {
+        if (!(s.alive[*t] || (before && isRemoved(*t)))) continue;
+        volume += geo[*t].volume / 4;
+        for (int i = 0; i < 4; ++i)
+          for (int a = 0; a < 3; ++a) {
+            const int dof = 3 * tets[*t][i] + a;
+            if (!s.held[dof])
+              col.emplace_back(rowOfDof[dof], geo[*t].volume / 4 * geo[*t].grad(i, a));
+          }
+      }
+      if (volume <= 0 || col.empty()) return;
+      std::sort(col.begin(), col.end(),
+                [](const auto& x, const auto& y) { return x.first < y.first; });
+      const double scale = std::sqrt(bulkModulusPa * volume) / volume;  // sqrt(K V) / V
+      for (size_t k = 0; k < col.size();) {
+        const int row = col[k].first;
+        double sum = 0;
+        for (; k < col.size() && col[k].first == row; ++k) sum += col[k].second;
+        outI.push_back(row);
+        outX.push_back(scale * sum);
+      }
+      outP.push_back(static_cast<int>(outI.size()));
+    };
+    for (int v : touched) {
+      column(v, false, wp, wi, wx);  // the new term (update)
+      column(v, true, cp, ci, cx);   // the old one (with C's downdate)
+    }
+  }
   stats.rank = static_cast<int>(cp.size()) - 1;
 
   // 6. the columns of L the update walks: up the elimination tree from each deleted or
@@ -1731,6 +1959,7 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
     for (int dof : newlyHeld) starts.push_back(rowOfDof[dof]);
     for (int dof : newlyFreed) starts.push_back(rowOfDof[dof]);
     for (int c = 0; c + 1 < static_cast<int>(cp.size()); ++c) starts.push_back(ci[cp[c]]);
+    for (int c = 0; c + 1 < static_cast<int>(wp.size()); ++c) starts.push_back(wi[wp[c]]);
     RowMarks& rm = *target.marks;
     const int first = ++rm.stamp;
     for (int s : starts)
@@ -1761,6 +1990,11 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
   const long vectorBefore = kernel.vectorColumns, choleskyBefore = kernel.choleskyColumns;
   if (stats.updateCost <= updateCostLimit) {
     bool ok = newlyHeld.empty() || deleteRows(newlyHeld, target, cm);
+    if (ok && wp.size() > 1) {  // the nodes' new volumetric terms, before the downdate
+      cholmod_sparse w = cholmodViewColumns(factor->n, static_cast<int>(wp.size()) - 1, wp.data(),
+                                            wi.data(), wx.data());
+      ok = updown(true, w, target, cm);
+    }
     if (ok && stats.rank > 0) {
       cholmod_sparse c = cholmodViewColumns(factor->n, stats.rank, cp.data(), ci.data(), cx.data());
       ok = updown(false, c, target, cm);
@@ -1851,6 +2085,11 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   m.geo = tetGeometry(mesh);
   m.d = elasticity(e, nu);
   m.bulkModulusPa = e / (3 * (1 - 2 * nu));
+  m.nodalVolumetric = options.volumetric == VolumetricStrain::nodal;
+  if (m.nodalVolumetric) m.d.topLeftCorner<3, 3>().array() -= m.bulkModulusPa;  // D_dev
+  ESIM_VERIFY(!m.nodalVolumetric || options.solveMethod == StructuralSolveMethod::full,
+              "structural: the volumetric strain at the nodes works with the full solve "
+              "method only (not local or coarse)");
   m.supports = supports;
   m.noPieceHeld =
       supportsMessage("no piece of the body is held by the supports", options.supportsNote);
@@ -1861,7 +2100,7 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   verifySolveThreads(options.solveThreads);
   ESIM_VERIFY(!(options.updateCostLimit < 0), "structural: updateCostLimit must be >= 0, got " +
                                                   messageNumber(options.updateCostLimit));
-  m.updateCostLimit = options.updateCostLimit;
+  m.updateCostLimit = options.updateCostLimit;  // (at the nodes every removal refactorizes)
   m.vectorizedUpdate = options.vectorizedUpdate;
   m.prepareForUpdates = options.prepareForUpdates;
   m.setThreads(options.solveThreads);
@@ -1952,6 +2191,9 @@ void StructuralPhase::solve(const std::vector<double>& ev) {
 void StructuralPhase::setSolveMethod(StructuralSolveMethod method, const LocalSolveOptions& local) {
   Impl& m = *impl_;
   verifyLocalOptions(local);
+  ESIM_VERIFY(!m.nodalVolumetric || method == StructuralSolveMethod::full,
+              "structural: the volumetric strain at the nodes works with the full solve "
+              "method only (not local or coarse)");
   // a coarse grid of another spacing: made first, so that a refused one changes nothing
   std::unique_ptr<CoarseSpace> grid;
   if (method == StructuralSolveMethod::coarse &&

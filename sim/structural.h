@@ -110,6 +110,38 @@ double waterDensityKg_m3(double temperatureC);
 double volumetricExpansion(const ExpansionParams& params, double temperatureC,
                            double vaporFraction);
 
+// ---- the volumetric part of the stiffness ----
+// P1 tets lock as the material nears incompressibility: a tet's constant strain must keep its
+// volume, and the mesh has fewer ways to move isochorically than it has tets, so the solution
+// is too stiff and its deviatoric stress, the one von Mises measures, spurious. Measured
+// (StructuralVolumetric.EshelbyInclusionHasTheAnalyticStress: a spherical inclusion expanded
+// in a 24 mm cube of 9261 nodes, the mean von Mises stress of the tets 1.5 to 2.5 radii out
+// over the analytic 6 mu D / r^3): element 1.009 / 1.015 / 1.094 / 1.597 at nu = 0.4 / 0.45 /
+// 0.49 / 0.499; nodal 1.010 / 1.008 / 1.009 / 1.033.
+// nodal: the volumetric strain is averaged at the nodes (the average nodal pressure tet of
+// Bonet & Burton 1998): with V_n = sum_{e at n} V_e / 4 and the mean dilatation at a node
+// theta_n(u) = sum_{e at n} (V_e / 4) div_e(u) / V_n,
+//   K = sum_e V_e B_e^T D_dev B_e + sum_n K_b V_n grad(theta_n) grad(theta_n)^T,
+//   f = sum_n K_b V_n theta*_n grad(theta_n),   theta*_n = sum_{e at n} (V_e / 4) e_v,e / V_n,
+// and the stress of a tet D_dev B_e u_e + K_b (theta - theta*)_e (1,1,1,0,0,0), the bracket
+// averaged over its 4 nodes. One constraint a node instead of one a tet: no locking. K then
+// couples the nodes two rings apart (a larger factor: README, "Near-incompressible tissue"),
+// and a removal changes the volumetric term of each node of the removed tets: removeTets
+// adds the new terms (an update by sqrt(K_b V_n) g_n over the tets left, first, so that the
+// factor stays positive definite) and downdates the old ones with the tets' deviatoric
+// stiffness; rows deleted for held nodes reach two rings (rowPattern). A removal that frees
+// rows again refactorizes. Not with the local or coarse solve methods (refused). The eigenstrain is
+// averaged at the nodes too, so a sharp change of e_v (the boiling front) is spread over one ring
+// of nodes: at nu = 0.4 the peak von Mises at the inclusion's surface is lower than element's (498
+// against 682 Pa in the test above, analytic 792 Pa just outside the interface).
+enum class VolumetricStrain {
+  element,  // per tet (the paper's, and P1's usual form)
+  nodal,    // averaged at the nodes (see above)
+};
+// from this Poisson's ratio on, a simulation with the volumetric strain per tet warns of
+// locking (+4 % von Mises in the test above at 0.48, +2.7 % at 0.47)
+constexpr double kLockingPoissonRatio = 0.48;
+
 // ---- how solve() finds the displacement ----
 enum class StructuralSolveMethod {
   full,    // K u = f over the whole body with the factor of A (the default)
@@ -223,8 +255,9 @@ struct StructuralSolveStats {
 
 // ---- the phase ----
 struct StructuralOptions {
-  double youngsModulusPa = 4.75e4;  // E (paper Table 1)
-  double poissonRatio = 0.4;        // nu in [0, 0.5) (paper Table 1)
+  double youngsModulusPa = 4.75e4;                          // E (paper Table 1)
+  double poissonRatio = 0.4;                                // nu in [0, 0.5) (paper Table 1)
+  VolumetricStrain volumetric = VolumetricStrain::element;  // see VolumetricStrain
   // removeTets updates the factor while its estimated cost is at most this times a
   // refactorization's, else refactorizes (1: the cheaper; 0: always refactorize; a large
   // value: update unless a downdate fails)

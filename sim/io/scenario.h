@@ -235,6 +235,8 @@ struct ScenarioSolvers {
   int thermalMaxSubsteps = scenario_detail::core().thermal.maxSubsteps;  // explicit, per frame
   // full | local | coarse (sim/structural.h LocalSolveOptions)
   StructuralSolveMethod structuralMethod = scenario_detail::core().structural.solveMethod;
+  // element | nodal (sim/structural.h VolumetricStrain)
+  VolumetricStrain structuralVolumetric = scenario_detail::core().structural.volumetric;
   // local: the region is the nodes within this of the load change's box
   double structuralLocalMarginM = scenario_detail::core().structural.local.marginM;
   // local: the box grown by this when a region is built [m]

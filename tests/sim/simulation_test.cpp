@@ -406,6 +406,60 @@ TEST(Simulation, CutWithTheElectricPhaseConservesCurrentAfterRemoval) {
   }
 }
 
+// solvers.structural.volumetric: nodal (sim/structural.h, VolumetricStrain): a removal
+// refactorizes, so update mode still cuts like the synchronous rebuild; a Poisson's ratio at
+// which tets lock warns unless the volumetric strain is at the nodes; nodal is refused with a
+// local method, naming both keys
+TEST(Simulation, NodalVolumetricStrainCutsLikeTheSynchronousRebuild) {
+  auto config = [](RebuildMode mode, VolumetricStrain v, double nu) {
+    SimulationConfig c = fullCutConfig(mode);
+    c.structural.volumetric = v;
+    c.structural.poissonRatio = nu;
+    return c;
+  };
+  auto run = [&](RebuildMode mode) {
+    auto sim =
+        std::make_unique<Simulation>(smallSlab(), config(mode, VolumetricStrain::nodal, 0.49));
+    std::vector<int> removedPerFrame = removedPerStep(*sim, 45);
+    return std::make_pair(std::move(sim), removedPerFrame);
+  };
+  const auto [sync, syncRemoved] = run(RebuildMode::Synchronous);
+  const auto [upd, updRemoved] = run(RebuildMode::Update);
+  ASSERT_GT(sync->removedTets(), 0) << "the scene does not cut";
+  EXPECT_EQ(syncRemoved, updRemoved);
+  expectTheSameCut(*upd, *sync);
+  const auto lockingWarnings = [](const Simulation& sim) {
+    std::vector<std::string> out;
+    for (const std::string& w : sim.warnings())
+      if (w.find("lock") != std::string::npos) out.push_back(w);
+    return out;
+  };
+  EXPECT_TRUE(lockingWarnings(*upd).empty());
+  const Simulation locked(smallSlab(),
+                          config(RebuildMode::Update, VolumetricStrain::element, 0.49));
+  ASSERT_EQ(lockingWarnings(locked).size(), 1u);
+  EXPECT_EQ(lockingWarnings(locked)[0].rfind(
+                "material.poisson_ratio = 0.49 with solvers.structural.volumetric: element: "
+                "linear tets lock",
+                0),
+            0u)
+      << lockingWarnings(locked)[0];
+  EXPECT_TRUE(lockingWarnings(Simulation(smallSlab(), config(RebuildMode::Update,
+                                                             VolumetricStrain::element, 0.47)))
+                  .empty());
+  SimulationConfig local = config(RebuildMode::Update, VolumetricStrain::nodal, 0.49);
+  local.structural.solveMethod = StructuralSolveMethod::local;
+  try {
+    validateSimulationConfig(local);
+    FAIL() << "nodal with the local method accepted";
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(),
+                 "solvers.structural.volumetric = nodal with solvers.structural.method = local: "
+                 "the volumetric strain at the nodes works with the full method only; set the "
+                 "method to full or the volumetric strain to element");
+  }
+}
+
 // solvers.rebuild.mode: update edits the model in place in the frame the tets break; over a
 // whole cut (electric, thermal, boiling, structural, rupture) it removes the same tets in
 // the same frames as the synchronous rebuild, with the same fields to 1e-9

@@ -84,6 +84,7 @@ void mapStructural(const Scenario& s, SimulationConfig& c) {
   c.maxVaporExpansion = m.maxVaporExpansion;
   c.clampBandM = s.effects.structuralClampBandM;
   c.structural.solveMethod = s.solvers.structuralMethod;
+  c.structural.volumetric = s.solvers.structuralVolumetric;
   c.structural.local.marginM = s.solvers.structuralLocalMarginM;
   c.structural.local.slackM = s.solvers.structuralLocalSlackM;
   c.structural.local.maxRegionFraction = s.solvers.structuralLocalMaxRegionFraction;
