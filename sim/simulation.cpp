@@ -168,34 +168,51 @@ std::vector<Support> clampedSupports(const TetMesh& mesh, const std::vector<int>
 // "" unless the tool's path goes deeper under the tissue's surface (as it is at the start)
 // than its contact distance and 1 mm more while contact is found among the surface's nodes
 // (tool.contact: surface): such a tool touches the tissue only where it enters it
-// (liver_cut's path ran 3.4-3.7 mm deep, its comment said 0.4 mm). The blade's tip, or the
-// sphere's deepest point, at 61 times over the path's span.
+// (liver_cut's path ran 3.4-3.7 mm deep, its comment said 0.4 mm). The sphere's deepest
+// point, or 9 points of the blade's mid-plane (its corners, the middles of its edges and its
+// centre: under a flat surface the deepest point of the rectangle is a corner, so a blade
+// laid flat or tilted heel down is seen, not only its tip), at 61 times over the path's span.
 std::string toolDepthWarning(const TetMesh& mesh, const std::vector<BoundaryFace>& surface,
                              const SimulationConfig& config) {
   const ToolPath& path = config.toolPath;
   if (path.keys.empty() || surface.empty() || config.contactNodes == ContactNodes::Volume)
     return "";
+  const ElectrodeShape& shape = config.electrode;
+  std::vector<Vec3> points{Vec3::Zero()};  // local; the tip first (a tie keeps it)
+  if (shape.kind == ElectrodeKind::Blade)
+    for (double z : {0.0, 0.5, 1.0})
+      for (double x : {0.0, -0.5, 0.5})  // (ties keep the centre line)
+        if (x != 0 || z != 0) points.emplace_back(x * shape.widthM, 0, z * shape.lengthM);
   const double t0 = path.keys.front().timeS, t1 = path.keys.back().timeS;
   const int samples = t1 > t0 ? 61 : 1;
   double deepestM = 0, atS = t0;
+  Vec3 where = Vec3::Zero();
   for (int k = 0; k < samples; ++k) {
     const double t = samples > 1 ? t0 + (t1 - t0) * k / (samples - 1) : t0;
-    const double d = signedDistanceToSurface(mesh, surface, path.positionAt(t));
-    const double depth =
-        config.electrode.kind == ElectrodeKind::Sphere ? config.electrode.radiusM - d : -d;
-    if (depth > deepestM) {
-      deepestM = depth;
-      atS = t;
+    const Vec3 tip = path.positionAt(t);
+    const Eigen::Quaterniond turn = path.orientationAt(t);
+    for (const Vec3& local : points) {
+      const double d = signedDistanceToSurface(mesh, surface, tip + turn * local);
+      const double depth = shape.kind == ElectrodeKind::Sphere ? shape.radiusM - d : -d;
+      if (depth > deepestM + 1e-9) {  // (1 nm: rounding does not move the time named)
+        deepestM = depth;
+        atS = t;
+        where = local;
+      }
     }
   }
   if (deepestM <= config.contactDistanceM + 0.001) return "";
-  char b[160];
-  std::snprintf(b, sizeof b, "the tool reaches %.1f mm under the tissue's surface at t = %.2f s",
-                deepestM * 1e3, atS);
+  char b[220];
+  int n = std::snprintf(b, sizeof b, "the tool reaches %.1f mm under the tissue's surface",
+                        deepestM * 1e3);
+  if (where != Vec3::Zero())
+    n += std::snprintf(b + n, sizeof b - n, " with its blade %.1f mm from the tip%s",
+                       where.z() * 1e3, where.x() != 0 ? " at a side edge" : "");
+  std::snprintf(b + n, sizeof b - n, " at t = %.2f s", atS);
   return std::string(b) + " (tool.path; the surface as it is at the start): contact is found " +
          "among the surface's nodes, so a tool deeper than tool.contact_distance_m (" +
          messageNumber(config.contactDistanceM * 1e3) +
-         " mm) touches the tissue only where it enters it; keep the tip within that of the "
+         " mm) touches the tissue only where it enters it; keep the tool within that of the "
          "surface, or set tool.contact: volume for a tool inside the tissue";
 }
 

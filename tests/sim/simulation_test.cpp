@@ -749,7 +749,7 @@ TEST(SimulationGuards, AToolDeeperThanItsContactDistanceIsNamedAtSetUp) {
             "the tool reaches 4.0 mm under the tissue's surface at t = 0.50 s (tool.path; the "
             "surface as it is at the start): contact is found among the surface's nodes, so a "
             "tool deeper than tool.contact_distance_m (0.8 mm) touches the tissue only where it "
-            "enters it; keep the tip within that of the surface, or set tool.contact: volume for "
+            "enters it; keep the tool within that of the surface, or set tool.contact: volume for "
             "a tool inside the tissue");
   deep.contactNodes = ContactNodes::Volume;  // then it touches the tissue along its depth
   EXPECT_TRUE(Simulation(smallSlab(), deep).warnings().empty());
@@ -758,6 +758,24 @@ TEST(SimulationGuards, AToolDeeperThanItsContactDistanceIsNamedAtSetUp) {
   SimulationConfig edge = cutConfig(false);
   edge.toolPath.keys[1].positionM.z() = 0.0083;  // 1.7 mm: under 0.8 + 1 mm
   EXPECT_TRUE(Simulation(smallSlab(), edge).warnings().empty());
+  // a blade nearly flat, its tip 0.2 mm in and its heel down: turned 95 deg about x, its width
+  // along x, its 20 mm axis along -y and 5 deg down, so its far end is 20 sin 5 deg = 1.74 mm
+  // lower (1.94 mm deep); the tip alone said nothing
+  SimulationConfig flat = cutConfig(false);
+  for (ToolKeyframe& k : flat.toolPath.keys) {
+    k.positionM = Vec3(0, 0.01, 0.0098);
+    k.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(95 * M_PI / 180, Vec3::UnitX()));
+  }
+  const Simulation heel(smallSlab(), flat);
+  ASSERT_EQ(heel.warnings().size(), 1u);
+  EXPECT_EQ(heel.warnings()[0].rfind("the tool reaches 1.9 mm under the tissue's surface with its "
+                                     "blade 20.0 mm from the tip at t = 0.00 s (tool.path;",
+                                     0),
+            0u)
+      << heel.warnings()[0];
+  for (ToolKeyframe& k : flat.toolPath.keys)  // turned 85 deg: the heel rises, no warning
+    k.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(85 * M_PI / 180, Vec3::UnitX()));
+  EXPECT_TRUE(Simulation(smallSlab(), flat).warnings().empty());
 }
 
 }  // namespace guards
