@@ -410,7 +410,7 @@ TEST(Simulation, CutWithTheElectricPhaseConservesCurrentAfterRemoval) {
 // refactorizes, so update mode still cuts like the synchronous rebuild; a Poisson's ratio at
 // which tets lock warns unless the volumetric strain is at the nodes; nodal is refused with a
 // local method, naming both keys
-TEST(Simulation, NodalVolumetricStrainCutsLikeTheSynchronousRebuild) {
+TEST(Simulation, NodalVolumetricStrainInUpdateModeCutsLikeTheSynchronousRebuild) {
   auto config = [](RebuildMode mode, VolumetricStrain v, double nu) {
     SimulationConfig c = fullCutConfig(mode);
     c.structural.volumetric = v;

@@ -57,6 +57,9 @@ TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
       {"bench cut --sizes 50 --voltage 1e308",
        "--set tool.voltage_v=1e+308: tool.voltage_v = 1e+308 is outside [0, 10000]"},
       {"bench structural --sizes 100 --solves 0", "--solves must be >= 1"},
+      {"bench structural --sizes 100 --volumetric element,foo",
+       "bench structural: --volumetric: 'foo' is not a form of the volumetric strain; expected "
+       "element, nodal or both (element,nodal)"},
       // an option of the other bench is refused, not ignored
       {"bench structural --sizes 100 --margins-mm 5",
        "bench structural: --margins-mm is an option of --local only"},

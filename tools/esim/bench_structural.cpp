@@ -18,7 +18,10 @@
 //    and its difference from the rebuilt phase's.
 // 5. Print a table; --csv writes nodes,dofs,factor_ms,solve_ms,rebuild5_ms,update5_ms,
 //    convert_ms,update_refactorized,solve_updated_ms,update_vs_rebuild,max_von_mises_pa,
-//    solve_updated_1thread_ms,solve_updated_cholmod_ms.
+//    solve_updated_1thread_ms,solve_updated_cholmod_ms,volumetric.
+// --volumetric element,nodal: steps 1-4 for each form of the volumetric strain
+// (StructuralOptions::volumetric: per tet, or at the nodes, which does not lock), a row each,
+// side by side per size: what the form that does not lock costs.
 // With --local, instead: the local solve (StructuralSolveMethod::local) against the full
 // one, frame by frame, on two loads scaled so that the peak von Mises is --overload times
 // the critical stress (SimulationConfig's default):
@@ -57,6 +60,7 @@ struct BenchStructuralOptions {
   int solves = 20;
   double peakExpansion = 0.5;
   bool prepareForUpdates = false;
+  std::string volumetric = "element";
   std::string csv;
   // --local
   bool local = false;
@@ -218,97 +222,114 @@ int benchStructural(const BenchStructuralOptions& opt) {
   if (opt.local) return benchLocal(opt);
   ESIM_VERIFY(opt.solves >= 1, "--solves must be >= 1");
   const std::vector<int> sizes = app::parseNodeCounts(opt.sizes, "bench structural");
+  std::vector<VolumetricStrain> forms;
+  for (const std::string& f : app::splitList(opt.volumetric)) {
+    ESIM_VERIFY(f == "element" || f == "nodal",
+                "bench structural: --volumetric: '" + f +
+                    "' is not a form of the volumetric strain; expected element, nodal or both "
+                    "(element,nodal)");
+    forms.push_back(f == "nodal" ? VolumetricStrain::nodal : VolumetricStrain::element);
+  }
+  ESIM_VERIFY(!forms.empty(), "bench structural: --volumetric: none given");
   app::CsvOutput csv(opt.csv,
                      "nodes,dofs,factor_ms,solve_ms,rebuild5_ms,update5_ms,convert_ms,"
                      "update_refactorized,solve_updated_ms,update_vs_rebuild,max_von_mises_pa,"
-                     "solve_updated_1thread_ms,solve_updated_cholmod_ms");
+                     "solve_updated_1thread_ms,solve_updated_cholmod_ms,volumetric");
   std::printf(
       "esim bench structural: paper slab 100x100x10 mm, bottom clamped, Gaussian "
       "expansion (peak %.2f, radius 3 mm) under the top centre; %d solves; E 4.75e4 "
       "Pa, nu 0.4; one BLAS thread%s\n",
       opt.peakExpansion, opt.solves,
       opt.prepareForUpdates ? "; prepareForUpdates (factor_ms includes the conversion)" : "");
-  std::printf("%8s %8s %10s %10s %12s %11s %11s %10s %13s %10s %10s %10s %12s\n", "nodes", "dofs",
-              "factor_ms", "solve_ms", "rebuild5_ms", "update5_ms", "convert_ms", "refactored",
-              "solve_upd_ms", "upd_1t_ms", "upd_chol_ms", "upd_vs_reb", "max_vm_Pa");
-  for (const int nodes : sizes) {
-    SlabSpec spec;
-    spec.targetNodes = nodes;
-    TetMesh mesh = makeSlab(spec);
-    mesh.alive.assign(mesh.tets.size(), 1);
-    std::vector<Support> clamp;
-    for (int v = 0; v < mesh.numNodes(); ++v)
-      if (mesh.nodes[v].z() < 1e-9)
-        for (int a = 0; a < 3; ++a) clamp.push_back({v, a});
-    const Vec3 centre(0, 0, spec.sizeM.z());
-    std::vector<double> ev(mesh.numTets()), dist(mesh.numTets());
-    for (int t = 0; t < mesh.numTets(); ++t) {
-      Vec3 c = Vec3::Zero();
-      for (int v : mesh.tets[t]) c += 0.25 * mesh.nodes[v];
-      dist[t] = (c - centre).norm();
-      ev[t] = opt.peakExpansion * std::exp(-dist[t] * dist[t] / (0.003 * 0.003));
-    }
-    // 1. assembly + factorization
-    auto t0 = std::chrono::steady_clock::now();
-    StructuralOptions firstOptions;
-    firstOptions.prepareForUpdates = opt.prepareForUpdates;
-    auto phase = std::make_unique<StructuralPhase>(mesh, firstOptions, clamp);
-    const double factorMs = msSince(t0);
-    // 2. solves
-    std::vector<double> solveMs;
-    std::vector<double> load = ev;
-    for (int k = 0; k < opt.solves; ++k) {
-      for (double& e : load) e *= 1.001;
-      t0 = std::chrono::steady_clock::now();
-      phase->solve(load);
-      solveMs.push_back(msSince(t0));
-    }
-    std::sort(solveMs.begin(), solveMs.end());
-    const double maxVm = *std::max_element(phase->vonMisesPa().begin(), phase->vonMisesPa().end());
-    // 3. remove the 5 tets nearest the top centre and rebuild
-    std::vector<int> order(mesh.numTets());
-    for (int t = 0; t < mesh.numTets(); ++t) order[t] = t;
-    std::partial_sort(order.begin(), order.begin() + 5, order.end(),
-                      [&](int a, int b) { return dist[a] < dist[b]; });
-    for (int k = 0; k < 5; ++k) mesh.alive[order[k]] = 0;
-    t0 = std::chrono::steady_clock::now();
-    const auto rebuilt = std::make_unique<StructuralPhase>(mesh, StructuralOptions{}, clamp);
-    const double rebuildMs = msSince(t0);
-    // 4. the same 5 tets removed from the first phase by an update
-    t0 = std::chrono::steady_clock::now();
-    const StructuralUpdateStats update =
-        phase->removeTets({order[0], order[1], order[2], order[3], order[4]});
-    const double updateMs = msSince(t0);
-    // the updated (simplicial) factor's solves: CHOLMOD's, ldl_solve.h's on 1 and 2 threads,
-    // interleaved (one solve of each in turn: the machine's load shared alike)
-    std::vector<double> updatedMs[3];
-    for (int k = 0; k < opt.solves; ++k)
-      for (int threads : {0, 1, 2}) {
-        phase->setSolveThreads(threads);
+  std::printf("%8s %8s %10s %10s %12s %11s %11s %10s %13s %10s %10s %10s %12s %10s\n", "nodes",
+              "dofs", "factor_ms", "solve_ms", "rebuild5_ms", "update5_ms", "convert_ms",
+              "refactored", "solve_upd_ms", "upd_1t_ms", "upd_chol_ms", "upd_vs_reb", "max_vm_Pa",
+              "volumetric");
+  for (const int nodes : sizes)
+    for (const VolumetricStrain form : forms) {
+      const char* formName = form == VolumetricStrain::nodal ? "nodal" : "element";
+      SlabSpec spec;
+      spec.targetNodes = nodes;
+      TetMesh mesh = makeSlab(spec);
+      mesh.alive.assign(mesh.tets.size(), 1);
+      std::vector<Support> clamp;
+      for (int v = 0; v < mesh.numNodes(); ++v)
+        if (mesh.nodes[v].z() < 1e-9)
+          for (int a = 0; a < 3; ++a) clamp.push_back({v, a});
+      const Vec3 centre(0, 0, spec.sizeM.z());
+      std::vector<double> ev(mesh.numTets()), dist(mesh.numTets());
+      for (int t = 0; t < mesh.numTets(); ++t) {
+        Vec3 c = Vec3::Zero();
+        for (int v : mesh.tets[t]) c += 0.25 * mesh.nodes[v];
+        dist[t] = (c - centre).norm();
+        ev[t] = opt.peakExpansion * std::exp(-dist[t] * dist[t] / (0.003 * 0.003));
+      }
+      // 1. assembly + factorization
+      auto t0 = std::chrono::steady_clock::now();
+      StructuralOptions firstOptions;
+      firstOptions.prepareForUpdates = opt.prepareForUpdates;
+      firstOptions.volumetric = form;
+      StructuralOptions rebuildOptions;
+      rebuildOptions.volumetric = form;
+      auto phase = std::make_unique<StructuralPhase>(mesh, firstOptions, clamp);
+      const double factorMs = msSince(t0);
+      // 2. solves
+      std::vector<double> solveMs;
+      std::vector<double> load = ev;
+      for (int k = 0; k < opt.solves; ++k) {
+        for (double& e : load) e *= 1.001;
         t0 = std::chrono::steady_clock::now();
         phase->solve(load);
-        updatedMs[threads].push_back(msSince(t0));
+        solveMs.push_back(msSince(t0));
       }
-    for (auto& v : updatedMs) std::sort(v.begin(), v.end());
-    const auto median = [](const std::vector<double>& v) { return v[v.size() / 2]; };
-    rebuilt->solve(load);
-    const double difference = (phase->displacementM() - rebuilt->displacementM()).norm() /
-                              rebuilt->displacementM().norm();
-    const double solveUpdatedMs = median(updatedMs[2]);
-    const double convertMs = 1e3 * update.convertSeconds;
-    std::printf(
-        "%8d %8d %10.1f %10.2f %12.1f %11.2f %11.2f %10s %13.2f %10.2f %10.2f %10.1e %12.1f\n",
-        mesh.numNodes(), rebuilt->numFreeDofs(), factorMs, solveMs[solveMs.size() / 2], rebuildMs,
-        updateMs, convertMs, update.refactorized ? "yes" : "no", solveUpdatedMs,
-        median(updatedMs[1]), median(updatedMs[0]), difference, maxVm);
-    std::fflush(stdout);
-    if (csv)
-      csv.out() << mesh.numNodes() << ',' << rebuilt->numFreeDofs() << ',' << factorMs << ','
-                << solveMs[solveMs.size() / 2] << ',' << rebuildMs << ',' << updateMs << ','
-                << convertMs << ',' << (update.refactorized ? 1 : 0) << ',' << solveUpdatedMs << ','
-                << difference << ',' << maxVm << ',' << median(updatedMs[1]) << ','
-                << median(updatedMs[0]) << '\n';
-  }
+      std::sort(solveMs.begin(), solveMs.end());
+      const double maxVm =
+          *std::max_element(phase->vonMisesPa().begin(), phase->vonMisesPa().end());
+      // 3. remove the 5 tets nearest the top centre and rebuild
+      std::vector<int> order(mesh.numTets());
+      for (int t = 0; t < mesh.numTets(); ++t) order[t] = t;
+      std::partial_sort(order.begin(), order.begin() + 5, order.end(),
+                        [&](int a, int b) { return dist[a] < dist[b]; });
+      for (int k = 0; k < 5; ++k) mesh.alive[order[k]] = 0;
+      t0 = std::chrono::steady_clock::now();
+      const auto rebuilt = std::make_unique<StructuralPhase>(mesh, rebuildOptions, clamp);
+      const double rebuildMs = msSince(t0);
+      // 4. the same 5 tets removed from the first phase by an update
+      t0 = std::chrono::steady_clock::now();
+      const StructuralUpdateStats update =
+          phase->removeTets({order[0], order[1], order[2], order[3], order[4]});
+      const double updateMs = msSince(t0);
+      // the updated (simplicial) factor's solves: CHOLMOD's, ldl_solve.h's on 1 and 2 threads,
+      // interleaved (one solve of each in turn: the machine's load shared alike)
+      std::vector<double> updatedMs[3];
+      for (int k = 0; k < opt.solves; ++k)
+        for (int threads : {0, 1, 2}) {
+          phase->setSolveThreads(threads);
+          t0 = std::chrono::steady_clock::now();
+          phase->solve(load);
+          updatedMs[threads].push_back(msSince(t0));
+        }
+      for (auto& v : updatedMs) std::sort(v.begin(), v.end());
+      const auto median = [](const std::vector<double>& v) { return v[v.size() / 2]; };
+      rebuilt->solve(load);
+      const double difference = (phase->displacementM() - rebuilt->displacementM()).norm() /
+                                rebuilt->displacementM().norm();
+      const double solveUpdatedMs = median(updatedMs[2]);
+      const double convertMs = 1e3 * update.convertSeconds;
+      std::printf(
+          "%8d %8d %10.1f %10.2f %12.1f %11.2f %11.2f %10s %13.2f %10.2f %10.2f %10.1e %12.1f "
+          "%10s\n",
+          mesh.numNodes(), rebuilt->numFreeDofs(), factorMs, solveMs[solveMs.size() / 2], rebuildMs,
+          updateMs, convertMs, update.refactorized ? "yes" : "no", solveUpdatedMs,
+          median(updatedMs[1]), median(updatedMs[0]), difference, maxVm, formName);
+      std::fflush(stdout);
+      if (csv)
+        csv.out() << mesh.numNodes() << ',' << rebuilt->numFreeDofs() << ',' << factorMs << ','
+                  << solveMs[solveMs.size() / 2] << ',' << rebuildMs << ',' << updateMs << ','
+                  << convertMs << ',' << (update.refactorized ? 1 : 0) << ',' << solveUpdatedMs
+                  << ',' << difference << ',' << maxVm << ',' << median(updatedMs[1]) << ','
+                  << median(updatedMs[0]) << ',' << formName << '\n';
+    }
   if (csv) {
     csv.commit();
     std::printf("wrote %s\n", opt.csv.c_str());
@@ -331,6 +352,11 @@ cli::Registrar registerBenchStructural(
       fullOnly.push_back(app.add_option("--peak-expansion", opt->peakExpansion,
                                         "peak volumetric expansion dV/V of the load")
                              ->capture_default_str());
+      fullOnly.push_back(
+          app.add_option("--volumetric", opt->volumetric,
+                         "the volumetric strain per tet (element), at the nodes (nodal: no "
+                         "locking), or both side by side (element,nodal)")
+              ->capture_default_str());
       fullOnly.push_back(app.add_flag(
           "--prepare-for-updates", opt->prepareForUpdates,
           "StructuralOptions::prepareForUpdates for the phase of steps 1, 2 and 4 (the "
@@ -362,8 +388,8 @@ cli::Registrar registerBenchStructural(
       fullOnly.push_back(
           app.add_option("--csv", opt->csv,
                          "write nodes,dofs,factor_ms,solve_ms,rebuild5_ms,update5_ms,convert_ms,"
-                         "update_refactorized,solve_updated_ms,update_vs_rebuild,max_von_mises_pa "
-                         "to FILE"));
+                         "update_refactorized,solve_updated_ms,update_vs_rebuild,max_von_mises_pa,"
+                         "solve_updated_1thread_ms,solve_updated_cholmod_ms,volumetric to FILE"));
       return [opt, fullOnly, localOnly] {
         if (opt->local)
           cli::refuseGiven(fullOnly, "bench structural", "is not an option of --local");
