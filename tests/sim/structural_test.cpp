@@ -5,7 +5,9 @@
 // set (updates, orphaned nodes, pieces cut loose or hanging by an edge, the fallback);
 // the local solve against the full one (exact on the whole mesh, an energy error that
 // does not grow with the region, after removals, the refresh schedule, removals that update
-// the region and defer the whole factor's update).
+// the region and defer the whole factor's update); the volumetric strain at the nodes
+// (the uniform cases with both forms, Eshelby's expanding sphere where linear tets lock,
+// removals against a fresh build).
 #include "sim/structural.h"
 
 #include <gtest/gtest.h>
@@ -70,18 +72,30 @@ StructuralOptions paper() {
   return o;
 }
 
+// the paper's options with the volumetric strain per tet or at the nodes (the uniform
+// eigenstrain cases are linear fields, exact with either)
+StructuralOptions paperWith(VolumetricStrain form) {
+  StructuralOptions o = paper();
+  o.volumetric = form;
+  return o;
+}
+constexpr VolumetricStrain kBothForms[] = {VolumetricStrain::element, VolumetricStrain::nodal};
+
 TEST(Structural, ClampedBodyIsHydrostatic) {
   const TetMesh mesh = distortedSlab();
-  StructuralPhase phase(mesh, paper(), hold(mesh, onBoundary, {0, 1, 2}));
-  phase.solve(std::vector<double>(mesh.numTets(), kEv));
-  const double sigma = -kE * kEv / (3 * (1 - 2 * kNu));  // -1583 Pa
-  for (int t = 0; t < mesh.numTets(); ++t) {
-    const VoigtStress& s = phase.stressPa()[t];
-    for (int i = 0; i < 3; ++i) EXPECT_NEAR(s[i], sigma, 1e-9 * std::abs(sigma)) << "tet " << t;
-    for (int i = 3; i < 6; ++i) EXPECT_NEAR(s[i], 0, 1e-9 * std::abs(sigma));
-    EXPECT_LT(phase.vonMisesPa()[t], 1e-8 * std::abs(sigma));
+  for (const VolumetricStrain form : kBothForms) {
+    SCOPED_TRACE(form == VolumetricStrain::nodal ? "nodal" : "element");
+    StructuralPhase phase(mesh, paperWith(form), hold(mesh, onBoundary, {0, 1, 2}));
+    phase.solve(std::vector<double>(mesh.numTets(), kEv));
+    const double sigma = -kE * kEv / (3 * (1 - 2 * kNu));  // -1583 Pa
+    for (int t = 0; t < mesh.numTets(); ++t) {
+      const VoigtStress& s = phase.stressPa()[t];
+      for (int i = 0; i < 3; ++i) EXPECT_NEAR(s[i], sigma, 1e-9 * std::abs(sigma)) << "tet " << t;
+      for (int i = 3; i < 6; ++i) EXPECT_NEAR(s[i], 0, 1e-9 * std::abs(sigma));
+      EXPECT_LT(phase.vonMisesPa()[t], 1e-8 * std::abs(sigma));
+    }
+    EXPECT_LT(phase.displacementM().cwiseAbs().maxCoeff(), 1e-15);
   }
-  EXPECT_LT(phase.displacementM().cwiseAbs().maxCoeff(), 1e-15);
 }
 
 // assembleElasticLower scatters into the pattern what the phase once assembled from
@@ -196,20 +210,23 @@ TEST(Structural, LaterallyConstrainedLayer) {
     s.push_back(y);
   for (const Support& z : hold(mesh, [](const Vec3& p) { return p.z() < 1e-12; }, {2}))
     s.push_back(z);
-  StructuralPhase phase(mesh, paper(), s);
-  phase.solve(std::vector<double>(mesh.numTets(), kEv));
-  const double lateral = -kE * kEv / (3 * (1 - kNu));  // -527.8 Pa
-  for (int t = 0; t < mesh.numTets(); ++t) {
-    const VoigtStress& st = phase.stressPa()[t];
-    EXPECT_NEAR(st[0], lateral, 1e-9 * std::abs(lateral));
-    EXPECT_NEAR(st[1], lateral, 1e-9 * std::abs(lateral));
-    EXPECT_NEAR(st[2], 0, 1e-9 * std::abs(lateral));
-    EXPECT_NEAR(phase.vonMisesPa()[t], std::abs(lateral), 1e-9 * std::abs(lateral));
+  for (const VolumetricStrain form : kBothForms) {
+    SCOPED_TRACE(form == VolumetricStrain::nodal ? "nodal" : "element");
+    StructuralPhase phase(mesh, paperWith(form), s);
+    phase.solve(std::vector<double>(mesh.numTets(), kEv));
+    const double lateral = -kE * kEv / (3 * (1 - kNu));  // -527.8 Pa
+    for (int t = 0; t < mesh.numTets(); ++t) {
+      const VoigtStress& st = phase.stressPa()[t];
+      EXPECT_NEAR(st[0], lateral, 1e-9 * std::abs(lateral));
+      EXPECT_NEAR(st[1], lateral, 1e-9 * std::abs(lateral));
+      EXPECT_NEAR(st[2], 0, 1e-9 * std::abs(lateral));
+      EXPECT_NEAR(phase.vonMisesPa()[t], std::abs(lateral), 1e-9 * std::abs(lateral));
+    }
+    // u_z = e_v z (1 + nu) / (3 (1 - nu)) everywhere, so the top rises by that times H
+    const double strainZ = kEv * (1 + kNu) / (3 * (1 - kNu));
+    for (int v = 0; v < mesh.numNodes(); ++v)
+      EXPECT_NEAR(phase.displacementM()(3 * v + 2), strainZ * mesh.nodes[v].z(), 1e-15);
   }
-  // u_z = e_v z (1 + nu) / (3 (1 - nu)) everywhere, so the top rises by that times H
-  const double strainZ = kEv * (1 + kNu) / (3 * (1 - kNu));
-  for (int v = 0; v < mesh.numNodes(); ++v)
-    EXPECT_NEAR(phase.displacementM()(3 * v + 2), strainZ * mesh.nodes[v].z(), 1e-15);
 }
 
 TEST(Structural, FreeExpansionIsStressFree) {
@@ -224,12 +241,15 @@ TEST(Structural, FreeExpansionIsStressFree) {
     if (p.x() < -kLx / 2 + 1e-12 && p.y() > kLy / 2 - 1e-12) c = v;
   }
   ASSERT_TRUE(a >= 0 && b >= 0 && c >= 0);
-  StructuralPhase phase(mesh, paper(), {{a, 0}, {a, 1}, {a, 2}, {b, 1}, {b, 2}, {c, 2}});
-  phase.solve(std::vector<double>(mesh.numTets(), kEv));
-  for (int t = 0; t < mesh.numTets(); ++t) EXPECT_LT(phase.vonMisesPa()[t], 1e-9 * kE * kEv);
-  for (int v = 0; v < mesh.numNodes(); ++v) {
-    const Vec3 want = (kEv / 3) * (mesh.nodes[v] - mesh.nodes[a]);
-    for (int k = 0; k < 3; ++k) EXPECT_NEAR(phase.displacementM()(3 * v + k), want(k), 1e-15);
+  for (const VolumetricStrain form : kBothForms) {
+    SCOPED_TRACE(form == VolumetricStrain::nodal ? "nodal" : "element");
+    StructuralPhase phase(mesh, paperWith(form), {{a, 0}, {a, 1}, {a, 2}, {b, 1}, {b, 2}, {c, 2}});
+    phase.solve(std::vector<double>(mesh.numTets(), kEv));
+    for (int t = 0; t < mesh.numTets(); ++t) EXPECT_LT(phase.vonMisesPa()[t], 1e-9 * kE * kEv);
+    for (int v = 0; v < mesh.numNodes(); ++v) {
+      const Vec3 want = (kEv / 3) * (mesh.nodes[v] - mesh.nodes[a]);
+      for (int k = 0; k < 3; ++k) EXPECT_NEAR(phase.displacementM()(3 * v + k), want(k), 1e-15);
+    }
   }
 }
 
@@ -1529,41 +1549,6 @@ TEST(StructuralVolumetric, EshelbyInclusionHasTheAnalyticStress) {
     if (nu == 0.499) {
       EXPECT_GT(byElement, 1.3);  // locked
     }
-  }
-}
-
-// the uniform-eigenstrain cases are linear fields: exact at the nodes too
-TEST(StructuralVolumetric, UniformEigenstrainCasesAreExact) {
-  const TetMesh mesh = distortedSlab();
-  {  // clamped: hydrostatic
-    StructuralPhase phase(mesh, nodal(), hold(mesh, onBoundary, {0, 1, 2}));
-    phase.solve(std::vector<double>(mesh.numTets(), kEv));
-    const double sigma = -kE * kEv / (3 * (1 - 2 * kNu));
-    for (int t = 0; t < mesh.numTets(); ++t) {
-      for (int i = 0; i < 3; ++i) EXPECT_NEAR(phase.stressPa()[t][i], sigma, 1e-9 * -sigma);
-      for (int i = 3; i < 6; ++i) EXPECT_NEAR(phase.stressPa()[t][i], 0, 1e-9 * -sigma);
-    }
-  }
-  {  // laterally constrained layer
-    std::vector<Support> s =
-        hold(mesh, [](const Vec3& p) { return std::abs(std::abs(p.x()) - kLx / 2) < 1e-12; }, {0});
-    for (const Support& y :
-         hold(mesh, [](const Vec3& p) { return std::abs(std::abs(p.y()) - kLy / 2) < 1e-12; }, {1}))
-      s.push_back(y);
-    for (const Support& z : hold(mesh, [](const Vec3& p) { return p.z() < 1e-12; }, {2}))
-      s.push_back(z);
-    StructuralPhase phase(mesh, nodal(), s);
-    phase.solve(std::vector<double>(mesh.numTets(), kEv));
-    const double lateral = -kE * kEv / (3 * (1 - kNu));
-    for (int t = 0; t < mesh.numTets(); ++t) {
-      EXPECT_NEAR(phase.stressPa()[t][0], lateral, 1e-9 * -lateral);
-      EXPECT_NEAR(phase.stressPa()[t][1], lateral, 1e-9 * -lateral);
-      EXPECT_NEAR(phase.stressPa()[t][2], 0, 1e-9 * -lateral);
-      EXPECT_NEAR(phase.vonMisesPa()[t], -lateral, 1e-9 * -lateral);
-    }
-    const double strainZ = kEv * (1 + kNu) / (3 * (1 - kNu));
-    for (int v = 0; v < mesh.numNodes(); ++v)
-      EXPECT_NEAR(phase.displacementM()(3 * v + 2), strainZ * mesh.nodes[v].z(), 1e-15);
   }
 }
 
