@@ -473,11 +473,8 @@ TetMesh biggerSlab() {
   return mesh;
 }
 
-TEST(StructuralRemoval, OneFiveThenManyTetsEqualAFreshBuild) {
-  TetMesh mesh = biggerSlab();
-  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
-  StructuralPhase phase(mesh, alwaysUpdate(), clamp);
-  // the tets by distance of their centroid from the top centre
+// the tets by distance of their centroid from the top centre, nearest first
+std::vector<int> byDistanceFromTheTopCentre(const TetMesh& mesh) {
   std::vector<int> order(mesh.numTets());
   std::vector<double> dist(mesh.numTets());
   for (int t = 0; t < mesh.numTets(); ++t) {
@@ -487,6 +484,14 @@ TEST(StructuralRemoval, OneFiveThenManyTetsEqualAFreshBuild) {
     order[t] = t;
   }
   std::sort(order.begin(), order.end(), [&](int a, int b) { return dist[a] < dist[b]; });
+  return order;
+}
+
+TEST(StructuralRemoval, OneFiveThenManyTetsEqualAFreshBuild) {
+  TetMesh mesh = biggerSlab();
+  const std::vector<Support> clamp = hold(mesh, onBottom, {0, 1, 2});
+  StructuralPhase phase(mesh, alwaysUpdate(), clamp);
+  const std::vector<int> order = byDistanceFromTheTopCentre(mesh);
   StructuralUpdateStats st = removeBoth(phase, mesh, {order[0]});
   EXPECT_EQ(st.tetsRemoved, 1);
   EXPECT_GT(st.rank, 0);
@@ -1567,15 +1572,7 @@ TEST(StructuralVolumetric, RemovalsEqualAFreshBuild) {
     o.updateCostLimit = way == kRefactorized ? 0.0 : 1e300;
     o.vectorizedUpdate = way == kVectorized;
     StructuralPhase phase(mesh, o, clamp);
-    std::vector<int> order(mesh.numTets());
-    std::vector<double> dist(mesh.numTets());
-    for (int t = 0; t < mesh.numTets(); ++t) {
-      Vec3 c = Vec3::Zero();
-      for (int v : mesh.tets[t]) c += mesh.nodes[v] / 4;
-      dist[t] = (c - Vec3(0, 0, kLz)).norm();
-      order[t] = t;
-    }
-    std::sort(order.begin(), order.end(), [&](int a, int b) { return dist[a] < dist[b]; });
+    const std::vector<int> order = byDistanceFromTheTopCentre(mesh);
     int removed = 0, held = 0;
     for (int batch = 0; batch < 4; ++batch) {
       std::vector<int> ids(order.begin() + batch * 20, order.begin() + (batch + 1) * 20);
