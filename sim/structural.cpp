@@ -852,10 +852,8 @@ void StructuralPhase::Impl::factorize(cholmod_common& c, const StateView& s) {
     rowOfDof.assign(numDofs(), 0);
     for (int k = 0; k < numDofs(); ++k) rowOfDof[perm[k]] = k;
   }
-  // at the nodes the factor is never updated: it stays supernodal and is refactorized in place
-  // (a new copy of the analysis and the conversion to LDL' were most of a removal's time)
-  if (factor && !(nodalVolumetric && factor->is_super)) cholmod_free_factor(&factor, &c);
-  if (!factor) factor = cholmod_copy_factor(symbolic, &c);
+  if (factor) cholmod_free_factor(&factor, &c);
+  factor = cholmod_copy_factor(symbolic, &c);
   if (factor == nullptr) throw std::bad_alloc();  // (copying fails only so)
   openblas_set_num_threads(1);                    // see the header: BLAS threads only spin here
   const int ok = cholmod_factorize(&view, factor, &c);
