@@ -151,6 +151,12 @@ std::string lockingWarning(const SimulationConfig& config) {
 
 }  // namespace
 
+std::vector<std::string> configWarnings(const SimulationConfig& config) {
+  std::vector<std::string> out;
+  if (std::string w = lockingWarning(config); !w.empty()) out.push_back(std::move(w));
+  return out;
+}
+
 namespace {
 
 // the nodes the structural phase clamps: surface nodes within the clamp band of the lowest
@@ -1301,7 +1307,7 @@ std::vector<std::string> Simulation::warnings() const {
   const auto frames = [](int n) { return std::to_string(n) + (n == 1 ? " frame" : " frames"); };
   if (!piecesWarning_.empty()) w.push_back(piecesWarning_);
   if (!depthWarning_.empty()) w.push_back(depthWarning_);
-  if (std::string lw = lockingWarning(config_); !lw.empty()) w.push_back(std::move(lw));
+  for (std::string& c : configWarnings(config_)) w.push_back(std::move(c));
   if (std::string nc = noContactWarning(); !nc.empty()) w.push_back(std::move(nc));
   if (framesContactByTet_ > 0)
     w.push_back(frames(framesContactByTet_) +

@@ -208,6 +208,11 @@ const SimulationConfig& defaultSimulationConfig();
 // it; `esim validate` runs it too, so that a valid scenario never fails at set-up.
 void validateSimulationConfig(const SimulationConfig& config);
 
+// The warnings that follow from the configuration alone, before any mesh (today: linear tets
+// with the volumetric strain per tet at a Poisson's ratio where they lock, sim/structural.h
+// VolumetricStrain). Simulation::warnings() lists them; `esim validate` prints them.
+std::vector<std::string> configWarnings(const SimulationConfig& config);
+
 // The explicit integrator's bound: a frame step above the mesh's stability limit needs
 // sub-stepping, and at most thermal.maxSubsteps sub-steps; else an Input error with the
 // remedy. The constructor runs it, and validateSimulationMesh.

@@ -1,5 +1,6 @@
 // validate_cli_test.cpp - `esim validate` end to end: every shipped scenario passes with
-// exit 0; bad files and bad overrides print file:line:col messages and exit 2;
+// exit 0; a warning of the configuration leaves a file valid; bad files and bad overrides
+// print file:line:col messages and exit 2;
 // `--reference` prints the committed docs/scenario-reference.md.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
@@ -52,6 +53,29 @@ TEST(ValidateCli, EveryShippedScenarioIsOk) {
   EXPECT_NE(r.output.find("120 frames (4 s at 30 fps), physics [electric, thermal, boiling]"),
             std::string::npos)
       << r.output;
+}
+
+// what the run would warn of from the configuration alone is printed, and the file stays
+// valid: linear tets locking at nu = 0.49 (sim/structural.h, VolumetricStrain); not with the
+// volumetric strain at the nodes, nor without the structural phase
+TEST(ValidateCli, AWarningOfTheConfigurationLeavesTheFileValid) {
+  const std::string cut = "\"" + (kRoot / "scenarios/slab_cut.yaml").string() + "\"";
+  const Result locked = runEsim("validate " + cut + " --set material.poisson_ratio=0.49");
+  EXPECT_EQ(locked.exitCode, 0) << locked.output;
+  EXPECT_NE(locked.output.find("ok "), std::string::npos) << locked.output;
+  EXPECT_NE(locked.output.find("warning: " + (kRoot / "scenarios/slab_cut.yaml").string() +
+                               ": material.poisson_ratio = 0.49 with "
+                               "solvers.structural.volumetric: element: linear tets lock"),
+            std::string::npos)
+      << locked.output;
+  for (const std::string& fine :
+       {std::string(" --set material.poisson_ratio=0.49 --set solvers.structural.volumetric=nodal"),
+        std::string(" --set material.poisson_ratio=0.49 --set physics=[electric,thermal,boiling]"),
+        std::string()}) {
+    const Result r = runEsim("validate " + cut + fine);
+    EXPECT_EQ(r.exitCode, 0) << r.output;
+    EXPECT_EQ(r.output.find("warning"), std::string::npos) << fine << ": " << r.output;
+  }
 }
 
 TEST(ValidateCli, BadInputExitsTwoWithTheMessage) {

@@ -4,7 +4,9 @@
 //    phase dependencies, tool path and asset files are all checked; then every check the
 //    set-up of `esim run` makes before its first frame (tools/app/run_config.h:
 //    checkRunnable), so that a file that validates never fails at set-up.
-// 2. Print "ok <file>: <summary>" or the error with file:line:col, and go on.
+// 2. Print "ok <file>: <summary>" or the error with file:line:col, and go on; a warning the
+//    run would give from the configuration alone (sim/simulation.h: configWarnings) goes to
+//    stderr as "warning: <file>: ..." and leaves the file valid.
 // 3. Exit 2 when any file is invalid. `--reference` prints the Markdown schema reference.
 #include <iostream>
 #include <memory>
@@ -13,6 +15,7 @@
 
 #include "sim/core_error.h"
 #include "sim/io/scenario.h"
+#include "sim/simulation.h"
 #include "tools/app/run_config.h"
 #include "tools/esim/command.h"
 
@@ -37,6 +40,8 @@ int runValidate(const ValidateOptions& opt) {
       const esim::Scenario s = esim::loadScenario(file, opt.overrides);
       esim::app::checkRunnable(s);
       std::cout << "ok " << s.sourceName << ": " << esim::scenarioSummary(s) << "\n";
+      for (const std::string& w : esim::configWarnings(esim::app::makeSimulationConfig(s)))
+        std::cerr << "warning: " << s.sourceName << ": " << w << "\n";
     } catch (const esim::Error& e) {
       std::cerr << "error: " << e.what() << "\n";
       ++invalid;
@@ -60,7 +65,9 @@ const esim::cli::Registrar registerValidate(
           "  esim validate scenarios/paper_slab.yaml --set tool.voltage_v=60 --set "
           "physics=[electric]\n"
           "  esim validate --reference > docs/scenario-reference.md\n"
-          "Prints 'ok FILE: summary' or 'error: FILE:LINE:COL: field: message' per file.\n"
+          "Prints 'ok FILE: summary' or 'error: FILE:LINE:COL: field: message' per file,\n"
+          "and 'warning: FILE: ...' on stderr for what the run would warn of from the\n"
+          "configuration alone (the file stays valid).\n"
           "Exit codes: 0 all valid, 2 some file invalid (or bad options).");
       app.add_option("scenarios", opt->files, "scenario YAML files (- reads standard input)");
       app.add_option("--set", opt->overrides,
