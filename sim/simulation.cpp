@@ -820,6 +820,7 @@ void Simulation::waitStructural() const {
   if (!structuralJob_.valid()) return;
   try {
     structuralJobStats_ = structuralJob_.get();
+    structuralRefactorizations_ += structuralJobStats_.refactorized ? 1 : 0;
   } catch (...) {
     structuralError_ = std::current_exception();
   }

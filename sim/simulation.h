@@ -369,6 +369,9 @@ class Simulation {
   double rebuildBuildMs() const { return rebuildBuildMs_; }  // sum over rebuilds
   double maxRebuildWaitMs() const { return rebuildWaitMs_; }
   int recomputedFrames() const { return recomputedFrames_; }
+  // update mode: removals whose structural update refactorized the factor instead (its
+  // estimate passed a refactorization's, a downdate lost positive definiteness, or rows freed)
+  int structuralRefactorizations() const { return structuralRefactorizations_; }
 
  private:
   struct Rebuilt;
@@ -446,9 +449,10 @@ class Simulation {
   double worstMaxPrincipleK_ = 0;                // by how much at most [K]
   double lowestC_ = 0;  // the initial minimum temperature: the lower bound [C]
   int removedTets_ = 0;
-  int rebuilds_ = 0, rebuildsLate_ = 0;  // swapped in; of which had to wait > 1 ms
-  double rebuildBuildMs_ = 0;            // sum of the rebuilds' build times
-  double rebuildWaitMs_ = 0;             // longest wait for a background rebuild
+  int rebuilds_ = 0, rebuildsLate_ = 0;         // swapped in; of which had to wait > 1 ms
+  mutable int structuralRefactorizations_ = 0;  // update mode: see structuralRefactorizations()
+  double rebuildBuildMs_ = 0;                   // sum of the rebuilds' build times
+  double rebuildWaitMs_ = 0;                    // longest wait for a background rebuild
 };
 
 }  // namespace esim

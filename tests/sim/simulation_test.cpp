@@ -428,6 +428,14 @@ TEST(Simulation, NodalVolumetricStrainInUpdateModeCutsLikeTheSynchronousRebuild)
   ASSERT_GT(sync->removedTets(), 0) << "the scene does not cut";
   EXPECT_EQ(syncRemoved, updRemoved);
   expectTheSameCut(*upd, *sync);
+  EXPECT_EQ(upd->structuralRefactorizations(), 0);  // every removal an update
+  {  // updates refused (their cost over a refactorization's at any size): each one counted
+    SimulationConfig c = config(RebuildMode::Update, VolumetricStrain::nodal, 0.49);
+    c.structural.updateCostLimit = 0;
+    Simulation refactor(smallSlab(), c);
+    EXPECT_EQ(removedPerStep(refactor, 45), updRemoved);
+    EXPECT_EQ(refactor.structuralRefactorizations(), refactor.rebuilds());
+  }
   const auto lockingWarnings = [](const Simulation& sim) {
     std::vector<std::string> out;
     for (const std::string& w : sim.warnings())

@@ -710,6 +710,7 @@ TEST(RunCli, TheDrawThreadGivesTheSameFramesAndReportsThePeriod) {
     EXPECT_EQ(timing["frame_latency"]["frames_ran"].get<int>(), 12);
     EXPECT_GT(timing["frame_period"]["p50_ms"].get<double>(), 0.0);
     EXPECT_GT(timing["structural"]["removed_tets"].get<int>(), 0);  // a cut: the mesh changes
+    EXPECT_GE(timing["structural"]["structural_refactorizations"].get<int>(), 0);
     const std::string summary = readFile(out / "summary.txt");
     EXPECT_NE(summary.find("  period "), std::string::npos) << summary;
     EXPECT_EQ(summary.find("drawn on a thread") != std::string::npos, serial == 0) << summary;

@@ -725,7 +725,8 @@ nlohmann::json timingExtra(const Setup& s, const FrameOutputs& out, const LoopRe
         {"rebuilds_late", sim.rebuildsLate()},
         {"rebuild_build_ms_mean", sim.rebuilds() > 0 ? sim.rebuildBuildMs() / sim.rebuilds() : 0.0},
         {"rebuild_wait_ms_max", sim.maxRebuildWaitMs()},
-        {"recomputed_frames", sim.recomputedFrames()}};
+        {"recomputed_frames", sim.recomputedFrames()},
+        {"structural_refactorizations", sim.structuralRefactorizations()}};
   if (s.renderer)
     extra["renderer"] = {{"gl_renderer", s.renderer->glRenderer()},
                          {"gl_version", s.renderer->glVersion()},
@@ -802,6 +803,9 @@ void summaryStructural(std::ostringstream& sum, const Simulation& sim, const Loo
                     " frames after the rupture"
               : std::string(rebuildModeName(c.rebuildMode)))
       << "; build " << sim.rebuildBuildMs() / sim.rebuilds() << " ms mean";
+  if (c.rebuildMode == RebuildMode::Update)
+    sum << "; the structural factor updated, refactorized " << sim.structuralRefactorizations()
+        << (sim.structuralRefactorizations() == 1 ? " time" : " times");
   if (c.rebuildMode == RebuildMode::Background)
     sum << "; lag missed " << sim.rebuildsLate() << " times (longest wait "
         << sim.maxRebuildWaitMs() << " ms); " << sim.recomputedFrames() << " frames recomputed";
