@@ -254,6 +254,13 @@ void verifySolveThreads(int threads) {
                   std::to_string(threads));
 }
 
+// the volumetric strain at the nodes works with the full solve method only (structural.h)
+void verifyVolumetricMethod(bool nodal, StructuralSolveMethod method) {
+  ESIM_VERIFY(!nodal || method == StructuralSolveMethod::full,
+              "structural: the volumetric strain at the nodes works with the full solve "
+              "method only (not local or coarse)");
+}
+
 void verifyLocalOptions(const LocalSolveOptions& o) {
   ESIM_VERIFY(std::isfinite(o.marginM) && o.marginM >= 0,
               "structural: local.marginM must be >= 0, got " + messageNumber(o.marginM));
@@ -2085,9 +2092,7 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   m.bulkModulusPa = e / (3 * (1 - 2 * nu));
   m.nodalVolumetric = options.volumetric == VolumetricStrain::nodal;
   if (m.nodalVolumetric) m.d.topLeftCorner<3, 3>().array() -= m.bulkModulusPa;  // D_dev
-  ESIM_VERIFY(!m.nodalVolumetric || options.solveMethod == StructuralSolveMethod::full,
-              "structural: the volumetric strain at the nodes works with the full solve "
-              "method only (not local or coarse)");
+  verifyVolumetricMethod(m.nodalVolumetric, options.solveMethod);
   m.supports = supports;
   m.noPieceHeld =
       supportsMessage("no piece of the body is held by the supports", options.supportsNote);
@@ -2098,7 +2103,7 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   verifySolveThreads(options.solveThreads);
   ESIM_VERIFY(!(options.updateCostLimit < 0), "structural: updateCostLimit must be >= 0, got " +
                                                   messageNumber(options.updateCostLimit));
-  m.updateCostLimit = options.updateCostLimit;  // (at the nodes every removal refactorizes)
+  m.updateCostLimit = options.updateCostLimit;
   m.vectorizedUpdate = options.vectorizedUpdate;
   m.prepareForUpdates = options.prepareForUpdates;
   m.setThreads(options.solveThreads);
@@ -2189,9 +2194,7 @@ void StructuralPhase::solve(const std::vector<double>& ev) {
 void StructuralPhase::setSolveMethod(StructuralSolveMethod method, const LocalSolveOptions& local) {
   Impl& m = *impl_;
   verifyLocalOptions(local);
-  ESIM_VERIFY(!m.nodalVolumetric || method == StructuralSolveMethod::full,
-              "structural: the volumetric strain at the nodes works with the full solve "
-              "method only (not local or coarse)");
+  verifyVolumetricMethod(m.nodalVolumetric, method);
   // a coarse grid of another spacing: made first, so that a refused one changes nothing
   std::unique_ptr<CoarseSpace> grid;
   if (method == StructuralSolveMethod::coarse &&
