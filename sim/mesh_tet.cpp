@@ -312,6 +312,31 @@ std::vector<int> nodePieces(const TetMesh& mesh, int* count) {
   return piece;
 }
 
+std::vector<int> tetPieces(const TetMesh& mesh, int* count) {
+  const int nt = mesh.numTets();
+  const std::vector<std::array<int, 4>> neighbours = tetFaceNeighbours(mesh);
+  std::vector<int> piece(nt, -1);
+  std::vector<int> stack;
+  int pieces = 0;
+  for (int s = 0; s < nt; ++s) {
+    if (!mesh.isAlive(s) || piece[s] >= 0) continue;
+    piece[s] = pieces;
+    stack.assign(1, s);
+    while (!stack.empty()) {
+      const int t = stack.back();
+      stack.pop_back();
+      for (int o : neighbours[t])
+        if (o >= 0 && mesh.isAlive(o) && piece[o] < 0) {
+          piece[o] = pieces;
+          stack.push_back(o);
+        }
+    }
+    ++pieces;
+  }
+  if (count) *count = pieces;
+  return piece;
+}
+
 Adjacency nodeTets(const TetMesh& mesh) {
   if (!mesh.alive.empty()) return aliveTetsAtNodes(mesh.numNodes(), mesh.tets, mesh.alive.data());
   const std::vector<std::uint8_t> all(mesh.tets.size(), 1);

@@ -140,6 +140,12 @@ Adjacency tetNeighbours(const TetMesh& mesh);
 // node in no alive tet; *count gets the number of pieces
 std::vector<int> nodePieces(const TetMesh& mesh, int* count);
 
+// the pieces of the alive tets connected through shared faces (as the structural phase and
+// the debris rule see them: a tet hanging by an edge or a node is a piece of its own): per tet
+// its piece 0 .. count - 1, numbered in the order of their lowest tet, or -1 for a removed
+// tet; *count gets the number of pieces
+std::vector<int> tetPieces(const TetMesh& mesh, int* count);
+
 // quality of the alive tets
 MeshQuality meshQuality(const TetMesh& mesh);
 

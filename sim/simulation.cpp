@@ -11,6 +11,7 @@
 
 #include "sim/core_error.h"
 #include "sim/electric_phase.h"
+#include "sim/rupture_debris.h"
 
 namespace esim {
 
@@ -421,7 +422,7 @@ void Simulation::buildInitialModel(TetMesh mesh) {
     x.maxExpansion = config_.maxVaporExpansion;
     pending_.assign(mesh.numTets(), 0);
   }
-  if (ph.rupture && config_.rebuildMode == RebuildMode::Update) {
+  if (ph.rupture && (config_.rebuildMode == RebuildMode::Update || config_.debrisVolumeM3 > 0)) {
     m.faceNeighbours =
         std::make_shared<const std::vector<std::array<int, 4>>>(tetFaceNeighbours(mesh));
     m.nodeTets = std::make_shared<const Adjacency>(nodeTets(mesh));
@@ -460,6 +461,23 @@ void Simulation::buildInitialModel(TetMesh mesh) {
   if (ph.rupture && config_.criticalStressRadiusM > 0)
     nonlocal_ =
         std::make_unique<NonlocalStress>(model_->mesh, *model_->geo, config_.criticalStressRadiusM);
+  if (ph.rupture && config_.debrisVolumeM3 > 0) {
+    debrisSupported_.assign(model_->mesh.numNodes(), 0);
+    for (const Support& s : model_->supports) debrisSupported_[s.node] = 1;
+  }
+}
+
+// the pieces removing `broken` cuts loose, small enough to be debris, join it (pending
+// like the tets that broke)
+void Simulation::addDebris(std::vector<int>& broken, FrameRecord& rec) {
+  if (config_.debrisVolumeM3 <= 0) return;
+  const SimModel& m = *model_;
+  std::vector<int> debris = debrisCutLoose(m.mesh, *m.faceNeighbours, *m.geo, debrisSupported_,
+                                           broken, config_.debrisVolumeM3);
+  for (int e : debris) pending_[e] = 1;
+  rec.debrisTets = static_cast<int>(debris.size());
+  debrisTets_ += rec.debrisTets;
+  broken.insert(broken.end(), debris.begin(), debris.end());
 }
 
 void Simulation::initState() {
@@ -1093,6 +1111,7 @@ void Simulation::ruptureAndRebuild(FrameRecord& rec) {
     } else {
       std::vector<int> broken;
       broken.swap(queued_);
+      addDebris(broken, rec);
       updateModel(broken, rec);
     }
     return;
@@ -1101,6 +1120,7 @@ void Simulation::ruptureAndRebuild(FrameRecord& rec) {
   if (swapFrame_ < 0 && !queued_.empty()) {  // nothing in flight: start with the queue
     std::vector<int> broken;
     broken.swap(queued_);  // they stay pending until swapIn
+    addDebris(broken, rec);
     startRebuild(broken);
     worked = true;
   }

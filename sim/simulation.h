@@ -80,6 +80,7 @@ struct FrameRecord {
   double maxTemperatureC = 0;  // after heat, over the nodes of alive tets (removed tissue left out)
   double maxVonMisesPa = 0;    // structural phase, over alive tets
   int removedTets = 0;         // by the rebuild swapped in this frame
+  int debrisTets = 0;          // cut loose as debris by this frame's removal (started now)
   double rebuildWaitMs = 0;    // background rebuild: the frame loop waited for it
   // update mode, a removal frame: wall time of each part of the update [ms]
   std::array<double, 4> updatePartMs{};  // surface (and contacts), thermal, electric, structural
@@ -185,6 +186,9 @@ struct SimulationConfig {
   // > 0: the criterion compares the von Mises stress averaged within this radius [m]
   // (sim/rupture_nonlocal.h); 0: each tet's own (the paper)
   double criticalStressRadiusM = 0;
+  // > 0: pieces a removal cuts loose (no face with the rest, no support) up to this volume
+  // [m^3] are removed with it (sim/rupture_debris.h); 0: kept, held in place (the paper)
+  double debrisVolumeM3 = 1e-9;
   RebuildMode rebuildMode = RebuildMode::Update;  // or rebuilt in the frame, or on a thread ...
   int rebuildLagFrames = 3;                       // ... swapped in this many frames after rupture
   bool recomputeLagFrames = true;                 // ... then the lag frames again on the new model
@@ -363,8 +367,9 @@ class Simulation {
   // what a demanding user should know about the run so far (a buried or fast tool, an
   // unconverged boiling iteration), one sentence each with the frames and the remedy
   std::vector<std::string> warnings() const;
-  int removedTets() const { return removedTets_; }           // by rupture since the start
-  int rebuilds() const { return rebuilds_; }                 // swapped in so far
+  int removedTets() const { return removedTets_; }  // by rupture since the start
+  int debrisTets() const { return debrisTets_; }  // of which cut loose as debris (rupture_debris.h)
+  int rebuilds() const { return rebuilds_; }      // swapped in so far
   int rebuildsLate() const { return rebuildsLate_; }         // background: the frame loop waited
   double rebuildBuildMs() const { return rebuildBuildMs_; }  // sum over rebuilds
   double maxRebuildWaitMs() const { return rebuildWaitMs_; }
@@ -404,6 +409,7 @@ class Simulation {
   void recomputeSinceCheckpoint(FrameRecord& record);
   void swapIn(std::unique_ptr<Rebuilt> rebuilt, FrameRecord& record);
   void updateModel(const std::vector<int>& broken, FrameRecord& record);
+  void addDebris(std::vector<int>& broken, FrameRecord& record);
   [[noreturn]] void throwRebuildError(const Error& e, int ruptureFrame) const;
 
   SimulationConfig config_;
@@ -449,6 +455,8 @@ class Simulation {
   double worstMaxPrincipleK_ = 0;                // by how much at most [K]
   double lowestC_ = 0;  // the initial minimum temperature: the lower bound [C]
   int removedTets_ = 0;
+  int debrisTets_ = 0;                          // of which removed as debris
+  std::vector<std::uint8_t> debrisSupported_;   // per node: held by a support (debris only)
   int rebuilds_ = 0, rebuildsLate_ = 0;         // swapped in; of which had to wait > 1 ms
   mutable int structuralRefactorizations_ = 0;  // update mode: see structuralRefactorizations()
   double rebuildBuildMs_ = 0;                   // sum of the rebuilds' build times

@@ -109,6 +109,8 @@ struct ScenarioMaterial {
   double criticalStressPa = scenario_detail::core().criticalStressPa;
   // radius of the average compared with it (0: each element's own)
   double criticalStressRadiusM = scenario_detail::core().criticalStressRadiusM;
+  // pieces cut loose up to this volume are removed with the cut (0: kept)
+  double debrisVolumeM3 = scenario_detail::core().debrisVolumeM3;
   // v_gas / v_liq of water at boiling, 1 atm
   double vaporLiquidVolumeRatio = scenario_detail::core().vaporLiquidVolumeRatio;
   // cap of the volumetric expansion (vapour vents)

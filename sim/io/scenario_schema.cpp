@@ -141,6 +141,12 @@ const std::vector<Field>& schema() {
                        "critical_stress_pa (the paper); > 0: when the stress averaged over the "
                        "elements within this radius does (nonlocal: the cut's shape stops "
                        "following the mesh once elements are smaller; sim/rupture_nonlocal.h)"));
+    f.push_back(number("material.debris_volume_m3", ESIM_REF(material.debrisVolumeM3), "m^3",
+                       closed(0.0, 1e-3),
+                       "pieces of tissue a removal cuts loose (sharing no face with the rest "
+                       "and held by no support) up to this volume are removed with it, as "
+                       "fragments the vapour carries off; 0: they stay, held in place and "
+                       "stress-free (the paper; sim/rupture_debris.h)"));
     f.push_back(number("material.vapor_liquid_volume_ratio",
                        ESIM_REF(material.vaporLiquidVolumeRatio), "", closed(1.0, 1e4),
                        "volume of water vapour / liquid at boiling and 1 atm (steam tables: "

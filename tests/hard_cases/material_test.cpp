@@ -113,6 +113,9 @@ const std::vector<Extreme>& extremes() {
       // the nonlocal criterion's radius: 0 (the paper's), and 5 cm, wider than the slab
       {"material.critical_stress_radius_m", 0, Outcome::Runs, ""},
       {"material.critical_stress_radius_m", 0.05, Outcome::Runs, ""},
+      // debris: none, and every piece cut loose (1 litre, larger than the slab)
+      {"material.debris_volume_m3", 0, Outcome::Runs, ""},
+      {"material.debris_volume_m3", 1e-3, Outcome::Runs, ""},
       {"material.vapor_liquid_volume_ratio", 1, Outcome::Runs, ""},
       {"material.vapor_liquid_volume_ratio", 1e4, Outcome::Runs, ""},
       {"material.max_vapor_expansion", 0, Outcome::Runs, ""},

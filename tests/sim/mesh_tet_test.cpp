@@ -70,6 +70,28 @@ TEST(MeshTet, NodePiecesJoinThroughSharedNodes) {
   EXPECT_EQ(piece, (std::vector<int>{0, 0, 0, 0, -1, 1, 1, 1, 1, -1, -1, -1, -1}));
 }
 
+// pieces through shared faces: tets sharing only a node or an edge are pieces of their own; a
+// dead tet splits a chain; pieces numbered by their lowest tet
+TEST(MeshTet, TetPiecesJoinThroughSharedFacesOnly) {
+  TetMesh m;
+  for (int k = 0; k < 9; ++k) m.nodes.push_back(Vec3(k, (k * 7) % 5, (k * 3) % 4));
+  m.tets = {{0, 1, 2, 3}, {1, 2, 3, 4}, {2, 3, 4, 5}, {4, 5, 6, 7}, {7, 8, 6, 0}};
+  int count = -1;
+  std::vector<int> piece = tetPieces(m, &count);
+  // tets 0-1-2 by faces; 3 touches 2 by the edge {4,5}; 4 touches 3 by the edge {6,7}
+  EXPECT_EQ(count, 3);
+  EXPECT_EQ(piece, (std::vector<int>{0, 0, 0, 1, 2}));
+  m.alive = {1, 0, 1, 1, 1};  // the middle of the chain gone
+  piece = tetPieces(m, &count);
+  EXPECT_EQ(count, 4);
+  EXPECT_EQ(piece, (std::vector<int>{0, -1, 1, 2, 3}));
+  m.tets[4] = {4, 5, 6, 8};  // shares the face {4,5,6} with tet 3
+  piece = tetPieces(m, &count);
+  EXPECT_EQ(count, 3);
+  EXPECT_EQ(piece, (std::vector<int>{0, -1, 1, 2, 2}));
+  EXPECT_EQ(piece, tetPieces(m, nullptr));
+}
+
 // the alive tets at each node, ascending, against a search of every tet; a mesh without
 // alive flags counts every tet
 TEST(MeshTet, AliveTetsAtNodesAreEveryAliveTetAtTheNode) {

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
 #include <string>
 
 #include "tests/scratch_dir_util.h"
@@ -28,6 +29,31 @@ TEST_F(MeshInfoCli, TheSlabAndTheVtuItWroteHaveTheSameCounts) {
   const auto read = shell(esim("\"" + vtu + "\""));
   ASSERT_EQ(read.exitCode, 0) << read.output;
   EXPECT_NE(read.output.find("nodes          300\n"), std::string::npos) << read.output;
+}
+
+// a cut's fields: two unit-corner tets sharing a face, and a third hanging by an edge of
+// them: two pieces through shared faces, the loose one named
+TEST_F(MeshInfoCli, ThePiecesACutLeftLooseAreCounted) {
+  const std::string vtu = (root_ / "loose.vtu").string();
+  std::ofstream(vtu)
+      << "<VTKFile type=\"UnstructuredGrid\"><UnstructuredGrid>"
+         "<Piece NumberOfPoints=\"7\" NumberOfCells=\"3\"><Points>"
+         "<DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">"
+         "0 0 0 1 0 0 0 1 0 0 0 1 1 1 1 0 -1 0 0 0 -1</DataArray></Points><Cells>"
+         "<DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">"
+         "0 1 2 3 1 2 3 4 0 1 5 6</DataArray>"
+         "<DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">4 8 12</DataArray>"
+         "<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">10 10 10</DataArray>"
+         "</Cells></Piece></UnstructuredGrid></VTKFile>";
+  const auto r = shell(esim("\"" + vtu + "\""));
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_NE(r.output.find("  pieces         2 through shared faces (the largest 2 tets; the 1 "
+                          "others 1 tets, "),
+            std::string::npos)
+      << r.output;
+  const auto slab = shell(esim("--slab-nodes 300"));
+  EXPECT_NE(slab.output.find("  pieces         1 through shared faces\n"), std::string::npos)
+      << slab.output;
 }
 
 TEST_F(MeshInfoCli, AnOptionTheModeWouldIgnoreIsRefused) {

@@ -420,13 +420,14 @@ TEST(RunCli, ARuptureThatEndsTheRunSaysSoOnce) {
   const std::size_t at = summary.find("  structural    peak von Mises ");
   ASSERT_NE(at, std::string::npos) << summary;
   double peakPa = 0;
-  int removed = 0, frames = 0, alive = -1, total = 0;
+  int removed = 0, frames = 0, debris = -1, alive = -1, total = 0;
   ASSERT_EQ(std::sscanf(summary.c_str() + at,
-                        "  structural    peak von Mises %lf Pa; %d tets removed in %d frames "
-                        "(%d of %d alive)",
-                        &peakPa, &removed, &frames, &alive, &total),
-            5)
+                        "  structural    peak von Mises %lf Pa; %d tets removed in %d frames, "
+                        "%d of them cut loose as debris (%d of %d alive)",
+                        &peakPa, &removed, &frames, &debris, &alive, &total),
+            6)
       << summary;
+  EXPECT_EQ(debris, 0) << "every tet broke: nothing was left to cut loose";
   EXPECT_GT(peakPa, 1e-9) << "the stress that broke every tet";
   EXPECT_EQ(frames, 1);
   EXPECT_EQ(alive, 0);

@@ -718,6 +718,7 @@ nlohmann::json timingExtra(const Setup& s, const FrameOutputs& out, const LoopRe
   if (sim.config().phases.structural)
     extra["structural"] = {
         {"removed_tets", sim.removedTets()},
+        {"debris_tets", sim.debrisTets()},
         {"alive_tets", sim.mesh().numAlive()},
         {"rebuild_mode", rebuildModeName(sc.solvers.rebuildMode)},
         {"rebuild_lag_frames", sc.solvers.rebuildLagFrames},
@@ -793,8 +794,10 @@ void summaryStructural(std::ostringstream& sum, const Simulation& sim, const Loo
   if (const std::vector<double>* vm = sim.vonMisesPa())  // a failed frame has no record
     for (double v : *vm) peakVm = std::max(peakVm, v);
   sum << "  structural    peak von Mises " << peakVm << " Pa; " << sim.removedTets()
-      << " tets removed in " << sim.rebuilds() << " frames (" << sim.mesh().numAlive() << " of "
-      << sim.mesh().numTets() << " alive)\n";
+      << " tets removed in " << sim.rebuilds() << " frames";
+  if (sim.config().debrisVolumeM3 > 0)
+    sum << ", " << sim.debrisTets() << " of them cut loose as debris";
+  sum << " (" << sim.mesh().numAlive() << " of " << sim.mesh().numTets() << " alive)\n";
   if (!sim.config().phases.rupture || sim.rebuilds() == 0) return;
   const SimulationConfig& c = sim.config();
   sum << "  rebuild       " << sim.rebuilds() << " rebuilds, "

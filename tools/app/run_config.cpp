@@ -80,6 +80,7 @@ void mapStructural(const Scenario& s, SimulationConfig& c) {
   c.structural.poissonRatio = m.poissonRatio;
   c.criticalStressPa = m.criticalStressPa;
   c.criticalStressRadiusM = m.criticalStressRadiusM;
+  c.debrisVolumeM3 = m.debrisVolumeM3;
   c.vaporLiquidVolumeRatio = m.vaporLiquidVolumeRatio;
   c.maxVaporExpansion = m.maxVaporExpansion;
   c.clampBandM = s.effects.structuralClampBandM;

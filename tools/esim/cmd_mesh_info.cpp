@@ -6,6 +6,7 @@
 //    a closed surface file -> readSurface, checkSurface, orientOutward, tetrahedralize.
 //    --refine-from/--refine-to make the mesh finer around a planned cut segment.
 // 3. validateMesh, then print the report; optionally write the mesh as VTU.
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <memory>
@@ -106,6 +107,26 @@ int runMeshInfo(const MeshInfoOptions& opt) {
   std::printf("  surface area   %.6e m^2\n", surfaceArea(mesh, faces));
   std::printf("  bounding box   [%.6g, %.6g] x [%.6g, %.6g] x [%.6g, %.6g] m\n", lo.x(), hi.x(),
               lo.y(), hi.y(), lo.z(), hi.z());
+  // pieces through shared faces (a cut's fields: the pieces it left loose, README "Debris")
+  int pieces = 0;
+  const std::vector<int> pieceOf = tetPieces(mesh, &pieces);
+  std::vector<int> tetsIn(pieces, 0);
+  std::vector<double> volumeIn(pieces, 0.0);
+  for (int e = 0; e < mesh.numTets(); ++e)
+    if (pieceOf[e] >= 0) {
+      ++tetsIn[pieceOf[e]];
+      volumeIn[pieceOf[e]] += tetVolume(mesh, e);
+    }
+  const int largest =
+      static_cast<int>(std::max_element(tetsIn.begin(), tetsIn.end()) - tetsIn.begin());
+  std::printf("  pieces         %d through shared faces", pieces);
+  if (pieces > 1) {
+    double restV = 0;
+    for (int p = 0; p < pieces; ++p) restV += p == largest ? 0.0 : volumeIn[p];
+    std::printf(" (the largest %d tets; the %d others %d tets, %.3e m^3)", tetsIn[largest],
+                pieces - 1, mesh.numAlive() - tetsIn[largest], restV);
+  }
+  std::printf("\n");
   std::printf("quality\n");
   std::printf("  min dihedral   %.2f deg\n", q.minDihedralDeg);
   std::printf("  max dihedral   %.2f deg\n", q.maxDihedralDeg);
