@@ -712,7 +712,13 @@ TEST(RunCli, TheDrawThreadGivesTheSameFramesAndReportsThePeriod) {
     EXPECT_GT(timing["frame_period"]["p50_ms"].get<double>(), 0.0);
     EXPECT_GT(timing["structural"]["removed_tets"].get<int>(), 0);  // a cut: the mesh changes
     EXPECT_GE(timing["structural"]["structural_refactorizations"].get<int>(), 0);
+    const int debris = timing["structural"]["debris_tets"].get<int>();
+    EXPECT_GE(debris, 0);
+    EXPECT_LE(debris, timing["structural"]["removed_tets"].get<int>());
     const std::string summary = readFile(out / "summary.txt");
+    EXPECT_NE(summary.find(", " + std::to_string(debris) + " of them cut loose as debris ("),
+              std::string::npos)
+        << summary;
     EXPECT_NE(summary.find("  period "), std::string::npos) << summary;
     EXPECT_EQ(summary.find("drawn on a thread") != std::string::npos, serial == 0) << summary;
     hash[serial] = nlohmann::json::parse(readFile(out / "hashes.json"))["all_frames_xxh3"];
