@@ -19,18 +19,18 @@
 namespace esim {
 namespace {
 
-TetMesh smallSlab() {
+SlabSpec smallSlabSpec() {
   SlabSpec s;
   s.sizeM = Vec3(0.06, 0.06, 0.01);
   s.nodesPerAxis = {25, 25, 5};
-  return makeSlab(s);
+  return s;
 }
+
+TetMesh smallSlab() { return makeSlab(smallSlabSpec()); }
 
 // smallSlab's box and nodes, 4x finer within 4 mm of the blade's path and toward the top
 TetMesh gradedSlab() {
-  SlabSpec s;
-  s.sizeM = Vec3(0.06, 0.06, 0.01);
-  s.nodesPerAxis = {25, 25, 5};
+  SlabSpec s = smallSlabSpec();
   s.grading.enabled = true;
   s.grading.cutFrom = Vec3(-0.015, 0, 0.01);
   s.grading.cutTo = Vec3(0.015, 0, 0.01);
