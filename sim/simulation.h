@@ -188,7 +188,7 @@ struct SimulationConfig {
   double criticalStressRadiusM = 0;
   // > 0: pieces a removal cuts loose (no face with the rest, no support) up to this volume
   // [m^3] are removed with it (sim/rupture_debris.h); 0: kept, held in place (the paper)
-  double debrisVolumeM3 = 1e-9;
+  double debrisVolumeM3 = 1e-8;
   RebuildMode rebuildMode = RebuildMode::Update;  // or rebuilt in the frame, or on a thread ...
   int rebuildLagFrames = 3;                       // ... swapped in this many frames after rupture
   bool recomputeLagFrames = true;                 // ... then the lag frames again on the new model
