@@ -422,11 +422,11 @@ void Simulation::buildInitialModel(TetMesh mesh) {
     x.maxExpansion = config_.maxVaporExpansion;
     pending_.assign(mesh.numTets(), 0);
   }
-  if (ph.rupture && (config_.rebuildMode == RebuildMode::Update || config_.debrisVolumeM3 > 0)) {
+  if (ph.rupture && (config_.rebuildMode == RebuildMode::Update || config_.debrisVolumeM3 > 0))
     m.faceNeighbours =
         std::make_shared<const std::vector<std::array<int, 4>>>(tetFaceNeighbours(mesh));
+  if (ph.rupture && config_.rebuildMode == RebuildMode::Update)
     m.nodeTets = std::make_shared<const Adjacency>(nodeTets(mesh));
-  }
   if (config_.subgrid.mode != SubgridMode::Off) {
     auto faces = std::make_shared<std::vector<SimModel::SurfaceFace>>();
     for (const auto& f : surface) {
@@ -468,16 +468,15 @@ void Simulation::buildInitialModel(TetMesh mesh) {
 }
 
 // the pieces removing `broken` cuts loose, small enough to be debris, join it (pending
-// like the tets that broke)
-void Simulation::addDebris(std::vector<int>& broken, FrameRecord& rec) {
-  if (config_.debrisVolumeM3 <= 0) return;
+// like the tets that broke); returns how many tets they hold
+int Simulation::addDebris(std::vector<int>& broken) {
+  if (config_.debrisVolumeM3 <= 0) return 0;
   const SimModel& m = *model_;
   std::vector<int> debris = debrisCutLoose(m.mesh, *m.faceNeighbours, *m.geo, debrisSupported_,
                                            broken, config_.debrisVolumeM3);
   for (int e : debris) pending_[e] = 1;
-  rec.debrisTets = static_cast<int>(debris.size());
-  debrisTets_ += rec.debrisTets;
   broken.insert(broken.end(), debris.begin(), debris.end());
+  return static_cast<int>(debris.size());
 }
 
 void Simulation::initState() {
@@ -777,18 +776,21 @@ void Simulation::updateModel(const std::vector<int>& broken, FrameRecord& rec) {
 struct Simulation::Rebuilt {
   std::unique_ptr<SimModel> model;
   std::vector<int> removed;
+  int debris = 0;  // of which cut loose as debris
 };
 
 void Simulation::swapIn(std::unique_ptr<Rebuilt> r, FrameRecord& rec) {
   for (int e : r->removed) pending_[e] = 0;
   removedTets_ += static_cast<int>(r->removed.size());
   rec.removedTets = static_cast<int>(r->removed.size());
+  debrisTets_ += r->debris;
+  rec.debrisTets = r->debris;
   rebuildBuildMs_ += r->model->buildMs;
   model_ = std::move(r->model);
   ++rebuilds_;
 }
 
-void Simulation::startRebuild(const std::vector<int>& broken) {
+void Simulation::startRebuild(const std::vector<int>& broken, int debris) {
   std::vector<std::uint8_t> alive = model_->mesh.alive;
   for (int e : broken) alive[e] = 0;
   std::vector<double> sigma = model_->electric ? model_->sigmaAssembled : std::vector<double>{};
@@ -807,6 +809,7 @@ void Simulation::startRebuild(const std::vector<int>& broken) {
     ready_ = std::make_unique<Rebuilt>();
     ready_->model = rebuildModel(std::move(alive), std::move(sigma), first, prefetchTo, true);
     ready_->removed = broken;
+    ready_->debris = debris;
     swapFrame_ = state_.frame;
     return;
   }
@@ -816,12 +819,13 @@ void Simulation::startRebuild(const std::vector<int>& broken) {
   }
   // a pure function of the fixed parts of the model and these copies: the result does not
   // depend on when the thread runs, and it is swapped in at a fixed frame
-  job_ = std::async(std::launch::async, [this, alive = std::move(alive), broken,
+  job_ = std::async(std::launch::async, [this, alive = std::move(alive), broken, debris,
                                          sigma = std::move(sigma), first, prefetchTo]() mutable {
     auto r = std::make_unique<Rebuilt>();
     // (on the job's thread, beside the frame loop: the phases one after the other)
     r->model = rebuildModel(std::move(alive), std::move(sigma), first, prefetchTo, false);
     r->removed = std::move(broken);
+    r->debris = debris;
     return r;
   });
   swapFrame_ = state_.frame + config_.rebuildLagFrames;
@@ -1111,7 +1115,9 @@ void Simulation::ruptureAndRebuild(FrameRecord& rec) {
     } else {
       std::vector<int> broken;
       broken.swap(queued_);
-      addDebris(broken, rec);
+      const int debris = addDebris(broken);
+      debrisTets_ += debris;  // counted as the removal is (updateModel counts a failed one)
+      rec.debrisTets = debris;
       updateModel(broken, rec);
     }
     return;
@@ -1120,8 +1126,8 @@ void Simulation::ruptureAndRebuild(FrameRecord& rec) {
   if (swapFrame_ < 0 && !queued_.empty()) {  // nothing in flight: start with the queue
     std::vector<int> broken;
     broken.swap(queued_);  // they stay pending until swapIn
-    addDebris(broken, rec);
-    startRebuild(broken);
+    const int debris = addDebris(broken);
+    startRebuild(broken, debris);
     worked = true;
   }
   if (swapFrame_ >= 0 && state_.frame >= swapFrame_) {  // due: wait if needed, swap in

@@ -80,7 +80,7 @@ struct FrameRecord {
   double maxTemperatureC = 0;  // after heat, over the nodes of alive tets (removed tissue left out)
   double maxVonMisesPa = 0;    // structural phase, over alive tets
   int removedTets = 0;         // by the rebuild swapped in this frame
-  int debrisTets = 0;          // cut loose as debris by this frame's removal (started now)
+  int debrisTets = 0;          // of removedTets, cut loose as debris
   double rebuildWaitMs = 0;    // background rebuild: the frame loop waited for it
   // update mode, a removal frame: wall time of each part of the update [ms]
   std::array<double, 4> updatePartMs{};  // surface (and contacts), thermal, electric, structural
@@ -402,14 +402,14 @@ class Simulation {
   void subgridHeat(std::vector<ThermalPhase::NodalSource>& sources, FrameRecord& record);
   std::vector<int> scriptedContacts(const ContactFinder& finder, const std::vector<int>& ground,
                                     int fromFrame, int toFrame) const;
-  void startRebuild(const std::vector<int>& broken);
+  void startRebuild(const std::vector<int>& broken, int debris);
   void advance(FrameRecord& record);
   void detectRupture(FrameRecord& record);
   void ruptureAndRebuild(FrameRecord& record);
   void recomputeSinceCheckpoint(FrameRecord& record);
   void swapIn(std::unique_ptr<Rebuilt> rebuilt, FrameRecord& record);
   void updateModel(const std::vector<int>& broken, FrameRecord& record);
-  void addDebris(std::vector<int>& broken, FrameRecord& record);
+  int addDebris(std::vector<int>& broken);
   [[noreturn]] void throwRebuildError(const Error& e, int ruptureFrame) const;
 
   SimulationConfig config_;
