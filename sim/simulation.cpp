@@ -784,7 +784,6 @@ void Simulation::swapIn(std::unique_ptr<Rebuilt> r, FrameRecord& rec) {
   removedTets_ += static_cast<int>(r->removed.size());
   rec.removedTets = static_cast<int>(r->removed.size());
   debrisTets_ += r->debris;
-  rec.debrisTets = r->debris;
   rebuildBuildMs_ += r->model->buildMs;
   model_ = std::move(r->model);
   ++rebuilds_;
@@ -1115,9 +1114,7 @@ void Simulation::ruptureAndRebuild(FrameRecord& rec) {
     } else {
       std::vector<int> broken;
       broken.swap(queued_);
-      const int debris = addDebris(broken);
-      debrisTets_ += debris;  // counted as the removal is (updateModel counts a failed one)
-      rec.debrisTets = debris;
+      debrisTets_ += addDebris(broken);  // counted as the removal is (a failed one too)
       updateModel(broken, rec);
     }
     return;

@@ -80,7 +80,6 @@ struct FrameRecord {
   double maxTemperatureC = 0;  // after heat, over the nodes of alive tets (removed tissue left out)
   double maxVonMisesPa = 0;    // structural phase, over alive tets
   int removedTets = 0;         // by the rebuild swapped in this frame
-  int debrisTets = 0;          // of removedTets, cut loose as debris
   double rebuildWaitMs = 0;    // background rebuild: the frame loop waited for it
   // update mode, a removal frame: wall time of each part of the update [ms]
   std::array<double, 4> updatePartMs{};  // surface (and contacts), thermal, electric, structural

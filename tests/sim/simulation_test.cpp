@@ -509,28 +509,16 @@ struct AlivePiece {
   bool supported = false;
 };
 std::vector<AlivePiece> alivePieces(const TetMesh& m, double clampBandM) {
-  const auto nb = tetFaceNeighbours(m);
   const auto geo = tetGeometry(m);
   double zMin = INFINITY;
   for (const Vec3& p : m.nodes) zMin = std::min(zMin, p.z());
-  std::vector<int> pieceOf(m.numTets(), -1);
-  std::vector<AlivePiece> pieces;
-  for (int s = 0; s < m.numTets(); ++s) {
-    if (!m.isAlive(s) || pieceOf[s] >= 0) continue;
-    pieces.emplace_back();
-    std::vector<int> stack{s};
-    pieceOf[s] = static_cast<int>(pieces.size()) - 1;
-    while (!stack.empty()) {
-      const int t = stack.back();
-      stack.pop_back();
-      pieces.back().volumeM3 += geo[t].volume;
-      for (int v : m.tets[t]) pieces.back().supported |= m.nodes[v].z() <= zMin + clampBandM;
-      for (int o : nb[t])
-        if (o >= 0 && m.isAlive(o) && pieceOf[o] < 0) {
-          pieceOf[o] = pieceOf[s];
-          stack.push_back(o);
-        }
-    }
+  int count = 0;
+  const std::vector<int> pieceOf = tetPieces(m, &count);
+  std::vector<AlivePiece> pieces(count);
+  for (int t = 0; t < m.numTets(); ++t) {
+    if (pieceOf[t] < 0) continue;
+    pieces[pieceOf[t]].volumeM3 += geo[t].volume;
+    for (int v : m.tets[t]) pieces[pieceOf[t]].supported |= m.nodes[v].z() <= zMin + clampBandM;
   }
   return pieces;
 }
