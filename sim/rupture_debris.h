@@ -3,9 +3,9 @@
 //
 // A removal can leave alive tets that share no face with the rest of the tissue: one tet, or a
 // few, in the groove behind the blade, held by an edge or a node or by nothing. The structural
-// phase holds such a floating piece in place (an island: no stress, it never breaks), so it
-// stays in the video, hanging in the air over the groove (slab_cut: 73 pieces of 1-6 tets,
-// 138 tets, after 100 frames). In the tissue such a fragment is carried off by the vapour and
+// phase leaves such a floating piece out of its stiffness (an island: no stress, it never
+// breaks), so it stays in the video, hanging in the air over the groove (slab_cut: 73 pieces of 1-6
+// tets, 138 tets, after 100 frames). In the tissue such a fragment is carried off by the vapour and
 // the electrode. With a volume V_max > 0, every piece that the removal cuts off is removed with
 // it when:
 //   - its volume (the sum of its tets' volumes) is at most V_max,

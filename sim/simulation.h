@@ -374,7 +374,7 @@ class Simulation {
   double maxRebuildWaitMs() const { return rebuildWaitMs_; }
   int recomputedFrames() const { return recomputedFrames_; }
   // update mode: removals whose structural update refactorized the factor instead (its
-  // estimate passed a refactorization's, a downdate lost positive definiteness, or rows freed)
+  // estimate passed a refactorization's, or a downdate lost positive definiteness)
   int structuralRefactorizations() const { return structuralRefactorizations_; }
 
  private:
@@ -425,11 +425,10 @@ class Simulation {
   // between the removal frame and the next solve (joined first by whatever uses the solver)
   mutable std::future<void> prefetchJob_;
   void joinPrefetch() const;
-  // update mode: the structural phase's removal update (its factor's rowdel / updown /
-  // rowadd), on a thread from the removal frame's rupture to the next structural solve,
-  // while the other phases' updates and the next frame's contacts, potential and heat run
-  // (the same arithmetic as in the frame loop: the result does not depend on the timing)
-  // (on a kept helper thread: sim/two_threads.h)
+  // update mode: the structural phase's removal update (its factor's rowdel / updown), on a thread
+  // from the removal frame's rupture to the next structural solve, while the other phases' updates
+  // and the next frame's contacts, potential and heat run (the same arithmetic as in the frame
+  // loop: the result does not depend on the timing) (on a kept helper thread: sim/two_threads.h)
   mutable std::future<StructuralUpdateStats> structuralJob_;
   mutable HelperRun structuralRun_;  // the helper running it (waited for with it)
   mutable std::exception_ptr structuralError_;

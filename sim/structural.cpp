@@ -215,7 +215,7 @@ using Voigt = Eigen::Matrix<double, 6, 1>;
 // a rigid piece: alive tets connected through shared faces
 struct Piece {
   int tets = 0;               // alive tets in it (0: gone)
-  bool island = false;        // held in place: its own supports leave a rigid motion free
+  bool island = false;        // out of K: its own supports leave a rigid motion free
   std::vector<int> supports;  // ascending indices of the supports on its nodes (not islands)
 };
 
@@ -298,11 +298,12 @@ struct StructuralPhase::Impl {
   Adjacency supportsOfNode;  // ascending support indices per node
   Adjacency faceNeighbours;  // tets sharing a face, removed or not
   // ---- state: changed by removeTets ----
-  std::vector<std::uint8_t> alive;  // per tet, 1 alive
-  std::vector<int> aliveTetsOfNode;
-  std::vector<std::uint8_t> held;  // per dof: 1 held at 0 (identity row of A)
+  std::vector<std::uint8_t> alive;   // per tet, 1 when it is in K: alive in the mesh and in a
+                                     // piece the supports hold (an island's tets are not)
+  std::vector<int> aliveTetsOfNode;  // per node, its tets in K (none: the node is held)
+  std::vector<std::uint8_t> held;    // per dof: 1 held at 0 (identity row of A)
   int numFree = 0;
-  std::vector<int> pieceOf;   // per tet, -1 when removed
+  std::vector<int> pieceOf;   // per tet, -1 when removed from the mesh (islands' tets too)
   std::vector<Piece> pieces;  // by id; ids are never reused
   int livePieces = 0, islands = 0;
   std::string failure;      // set when a removal left no piece held
@@ -339,8 +340,7 @@ struct StructuralPhase::Impl {
   // removals not yet applied to the factor (local method with its refresh on a thread: the
   // next refresh, or the next full solve, applies them in one update; see LocalSolveOptions)
   struct Pending {
-    std::vector<int> removed, held;  // tets, and dofs held since the factor's A
-    bool freed = false;              // a dof was freed too: the update refactorizes
+    std::vector<int> removed, held;  // tets out of K, and dofs held since the factor's A
   } pending;
   // the factor an update changes: the whole one (every dof a row), or the local solve's
   // region's (the dofs of U, in its own order; the others are not unknowns of it)
@@ -372,10 +372,10 @@ struct StructuralPhase::Impl {
   std::vector<int> appliedDofs;                               // dofs where u holds u_ref + d
   std::vector<int> regionRowOf;  // per dof: its row of the region's L (-1 outside U)
   double regionFlops = 0;        // CHOLMOD's flop count of the region's factorization
-  Pending regionPending;         // removals in the region its factor has not seen (none freed)
+  Pending regionPending;         // removals in the region its factor has not seen
   // the coarse method (see LocalSolveOptions::coarseSpacingM)
   std::unique_ptr<CoarseSpace> coarse;  // made at set-up or setSolveMethod
-  bool coarseStale = true;              // K_c to be built (at first, and after a dof was freed)
+  bool coarseStale = true;              // K_c to be built (at first, and after some removals)
   std::vector<double> prevEv;           // the load of the last coarse solve (empty: none)
   struct Refresh {                      // LocalSolveOptions::refreshOnThread
     std::thread worker;
@@ -482,20 +482,6 @@ struct StructuralPhase::Impl {
     return out;
   }
 
-  // is node v in an island (an alive tet of it is)?
-  bool nodeInIsland(int v) const {
-    for (const int* t = tetsOfNode.begin(v); t != tetsOfNode.end(v); ++t)
-      if (pieceOf[*t] >= 0 && pieces[pieceOf[*t]].island) return true;
-    return false;
-  }
-
-  // is component `axis` of node v a support?
-  bool isSupport(int v, int axis) const {
-    for (const int* s = supportsOfNode.begin(v); s != supportsOfNode.end(v); ++s)
-      if (supports[*s].axis == axis) return true;
-    return false;
-  }
-
   // does node v still have an alive tet in piece p?
   bool nodeInPiece(int v, int p) const {
     for (const int* t = tetsOfNode.begin(v); t != tetsOfNode.end(v); ++t)
@@ -517,7 +503,7 @@ struct StructuralPhase::Impl {
     return out;
   }
 
-  void classifyPieces(std::vector<int>& newlyHeld);
+  void classifyPieces();
   std::vector<std::vector<int>> splitPiece(const std::vector<int>& seeds);
   SparseMatrix assemble(const StateView& s) const;
   SparseMatrix assembleNodal(const StateView& s) const;
@@ -572,16 +558,15 @@ struct StructuralPhase::Impl {
   std::function<StructuralUpdateStats()> beginRemoval(const std::vector<int>& ids);
   StructuralUpdateStats updateFactor(std::chrono::steady_clock::time_point t0,
                                      StructuralUpdateStats stats, const std::vector<int>& removed,
-                                     const std::vector<int>& newlyHeld,
-                                     const std::vector<int>& newlyFreed, const StateView& s,
+                                     const std::vector<int>& newlyHeld, const StateView& s,
                                      cholmod_common& c, const Target& target);
 };
 
 // rigid pieces of the alive tets (union-find over the face neighbours, one pass over the
 // tets): tets connected through shared faces, as a piece joined to another by an edge or a
 // node only can still turn about it. Pieces whose own supports leave a rigid motion free
-// (cut loose, or hanging by an edge or a node) are islands, held in place, all their nodes.
-void StructuralPhase::Impl::classifyPieces(std::vector<int>& newlyHeld) {
+// (cut loose, or hanging by an edge or a node) are islands: their tets leave K (alive 0).
+void StructuralPhase::Impl::classifyPieces() {
   const int nt = static_cast<int>(tets.size());
   std::vector<int> parent(nt);
   for (int t = 0; t < nt; ++t) parent[t] = t;
@@ -621,7 +606,7 @@ void StructuralPhase::Impl::classifyPieces(std::vector<int>& newlyHeld) {
     pieces[p].island = true;
     pieces[p].supports.clear();
     ++islands;
-    for (int v : pieceNodes) holdNode(v, newlyHeld);
+    for (int t : members[p]) alive[t] = 0;
   }
 }
 
@@ -664,7 +649,7 @@ std::vector<std::vector<int>> StructuralPhase::Impl::splitPiece(const std::vecto
       const int t = searches[s].frontier.back();
       searches[s].frontier.pop_back();
       for (const int* nb = faceNeighbours.begin(t); nb != faceNeighbours.end(t); ++nb) {
-        if (!alive[*nb]) continue;
+        if (pieceOf[*nb] < 0) continue;  // removed (the alive ones are the piece's)
         const int me = find(s);
         if (tetMark[*nb] < base) {
           tetMark[*nb] = base + me;
@@ -869,7 +854,7 @@ void StructuralPhase::Impl::factorize(cholmod_common& c, const StateView& s) {
   if (prepareForUpdates) toSimplicial(c, factor);
 }
 
-// L as simplicial LDL' (what cholmod_updown, rowdel and rowadd take); O(nnz(L))
+// L as simplicial LDL' (what cholmod_updown and rowdel take); O(nnz(L))
 void StructuralPhase::Impl::toSimplicial(cholmod_common& c, cholmod_factor* f) {
   if (!f->is_super && !f->is_ll) return;
   const int ok = cholmod_change_factor(CHOLMOD_REAL, false, false, false, false, f, &c);
@@ -1057,13 +1042,7 @@ StructuralUpdateStats StructuralPhase::Impl::applyPending(Pending job, const Sta
   std::sort(job.held.begin(), job.held.end());
   stats.tetsRemoved = static_cast<int>(job.removed.size());
   stats.dofsHeld = static_cast<int>(job.held.size());
-  if (job.freed) {  // rows to add, against the A of their own removal: refactorize
-    factorize(c, s);
-    stats.refactorized = true;
-    stats.seconds = secondsSince(t0);
-    return stats;
-  }
-  return updateFactor(t0, stats, job.removed, job.held, {}, s, c, wholeTarget());
+  return updateFactor(t0, stats, job.removed, job.held, s, c, wholeTarget());
 }
 
 // a full solve in the frame needs the factor of the current A: joins a refresh (its
@@ -1247,7 +1226,7 @@ bool StructuralPhase::Impl::readyRegion(const Eigen::AlignedBox3d& box) {
     std::sort(job.removed.begin(), job.removed.end());
     std::sort(job.held.begin(), job.held.end());
     const StructuralUpdateStats st =
-        updateFactor(t0, StructuralUpdateStats{}, job.removed, job.held, {}, current(), common,
+        updateFactor(t0, StructuralUpdateStats{}, job.removed, job.held, current(), common,
                      {&regionFactor, &regionRowOf, regionFlops, false, &regionMarks});
     lastSolve.regionUpdated = true;
     lastSolve.regionRefactorized = st.refactorized;
@@ -1480,8 +1459,7 @@ void StructuralPhase::Impl::outputs(const std::vector<double>& ev, From from) {
 constexpr double kUpdownCostPerEntry = 5;
 // ... and for the vectorized update (ldl_updown.h): 0.20-0.21 ns per unit on the cut (esim
 // bench cut --sizes 8000,20000 --strategy update --stages: 4.7-5.1e9 units a second of the
-// update's wall time), so ~0.5-0.7 refactorization flops; 1 keeps a margin for the rows
-// added back (cholmod_rowadd, scalar)
+// update's wall time), so ~0.5-0.7 refactorization flops; 1 keeps a margin
 constexpr double kVectorUpdownCostPerEntry = 1;
 
 StructuralUpdateStats StructuralPhase::Impl::removeTets(const std::vector<int>& ids) {
@@ -1509,9 +1487,9 @@ std::function<StructuralUpdateStats()> StructuralPhase::Impl::beginRemoval(
   const bool keepCoarse = method == StructuralSolveMethod::coarse && coarse && !coarseStale;
   if (!keepCoarse) coarseStale = true;  // K_c (if any) is built again at the next coarse solve
   if (!deferred) bringFactorUpToDate();
-  std::vector<int> removed;
+  std::vector<int> removed;  // from the mesh (an island's too)
   for (int t : ids)
-    if (alive[t]) removed.push_back(t);
+    if (pieceOf[t] >= 0) removed.push_back(t);
   std::sort(removed.begin(), removed.end());
   removed.erase(std::unique(removed.begin(), removed.end()), removed.end());
   stats.tetsRemoved = static_cast<int>(removed.size());
@@ -1523,23 +1501,20 @@ std::function<StructuralUpdateStats()> StructuralPhase::Impl::beginRemoval(
   };
   if (removed.empty()) return done(stats);
 
-  // the coarse matrix loses the removed tets (under the held dofs before the removal)
-  if (keepCoarse)
-    for (int t : removed) addToCoarse(t, -1, [&](int dof) { return held[dof] != 0; });
+  // the tets whose stiffness leaves K: the removed ones in K, and the pieces that become
+  // islands (cut off, or left without the supports that held them)
+  std::vector<int> leaving;
+  for (int t : removed)
+    if (alive[t]) leaving.push_back(t);
+  const int removedInK = static_cast<int>(leaving.size());
 
-  // 1. alive flags; nodes left without an alive tet are held
-  std::vector<int> newlyHeld;
+  // 1. the pieces lose the removed tets
   std::vector<std::pair<int, int>> byPiece;  // (old piece, removed tet)
   for (int t : removed) {
-    alive[t] = 0;
     byPiece.emplace_back(pieceOf[t], t);
     --pieces[pieceOf[t]].tets;
     pieceOf[t] = -1;
-    for (int v : tets[t]) --aliveTetsOfNode[v];
   }
-  for (int t : removed)
-    for (int v : tets[t])
-      if (aliveTetsOfNode[v] == 0) holdNode(v, newlyHeld);
 
   // 2. pieces split off, and pieces that lost their supports, become islands
   std::sort(byPiece.begin(), byPiece.end());
@@ -1578,7 +1553,7 @@ std::function<StructuralUpdateStats()> StructuralPhase::Impl::beginRemoval(
       pieces[q].island = true;
       pieces[q].supports.clear();
       ++islands;
-      for (int v : partNodes) holdNode(v, newlyHeld);
+      leaving.insert(leaving.end(), part.begin(), part.end());
     }
     if (wasIsland) continue;
     // the rest keeps its supports unless a supported node left it
@@ -1599,12 +1574,29 @@ std::function<StructuralUpdateStats()> StructuralPhase::Impl::beginRemoval(
     ++islands;
     const int start =
         *std::find_if(seeds.begin(), seeds.end(), [&](int t) { return pieceOf[t] == p; });
-    for (int v : nodesOf(tetsOfPiece(p, start))) holdNode(v, newlyHeld);
+    const std::vector<int> rest = tetsOfPiece(p, start);
+    leaving.insert(leaving.end(), rest.begin(), rest.end());
   }
   if (livePieces > 0 && islands == livePieces) {
     failure = noPieceHeld;
     throw Error(failure);
   }
+  std::sort(leaving.begin(), leaving.end());
+  stats.tetsIntoIslands = static_cast<int>(leaving.size()) - removedInK;
+
+  // the coarse matrix loses the leaving tets (under the held dofs before the removal)
+  if (keepCoarse)
+    for (int t : leaving) addToCoarse(t, -1, [&](int dof) { return held[dof] != 0; });
+
+  // 3. alive flags; nodes left without a tet in K are held
+  std::vector<int> newlyHeld;
+  for (int t : leaving) {
+    alive[t] = 0;
+    for (int v : tets[t]) --aliveTetsOfNode[v];
+  }
+  for (int t : leaving)
+    for (int v : tets[t])
+      if (aliveTetsOfNode[v] == 0) holdNode(v, newlyHeld);
   std::sort(newlyHeld.begin(), newlyHeld.end());
   stats.dofsHeld = static_cast<int>(newlyHeld.size());
   // ... and the alive tets at the nodes newly held change their part of it
@@ -1624,50 +1616,30 @@ std::function<StructuralUpdateStats()> StructuralPhase::Impl::beginRemoval(
     }
   }
 
-  // 3. a node held as part of an island is free again once no island holds it (its tets in
-  // the island removed, those in a supported piece alive): the tets removed show them all
-  std::vector<int> newlyFreed;
-  {
-    const std::vector<int> candidates = nodesOf(removed);
-    for (int v : candidates) {
-      if (aliveTetsOfNode[v] == 0 || nodeInIsland(v)) continue;
-      for (int a = 0; a < 3; ++a)
-        if (held[3 * v + a] && !isSupport(v, a)) {
-          held[3 * v + a] = 0;
-          ++numFree;
-          newlyFreed.push_back(3 * v + a);
-        }
-    }
-  }
-  stats.dofsFreed = static_cast<int>(newlyFreed.size());
-  if (!newlyFreed.empty()) coarseStale = true;  // K_c's pattern may grow: built again
+  if (leaving.empty()) return done(stats);  // only islands' tets: K is as it was
 
   // the local solve's reference: u_ref is 0 on the dofs now held (the tets at their nodes
-  // change stress); these nodes and the removed tets' widen the next region's box; a
+  // change stress); these nodes and the leaving tets' widen the next region's box; a
   // refresh running learns the same at its adoption
-  const std::vector<int> removedNodes = nodesOf(removed);
+  const std::vector<int> leavingNodes = nodesOf(leaving);
   if (refresh.running) {
     refresh.heldSince.insert(refresh.heldSince.end(), newlyHeld.begin(), newlyHeld.end());
-    refresh.changedSince.insert(refresh.changedSince.end(), removedNodes.begin(),
-                                removedNodes.end());
+    refresh.changedSince.insert(refresh.changedSince.end(), leavingNodes.begin(),
+                                leavingNodes.end());
     for (int dof : newlyHeld) refresh.changedSince.push_back(dof / 3);
-    for (int dof : newlyFreed) refresh.changedSince.push_back(dof / 3);
   }
   if (hasReference) {
     const std::vector<int> heldNodes = holdInReference(newlyHeld);
-    changedNodes.insert(changedNodes.end(), removedNodes.begin(), removedNodes.end());
+    changedNodes.insert(changedNodes.end(), leavingNodes.begin(), leavingNodes.end());
     changedNodes.insert(changedNodes.end(), heldNodes.begin(), heldNodes.end());
-    for (int dof : newlyFreed) changedNodes.push_back(dof / 3);
   }
-  // the region: the next local solve updates its factor when the removal touched it; a
-  // freed dof (not one of its unknowns) drops it
+  // the region: the next local solve updates its factor when the removal touched it
   if (method == StructuralSolveMethod::coarse) {  // the next coarse solve's box
-    changedNodes.insert(changedNodes.end(), removedNodes.begin(), removedNodes.end());
+    changedNodes.insert(changedNodes.end(), leavingNodes.begin(), leavingNodes.end());
     for (int dof : newlyHeld) changedNodes.push_back(dof / 3);
-    for (int dof : newlyFreed) changedNodes.push_back(dof / 3);
   }
-  if (method != StructuralSolveMethod::full && regionValid && newlyFreed.empty()) {
-    for (int t : removed)
+  if (method != StructuralSolveMethod::full && regionValid) {
+    for (int t : leaving)
       if (inRegion[t]) {
         inRegion[t] = 0;
         regionPending.removed.push_back(t);
@@ -1683,36 +1655,27 @@ std::function<StructuralUpdateStats()> StructuralPhase::Impl::beginRemoval(
   }
   if (numDofs() == 0) return done(stats);
   if (deferred) {
-    pending.removed.insert(pending.removed.end(), removed.begin(), removed.end());
+    pending.removed.insert(pending.removed.end(), leaving.begin(), leaving.end());
     pending.held.insert(pending.held.end(), newlyHeld.begin(), newlyHeld.end());
-    pending.freed = pending.freed || !newlyFreed.empty();
     stats.deferred = true;
     return done(stats);
   }
-  return [this, t0, stats, removed = std::move(removed), newlyHeld = std::move(newlyHeld),
-          newlyFreed = std::move(newlyFreed)]() mutable {
-    return updateFactor(t0, stats, removed, newlyHeld, newlyFreed, current(), common,
-                        wholeTarget());
-  };
+  return
+      [this, t0, stats, leaving = std::move(leaving), newlyHeld = std::move(newlyHeld)]() mutable {
+        return updateFactor(t0, stats, leaving, newlyHeld, current(), common, wholeTarget());
+      };
 }
 
 // steps 4-7 of a removal: the factor of the new A (see beginRemoval), the whole one or the
-// region's (target; newlyFreed empty for the region)
+// region's (target); removed: the tets whose stiffness leaves K
 StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_clock::time_point t0,
                                                           StructuralUpdateStats stats,
                                                           const std::vector<int>& removed,
                                                           const std::vector<int>& newlyHeld,
-                                                          const std::vector<int>& newlyFreed,
                                                           const StateView& s, cholmod_common& cm,
                                                           const Target& target) {
   cholmod_factor*& factor = *target.factor;
   const std::vector<int>& rowOfDof = *target.rowOf;
-  if (nodalVolumetric && !newlyFreed.empty()) {  // rows added back would need the nodes'
-    factorize(cm, s);  // volumetric terms too: refactorized (whole factor: full method only)
-    stats.refactorized = true;
-    stats.seconds = secondsSince(t0);
-    return stats;
-  }
   // 4. C C' = the removed tets' stiffness on the dofs free before and after. Tets that share
   // a node are summed first (one group per connected cluster, up to kMaxGroupDofs free dofs),
   // and the group's matrix G (positive semidefinite), its dofs in ascending rows of L, is
@@ -1790,10 +1753,7 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
       groups[g].push_back(removed[i]);
     }
   }
-  auto isFree = [&](int dof) {
-    return rowOfDof[dof] >= 0 && !s.held[dof] &&
-           !std::binary_search(newlyFreed.begin(), newlyFreed.end(), dof);
-  };
+  auto isFree = [&](int dof) { return rowOfDof[dof] >= 0 && !s.held[dof]; };
   // the free dofs of some tets, as (row of L, dof), ascending rows
   auto freeDofs = [&](const std::vector<int>& some) {
     std::vector<std::pair<int, int>> free;
@@ -1962,7 +1922,6 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
     const SimplicialView l(factor);
     std::vector<int> starts;
     for (int dof : newlyHeld) starts.push_back(rowOfDof[dof]);
-    for (int dof : newlyFreed) starts.push_back(rowOfDof[dof]);
     for (int c = 0; c + 1 < static_cast<int>(cp.size()); ++c) starts.push_back(ci[cp[c]]);
     for (int c = 0; c + 1 < static_cast<int>(wp.size()); ++c) starts.push_back(wi[wp[c]]);
     RowMarks& rm = *target.marks;
@@ -1986,8 +1945,7 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
     }
   }
 
-  // 7. delete the rows now held, downdate by C C', add the rows free again; or refactorize
-  // when that costs more
+  // 7. delete the rows now held, downdate by C C'; or refactorize when that costs more
   const double costPerEntry = kernelUpdates() ? kVectorUpdownCostPerEntry : kUpdownCostPerEntry;
   stats.updateCost = costPerEntry * stats.updateWork / target.refactorFlops;
   bool updated = false;
@@ -2003,42 +1961,6 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
     if (ok && stats.rank > 0) {
       cholmod_sparse c = cholmodViewColumns(factor->n, stats.rank, cp.data(), ci.data(), cx.data());
       ok = updown(false, c, target, cm);
-    }
-    for (size_t k = 0; ok && k < newlyFreed.size(); ++k) {
-      // column of A at the dof: K over the alive tets, on the dofs free so far
-      const int dof = newlyFreed[k];
-      std::vector<std::pair<int, double>> entries;
-      const int v = dof / 3;
-      for (const int* t = tetsOfNode.begin(v); t != tetsOfNode.end(v); ++t) {
-        if (!s.alive[*t]) continue;
-        const Mat12 ke = elementStiffness(*t);
-        const int i = 3 * static_cast<int>(std::find(tets[*t].begin(), tets[*t].end(), v) -
-                                           tets[*t].begin()) +
-                      dof % 3;
-        for (int j = 0; j < 12; ++j) {
-          const int other = 3 * tets[*t][j / 3] + j % 3;
-          const auto later = std::lower_bound(newlyFreed.begin(), newlyFreed.end(), other);
-          if (s.held[other] || (later != newlyFreed.end() && *later == other &&
-                                later - newlyFreed.begin() > static_cast<long>(k)))
-            continue;  // held, or added after this one
-          entries.emplace_back(rowOfDof[other], ke(i, j));
-        }
-      }
-      std::sort(entries.begin(), entries.end(),
-                [](const auto& a, const auto& b) { return a.first < b.first; });
-      std::vector<int> ri;
-      std::vector<double> rx;
-      for (const auto& [row, value] : entries) {
-        if (!ri.empty() && ri.back() == row) {
-          rx.back() += value;
-        } else {
-          ri.push_back(row);
-          rx.push_back(value);
-        }
-      }
-      int rp[2] = {0, static_cast<int>(ri.size())};
-      cholmod_sparse r = cholmodViewColumns(factor->n, 1, rp, ri.data(), rx.data());
-      ok = cholmod_rowadd(rowOfDof[dof], &r, factor, &cm);
     }
     // a downdate that lost positive definiteness shows as D(j) <= 0 on the walked columns
     const SimplicialView l(factor);
@@ -2111,15 +2033,7 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   m.method = options.solveMethod;
   m.local = options.local;
 
-  // 1. held components: of nodes without an alive tet, and the supports
-  m.aliveTetsOfNode.assign(n, 0);
-  for (int t = 0; t < nt; ++t)
-    if (m.alive[t])
-      for (int v : mesh.tets[t]) ++m.aliveTetsOfNode[v];
-  m.held.assign(3 * static_cast<size_t>(n), 1);
-  for (int v = 0; v < n; ++v)
-    if (m.aliveTetsOfNode[v] > 0)
-      for (int a = 0; a < 3; ++a) m.held[3 * v + a] = 0;
+  // 1. the supports
   std::vector<std::pair<int, int>> supportPairs;
   for (size_t k = 0; k < supports.size(); ++k) {
     const Support& s = supports[k];
@@ -2127,17 +2041,16 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
                 "structural: support (node " + std::to_string(s.node) + ", axis " +
                     std::to_string(s.axis) + ") is out of range (" + std::to_string(n) +
                     " nodes, axes 0..2)");
-    m.held[3 * s.node + s.axis] = 1;
     supportPairs.emplace_back(s.node, static_cast<int>(k));
   }
-  m.numFree = static_cast<int>(std::count(m.held.begin(), m.held.end(), 0));
   ESIM_VERIFY(supportsFixRigidMotions(m.nodes, supports),
               supportsMessage("the supports leave the body free to translate or rotate; hold "
                               "at least 6 independent displacement components, e.g. by "
                               "clamping a face",
                               options.supportsNote));
 
-  // 2. adjacency over every tet, removed or not (removeTets walks it), and the pieces
+  // 2. adjacency over every tet, removed or not (removeTets walks it), and the pieces (the
+  // islands' tets leave K)
   TetMesh whole;
   whole.nodes = mesh.nodes;
   whole.tets = mesh.tets;  // no alive flags: every tet
@@ -2147,11 +2060,22 @@ StructuralPhase::StructuralPhase(const TetMesh& mesh, const StructuralOptions& o
   m.wholeMarks.mark.assign(3 * static_cast<size_t>(n), 0);
   m.regionMarks.mark.assign(3 * static_cast<size_t>(n), 0);
   m.tetMark.assign(nt, 0);
-  std::vector<int> newlyHeld;
-  m.classifyPieces(newlyHeld);
+  m.classifyPieces();
   ESIM_VERIFY(m.livePieces == 0 || m.islands < m.livePieces, m.noPieceHeld);
 
-  // 3. assembly and factorization of A (3n x 3n), once
+  // 3. held components: of nodes without a tet in K, and the supports
+  m.aliveTetsOfNode.assign(n, 0);
+  for (int t = 0; t < nt; ++t)
+    if (m.alive[t])
+      for (int v : mesh.tets[t]) ++m.aliveTetsOfNode[v];
+  m.held.assign(3 * static_cast<size_t>(n), 1);
+  for (int v = 0; v < n; ++v)
+    if (m.aliveTetsOfNode[v] > 0)
+      for (int a = 0; a < 3; ++a) m.held[3 * v + a] = 0;
+  for (const Support& s : supports) m.held[3 * s.node + s.axis] = 1;
+  m.numFree = static_cast<int>(std::count(m.held.begin(), m.held.end(), 0));
+
+  // 4. assembly and factorization of A (3n x 3n), once
   m.u = Eigen::VectorXd::Zero(3 * n);
   m.stress.assign(nt, VoigtStress{});
   m.vonMisesPa.assign(nt, 0.0);
@@ -2182,7 +2106,7 @@ void StructuralPhase::solve(const std::vector<double>& ev) {
                                                      " tets");
   if (!m.failure.empty()) throw Error(m.failure);
   for (int t = 0; t < nt; ++t)
-    ESIM_VERIFY(!m.alive[t] || std::isfinite(ev[t]),
+    ESIM_VERIFY(m.pieceOf[t] < 0 || std::isfinite(ev[t]),
                 "structural: eigenstrain of tet " + std::to_string(t) + " is not finite");
   m.lastSolve = StructuralSolveStats{};
   const bool done = (m.method == StructuralSolveMethod::local && m.localSolve(ev)) ||

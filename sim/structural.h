@@ -15,11 +15,14 @@
 // bench structural at 8000 nodes, a solve with its stresses: 4.7 ms on two threads, 6.7 ms on
 // one, 8.9 ms by CHOLMOD's cholmod_solve2; README, "The structural solve and update on two
 // threads").
-// Removed tets (alive == 0) contribute nothing; a node left without an alive tet is
-// held at 0, and so is every node of a floating island (a rigid piece: alive tets
-// connected through shared faces, whose own supports leave a rigid motion free: cut
-// loose, or hanging by an edge or a node), so that K stays positive definite; such
-// islands carry no stress.
+// Removed tets (alive == 0) contribute nothing, and neither do the tets of a floating island
+// (a rigid piece: alive tets connected through shared faces, whose own supports leave a
+// rigid motion free: cut loose, or hanging by an edge or a node): K holds the pieces the
+// supports hold, so that it stays positive definite. A node without a tet in K is held at
+// 0; a node an island shares with a held piece moves with that piece (an island hanging
+// by an edge or a node does not clamp the tissue it hangs from). Islands carry no stress
+// (free expansion: stress and von Mises 0). The result equals a phase built on the mesh
+// without the islands' tets, on the nodes and tets of the held pieces.
 // Removal (removeTets) updates the factor instead of rebuilding it: the rows of the
 // components it newly holds are deleted (identity rows, as cholmod_rowdel makes them, but all
 // in one multiple-rank cholmod_updown by L's columns at those rows: deleteRows), then
@@ -169,10 +172,10 @@ enum class StructuralSolveMethod {
 // simplicial LDL': the rows of the dofs held since deleted, as identity rows, and a
 // downdate by the removed tets' stiffness on U, as the whole factor's update), or builds the
 // region again when that update would cost more than a factorization; a removal outside the
-// region's box, or one that frees a dof, rebuilds the region.
+// region's box rebuilds the region.
 // With refreshOnThread, removeTets also leaves the whole factor as it is: it catches up in
-// one update over every removal since its last one (a batched cholmod_updown, or a
-// refactorization if a dof was freed) at the next refresh, on its thread (which starts from
+// one update over every removal since its last one (a batched cholmod_updown) at the next
+// refresh, on its thread (which starts from
 // a copy of the alive set and the held dofs, so the frame goes on removing tets meanwhile;
 // at its adoption the reference is set to 0 on the dofs held since and those removals widen
 // the next box), or at the next full solve, in the frame.
@@ -215,7 +218,7 @@ struct LocalSolveOptions {
   // coarseCorrection, the region's correction as above with u_0 for u_ref (one step of a
   // two-level multiplicative Schwarz method; its energy-norm error is at most the coarse
   // solve's). The box: the alive tets whose e_v changed by more than coarseLoadTolerance times
-  // the largest change since the last solve, the removed tets and the nodes held or freed
+  // the largest change since the last solve, the removed tets and the nodes held
   // since (where the tool heats and cuts); the region is kept while that box stays inside the
   // one it was built around (a frame with no change keeps it). No full solve is done: removals
   // update K_c (structural_coarse.h) and the region's factor, and leave the whole factor as it
@@ -289,7 +292,7 @@ struct StructuralOptions {
 struct StructuralUpdateStats {
   int tetsRemoved = 0;          // newly removed (ids of removed tets and repeats are skipped)
   int dofsHeld = 0;             // components newly held: rows deleted from L
-  int dofsFreed = 0;            // components of nodes no island holds any more: rows added
+  int tetsIntoIslands = 0;      // alive tets of the pieces it made islands: out of K with it
   int rank = 0;                 // columns of the downdate C (<= 6 per removed tet)
   int groupsSplit = 0;          // clusters of removed tets whose columns went by parts (too
                                 // many dofs, or a summed column that would fill in L)
@@ -377,8 +380,8 @@ class StructuralPhase {
   // solve or removeTets throws it again; esim::RunError if CHOLMOD runs out of memory or a
   // refactorization fails.
   StructuralUpdateStats removeTets(const std::vector<int>& tets);
-  // removeTets in two parts: this call does the bookkeeping (alive set, pieces, held and
-  // freed dofs) and throws what removeTets throws for it; the function returned updates
+  // removeTets in two parts: this call does the bookkeeping (alive set, pieces, held
+  // dofs) and throws what removeTets throws for it; the function returned updates
   // the factor (CHOLMOD's work, and its RunErrors) and returns the stats. It may run on
   // another thread; until it has returned, no other call may be made on the phase.
   // removeTets(t) is beginRemoval(t)().
@@ -388,7 +391,7 @@ class StructuralPhase {
   const std::vector<VoigtStress>& stressPa() const;  // per tet (0 for removed tets)
   const std::vector<double>& vonMisesPa() const;     // per tet (0 for removed tets)
   int numFreeDofs() const;                           // unknowns of K u = f
-  int numFloatingIslands() const;                    // unsupported pieces held in place
+  int numFloatingIslands() const;                    // unsupported pieces (out of K)
   double factorizationSeconds() const;  // wall time of the constructor's factorization [s]
                                         // (with the conversion if prepareForUpdates, and the
                                         // coarse method's K_c and its factorization)

@@ -20,8 +20,7 @@
 // Removals keep K_c up to date by each tet's contribution P_e' K_e P_e (3 x the distinct
 // grid nodes of its 4 nodes' cells, squared): subtracted for a removed tet, subtracted and
 // added back under the new mask for a tet at a node newly held; the numeric factorization
-// is then redone (the analysis is kept: the pattern only loses entries). A dof freed again
-// needs build() (the pattern may grow).
+// is then redone (the analysis is kept: the pattern only loses entries).
 // Not thread-safe (its CHOLMOD workspace is a member); deterministic.
 #pragma once
 

@@ -547,6 +547,34 @@ TEST(Simulation, DebrisCutLooseGoesWithTheCutInEveryRebuildMode) {
   const auto [kept, keptRemoved] = run(RebuildMode::Update, 0);
   EXPECT_EQ(kept->debrisTets(), 0);
   EXPECT_GT(smallFloating(*kept), 0) << "the cut leaves no piece loose: nothing to test";
+  // the pieces kept leave the structural phase's K: the nodes they share with the tissue (a
+  // supported piece) move with it; no node of the tissue is held at 0 but the clamp's
+  {
+    const TetMesh& m = kept->mesh();
+    const double band = kept->config().clampBandM;
+    double zMin = INFINITY;
+    for (const Vec3& p : m.nodes) zMin = std::min(zMin, p.z());
+    int count = 0;
+    const std::vector<int> pieceOf = tetPieces(m, &count);
+    std::vector<std::uint8_t> supported(count, 0);
+    for (int t = 0; t < m.numTets(); ++t)
+      for (int v : m.tets[t])
+        if (pieceOf[t] >= 0 && m.nodes[v].z() <= zMin + band) supported[pieceOf[t]] = 1;
+    std::vector<std::uint8_t> inTissue(m.numNodes(), 0), inLoose(m.numNodes(), 0);
+    for (int t = 0; t < m.numTets(); ++t)
+      if (pieceOf[t] >= 0)
+        for (int v : m.tets[t]) (supported[pieceOf[t]] ? inTissue : inLoose)[v] = 1;
+    int shared = 0, heldInTissue = 0;
+    const Eigen::VectorXd& u = kept->state().displacementM;
+    for (int v = 0; v < m.numNodes(); ++v) {
+      shared += inTissue[v] && inLoose[v];
+      heldInTissue += inTissue[v] && m.nodes[v].z() > zMin + band && u.segment<3>(3 * v).isZero(0);
+    }
+    EXPECT_GT(shared, 0) << "no loose piece hangs from the tissue: nothing to test";
+    EXPECT_EQ(heldInTissue, 0);
+    std::printf("debris kept: %d tissue nodes shared with loose pieces, %d held\n", shared,
+                heldInTissue);
+  }
   const auto [sync, syncRemoved] = run(RebuildMode::Synchronous, maxV);
   const auto [upd, updRemoved] = run(RebuildMode::Update, maxV);
   EXPECT_GT(upd->debrisTets(), 0);

@@ -352,8 +352,9 @@ TEST(Structural, FloatingIslandIsHeldInPlace) {
 }
 
 // two tets sharing one node: the upper one could turn about it (singular K) unless the
-// phase recognises it as a separate rigid piece and holds it
-TEST(Structural, PieceHangingByANodeIsHeld) {
+// phase recognises it as a separate rigid piece, an island out of K. Node 3 stays free
+// with the lower tet: the result is that of the lower tet alone
+TEST(Structural, PieceHangingByANodeLeavesTheNodeFree) {
   TetMesh mesh;
   const double h = 0.01;
   mesh.nodes = {Vec3(0, 0, 0), Vec3(h, 0, 0), Vec3(0, h, 0),    Vec3(0, 0, h),
@@ -365,11 +366,23 @@ TEST(Structural, PieceHangingByANodeIsHeld) {
     for (int a = 0; a < 3; ++a) s.push_back({v, a});
   StructuralPhase phase(mesh, paper(), s);
   EXPECT_EQ(phase.numFloatingIslands(), 1);
-  EXPECT_EQ(phase.numFreeDofs(), 0);  // node 3 is held with the hanging piece
-  phase.solve({kEv, kEv});
-  EXPECT_EQ(phase.displacementM().norm(), 0.0);
-  // fully held: the hydrostatic stress of a clamped body
-  EXPECT_NEAR(phase.stressPa()[0][0], -kE * kEv / (3 * (1 - 2 * kNu)), 1e-9);
+  EXPECT_EQ(phase.numFreeDofs(), 3);  // node 3
+  phase.solve({kEv, 2 * kEv});
+  TetMesh alone = mesh;
+  alone.alive = {1, 0};
+  StructuralPhase lower(alone, paper(), s);
+  lower.solve({kEv, 0.0});
+  // the lower tet expands: node 3 moves up (the face (0, 1, 2) clamped)
+  EXPECT_GT(phase.displacementM()(3 * 3 + 2), 0.0);
+  EXPECT_LT((phase.displacementM() - lower.displacementM()).norm(),
+            1e-12 * lower.displacementM().norm());
+  EXPECT_NEAR(phase.vonMisesPa()[0], lower.vonMisesPa()[0], 1e-9 * lower.vonMisesPa()[0]);
+  EXPECT_GT(phase.vonMisesPa()[0], 0.0);
+  // the island expands freely: no stress, whatever moves its node 3
+  for (int k = 0; k < 6; ++k) EXPECT_EQ(phase.stressPa()[1][k], 0.0);
+  EXPECT_EQ(phase.vonMisesPa()[1], 0.0);
+  // its own nodes are held at 0
+  for (int v : {4, 5, 6}) EXPECT_EQ(phase.displacementM().segment<3>(3 * v).norm(), 0.0);
 }
 
 TEST(Structural, RejectsBadInput) {
@@ -787,7 +800,8 @@ TEST(StructuralRemoval, PieceCutLooseBecomesAnIsland) {
 
 // A held at three nodes, E on its face (0, 1, 3), C on its face (1, 2, 3) and B on C's face
 // (2, 3, 4): removing C leaves B hanging from A by the edge (2, 3). B could turn about it
-// (its own supports, node 2's, leave that free), so it must be held, node 3 with it
+// (its own supports, node 2's, leave that free), so it leaves K; node 3 stays free with A
+// and E
 TetMesh hingedMesh() {
   TetMesh mesh;
   const double h = 0.01;
@@ -808,24 +822,48 @@ std::vector<Support> hingedSupports() {  // A's nodes 0, 1, 2
   return s;
 }
 
-TEST(StructuralRemoval, PieceHangingByAnEdgeIsHeld) {
-  TetMesh mesh = hingedMesh();
-  const std::vector<Support> s = hingedSupports();
-  StructuralPhase phase(mesh, alwaysUpdate(), s);
-  EXPECT_EQ(phase.numFloatingIslands(), 0);
-  expectSameAsFresh(phase, mesh, s, "whole");
-  const StructuralUpdateStats st = removeBoth(phase, mesh, {1});
-  EXPECT_EQ(st.piecesCutOff, 1);
-  EXPECT_EQ(st.dofsHeld, 9);  // nodes 3, 4, 5
-  EXPECT_EQ(phase.numFloatingIslands(), 1);
-  EXPECT_EQ(phase.numFreeDofs(), 3);  // node 6
-  expectSameAsFresh(phase, mesh, s, "hanging by an edge");
-  // removing B frees node 3 again (A and E hold it now), as a fresh build would
-  const StructuralUpdateStats gone = removeBoth(phase, mesh, {2});
-  EXPECT_EQ(gone.dofsFreed, 3);
-  EXPECT_EQ(phase.numFloatingIslands(), 0);
-  EXPECT_EQ(phase.numFreeDofs(), 6);  // nodes 3 and 6
-  expectSameAsFresh(phase, mesh, s, "island removed");
+TEST(StructuralRemoval, PieceHangingByAnEdgeLeavesKAndTheEdgeFree) {
+  for (const bool update : {true, false}) {
+    SCOPED_TRACE(update ? "updated" : "refactorized");
+    TetMesh mesh = hingedMesh();
+    const std::vector<Support> s = hingedSupports();
+    StructuralOptions o = alwaysUpdate();
+    if (!update) o.updateCostLimit = 0;
+    StructuralPhase phase(mesh, o, s);
+    EXPECT_EQ(phase.numFloatingIslands(), 0);
+    expectSameAsFresh(phase, mesh, s, "whole", o);
+    const StructuralUpdateStats st = removeBoth(phase, mesh, {1});
+    EXPECT_EQ(st.piecesCutOff, 1);
+    EXPECT_EQ(st.tetsIntoIslands, 1);  // B
+    EXPECT_EQ(st.dofsHeld, 6);         // nodes 4, 5: B's alone
+    EXPECT_EQ(st.refactorized, !update);
+    EXPECT_EQ(phase.numFloatingIslands(), 1);
+    EXPECT_EQ(phase.numFreeDofs(), 6);  // nodes 3 and 6
+    expectSameAsFresh(phase, mesh, s, "hanging by an edge", o);
+    // B adds nothing: the same as a fresh build without it (the same free dofs)
+    TetMesh withoutB = mesh;
+    withoutB.alive[2] = 0;
+    StructuralPhase fresh(withoutB, o, s);
+    const std::vector<double> ev = unevenLoad(mesh);
+    phase.solve(ev);
+    fresh.solve(ev);
+    EXPECT_EQ(fresh.numFloatingIslands(), 0);
+    EXPECT_EQ(phase.numFreeDofs(), fresh.numFreeDofs());
+    EXPECT_LT(relativeDifference(phase.displacementM(), fresh.displacementM()), 1e-12);
+    EXPECT_LT(relativeDifference(asVector(phase.vonMisesPa()), asVector(fresh.vonMisesPa())),
+              1e-12);
+    EXPECT_GT(phase.displacementM().segment<3>(3 * 3).norm(), 0.0);  // the edge's node 3
+    EXPECT_EQ(phase.vonMisesPa()[2], 0.0);
+    // removing B changes nothing in K
+    const StructuralUpdateStats gone = removeBoth(phase, mesh, {2});
+    EXPECT_EQ(gone.tetsRemoved, 1);
+    EXPECT_EQ(gone.dofsHeld, 0);
+    EXPECT_EQ(gone.rank, 0);
+    EXPECT_FALSE(gone.refactorized);
+    EXPECT_EQ(phase.numFloatingIslands(), 0);
+    EXPECT_EQ(phase.numFreeDofs(), 6);
+    expectSameAsFresh(phase, mesh, s, "island removed", o);
+  }
 }
 
 TEST(StructuralRemoval, RemovingTheClampedTissueIsTheFreshBuildsError) {
@@ -1382,7 +1420,7 @@ TEST(StructuralCoarse, RemovalsKeepTheCoarseMatrixOfAFreshBuild) {
     if (ts.size() >= 2 && ts.size() <= 4 && mesh.nodes[v].z() > kLz / 2) {
       const StructuralUpdateStats st = removeBoth(phase, mesh, ts);
       held = st.dofsHeld;
-      EXPECT_EQ(st.dofsFreed, 0);
+      EXPECT_EQ(st.tetsIntoIslands, 0);
     }
   }
   ASSERT_GT(held, 0);
@@ -1401,7 +1439,7 @@ TEST(StructuralCoarse, RemovalsKeepTheCoarseMatrixOfAFreshBuild) {
   const StructuralUpdateStats st = removeBoth(phase, mesh, right);
   EXPECT_EQ(phase.numFloatingIslands(), 1);
   EXPECT_GT(st.dofsHeld, 0);
-  EXPECT_EQ(st.dofsFreed, 0);
+  EXPECT_GT(st.tetsIntoIslands, 0);
   const std::vector<double> ev = unevenLoad(mesh);
   phase.solve(ev);
   EXPECT_GT(phase.lastSolveStats().coarseFactorSeconds, 0);  // refactorized, not rebuilt
@@ -1412,8 +1450,7 @@ TEST(StructuralCoarse, RemovalsKeepTheCoarseMatrixOfAFreshBuild) {
   EXPECT_LT(relativeDifference(asVector(phase.vonMisesPa()), asVector(fresh.vonMisesPa())), 1e-9);
 }
 
-// node 3, held with the piece hanging by an edge, is also a node of alive tets that stay
-// free (A and E): their part of K_c changes, not vanishes
+// the piece hanging by an edge leaves K_c; node 3 stays free with A and E
 TEST(StructuralCoarse, PieceHangingByAnEdgeKeepsTheCoarseMatrixOfAFreshBuild) {
   TetMesh mesh = hingedMesh();
   const std::vector<Support> s = hingedSupports();
@@ -1423,8 +1460,8 @@ TEST(StructuralCoarse, PieceHangingByAnEdgeKeepsTheCoarseMatrixOfAFreshBuild) {
   StructuralPhase phase(mesh, coarsePaper(o), s);
   phase.solve(unevenLoad(mesh));
   const StructuralUpdateStats st = removeBoth(phase, mesh, {1});
-  EXPECT_EQ(st.dofsHeld, 9);
-  EXPECT_EQ(st.dofsFreed, 0);
+  EXPECT_EQ(st.dofsHeld, 6);
+  EXPECT_EQ(st.tetsIntoIslands, 1);
   const std::vector<double> ev = unevenLoad(mesh);
   phase.solve(ev);
   StructuralPhase fresh(mesh, coarsePaper(o), s);
