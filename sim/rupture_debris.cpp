@@ -67,7 +67,7 @@ std::vector<int> debrisCutLoose(const TetMesh& mesh,
       }
     }
   }
-  // debris is never all the tissue left: then every piece stays (held in place). Only when
+  // debris is never all the tissue left: then every piece stays. Only when
   // no piece searched stays can it be: then count the tets left (a pass over the mesh)
   if (!debris.empty() && !anyStays) {
     int aliveLeft = 0;

@@ -186,7 +186,7 @@ struct SimulationConfig {
   // (sim/rupture_nonlocal.h); 0: each tet's own (the paper)
   double criticalStressRadiusM = 0;
   // > 0: pieces a removal cuts loose (no face with the rest, no support) up to this volume
-  // [m^3] are removed with it (sim/rupture_debris.h); 0: kept, held in place (the paper)
+  // [m^3] are removed with it (sim/rupture_debris.h); 0: kept, out of the stiffness (the paper)
   double debrisVolumeM3 = 1e-8;
   RebuildMode rebuildMode = RebuildMode::Update;  // or rebuilt in the frame, or on a thread ...
   int rebuildLagFrames = 3;                       // ... swapped in this many frames after rupture

@@ -145,8 +145,8 @@ const std::vector<Field>& schema() {
                        closed(0.0, 1e-3),
                        "pieces of tissue a removal cuts loose (sharing no face with the rest "
                        "and held by no support) up to this volume are removed with it, as "
-                       "fragments the vapour carries off; 0: they stay, held in place and "
-                       "stress-free (the paper; sim/rupture_debris.h)"));
+                       "fragments the vapour carries off; 0: they stay, stress-free and out of "
+                       "the stiffness (the paper; sim/rupture_debris.h)"));
     f.push_back(number("material.vapor_liquid_volume_ratio",
                        ESIM_REF(material.vaporLiquidVolumeRatio), "", closed(1.0, 1e4),
                        "volume of water vapour / liquid at boiling and 1 atm (steam tables: "
