@@ -162,6 +162,7 @@ TEST(RunCli, FieldsHoldOnlyThePhasesOfTheScene) {
   for (const char* f : {"conductivity", "joule_power", "vapor_fraction", "alive"})
     EXPECT_NE(d.findCellField(f), nullptr) << f;
   EXPECT_EQ(d.findPointField("displacement"), nullptr);  // no structural phase
+  EXPECT_EQ(d.findCellField("expansion"), nullptr);
   EXPECT_EQ(d.findCellField("von_mises"), nullptr);
   // bc: some tool contacts (1) and return-electrode nodes (2)
   int tool = 0, ground = 0;
@@ -226,6 +227,29 @@ TEST(RunCli, FieldsOfARebuildFrameHoldItsStress) {
     const double vtuMax = *std::max_element(vm->values.begin(), vm->values.end());
     EXPECT_LE(vtuMax, criticalPa) << name;
     EXPECT_GT(vtuMax, 0.5 * criticalPa) << name;
+    // the displacement: 3 per point, 0 on the clamped base (z = 0), the top pushed up where
+    // the water boils (~1 mm where the expansion reaches its cap of 3 under the blade; the
+    // slab is 10 mm thick), finite everywhere
+    const esim::VtuField* u = d.findPointField("displacement");
+    ASSERT_NE(u, nullptr);
+    ASSERT_EQ(u->components, 3);
+    ASSERT_EQ(u->values.size(), 3 * d.points.size());
+    double maxUp = 0;
+    for (size_t p = 0; p < d.points.size(); ++p) {
+      for (int a = 0; a < 3; ++a) ASSERT_TRUE(std::isfinite(u->values[3 * p + a]));
+      if (d.points[p].z() < 1e-12) {
+        for (int a = 0; a < 3; ++a) EXPECT_EQ(u->values[3 * p + a], 0.0) << name << " point " << p;
+      }
+      maxUp = std::max(maxUp, u->values[3 * p + 2]);
+    }
+    EXPECT_GT(maxUp, 1e-6) << name;
+    EXPECT_LT(maxUp, 5e-3) << name;
+    // the expansion: per cell, where the water boils over the 3 % of liquid expansion
+    const esim::VtuField* ev = d.findCellField("expansion");
+    ASSERT_NE(ev, nullptr);
+    ASSERT_EQ(ev->values.size(), d.tets.size());
+    EXPECT_GT(*std::max_element(ev->values.begin(), ev->values.end()), 0.0301) << name;
+    EXPECT_GE(*std::min_element(ev->values.begin(), ev->values.end()), 0.0) << name;
     ++checked;
   }
   EXPECT_GT(checked, 0) << "no frame removed tets: the scene no longer cuts in 5 frames";

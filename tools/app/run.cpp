@@ -487,7 +487,13 @@ class FrameOutputs {
       if (!t->vaporFractionTet.empty()) cell.push_back({"vapor_fraction", 1, t->vaporFractionTet});
       if (!t->coagulationTet.empty()) cell.push_back({"coagulation", 1, t->coagulationTet});
     }
-    if (const std::vector<double>* vm = sim.vonMisesPa()) cell.push_back({"von_mises", 1, *vm});
+    if (const std::vector<double>* vm = sim.vonMisesPa()) {
+      // the structural phase's displacement (ParaView: Warp By Vector) and load
+      const Eigen::VectorXd& u = sim.state().displacementM;
+      point.push_back({"displacement", 3, std::vector<double>(u.data(), u.data() + u.size())});
+      cell.push_back({"expansion", 1, sim.state().eigenstrain});
+      cell.push_back({"von_mises", 1, *vm});
+    }
     std::vector<double> alive(m.numTets());
     for (int e = 0; e < m.numTets(); ++e) alive[e] = m.isAlive(e) ? 1.0 : 0.0;
     cell.push_back({"alive", 1, alive});
