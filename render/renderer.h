@@ -47,6 +47,12 @@
 namespace esim {
 
 constexpr double kCreaseAngleDeg = 65.0;
+// between two faces of a cut wall (all three corners exposed by removal): the stair steps a
+// cut leaves in the tets (faces at 45-90 deg on the structured slab) are shaded as one
+// wall, not as a saw-tooth of lit and dark facets (slab_cut's zoomed groove, frame 99: the
+// teeth read at 65, faint stripes at 130-150, the rim blurred at 179); the outline is the
+// tets' still
+constexpr double kCutWallCreaseAngleDeg = 150.0;
 
 struct RenderOptions {
   int width = 1280, height = 720;                    // frame size [px]

@@ -71,8 +71,20 @@ void SurfaceBuffers::build(const SurfaceSnapshot& snap, float tDefaultC, bool po
   for (int t = 0; t < nt; ++t)
     faceUnit[t] = faceLength[t] > 0 ? mul(faceNormal[t], 1.0f / faceLength[t]) : V3{0, 0, 1};
   // the corner's test: face g joins the sum of the corner of face t
-  auto joins = [&](int g, const V3& nf) {
-    return faceLength[g] > 0 && dot(faceNormal[g], nf) >= cosCrease * faceLength[g];
+  // faces of the cut walls (every corner at cutWall >= 0.5) join each other up to the wider
+  // kCutWallCreaseAngleDeg
+  wallFace.assign(nt, 0);
+  if (!snap.cutWall.empty())
+    for (int t = 0; t < nt; ++t) {
+      const std::uint32_t* tri = &snap.triangles[3 * t];
+      wallFace[t] = snap.cutWall[tri[0]] >= 0.5f && snap.cutWall[tri[1]] >= 0.5f &&
+                    snap.cutWall[tri[2]] >= 0.5f;
+    }
+  const float cosWall =
+      static_cast<float>(std::cos(kCutWallCreaseAngleDeg * 3.14159265358979 / 180.0));
+  auto joins = [&](int g, int t) {
+    const float c = wallFace[g] && wallFace[t] ? cosWall : cosCrease;
+    return faceLength[g] > 0 && dot(faceNormal[g], faceUnit[t]) >= c * faceLength[g];
   };
   // 3a. smooth vertices (most): every incident face joins every corner's sum, so all
   //     corners get the same sum over the same faces in the same order; it is formed
@@ -83,7 +95,7 @@ void SurfaceBuffers::build(const SurfaceSnapshot& snap, float tDefaultC, bool po
     bool all = true;
     for (int i = offsets[v]; i < offsets[v + 1] && all; ++i)
       for (int j = offsets[v]; j < offsets[v + 1] && all; ++j)
-        all = joins(incident[j], faceUnit[incident[i]]);
+        all = joins(incident[j], incident[i]);
     if (!all) continue;
     V3 sum{0, 0, 0};
     for (int i = offsets[v]; i < offsets[v + 1]; ++i) sum = add(sum, faceNormal[incident[i]]);
@@ -101,7 +113,7 @@ void SurfaceBuffers::build(const SurfaceSnapshot& snap, float tDefaultC, bool po
       if (!smooth[v]) {
         V3 sum{0, 0, 0};
         for (int i = offsets[v]; i < offsets[v + 1]; ++i)
-          if (joins(incident[i], nf)) sum = add(sum, faceNormal[incident[i]]);
+          if (joins(incident[i], t)) sum = add(sum, faceNormal[incident[i]]);
         n = norm(sum) > 0 ? normalized(sum) : nf;
       }
       int found = -1;

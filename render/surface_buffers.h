@@ -2,15 +2,14 @@
 //
 // An indexed triangle list with crease-limited smooth normals: area-weighted face
 // normals summed per corner over the incident faces within kCreaseAngleDeg
-// (renderer.h); a vertex is split only where its corners get different normals
-// (creases), so a smooth surface keeps one GPU vertex per snapshot vertex. Vertex
-// format: vertex_layout.h; the state is (T [C] or, for the potential look, phi [V],
-// coagulation, desiccation, cut wall), positions in metres.
-// Reuse: while a snapshot's positions and triangles are bit-identical to the
-// previous one's (no structural phase, or a frame without deformation) the normals
-// and the crease splits are the same, and update() rewrites the state columns only.
-// Ownership: SurfaceBuffers owns its arrays (and scratch space kept across frames);
-// the renderer uploads them. Internal to render/: not used outside the renderer.
+// (renderer.h; between two faces of a cut wall, kCutWallCreaseAngleDeg); a vertex is split only
+// where its corners get different normals (creases), so a smooth surface keeps one GPU vertex per
+// snapshot vertex. Vertex format: vertex_layout.h; the state is (T [C] or, for the potential look,
+// phi [V], coagulation, desiccation, cut wall), positions in metres. Reuse: while a snapshot's
+// positions and triangles are bit-identical to the previous one's (no structural phase, or a frame
+// without deformation) the normals and the crease splits are the same, and update() rewrites the
+// state columns only. Ownership: SurfaceBuffers owns its arrays (and scratch space kept across
+// frames); the renderer uploads them. Internal to render/: not used outside the renderer.
 #pragma once
 
 #include <array>
@@ -40,7 +39,7 @@ struct SurfaceBuffers {
   std::vector<V3> faceNormal, faceUnit, smoothNormal;
   std::vector<float> faceLength;
   std::vector<int> offsets, incident, firstCopy, nextCopy;
-  std::vector<std::uint8_t> smooth;
+  std::vector<std::uint8_t> smooth, wallFace;
 
   // brings the arrays to the snapshot: the states only when the geometry is
   // unchanged, else build(); potential: the state's first entry is potentialV
