@@ -368,7 +368,14 @@ class Simulation {
   std::vector<std::string> warnings() const;
   int removedTets() const { return removedTets_; }  // by rupture since the start
   int debrisTets() const { return debrisTets_; }  // of which cut loose as debris (rupture_debris.h)
-  int rebuilds() const { return rebuilds_; }      // swapped in so far
+  // pieces of alive tets the supports do not hold (loose, left by a cut: larger than the
+  // debris volume, or with debris kept), out of the structural phase's stiffness, and their
+  // tets; 0 without the structural phase
+  int loosePieces() const {
+    return model_->structural ? model_->structural->numFloatingIslands() : 0;
+  }
+  int looseTets() const { return model_->structural ? model_->structural->numIslandTets() : 0; }
+  int rebuilds() const { return rebuilds_; }                 // swapped in so far
   int rebuildsLate() const { return rebuildsLate_; }         // background: the frame loop waited
   double rebuildBuildMs() const { return rebuildBuildMs_; }  // sum over rebuilds
   double maxRebuildWaitMs() const { return rebuildWaitMs_; }

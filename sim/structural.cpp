@@ -2155,5 +2155,10 @@ const std::vector<double>& StructuralPhase::vonMisesPa() const { return impl_->v
 int StructuralPhase::numFreeDofs() const { return impl_->numFree; }
 double StructuralPhase::factorizationSeconds() const { return impl_->factorSeconds; }
 int StructuralPhase::numFloatingIslands() const { return impl_->islands; }
+int StructuralPhase::numIslandTets() const {
+  int n = 0;
+  for (const Piece& p : impl_->pieces) n += p.island ? p.tets : 0;
+  return n;
+}
 
 }  // namespace esim

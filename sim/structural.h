@@ -392,6 +392,7 @@ class StructuralPhase {
   const std::vector<double>& vonMisesPa() const;     // per tet (0 for removed tets)
   int numFreeDofs() const;                           // unknowns of K u = f
   int numFloatingIslands() const;                    // unsupported pieces (out of K)
+  int numIslandTets() const;                         // their alive tets
   double factorizationSeconds() const;  // wall time of the constructor's factorization [s]
                                         // (with the conversion if prepareForUpdates, and the
                                         // coarse method's K_c and its factorization)

@@ -41,12 +41,13 @@ std::pair<double, size_t> normalsAcrossTheEdge(const SurfaceSnapshot& s) {
   };
   const auto n0 = normal(0), n1 = normal(4);  // node 0 in triangle 0 and in triangle 1
   const double c = n0[0] * n1[0] + n0[1] * n1[1] + n0[2] * n1[2];
-  return {std::acos(std::min(1.0, c)) * 180 / 3.14159265358979, b.vertices.size() / kFloatsPerVertex};
+  return {std::acos(std::min(1.0, c)) * 180 / 3.14159265358979,
+          b.vertices.size() / kFloatsPerVertex};
 }
 
 TEST(SurfaceBuffers, TheFoldIsCreasedBeyondTheCreaseAngle) {
   const auto [smooth, smoothCount] = normalsAcrossTheEdge(fold(kCreaseAngleDeg - 5, 0));
-  EXPECT_LT(smooth, 0.05);  // one normal (to float rounding of |n| = 1)
+  EXPECT_LT(smooth, 0.05);     // one normal (to float rounding of |n| = 1)
   EXPECT_EQ(smoothCount, 4u);  // one GPU vertex per snapshot vertex
   const auto [creased, creasedCount] = normalsAcrossTheEdge(fold(kCreaseAngleDeg + 5, 0));
   EXPECT_NEAR(creased, kCreaseAngleDeg + 5, 1e-3);  // each corner its face's normal

@@ -572,6 +572,13 @@ TEST(Simulation, DebrisCutLooseGoesWithTheCutInEveryRebuildMode) {
     }
     EXPECT_GT(shared, 0) << "no loose piece hangs from the tissue: nothing to test";
     EXPECT_EQ(heldInTissue, 0);
+    // the run's count of loose pieces and their tets: the pieces off the clamp band
+    int loose = 0, looseTets = 0;
+    for (int p = 0; p < count; ++p) loose += !supported[p];
+    for (int t = 0; t < m.numTets(); ++t) looseTets += pieceOf[t] >= 0 && !supported[pieceOf[t]];
+    EXPECT_GT(loose, 0);
+    EXPECT_EQ(kept->loosePieces(), loose);
+    EXPECT_EQ(kept->looseTets(), looseTets);
     std::printf("debris kept: %d tissue nodes shared with loose pieces, %d held\n", shared,
                 heldInTissue);
   }
@@ -580,6 +587,8 @@ TEST(Simulation, DebrisCutLooseGoesWithTheCutInEveryRebuildMode) {
   EXPECT_GT(upd->debrisTets(), 0);
   EXPECT_LT(upd->debrisTets(), upd->removedTets());
   EXPECT_EQ(smallFloating(*upd), 0);
+  EXPECT_EQ(upd->loosePieces(), 0);
+  EXPECT_EQ(upd->looseTets(), 0);
   EXPECT_EQ(sync->debrisTets(), upd->debrisTets());
   EXPECT_EQ(syncRemoved, updRemoved);
   expectTheSameCut(*upd, *sync);

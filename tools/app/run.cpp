@@ -725,6 +725,8 @@ nlohmann::json timingExtra(const Setup& s, const FrameOutputs& out, const LoopRe
     extra["structural"] = {
         {"removed_tets", sim.removedTets()},
         {"debris_tets", sim.debrisTets()},
+        {"loose_pieces", sim.loosePieces()},
+        {"loose_tets", sim.looseTets()},
         {"alive_tets", sim.mesh().numAlive()},
         {"rebuild_mode", rebuildModeName(sc.solvers.rebuildMode)},
         {"rebuild_lag_frames", sc.solvers.rebuildLagFrames},
@@ -803,7 +805,11 @@ void summaryStructural(std::ostringstream& sum, const Simulation& sim, const Loo
       << " tets removed in " << sim.rebuilds() << " frames";
   if (sim.config().debrisVolumeM3 > 0)
     sum << ", " << sim.debrisTets() << " of them cut loose as debris";
-  sum << " (" << sim.mesh().numAlive() << " of " << sim.mesh().numTets() << " alive)\n";
+  sum << " (" << sim.mesh().numAlive() << " of " << sim.mesh().numTets() << " alive";
+  if (sim.loosePieces() > 0)
+    sum << "; " << sim.loosePieces() << " loose pieces of " << sim.looseTets()
+        << " tets left, stress-free and out of the stiffness";
+  sum << ")\n";
   if (!sim.config().phases.rupture || sim.rebuilds() == 0) return;
   const SimulationConfig& c = sim.config();
   sum << "  rebuild       " << sim.rebuilds() << " rebuilds, "
