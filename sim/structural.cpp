@@ -306,6 +306,10 @@ struct StructuralPhase::Impl {
   std::vector<int> pieceOf;   // per tet, -1 when removed from the mesh (islands' tets too)
   std::vector<Piece> pieces;  // by id; ids are never reused
   int livePieces = 0, islands = 0;
+  // per island: its nodes held only for it (placed), and its nodes in K or on a support
+  // (anchors); rebuilt at the next placeIslands after the islands changed
+  std::vector<std::vector<int>> islandOwn, islandAnchors;
+  bool islandsChanged = true;
   std::string failure;      // set when a removal left no piece held
   std::string noPieceHeld;  // its message (StructuralOptions::supportsNote in it)
   std::string notPositive;  // a factorization's, "not positive definite" (the same)
@@ -544,6 +548,7 @@ struct StructuralPhase::Impl {
   void dropRegion();
   enum class From { solution, region, reference };  // where outputs() takes D B u from
   void outputs(const std::vector<double>& ev, From from);
+  void placeIslands();
   std::vector<int> rowPattern(int dof, const Target& target);
   bool deleteRows(const std::vector<int>& dofs, const Target& target, cholmod_common& cm);
   // L D L' +- C C' on the target's factor: the vectorized kernel (ldl_updown.h) or, without
@@ -1446,6 +1451,45 @@ void StructuralPhase::Impl::outputs(const std::vector<double>& ev, From from) {
       vonMisesPa[t] = vonMises(stress[t]);
     }
   });
+  placeIslands();
+}
+
+// An island's own nodes (held at 0 in K u = f: a rigid motion of it is free) are displaced
+// by the mean displacement of its anchors (the nodes it shares with the held pieces, and its
+// supported nodes, at 0), a translation: a piece hanging by an edge or a node is drawn
+// attached where it hangs, one cut loose stays where it was (no anchor: 0). No tet in K has
+// such a node, so no stress depends on it.
+void StructuralPhase::Impl::placeIslands() {
+  if (islands == 0) return;
+  if (islandsChanged) {
+    islandOwn.clear();
+    islandAnchors.clear();
+    std::vector<int> slot(pieces.size(), -1);
+    for (size_t t = 0; t < tets.size(); ++t) {
+      const int p = pieceOf[t];
+      if (p < 0 || !pieces[p].island) continue;
+      if (slot[p] < 0) {
+        slot[p] = static_cast<int>(islandOwn.size());
+        islandOwn.emplace_back();
+        islandAnchors.emplace_back();
+      }
+      for (int v : tets[t])
+        (aliveTetsOfNode[v] > 0 || supportsOfNode.count(v) > 0 ? islandAnchors : islandOwn)[slot[p]]
+            .push_back(v);
+    }
+    for (auto* lists : {&islandOwn, &islandAnchors})
+      for (std::vector<int>& l : *lists) {
+        std::sort(l.begin(), l.end());
+        l.erase(std::unique(l.begin(), l.end()), l.end());
+      }
+    islandsChanged = false;
+  }
+  for (size_t k = 0; k < islandOwn.size(); ++k) {
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (int v : islandAnchors[k]) mean += u.segment<3>(3 * v);
+    if (!islandAnchors[k].empty()) mean /= static_cast<double>(islandAnchors[k].size());
+    for (int v : islandOwn[k]) u.segment<3>(3 * v) = mean;
+  }
 }
 
 // ---- removal ----
@@ -1583,6 +1627,7 @@ std::function<StructuralUpdateStats()> StructuralPhase::Impl::beginRemoval(
   }
   std::sort(leaving.begin(), leaving.end());
   stats.tetsIntoIslands = static_cast<int>(leaving.size()) - removedInK;
+  islandsChanged = true;  // (placeIslands: a pass over the tets, while islands are left)
 
   // the coarse matrix loses the leaving tets (under the held dofs before the removal)
   if (keepCoarse)

@@ -21,9 +21,10 @@
 // supports hold, so that it stays positive definite. A node without a tet in K is held at
 // 0; a node an island shares with a held piece moves with that piece (an island hanging
 // by an edge or a node does not clamp the tissue it hangs from). Islands carry no stress
-// (free expansion: stress and von Mises 0). The result equals a phase built on the mesh
-// without the islands' tets, on the nodes and tets of the held pieces.
-// Removal (removeTets) updates the factor instead of rebuilding it: the rows of the
+// (free expansion: stress and von Mises 0); an island's own nodes are displaced by the mean
+// displacement of the nodes it hangs by (a translation, for the picture; 0 if none). The result
+// equals a phase built on the mesh without the islands' tets, on the nodes and tets of the held
+// pieces. Removal (removeTets) updates the factor instead of rebuilding it: the rows of the
 // components it newly holds are deleted (identity rows, as cholmod_rowdel makes them, but all
 // in one multiple-rank cholmod_updown by L's columns at those rows: deleteRows), then
 // the removed tets' stiffness on the components still free is subtracted as a low-rank
