@@ -506,9 +506,12 @@ TEST(Simulation, UpdateModeCutsLikeTheSynchronousRebuild) {
 // it lies within the clamp band of the lowest node (held by a support)
 struct AlivePiece {
   double volumeM3 = 0;
-  bool supported = false;
+  bool supported = false;  // a node in the clamp band
+  int tets = 0;
 };
-std::vector<AlivePiece> alivePieces(const TetMesh& m, double clampBandM) {
+// the face-connected pieces of the alive tets; pieceOfTet: each tet's (-1 removed)
+std::vector<AlivePiece> alivePieces(const TetMesh& m, double clampBandM,
+                                    std::vector<int>* pieceOfTet = nullptr) {
   const auto geo = tetGeometry(m);
   double zMin = INFINITY;
   for (const Vec3& p : m.nodes) zMin = std::min(zMin, p.z());
@@ -518,8 +521,10 @@ std::vector<AlivePiece> alivePieces(const TetMesh& m, double clampBandM) {
   for (int t = 0; t < m.numTets(); ++t) {
     if (pieceOf[t] < 0) continue;
     pieces[pieceOf[t]].volumeM3 += geo[t].volume;
+    ++pieces[pieceOf[t]].tets;
     for (int v : m.tets[t]) pieces[pieceOf[t]].supported |= m.nodes[v].z() <= zMin + clampBandM;
   }
+  if (pieceOfTet) *pieceOfTet = pieceOf;
   return pieces;
 }
 
@@ -554,16 +559,12 @@ TEST(Simulation, DebrisCutLooseGoesWithTheCutInEveryRebuildMode) {
     const double band = kept->config().clampBandM;
     double zMin = INFINITY;
     for (const Vec3& p : m.nodes) zMin = std::min(zMin, p.z());
-    int count = 0;
-    const std::vector<int> pieceOf = tetPieces(m, &count);
-    std::vector<std::uint8_t> supported(count, 0);
-    for (int t = 0; t < m.numTets(); ++t)
-      for (int v : m.tets[t])
-        if (pieceOf[t] >= 0 && m.nodes[v].z() <= zMin + band) supported[pieceOf[t]] = 1;
+    std::vector<int> pieceOf;
+    const std::vector<AlivePiece> pieces = alivePieces(m, band, &pieceOf);
     std::vector<std::uint8_t> inTissue(m.numNodes(), 0), inLoose(m.numNodes(), 0);
     for (int t = 0; t < m.numTets(); ++t)
       if (pieceOf[t] >= 0)
-        for (int v : m.tets[t]) (supported[pieceOf[t]] ? inTissue : inLoose)[v] = 1;
+        for (int v : m.tets[t]) (pieces[pieceOf[t]].supported ? inTissue : inLoose)[v] = 1;
     int shared = 0, heldInTissue = 0;
     const Eigen::VectorXd& u = kept->state().displacementM;
     for (int v = 0; v < m.numNodes(); ++v) {
@@ -574,8 +575,10 @@ TEST(Simulation, DebrisCutLooseGoesWithTheCutInEveryRebuildMode) {
     EXPECT_EQ(heldInTissue, 0);
     // the run's count of loose pieces and their tets: the pieces off the clamp band
     int loose = 0, looseTets = 0;
-    for (int p = 0; p < count; ++p) loose += !supported[p];
-    for (int t = 0; t < m.numTets(); ++t) looseTets += pieceOf[t] >= 0 && !supported[pieceOf[t]];
+    for (const AlivePiece& p : pieces) {
+      loose += !p.supported;
+      looseTets += p.supported ? 0 : p.tets;
+    }
     EXPECT_GT(loose, 0);
     EXPECT_EQ(kept->loosePieces(), loose);
     EXPECT_EQ(kept->looseTets(), looseTets);
