@@ -98,6 +98,24 @@ TEST(RunReport, StageSumsMatchTheFrameTotals) {
   EXPECT_DOUBLE_EQ(trace["traceEvents"][10]["ts"].get<double>(), 40000.0);  // frame 1's start
 }
 
+// CI once saw a frame of 33.33334 ms printed 33.3333 with over_budget 1: a row's flag is
+// judged on the time as printed, and the JSON's count agrees with the rows
+TEST(RunReport, AFrameAtTheBudgetIsJudgedAsItIsPrinted) {
+  using S = Stage;
+  std::vector<FrameRecord> r;
+  r.push_back(record(0, {{S::Heat, 20.0}, {S::Render, 13.33334}}));  // prints 33.3333
+  r.push_back(record(1, {{S::Heat, 20.0}, {S::Render, 13.33336}}));  // prints 33.3334
+  r.push_back(record(2, {{S::Heat, 20.0}, {S::Render, 13.0}}));
+  EXPECT_FALSE(overBudget(r[0]));
+  EXPECT_TRUE(overBudget(r[1]));
+  EXPECT_FALSE(overBudget(r[2]));
+  const std::string csv = timingCsv(r);
+  EXPECT_NE(csv.find(",33.3333,0,"), std::string::npos) << csv;
+  EXPECT_NE(csv.find(",33.3334,1,"), std::string::npos) << csv;
+  EXPECT_EQ(timingJson(r, {})["frames_over_budget"].get<int>(), 1);
+  test::checkTimingReports(csv, timingJson(r, {}), chromeTrace(r, {0, 40000, 80000}), 1e-9 + 1e-4);
+}
+
 TEST(RunReport, CsvHasTheColumnsThePlotNeeds) {
   const std::string csv = timingCsv(structuralFrames());
   std::string header;

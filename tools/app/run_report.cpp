@@ -75,6 +75,10 @@ double interactiveMs(const FrameRecord& r) {
   return r.physicsMs() + r.ms[static_cast<int>(Stage::Render)];
 }
 
+bool overBudget(const FrameRecord& r) {
+  return std::round(interactiveMs(r) * 1e4) / 1e4 > kBudgetMs;
+}
+
 namespace {
 
 void timingCsvHeader(std::ostream& os, const std::vector<Stage>& present, bool structural) {
@@ -99,7 +103,7 @@ void timingCsvRow(std::ostream& os, const FrameRecord& r, const std::vector<Stag
       os << ',' << r.ms[i];
   }
   const double im = interactiveMs(r);
-  os << ',' << im << ',' << (im > kBudgetMs ? 1 : 0) << ',' << (r.generatorOn ? 1 : 0) << ','
+  os << ',' << im << ',' << (overBudget(r) ? 1 : 0) << ',' << (r.generatorOn ? 1 : 0) << ','
      << r.contactNodes << ',';
   os.precision(6);
   os << r.powerW << ',' << r.maxTemperatureC;
@@ -189,7 +193,7 @@ nlohmann::json timingJson(const std::vector<FrameRecord>& records, const nlohman
   for (const auto& r : records) {
     physics.push_back(r.physicsMs());
     interactive.push_back(interactiveMs(r));
-    over += interactiveMs(r) > kBudgetMs;
+    over += overBudget(r);
   }
   j["physics_total"] = statsJson(seriesStats(physics));
   j["interactive_total"] = statsJson(seriesStats(interactive));
