@@ -115,6 +115,38 @@ double vonMises(const VoigtStress& s) {
   return std::sqrt(0.5 * (a * a + b * b + c * c) + 3 * (s[3] * s[3] + s[4] * s[4] + s[5] * s[5]));
 }
 
+Eigen::Matrix3Xd rigidFollowDisplacement(const Eigen::Matrix3Xd& anchorRestM,
+                                         const Eigen::Matrix3Xd& anchorDispM,
+                                         const Eigen::Matrix3Xd& restM) {
+  ESIM_CHECK(anchorRestM.cols() == anchorDispM.cols());
+  const Eigen::Index a = anchorRestM.cols();
+  if (a == 0) return Eigen::Matrix3Xd::Zero(3, restM.cols());
+  const Eigen::Vector3d centroid = anchorRestM.rowwise().mean();
+  const Eigen::Vector3d meanDisp = anchorDispM.rowwise().mean();
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
+  if (a >= 2) {
+    const Eigen::Matrix3Xd centred = anchorRestM.colwise() - centroid;
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> spread(centred * centred.transpose());
+    const Eigen::Vector3d extent = spread.eigenvalues().cwiseMax(0).cwiseSqrt();  // ascending
+    if (a >= 3 && extent(1) > kRigidFollowLineRatio * extent(2)) {
+      const Eigen::Matrix3Xd moved = anchorRestM + anchorDispM;
+      rotation = Eigen::umeyama(anchorRestM, moved, false).topLeftCorner<3, 3>();
+    } else if (extent(2) > 0) {
+      // the line: the outermost anchors along its direction
+      const Eigen::VectorXd along = spread.eigenvectors().col(2).transpose() * centred;
+      Eigen::Index lo = 0, hi = 0;
+      along.minCoeff(&lo);
+      along.maxCoeff(&hi);
+      const Eigen::Vector3d from = anchorRestM.col(hi) - anchorRestM.col(lo);
+      const Eigen::Vector3d to = from + anchorDispM.col(hi) - anchorDispM.col(lo);
+      if (to.squaredNorm() > 0)
+        rotation = Eigen::Quaterniond::FromTwoVectors(from, to).toRotationMatrix();
+    }
+  }
+  rotation -= Eigen::Matrix3d::Identity();
+  return (rotation * (restM.colwise() - centroid)).colwise() + meanDisp;
+}
+
 Eigen::Matrix<double, 12, 12> elasticTetStiffness(const TetGeometry& g, double youngsModulusPa,
                                                   double poissonRatio) {
   const Mat6x12 b = strainMatrix(g);
@@ -1454,11 +1486,11 @@ void StructuralPhase::Impl::outputs(const std::vector<double>& ev, From from) {
   placeIslands();
 }
 
-// An island's own nodes (held at 0 in K u = f: a rigid motion of it is free) are displaced
-// by the mean displacement of its anchors (the nodes it shares with the held pieces, and its
-// supported nodes, at 0), a translation: a piece hanging by an edge or a node is drawn
-// attached where it hangs, one cut loose stays where it was (no anchor: 0). No tet in K has
-// such a node, so no stress depends on it.
+// An island's own nodes (held at 0 in K u = f: a rigid motion of it is free) follow the rigid
+// motion of its anchors (the nodes it shares with the held pieces, and its supported nodes,
+// at 0; rigidFollowDisplacement): a piece hanging by an edge or a node is drawn attached where
+// it hangs and turned with it, one cut loose stays where it was (no anchor: 0). No tet in K
+// has such a node, so no stress depends on it.
 void StructuralPhase::Impl::placeIslands() {
   if (islands == 0) return;
   if (islandsChanged) {
@@ -1485,10 +1517,16 @@ void StructuralPhase::Impl::placeIslands() {
     islandsChanged = false;
   }
   for (size_t k = 0; k < islandOwn.size(); ++k) {
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (int v : islandAnchors[k]) mean += u.segment<3>(3 * v);
-    if (!islandAnchors[k].empty()) mean /= static_cast<double>(islandAnchors[k].size());
-    for (int v : islandOwn[k]) u.segment<3>(3 * v) = mean;
+    const std::vector<int>& anchors = islandAnchors[k];
+    const std::vector<int>& own = islandOwn[k];
+    Eigen::Matrix3Xd rest(3, anchors.size()), disp(3, anchors.size()), ownRest(3, own.size());
+    for (size_t i = 0; i < anchors.size(); ++i) {
+      rest.col(i) = nodes[anchors[i]];
+      disp.col(i) = u.segment<3>(3 * anchors[i]);
+    }
+    for (size_t i = 0; i < own.size(); ++i) ownRest.col(i) = nodes[own[i]];
+    const Eigen::Matrix3Xd d = rigidFollowDisplacement(rest, disp, ownRest);
+    for (size_t i = 0; i < own.size(); ++i) u.segment<3>(3 * own[i]) = d.col(i);
   }
 }
 

@@ -21,8 +21,8 @@
 // supports hold, so that it stays positive definite. A node without a tet in K is held at
 // 0; a node an island shares with a held piece moves with that piece (an island hanging
 // by an edge or a node does not clamp the tissue it hangs from). Islands carry no stress
-// (free expansion: stress and von Mises 0); an island's own nodes are displaced by the mean
-// displacement of the nodes it hangs by (a translation, for the picture; 0 if none). The result
+// (free expansion: stress and von Mises 0); an island's own nodes follow the rigid motion of the
+// nodes it hangs by (rigidFollowDisplacement, for the picture; 0 if none). The result
 // equals a phase built on the mesh without the islands' tets, on the nodes and tets of the held
 // pieces. Removal (removeTets) updates the factor instead of rebuilding it: the rows of the
 // components it newly holds are deleted (identity rows, as cholmod_rowdel makes them, but all
@@ -321,6 +321,20 @@ using VoigtStress = std::array<double, 6>;  // xx, yy, zz, yz, xz, xy [Pa]
 
 // von Mises stress of a Voigt stress [Pa]
 double vonMises(const VoigtStress& s);
+
+// How an island (a piece out of K, whose rigid motion K leaves free) is drawn: the rigid
+// motion that carries its anchors (the nodes it hangs by, at rest positions anchorRestM) by
+// their displacements anchorDispM (3 x a), applied to the rest positions restM (3 x m);
+// returns their displacements [m], (R - I)(x - c) + d with c the anchors' centroid and d
+// their mean displacement. R: three anchors or more, not on a line, the least-squares
+// rotation (Eigen::umeyama without scaling); two, or anchors on a line (the second principal
+// extent under kRigidFollowLineRatio of the first), the smallest rotation that turns the
+// line through the two outermost anchors (a rotation about that line is not determined);
+// one: I, a translation; none: 0 (a piece cut loose stays where it was).
+constexpr double kRigidFollowLineRatio = 0.05;
+Eigen::Matrix3Xd rigidFollowDisplacement(const Eigen::Matrix3Xd& anchorRestM,
+                                         const Eigen::Matrix3Xd& anchorDispM,
+                                         const Eigen::Matrix3Xd& restM);
 
 struct TetGeometry;
 // P1 elasticity stiffness of one tet, V_e B_e^T D B_e [N/m] (12 x 12, node-major x, y, z

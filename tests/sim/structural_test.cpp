@@ -386,6 +386,107 @@ TEST(Structural, PieceHangingByANodeLeavesTheNodeFree) {
     EXPECT_EQ(phase.displacementM().segment<3>(3 * v), phase.displacementM().segment<3>(3 * 3));
 }
 
+// ---- rigidFollowDisplacement: how an island is drawn ----
+
+Eigen::Matrix3Xd columns(std::initializer_list<Vec3> points) {
+  Eigen::Matrix3Xd m(3, points.size());
+  int i = 0;
+  for (const Vec3& p : points) m.col(i++) = p;
+  return m;
+}
+
+// the displacements of the points p under x -> R x + t
+Eigen::Matrix3Xd rigidDisplacement(const Eigen::Matrix3d& r, const Vec3& t,
+                                   const Eigen::Matrix3Xd& p) {
+  return ((r - Eigen::Matrix3d::Identity()) * p).colwise() + t;
+}
+
+// every pairwise distance of the displaced points against the rest ones: 0 for a rigid motion
+double largestDistanceChange(const Eigen::Matrix3Xd& rest, const Eigen::Matrix3Xd& disp) {
+  const Eigen::Matrix3Xd moved = rest + disp;
+  double worst = 0;
+  for (Eigen::Index i = 0; i < rest.cols(); ++i)
+    for (Eigen::Index j = 0; j < i; ++j)
+      worst = std::max(worst, std::abs((moved.col(i) - moved.col(j)).norm() -
+                                       (rest.col(i) - rest.col(j)).norm()));
+  return worst;
+}
+
+TEST(RigidFollow, ThreeAnchorsOrMoreGiveTheirRigidMotion) {
+  const Eigen::Matrix3d r = Eigen::AngleAxisd(0.3, Vec3(1, 2, 3).normalized()).toRotationMatrix();
+  const Vec3 t(1e-3, -2e-3, 5e-4);
+  const Eigen::Matrix3Xd own = columns({Vec3(0.02, 0.01, 0.03), Vec3(-0.01, 0.0, 0.005)});
+  for (const Eigen::Matrix3Xd& anchors :
+       {columns({Vec3(0, 0, 0), Vec3(0.01, 0, 0), Vec3(0, 0.01, 0)}),
+        columns(
+            {Vec3(0.01, 0.02, 0.0), Vec3(0.02, 0, 0), Vec3(0, 0.01, 0.01), Vec3(0, 0, 0.03)})}) {
+    const Eigen::Matrix3Xd d =
+        rigidFollowDisplacement(anchors, rigidDisplacement(r, t, anchors), own);
+    EXPECT_LT((d - rigidDisplacement(r, t, own)).norm(), 1e-15);
+  }
+}
+
+// a line's rotation about itself is not determined: the smallest rotation that turns it,
+// whether two anchors or several nearly on it (1 % off it, under kRigidFollowLineRatio)
+TEST(RigidFollow, AnchorsOnALineTurnItTheShortestWay) {
+  const Vec3 a(0.01, 0, 0), b(0.01, 0.02, 0);                                          // along y
+  const Eigen::Matrix3d r = Eigen::AngleAxisd(0.2, Vec3(0, 0, 1)).toRotationMatrix();  // about z
+  const Vec3 t(0, 0, 1e-3);
+  const Eigen::Matrix3Xd own = columns({Vec3(0.02, 0.01, 0), Vec3(0.01, 0.01, 0.01)});
+  const Eigen::Matrix3Xd expected = rigidDisplacement(r, t, own);
+  for (const Eigen::Matrix3Xd& anchors :
+       {columns({a, b}), columns({a, b, 0.5 * (a + b) + Vec3(2e-4, 0, 0)})}) {
+    SCOPED_TRACE(anchors.cols());
+    // the anchors turned about z; the one off the line, if any, also turned about the line
+    // first (0 or 0.4 rad): it moves their centroid a little, not the line
+    for (const double aboutLine : {0.0, 0.4}) {
+      Eigen::Matrix3Xd turned = anchors;
+      for (Eigen::Index i = 2; i < anchors.cols(); ++i)
+        turned.col(i) = a + Eigen::AngleAxisd(aboutLine, Vec3(0, 1, 0)) * (anchors.col(i) - a);
+      const Eigen::Matrix3Xd disp = rigidDisplacement(r, t, turned) + (turned - anchors);
+      const Eigen::Matrix3Xd d = rigidFollowDisplacement(anchors, disp, own);
+      EXPECT_LT(largestDistanceChange(own, d), 1e-15);
+      // the line turned as r turned it; the centroid moved by r (p' - p) / 3 more, p the
+      // anchor off the line
+      const Vec3 shift =
+          anchors.cols() == 2 ? Vec3::Zero() : Vec3(r * (turned.col(2) - anchors.col(2)) / 3.0);
+      EXPECT_LT((d - (expected.colwise() + shift)).norm(), 1e-15);
+      if (aboutLine > 0 && anchors.cols() == 3) {
+        EXPECT_GT(shift.norm(), 1e-5);
+      }
+    }
+  }
+}
+
+TEST(RigidFollow, OneAnchorTranslatesNoneLeavesInPlace) {
+  const Eigen::Matrix3Xd own = columns({Vec3(0.02, 0.01, 0), Vec3(0.01, 0.01, 0.01)});
+  const Vec3 d(1e-3, 2e-3, -3e-3);
+  const Eigen::Matrix3Xd moved = rigidFollowDisplacement(columns({Vec3(0, 0, 0)}), d, own);
+  for (int i = 0; i < 2; ++i) EXPECT_EQ(Vec3(moved.col(i)), d);
+  EXPECT_EQ(rigidFollowDisplacement(Eigen::Matrix3Xd(3, 0), Eigen::Matrix3Xd(3, 0), own),
+            Eigen::Matrix3Xd::Zero(3, 2));
+}
+
+// anchors strained (as the tissue's are): the island still moves rigidly, its points keep
+// their distances; and the motion fits the anchors: their own fitted displacement is within
+// the strain's size of theirs
+TEST(RigidFollow, StrainedAnchorsStillMoveTheIslandRigidly) {
+  const Eigen::Matrix3Xd anchors =
+      columns({Vec3(0, 0, 0), Vec3(0.01, 0, 0), Vec3(0, 0.01, 0), Vec3(0.01, 0.01, 0.005)});
+  const Eigen::Matrix3Xd own =
+      columns({Vec3(0.005, 0.005, 0.01), Vec3(0.0, 0.01, 0.01), Vec3(0.01, 0.0, 0.012)});
+  const Eigen::Matrix3d r = Eigen::AngleAxisd(0.1, Vec3(0, 1, 1).normalized()).toRotationMatrix();
+  Eigen::Matrix3Xd disp = rigidDisplacement(r, Vec3(1e-3, 0, 0), anchors);
+  Eigen::Matrix3Xd strain = Eigen::Matrix3Xd::Zero(3, 4);
+  strain.row(0) = 1e-2 * anchors.row(0);  // 1 % stretched along x
+  disp += strain;
+  const Eigen::Matrix3Xd d = rigidFollowDisplacement(anchors, disp, own);
+  EXPECT_LT(largestDistanceChange(own, d), 1e-15);
+  const Eigen::Matrix3Xd fit = rigidFollowDisplacement(anchors, disp, anchors);
+  EXPECT_LT((fit - disp).cwiseAbs().maxCoeff(), 1e-4);  // the stretch is 1e-4 m at most
+  EXPECT_GT((fit - disp).cwiseAbs().maxCoeff(), 1e-6);  // ... and not fitted away
+}
+
 TEST(Structural, RejectsBadInput) {
   const TetMesh mesh = distortedSlab();
   auto message = [](auto&& f) {
@@ -851,11 +952,18 @@ TEST(StructuralRemoval, PieceHangingByAnEdgeLeavesKAndTheEdgeFree) {
     EXPECT_EQ(fresh.numFloatingIslands(), 0);
     EXPECT_EQ(phase.numFreeDofs(), fresh.numFreeDofs());
     Eigen::VectorXd inK = phase.displacementM();
-    // B's own nodes 4 and 5 are drawn moved by the mean of its anchors: node 2 (supported, 0)
-    // and node 3
+    // B's own nodes 4 and 5 are drawn turned with the edge it hangs by, from node 2
+    // (supported, 0) to node 3: each keeps its distance to the edge's line and its place
+    // along it (from the edge's midpoint)
+    const auto at = [&](int v) -> Vec3 { return mesh.nodes[v] + inK.segment<3>(3 * v); };
     for (int v : {4, 5}) {
-      EXPECT_LT((inK.segment<3>(3 * v) - 0.5 * inK.segment<3>(3 * 3)).norm(),
-                1e-15 * inK.segment<3>(3 * 3).norm());
+      const Vec3 axis0 = (mesh.nodes[3] - mesh.nodes[2]).normalized();
+      const Vec3 axis1 = (at(3) - at(2)).normalized();
+      const Vec3 r0 = mesh.nodes[v] - 0.5 * (mesh.nodes[2] + mesh.nodes[3]);
+      const Vec3 r1 = at(v) - 0.5 * (at(2) + at(3));
+      EXPECT_NEAR(r1.dot(axis1), r0.dot(axis0), 1e-12);
+      EXPECT_NEAR(r1.cross(axis1).norm(), r0.cross(axis0).norm(), 1e-12);
+      EXPECT_GT(inK.segment<3>(3 * v).norm(), 0.0);
       inK.segment<3>(3 * v).setZero();  // held at 0 in the fresh build, which has no B
     }
     EXPECT_LT(relativeDifference(inK, fresh.displacementM()), 1e-12);
