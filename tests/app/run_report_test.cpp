@@ -116,6 +116,20 @@ TEST(RunReport, AFrameAtTheBudgetIsJudgedAsItIsPrinted) {
   test::checkTimingReports(csv, timingJson(r, {}), chromeTrace(r, {0, 40000, 80000}), 1e-9 + 1e-4);
 }
 
+// frame periods from the times the frames were done (the first from the loop's start), and
+// those over 1000 / 30 ms counted
+TEST(RunReport, PeriodsOverTheBudgetAreCounted) {
+  const std::vector<double> ms = framePeriodsMs({40000, 60000, 93000, 130000});
+  ASSERT_EQ(ms.size(), 4u);
+  EXPECT_NEAR(ms[0], 40.0, 1e-12);
+  EXPECT_NEAR(ms[1], 20.0, 1e-12);
+  EXPECT_NEAR(ms[2], 33.0, 1e-12);
+  EXPECT_NEAR(ms[3], 37.0, 1e-12);
+  EXPECT_EQ(countOverBudget(ms), 2);
+  EXPECT_EQ(countOverBudget({}), 0);
+  EXPECT_EQ(countOverBudget({33.3333, 33.3334}), 1);
+}
+
 TEST(RunReport, CsvHasTheColumnsThePlotNeeds) {
   const std::string csv = timingCsv(structuralFrames());
   std::string header;

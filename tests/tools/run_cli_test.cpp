@@ -734,6 +734,20 @@ TEST(RunCli, TheDrawThreadGivesTheSameFramesAndReportsThePeriod) {
     EXPECT_EQ(timing["frame_period"]["frames_ran"].get<int>(), 12);
     EXPECT_EQ(timing["frame_latency"]["frames_ran"].get<int>(), 12);
     EXPECT_GT(timing["frame_period"]["p50_ms"].get<double>(), 0.0);
+    // the periods over the frame's budget: none if the longest is under it, at least half if
+    // the median is over it; the summary gives the same count
+    const int slow = timing["frame_period"]["frames_over_budget"].get<int>();
+    EXPECT_GE(slow, 0);
+    EXPECT_LE(slow, 12);
+    if (timing["frame_period"]["max_ms"].get<double>() <= 1000.0 / 30.0) {
+      EXPECT_EQ(slow, 0);
+    }
+    if (timing["frame_period"]["p50_ms"].get<double>() > 1000.0 / 30.0) {
+      EXPECT_GE(slow, 6);
+    }
+    EXPECT_NE(readFile(out / "summary.txt")
+                  .find("(frames done, " + std::to_string(slow) + " of 12 over 33.3 ms;"),
+              std::string::npos);
     EXPECT_GT(timing["structural"]["removed_tets"].get<int>(), 0);  // a cut: the mesh changes
     EXPECT_GE(timing["structural"]["structural_refactorizations"].get<int>(), 0);
     const int debris = timing["structural"]["debris_tets"].get<int>();

@@ -697,7 +697,9 @@ nlohmann::json timingExtra(const Setup& s, const FrameOutputs& out, const LoopRe
   // frames delivered: with the drawing on its own thread, the period is what a viewer sees,
   // the latency what a hand on the tool would (physics + render is each frame's own work)
   extra["draw_thread"] = loop.pipelined;
-  extra["frame_period"] = statsJson(seriesStats(framePeriodsMs(loop.frameDoneUs)));
+  const std::vector<double> periods = framePeriodsMs(loop.frameDoneUs);
+  extra["frame_period"] = statsJson(seriesStats(periods));
+  extra["frame_period"]["frames_over_budget"] = countOverBudget(periods);
   extra["frame_period"]["note"] =
       "wall time between frames whose outputs are done (video frame handed to the encoder)";
   extra["frame_latency"] =
@@ -787,12 +789,16 @@ void summaryStages(std::ostringstream& sum, const LoopResult& loop, const nlohma
                 inter.p50Ms, inter.p95Ms, timing["frames_over_budget"].get<int>(),
                 static_cast<int>(loop.records.size()));
   sum << line;
-  const StageStats period = seriesStats(framePeriodsMs(loop.frameDoneUs));
+  const std::vector<double> periods = framePeriodsMs(loop.frameDoneUs);
+  const StageStats period = seriesStats(periods);
   const StageStats latency = seriesStats(frameLatenciesMs(loop.frameStartUs, loop.frameDoneUs));
-  std::snprintf(line, sizeof line,
-                "  period         %10.3f %10.3f   (frames done; latency %.1f / %.1f ms%s)\n",
-                period.p50Ms, period.p95Ms, latency.p50Ms, latency.p95Ms,
-                loop.pipelined ? "; drawn on a thread while the next frame is simulated" : "");
+  std::snprintf(
+      line, sizeof line,
+      "  period         %10.3f %10.3f   (frames done, %d of %d over 33.3 ms; latency %.1f / "
+      "%.1f ms%s)\n",
+      period.p50Ms, period.p95Ms, countOverBudget(periods), static_cast<int>(periods.size()),
+      latency.p50Ms, latency.p95Ms,
+      loop.pipelined ? "; drawn on a thread while the next frame is simulated" : "");
   sum << line;
 }
 

@@ -242,6 +242,11 @@ std::vector<double> framePeriodsMs(const std::vector<double>& doneUs) {
   return ms;
 }
 
+int countOverBudget(const std::vector<double>& ms) {
+  return static_cast<int>(
+      std::count_if(ms.begin(), ms.end(), [](double x) { return x > kBudgetMs; }));
+}
+
 std::vector<double> frameLatenciesMs(const std::vector<double>& startUs,
                                      const std::vector<double>& doneUs) {
   std::vector<double> ms;

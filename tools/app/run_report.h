@@ -78,6 +78,8 @@ nlohmann::json chromeTrace(const std::vector<FrameRecord>& records,
 // the time between frames whose outputs are done (the first from the loop's start), and
 // each frame's latency from the start of its physics to its outputs done [ms]
 std::vector<double> framePeriodsMs(const std::vector<double>& doneUs);
+// how many of these times [ms] (frame periods, say) are over the 30 Hz budget
+int countOverBudget(const std::vector<double>& ms);
 std::vector<double> frameLatenciesMs(const std::vector<double>& startUs,
                                      const std::vector<double>& doneUs);
 
