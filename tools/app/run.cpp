@@ -789,15 +789,16 @@ void summaryStages(std::ostringstream& sum, const LoopResult& loop, const nlohma
                 inter.p50Ms, inter.p95Ms, timing["frames_over_budget"].get<int>(),
                 static_cast<int>(loop.records.size()));
   sum << line;
-  const std::vector<double> periods = framePeriodsMs(loop.frameDoneUs);
-  const StageStats period = seriesStats(periods);
-  const StageStats latency = seriesStats(frameLatenciesMs(loop.frameStartUs, loop.frameDoneUs));
+  // the period and latency as timing.json has them (timingExtra)
+  const nlohmann::json& period = timing["frame_period"];
+  const nlohmann::json& latency = timing["frame_latency"];
   std::snprintf(
       line, sizeof line,
       "  period         %10.3f %10.3f   (frames done, %d of %d over 33.3 ms; latency %.1f / "
       "%.1f ms%s)\n",
-      period.p50Ms, period.p95Ms, countOverBudget(periods), static_cast<int>(periods.size()),
-      latency.p50Ms, latency.p95Ms,
+      period["p50_ms"].get<double>(), period["p95_ms"].get<double>(),
+      period["frames_over_budget"].get<int>(), period["frames_ran"].get<int>(),
+      latency["p50_ms"].get<double>(), latency["p95_ms"].get<double>(),
       loop.pipelined ? "; drawn on a thread while the next frame is simulated" : "");
   sum << line;
 }

@@ -76,7 +76,8 @@ double interactiveMs(const FrameRecord& r) {
 }
 
 bool overBudget(const FrameRecord& r) {
-  return std::round(interactiveMs(r) * 1e4) / 1e4 > kBudgetMs;
+  const double scale = std::pow(10.0, kCsvMsDecimals);
+  return std::round(interactiveMs(r) * scale) / scale > kBudgetMs;
 }
 
 namespace {
@@ -91,7 +92,7 @@ void timingCsvHeader(std::ostream& os, const std::vector<Stage>& present, bool s
 void timingCsvRow(std::ostream& os, const FrameRecord& r, const std::vector<Stage>& present,
                   bool structural) {
   os.setf(std::ios::fixed);
-  os.precision(4);
+  os.precision(kCsvMsDecimals);
   os << r.frame << ',' << r.timeS;
   for (Stage s : present) {
     const int i = static_cast<int>(s);
@@ -108,7 +109,7 @@ void timingCsvRow(std::ostream& os, const FrameRecord& r, const std::vector<Stag
   os.precision(6);
   os << r.powerW << ',' << r.maxTemperatureC;
   if (structural) {
-    os.precision(4);
+    os.precision(kCsvMsDecimals);
     os << ',' << r.rebuildWaitMs;
     os.precision(6);
     os << ',' << r.maxVonMisesPa << ',' << r.removedTets;

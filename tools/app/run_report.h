@@ -32,8 +32,9 @@ nlohmann::json statsJson(const StageStats& stats);
 double interactiveMs(const FrameRecord& record);
 
 constexpr double kBudgetMs = 1000.0 / 30.0;
+constexpr int kCsvMsDecimals = 4;  // timing.csv's times [ms]
 // whether a frame is over the budget, judged on its interactive time as timing.csv prints
-// it (4 decimals), so that a row's over_budget never contradicts its interactive_ms
+// it (kCsvMsDecimals), so that a row's over_budget never contradicts its interactive_ms
 bool overBudget(const FrameRecord& record);
 
 // timing.csv: frame,time_s,<stage columns>,interactive_ms,over_budget,generator_on,contacts,
