@@ -68,6 +68,9 @@ void validateRenderOptions(const RenderOptions& o) {
   ESIM_VERIFY(std::isfinite(o.lightIntensity) && o.lightIntensity >= 0 && o.lightIntensity <= 4,
               "look.light_intensity: " + std::to_string(o.lightIntensity) +
                   " is outside [0, 4] (1 = the default lights)");
+  ESIM_VERIFY(o.cutWallNormalPasses >= 0 && o.cutWallNormalPasses <= kMaxCutWallNormalPasses,
+              "look.cut_wall_smoothing: " + std::to_string(o.cutWallNormalPasses) +
+                  " is outside [0, " + std::to_string(kMaxCutWallNormalPasses) + "]");
   ESIM_VERIFY(o.backend == "osmesa" || o.backend == "egl",
               "RenderOptions::backend: '" + o.backend + "' is unknown, expected 'osmesa' or 'egl'");
 }
@@ -580,6 +583,7 @@ const std::vector<std::uint8_t>& Renderer::render(const SurfaceSnapshot& snap) {
   double prepareMs = 0;
   if (snap.numTriangles() > 0) {
     const auto tPrep = Clock::now();
+    m.surface.cutWallNormalPasses = o.cutWallNormalPasses;
     m.surface.update(snap, o.tMinC, o.look == "potential");
     prepareMs = msSince(tPrep);
     m.drawSurface(view, snap.tool);

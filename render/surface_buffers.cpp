@@ -2,7 +2,9 @@
 // (see surface_buffers.h).
 #include "render/surface_buffers.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <cstring>
 
 #include "render/renderer.h"
@@ -104,13 +106,18 @@ void SurfaceBuffers::build(const SurfaceSnapshot& snap, float tDefaultC, bool po
       smooth[v] = 1;
     }
   }
-  // 3b. per corner
+  // 3b. the cut walls' normals, averaged over their neighbours (the corners of wall faces
+  //     take them; see surface_buffers.h)
+  const bool wallNormals = smoothCutWallNormals(snap);
+  // 3c. per corner
   for (int t = 0; t < nt; ++t) {
     const V3& nf = faceUnit[t];
     for (int k = 0; k < 3; ++k) {
       const std::uint32_t v = snap.triangles[3 * t + k];
       V3 n = smoothNormal[v];
-      if (!smooth[v]) {
+      if (wallNormals && wallFace[t] && hasWallNormal[v]) {
+        n = wallNormal[v];
+      } else if (!smooth[v]) {
         V3 sum{0, 0, 0};
         for (int i = offsets[v]; i < offsets[v + 1]; ++i)
           if (joins(incident[i], t)) sum = add(sum, faceNormal[incident[i]]);
@@ -135,6 +142,57 @@ void SurfaceBuffers::build(const SurfaceSnapshot& snap, float tDefaultC, bool po
       indices[3 * t + k] = static_cast<std::uint32_t>(found);
     }
   }
+}
+
+bool SurfaceBuffers::smoothCutWallNormals(const SurfaceSnapshot& snap) {
+  if (cutWallNormalPasses <= 0) return false;
+  const int nv = snap.numVertices();
+  const int nt = snap.numTriangles();
+  // each vertex's normal over its wall faces (area-weighted), and its neighbours through
+  // them (CSR, ascending: the sums below run in a fixed order)
+  wallNormal.assign(nv, V3{0, 0, 0});
+  hasWallNormal.assign(nv, 0);
+  wallStart.assign(nv + 1, 0);
+  wallAdjacent.clear();
+  bool any = false;
+  for (int v = 0; v < nv; ++v) {
+    const std::size_t first = wallAdjacent.size();
+    for (int i = offsets[v]; i < offsets[v + 1]; ++i) {
+      const int t = incident[i];
+      if (!wallFace[t]) continue;
+      wallNormal[v] = add(wallNormal[v], faceNormal[t]);
+      for (int k = 0; k < 3; ++k) {
+        const int w = static_cast<int>(snap.triangles[3 * t + k]);
+        if (w != v) wallAdjacent.push_back(w);
+      }
+    }
+    std::sort(wallAdjacent.begin() + static_cast<std::ptrdiff_t>(first), wallAdjacent.end());
+    wallAdjacent.erase(
+        std::unique(wallAdjacent.begin() + static_cast<std::ptrdiff_t>(first), wallAdjacent.end()),
+        wallAdjacent.end());
+    wallStart[v + 1] = static_cast<int>(wallAdjacent.size());
+    if (norm(wallNormal[v]) > 0) {
+      wallNormal[v] = normalized(wallNormal[v]);
+      hasWallNormal[v] = 1;
+      any = true;
+    }
+  }
+  if (!any || nt == 0) return false;
+  // passes of the mean of a vertex's unit normal and its neighbours' (Jacobi: each pass
+  // reads the last one's)
+  for (int pass = 0; pass < cutWallNormalPasses; ++pass) {
+    wallNext = wallNormal;
+    for (int v = 0; v < nv; ++v) {
+      if (!hasWallNormal[v]) continue;
+      V3 sum = wallNormal[v];
+      for (int i = wallStart[v]; i < wallStart[v + 1]; ++i)
+        sum = add(sum, wallNormal[wallAdjacent[i]]);
+      // opposite normals cancel (a sliver's two sides): the vertex keeps the last pass's
+      if (norm(sum) > 1e-3f) wallNext[v] = normalized(sum);
+    }
+    wallNormal.swap(wallNext);
+  }
+  return true;
 }
 
 }  // namespace esim::render_detail

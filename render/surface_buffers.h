@@ -4,12 +4,16 @@
 // normals summed per corner over the incident faces within kCreaseAngleDeg
 // (renderer.h; between two faces of a cut wall, kCutWallCreaseAngleDeg); a vertex is split only
 // where its corners get different normals (creases), so a smooth surface keeps one GPU vertex per
-// snapshot vertex. Vertex format: vertex_layout.h; the state is (T [C] or, for the potential look,
-// phi [V], coagulation, desiccation, cut wall), positions in metres. Reuse: while a snapshot's
-// positions and triangles are bit-identical to the previous one's (no structural phase, or a frame
-// without deformation) the normals and the crease splits are the same, and update() rewrites the
-// state columns only. Ownership: SurfaceBuffers owns its arrays (and scratch space kept across
-// frames); the renderer uploads them. Internal to render/: not used outside the renderer.
+// snapshot vertex. With cutWallNormalPasses > 0 the corners of cut-wall faces take instead a
+// normal averaged over the wall (each vertex's over its wall faces, then that many passes of
+// the mean with its neighbours'): the saw teeth removed tets leave are shaded as one wall and
+// the rim where it meets the original surface stays a crease. Vertex format: vertex_layout.h; the
+// state is (T [C] or, for the potential look, phi [V], coagulation, desiccation, cut wall),
+// positions in metres. Reuse: while a snapshot's positions and triangles are bit-identical to the
+// previous one's (no structural phase, or a frame without deformation) the normals and the crease
+// splits are the same, and update() rewrites the state columns only. Ownership: SurfaceBuffers owns
+// its arrays (and scratch space kept across frames); the renderer uploads them. Internal to
+// render/: not used outside the renderer.
 #pragma once
 
 #include <array>
@@ -39,13 +43,22 @@ struct SurfaceBuffers {
   std::vector<V3> faceNormal, faceUnit, smoothNormal;
   std::vector<float> faceLength;
   std::vector<int> offsets, incident, firstCopy, nextCopy;
-  std::vector<std::uint8_t> smooth, wallFace;
+  std::vector<std::uint8_t> smooth, wallFace, hasWallNormal;
+  std::vector<V3> wallNormal, wallNext;
+  std::vector<int> wallStart, wallAdjacent;
+  // passes that average the cut walls' normals over their neighbours (RenderOptions::
+  // cutWallNormalPasses; 0: each corner's own faces, up to kCutWallCreaseAngleDeg)
+  int cutWallNormalPasses = 0;
 
   // brings the arrays to the snapshot: the states only when the geometry is
   // unchanged, else build(); potential: the state's first entry is potentialV
   void update(const SurfaceSnapshot& snap, float tDefaultC, bool potential);
   // rebuilds normals, crease splits, vertices and indices from scratch
   void build(const SurfaceSnapshot& snap, float tDefaultC, bool potential);
+  // build's step 3b: wallNormal of every vertex on a cut wall, averaged over its neighbours
+  // through wall faces cutWallNormalPasses times; false (nothing done) for 0 passes or no wall.
+  // Needs wallFace, faceNormal, offsets and incident
+  bool smoothCutWallNormals(const SurfaceSnapshot& snap);
 };
 
 }  // namespace esim::render_detail

@@ -305,6 +305,7 @@ struct ScenarioLook {
   Vec3 tissueTint{1.0, 1.0, 1.0};          // tissue style: its colours times this RGB
   Vec3 lightDirection{-0.45, 0.65, 0.60};  // key light, camera frame (right, up, back)
   double lightIntensity = 1.0;             // key and fill lights' strength
+  int cutWallSmoothing = 3;                // passes over the cut walls' normals
   bool operator==(const ScenarioLook&) const = default;
 };
 

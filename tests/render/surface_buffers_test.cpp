@@ -3,10 +3,13 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <string>
 
 #include "render/renderer.h"
 #include "render/vertex_layout.h"
+#include "sim/core_error.h"
 
 namespace esim {
 namespace {
@@ -66,6 +69,102 @@ TEST(SurfaceBuffers, CutWallsJoinUpToTheirWiderCreaseAngle) {
   EXPECT_NEAR(normalsAcrossTheEdge(half).first, step, 1e-3);
   EXPECT_NEAR(normalsAcrossTheEdge(fold(kCutWallCreaseAngleDeg + 5, 1.0f)).first,
               kCutWallCreaseAngleDeg + 5, 1e-3);
+}
+
+// A wall in the plane y = 0 (normal -y) cut into saw teeth: a strip of 2 x (kTeeth + 1)
+// vertices along x, the middle row alternately pushed out and in along -y, as removed tets
+// leave a groove's wall; a top row at z = h is the wall's rim, and a flat top face
+// (cutWall 0 at its far vertex) meets the rim there. Returns the snapshot; the wall's
+// triangles come first.
+constexpr int kTeeth = 12;
+SurfaceSnapshot sawToothWall() {
+  SurfaceSnapshot s;
+  const float dx = 0.001f, h = 0.001f, tooth = 0.0004f;
+  // rows: bottom (z = 0), middle (z = h / 2, the teeth), top (z = h, the rim)
+  for (int row = 0; row < 3; ++row)
+    for (int i = 0; i <= kTeeth; ++i) {
+      const float y = row == 1 ? (i % 2 == 0 ? -tooth : tooth) : 0.0f;
+      s.positionsM.insert(s.positionsM.end(), {i * dx, y, row * 0.5f * h});
+    }
+  const auto id = [](int row, int i) { return static_cast<std::uint32_t>(row * (kTeeth + 1) + i); };
+  for (int row = 0; row < 2; ++row)
+    for (int i = 0; i < kTeeth; ++i)  // counter-clockwise seen from -y: normals along -y
+      s.triangles.insert(s.triangles.end(), {id(row, i), id(row, i + 1), id(row + 1, i + 1),
+                                             id(row, i), id(row + 1, i + 1), id(row + 1, i)});
+  const int nv = static_cast<int>(s.positionsM.size() / 3);
+  s.positionsM.insert(s.positionsM.end(), {0.5f * kTeeth * dx, 0.002f, h});  // the top's far vertex
+  s.triangles.insert(s.triangles.end(),
+                     {id(2, 0), id(2, kTeeth), static_cast<std::uint32_t>(nv)});  // normal +z
+  s.temperatureC.assign(nv + 1, 37.0f);
+  s.cutWall.assign(nv + 1, 1.0f);
+  s.cutWall[nv] = 0.0f;
+  return s;
+}
+
+// the largest angle between a wall corner's normal and -y, and the top face's corners'
+// largest angle from +z [deg]
+std::pair<double, double> sawToothNormals(int passes) {
+  const SurfaceSnapshot s = sawToothWall();
+  SurfaceBuffers b;
+  b.cutWallNormalPasses = passes;
+  b.build(s, 37.0f, false);
+  auto angle = [&](int corner, std::array<double, 3> axis) {
+    const float* n = &b.vertices[b.indices[corner] * kFloatsPerVertex + kNormalOffset];
+    const double c = n[0] * axis[0] + n[1] * axis[1] + n[2] * axis[2];
+    return std::acos(std::min(1.0, c)) * 180 / 3.14159265358979;
+  };
+  double wall = 0, top = 0;
+  const int wallCorners = 2 * 6 * kTeeth;
+  for (int c = 0; c < wallCorners; ++c) wall = std::max(wall, angle(c, {0, -1, 0}));
+  for (int c = wallCorners; c < wallCorners + 3; ++c) top = std::max(top, angle(c, {0, 0, 1}));
+  return {wall, top};
+}
+
+// the teeth are lit as one wall once the normals are averaged: each pass brings every wall
+// corner's normal closer to the wall's, and the rim stays a crease (the top face's corners
+// keep the normals they had without the passes, bit for bit)
+TEST(SurfaceBuffers, CutWallNormalPassesShadeTheSawTeethAsOneWall) {
+  const auto [raw, rawTop] = sawToothNormals(0);
+  EXPECT_GT(raw, 30.0);  // a tooth's faces lean 38.7 deg from the wall; corners average some
+  double last = raw;
+  for (int passes : {1, 2, 3, 6}) {
+    const auto [wall, top] = sawToothNormals(passes);
+    EXPECT_LT(wall, last) << passes << " passes";
+    last = wall;
+    EXPECT_EQ(top, rawTop) << passes << " passes";
+  }
+  EXPECT_LT(sawToothNormals(3).first, 0.35 * raw);
+}
+
+// a flat wall is unchanged by the passes (the mean of equal unit normals), so is a surface
+// without walls (bit for bit: the passes touch only wall corners); the option's bound is
+// refused past it
+TEST(SurfaceBuffers, CutWallNormalPassesLeaveFlatWallsAndOtherSurfacesAlone) {
+  SurfaceSnapshot flat = sawToothWall();
+  for (size_t v = 0; v < flat.positionsM.size() / 3 - 1; ++v) flat.positionsM[3 * v + 1] = 0;
+  SurfaceBuffers b;
+  b.cutWallNormalPasses = 5;
+  b.build(flat, 37.0f, false);
+  for (int c = 0; c < 2 * 6 * kTeeth; ++c) {
+    const float* n = &b.vertices[b.indices[c] * kFloatsPerVertex + kNormalOffset];
+    EXPECT_NEAR(n[1], -1.0f, 1e-6f);
+  }
+  SurfaceSnapshot noWall = sawToothWall();
+  noWall.cutWall.assign(noWall.cutWall.size(), 0.0f);
+  SurfaceBuffers off, on;
+  on.cutWallNormalPasses = 5;
+  off.build(noWall, 37.0f, false);
+  on.build(noWall, 37.0f, false);
+  EXPECT_EQ(on.vertices, off.vertices);
+  EXPECT_EQ(on.indices, off.indices);
+  RenderOptions o;
+  o.cutWallNormalPasses = kMaxCutWallNormalPasses + 1;
+  try {
+    validateRenderOptions(o);
+    ADD_FAILURE() << "accepted " << o.cutWallNormalPasses << " passes";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("look.cut_wall_smoothing"), std::string::npos);
+  }
 }
 
 }  // namespace
