@@ -145,7 +145,9 @@ void SurfaceBuffers::build(const SurfaceSnapshot& snap, float tDefaultC, bool po
 }
 
 bool SurfaceBuffers::smoothCutWallNormals(const SurfaceSnapshot& snap) {
-  if (cutWallNormalPasses <= 0) return false;
+  if (cutWallNormalPasses <= 0 ||
+      std::none_of(wallFace.begin(), wallFace.end(), [](std::uint8_t w) { return w != 0; }))
+    return false;
   const int nv = snap.numVertices();
   const int nt = snap.numTriangles();
   // each vertex's normal over its wall faces (area-weighted), and its neighbours through
