@@ -555,6 +555,7 @@ void Renderer::Impl::resolveAndReadBack() {
 Renderer::Renderer(const RenderOptions& options) : impl_(std::make_unique<Impl>()) {
   validateRenderOptions(options);
   impl_->opt = options;
+  impl_->surface.cutWallNormalPasses = options.cutWallNormalPasses;
   impl_->ctx = createGlContext(options.backend);
   impl_->init();
 }
@@ -583,7 +584,6 @@ const std::vector<std::uint8_t>& Renderer::render(const SurfaceSnapshot& snap) {
   double prepareMs = 0;
   if (snap.numTriangles() > 0) {
     const auto tPrep = Clock::now();
-    m.surface.cutWallNormalPasses = o.cutWallNormalPasses;
     m.surface.update(snap, o.tMinC, o.look == "potential");
     prepareMs = msSince(tPrep);
     m.drawSurface(view, snap.tool);

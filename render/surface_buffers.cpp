@@ -149,7 +149,6 @@ bool SurfaceBuffers::smoothCutWallNormals(const SurfaceSnapshot& snap) {
       std::none_of(wallFace.begin(), wallFace.end(), [](std::uint8_t w) { return w != 0; }))
     return false;
   const int nv = snap.numVertices();
-  const int nt = snap.numTriangles();
   // each vertex's normal over its wall faces (area-weighted), and its neighbours through
   // them (CSR, ascending: the sums below run in a fixed order)
   wallNormal.assign(nv, V3{0, 0, 0});
@@ -179,7 +178,7 @@ bool SurfaceBuffers::smoothCutWallNormals(const SurfaceSnapshot& snap) {
       any = true;
     }
   }
-  if (!any || nt == 0) return false;
+  if (!any) return false;  // every wall face degenerate
   // passes of the mean of a vertex's unit normal and its neighbours' (Jacobi: each pass
   // reads the last one's)
   for (int pass = 0; pass < cutWallNormalPasses; ++pass) {
