@@ -51,7 +51,7 @@ using namespace esim;
 
 namespace {
 
-constexpr double kVoltageV = 200;          // slab_cut's tool.voltage_v
+constexpr double kVoltageV = 200;           // slab_cut's tool.voltage_v
 constexpr double kContactDistanceM = 4e-4;  // slab_cut's tool.contact_distance_m
 constexpr double kTipZM = 0.0095;           // slab_cut's path: 0.5 mm under the top face
 constexpr double kStartM = -0.005;          // the tip's x in frame 0
@@ -162,8 +162,9 @@ int main(int argc, char** argv) {
   }
   if (margins.empty()) margins = {0.002, 0.004, 0.006, 0.008};
   if (fineNodes < 100 || lag < 1 || frames < 1 || !(gridM > 0)) {
-    std::fprintf(stderr, "electric_local_study: FINE_NODES >= 100, --lag >= 1, --frames >= 1 "
-                         "and --grid > 0 expected\n");
+    std::fprintf(stderr,
+                 "electric_local_study: FINE_NODES >= 100, --lag >= 1, --frames >= 1 "
+                 "and --grid > 0 expected\n");
     return 2;
   }
 
@@ -185,7 +186,8 @@ int main(int argc, char** argv) {
 
   std::vector<Model> models;
   models.emplace_back("whole (check)", -1, false);
-  for (double m : margins) models.emplace_back("held " + std::to_string(m * 1e3).substr(0, 3) + " mm", m, false);
+  for (double m : margins)
+    models.emplace_back("held " + std::to_string(m * 1e3).substr(0, 3) + " mm", m, false);
   models.emplace_back("coarse", 0, true);
   for (double m : margins)
     models.emplace_back("coarse+" + std::to_string(m * 1e3).substr(0, 3) + " mm", m, true);
@@ -246,7 +248,8 @@ int main(int argc, char** argv) {
       Eigen::VectorXd r(m);  // -(K phi)_R, by K's columns (symmetric): the region's cost only
       for (int q = 0; q < m; ++q) {
         double sum = 0;
-        for (SparseMatrix::InnerIterator it(kk, region[q]); it; ++it) sum += it.value() * phi(it.row());
+        for (SparseMatrix::InnerIterator it(kk, region[q]); it; ++it)
+          sum += it.value() * phi(it.row());
         r(q) = -sum;
       }
       const Eigen::VectorXd d = local.solve(r);
@@ -270,7 +273,8 @@ int main(int argc, char** argv) {
     auto tetPower = [&](const Eigen::VectorXd& phi) {
       std::vector<double> q(nt, 0.0);
       for (int t = 0; t < nt; ++t)
-        if (mesh.alive[t]) q[t] = sigma[t] * geo[t].volume * tetGradient(mesh, geo, t, phi).squaredNorm();
+        if (mesh.alive[t])
+          q[t] = sigma[t] * geo[t].volume * tetGradient(mesh, geo, t, phi).squaredNorm();
       return q;
     };
     const std::vector<double> qTrue = tetPower(truth);
@@ -319,7 +323,8 @@ int main(int argc, char** argv) {
       model.nearErr = std::max(model.nearErr, nearMax / qMax);
       model.l2Err = std::max(model.l2Err, std::sqrt(num / qNorm));
       model.phiErr = std::max(model.phiErr, phiMax / kVoltageV);
-      if (model.marginM < 0) worstCheck = std::max(worstCheck, phiMax / truth.cwiseAbs().maxCoeff());
+      if (model.marginM < 0)
+        worstCheck = std::max(worstCheck, phiMax / truth.cwiseAbs().maxCoeff());
       model.regionNodes.push_back(static_cast<double>(region.size()));
       model.buildMs.push_back(1e3 * b);
       model.solveMs.push_back(1e3 * s);
@@ -334,14 +339,16 @@ int main(int argc, char** argv) {
       n, nt, frames, 1e3 * (kStartM + lag * kStepM), 1e3 * (kStartM + (lag + frames - 1) * kStepM),
       lag, 1e3 * gridM, gridColumns, median(contactCounts), median(directMs), 1e3 * kNearM,
       100 * median(nearShare));
-  std::printf("| model | region nodes | region build ms | region solve ms | coarse build / solve ms | power "
-              "error | near-tool tet power error | tet power L2 error | phi error / V |\n");
+  std::printf(
+      "| model | region nodes | region build ms | region solve ms | coarse build / solve ms | "
+      "power "
+      "error | near-tool tet power error | tet power L2 error | phi error / V |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|\n");
   for (const Model& m : models)
     std::printf("| %s | %.0f | %.2f | %.2f | %.2f / %.2f | %.2e | %.2e | %.2e | %.2e |\n",
                 m.name.c_str(), median(m.regionNodes), median(m.buildMs), median(m.solveMs),
-                median(m.coarseBuildMs), median(m.coarseSolveMs),
-                m.powerErr, m.nearErr, m.l2Err, m.phiErr);
+                median(m.coarseBuildMs), median(m.coarseSolveMs), m.powerErr, m.nearErr, m.l2Err,
+                m.phiErr);
   std::printf("check: the whole-body region against the truth, relative difference %.1e\n",
               worstCheck);
   return worstCheck <= 1e-8 ? 0 : 1;
