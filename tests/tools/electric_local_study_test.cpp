@@ -7,6 +7,8 @@
 // them. Times are never asserted.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdio>
 #include <map>
 #include <sstream>
 #include <string>
@@ -59,8 +61,8 @@ TEST(ElectricLocalStudy, PrintsARowPerModelAndTheWholeBodyEqualsTheFullSolve) {
   double check = -1;
   std::map<std::string, Row> rows = tableRows(r.output, check);
   ASSERT_EQ(rows.size(), 6u) << r.output;
-  for (const char* name : {"whole (check)", "held 3.0 mm", "held 6.0 mm", "coarse",
-                           "coarse+3.0 mm", "coarse+6.0 mm"})
+  for (const char* name :
+       {"whole (check)", "held 3.0 mm", "held 6.0 mm", "coarse", "coarse+3.0 mm", "coarse+6.0 mm"})
     ASSERT_EQ(rows.count(name), 1u) << name << "\n" << r.output;
   EXPECT_GE(check, 0.0) << r.output;
   EXPECT_LT(check, 1e-10) << r.output;
@@ -76,23 +78,27 @@ TEST(ElectricLocalStudy, PrintsARowPerModelAndTheWholeBodyEqualsTheFullSolve) {
   EXPECT_EQ(rows["coarse+6.0 mm"].nodes, rows["held 6.0 mm"].nodes) << r.output;
   // the energy's minimum over nested spaces: no model's power is below the truth's, and
   // a wider region never raises the excess (3 significant digits printed)
-  for (const auto& [name, row] : rows) EXPECT_GE(row.powerExcess, -1e-12) << name << "\n" << r.output;
+  for (const auto& [name, row] : rows)
+    EXPECT_GE(row.powerExcess, -1e-12) << name << "\n" << r.output;
   const double slack = 1.006;
   EXPECT_GT(rows["coarse"].powerExcess, 1e-4) << r.output;  // the coarse grid alone is not exact
   EXPECT_LE(rows["coarse+3.0 mm"].powerExcess, rows["coarse"].powerExcess * slack) << r.output;
   EXPECT_LE(rows["coarse+6.0 mm"].powerExcess, rows["coarse+3.0 mm"].powerExcess * slack)
       << r.output;
   EXPECT_GT(rows["held 3.0 mm"].powerExcess, 1e-4) << r.output;  // the moved tool is felt
-  EXPECT_LE(rows["held 6.0 mm"].powerExcess, rows["held 3.0 mm"].powerExcess * slack)
-      << r.output;
+  EXPECT_LE(rows["held 6.0 mm"].powerExcess, rows["held 3.0 mm"].powerExcess * slack) << r.output;
 }
 
 TEST(ElectricLocalStudy, BadArgumentsExitTwoNamingThem) {
   const std::pair<const char*, const char*> cases[] = {
-      {"8k", "FINE_NODES '8k'"},         {"50", "FINE_NODES '50'"},
-      {"1500 0", "MARGIN_MM '0'"},       {"1500 4mm", "MARGIN_MM '4mm'"},
-      {"1500 --lag 0", "--lag '0'"},     {"1500 --grid", "--grid needs a value"},
-      {"1500 --frames 2.5", "--frames '2.5'"}, {"", "usage"},
+      {"8k", "FINE_NODES '8k'"},
+      {"50", "FINE_NODES '50'"},
+      {"1500 0", "MARGIN_MM '0'"},
+      {"1500 4mm", "MARGIN_MM '4mm'"},
+      {"1500 --lag 0", "--lag '0'"},
+      {"1500 --grid", "--grid needs a value"},
+      {"1500 --frames 2.5", "--frames '2.5'"},
+      {"", "usage"},
   };
   for (const auto& [args, named] : cases) {
     const auto r = shell(study(args));

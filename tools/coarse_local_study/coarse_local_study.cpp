@@ -37,7 +37,6 @@
 #include <Eigen/CholmodSupport>
 #include <Eigen/SparseCore>
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -48,8 +47,12 @@
 #include "sim/mesh_slab.h"
 #include "sim/simulation.h"
 #include "sim/structural.h"
+#include "tools/study_util.h"
 
 using namespace esim;
+using study::median;
+using study::seconds;
+using study::slabCutSpec;
 
 namespace {
 
@@ -64,28 +67,11 @@ constexpr int kFrames = 10;
 constexpr int kReferenceLag = 2;  // frames: the "+ref" rows' reference
 const Vec3 kPathFrom(-0.02, 0, 0.01), kPathTo(0.02, 0, 0.01);
 
-double seconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
 double distanceToSegment(const Vec3& p, const Vec3& a, const Vec3& b) {
   const Vec3 ab = b - a;
   const double len2 = ab.squaredNorm();
   const double s = len2 > 0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
   return (p - (a + s * ab)).norm();
-}
-
-SlabSpec slabCutSpec(int nodes, bool graded) {
-  SlabSpec s;
-  s.sizeM = {0.06, 0.03, 0.01};
-  s.targetNodes = nodes;
-  s.grading.enabled = graded;
-  s.grading.cutFrom = {-0.025, 0, 0.01};
-  s.grading.cutTo = {0.025, 0, 0.01};
-  s.grading.ratio = 4;
-  s.grading.widthM = 0.004;
-  s.grading.towardTop = true;
-  return s;
 }
 
 // P (3 n_f x 3 n_c): fine node i at barycentric weights w of coarse tet c gets
@@ -205,12 +191,6 @@ struct Row {
   int flips = 0, nearFlips = 0;            // over all frames (near: within kNearM)
   int above = 0, nearAbove = 0;            // the truth's tets over the critical stress
 };
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
 
 }  // namespace
 

@@ -39,7 +39,6 @@
 #include <Eigen/CholmodSupport>
 #include <Eigen/SparseCore>
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -51,8 +50,12 @@
 #include "sim/fem_p1.h"
 #include "sim/mesh_slab.h"
 #include "sim/simulation.h"
+#include "tools/study_util.h"
 
 using namespace esim;
+using study::median;
+using study::seconds;
+using study::slabCutSpec;
 
 namespace {
 
@@ -66,29 +69,6 @@ constexpr double kGrooveHalfWidthM = 7e-4;
 constexpr double kGrooveFloorM = 0.0085;
 constexpr double kGrooveLagM = 1e-3;  // the groove ends this far behind the tip
 constexpr double kNearM = 2e-3;       // "near the tool"
-
-double seconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
-
-SlabSpec slabCutSpec(int nodes) {
-  SlabSpec s;
-  s.sizeM = {0.06, 0.03, 0.01};
-  s.targetNodes = nodes;
-  s.grading.enabled = true;
-  s.grading.cutFrom = {-0.025, 0, 0.01};
-  s.grading.cutTo = {0.025, 0, 0.01};
-  s.grading.ratio = 4;
-  s.grading.widthM = 0.004;
-  s.grading.towardTop = true;
-  return s;
-}
 
 // P (n x grid nodes): node v in cell c at local (x, y, z) in [0, 1]^3 gets the 8 trilinear
 // weights; the rows of nodes that are not free are zero. Columns no free node reaches are
