@@ -1,28 +1,37 @@
-// study_util.h - what the studies under tools/*_study share: slab_cut's slab (the scene of
-// coarse_local_study and electric_local_study), a clock and a median.
+// study_util.h - what the studies under tools/*_study share: their scene, read from
+// scenarios/slab_cut.yaml (the one source of its slab, blade, voltage, contact rule and return
+// pad, so a study measures the scene `esim bench cut` and the demo run), a clock and a median.
 #pragma once
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
 #include <vector>
 
-#include "sim/mesh_slab.h"
+#include "sim/io/scenario.h"
+#include "tools/app/run_config.h"
+#include "tools/app/source_tree.h"
 
 namespace esim::study {
 
-// scenarios/slab_cut.yaml's slab: 60 x 30 x 10 mm, graded 4x finer along the cut line and
-// toward the top (graded false: uniform)
-inline SlabSpec slabCutSpec(int nodes, bool graded = true) {
-  SlabSpec s;
-  s.sizeM = {0.06, 0.03, 0.01};
-  s.targetNodes = nodes;
-  s.grading.enabled = graded;
-  s.grading.cutFrom = {-0.025, 0, 0.01};
-  s.grading.cutTo = {0.025, 0, 0.01};
-  s.grading.ratio = 4;
-  s.grading.widthM = 0.004;
-  s.grading.towardTop = true;
-  return s;
+// scenarios/slab_cut.yaml (found from the source tree, as the benches find it) with
+// mesh.slab.nodes set to `nodes`; a study that cannot read it exits 1 saying why
+inline Scenario slabCutScenario(int nodes) {
+  const std::string name = "scenarios/slab_cut.yaml";
+  const std::string path = app::findSourceTreeFile(name).string();
+  if (path.empty()) {
+    std::fprintf(stderr, "%s: not found above this executable nor in its source tree\n",
+                 name.c_str());
+    std::exit(1);
+  }
+  try {
+    return loadScenario(path, {"mesh.slab.nodes=" + std::to_string(nodes)});
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s\n", e.what());
+    std::exit(1);
+  }
 }
 
 // a steady clock [s]

@@ -2,7 +2,8 @@
 // around the tool gives up against the full solve, and what it costs (issue #11; README,
 // "Why 50 000 nodes at 30 Hz stays out of reach here"). A study, not a solver of the phase.
 //
-// Scene: slab_cut's slab (60 x 30 x 10 mm, graded along the cut line and toward the top),
+// Scene: slab_cut's slab (scenarios/slab_cut.yaml's: 60 x 30 x 10 mm, graded along the cut
+// line and toward the top),
 // the paper's E and nu, the bottom face clamped. Frame k of F: the tool at x_k on the top
 // face along y = 0 (x from -20 to +20 mm), the expansion e_v = kPeakExpansion exp(-d^2 / 2
 // r^2) (d: the centroid's distance to the path up to the tool, r = kLoadRadiusM) loading
@@ -52,7 +53,6 @@
 using namespace esim;
 using study::median;
 using study::seconds;
-using study::slabCutSpec;
 
 namespace {
 
@@ -246,8 +246,10 @@ int main(int argc, char** argv) {
         rows.back().enriched = enriched;
       }
 
-  TetMesh fine = makeSlab(slabCutSpec(fineNodes, true));
-  const TetMesh coarse = makeSlab(slabCutSpec(coarseNodes, gradedCoarse));
+  TetMesh fine = makeSlab(makeSlabSpec(study::slabCutScenario(fineNodes)));
+  SlabSpec coarseSpec = makeSlabSpec(study::slabCutScenario(coarseNodes));
+  coarseSpec.grading.enabled = gradedCoarse;
+  const TetMesh coarse = makeSlab(coarseSpec);
   const std::vector<TetGeometry> geo = tetGeometry(fine);
   const int n = fine.numNodes(), nt = fine.numTets();
   const SparseMatrix p0 = interpolation(fine, coarse);

@@ -4,13 +4,13 @@
 // tool is measured by coarse_local_study; this is the electric half). A study, not a solver
 // of the phase.
 //
-// Scene: slab_cut's slab (60 x 30 x 10 mm, graded along the cut line and toward the top), its
-// blade (the default shape, identity pose: the axis up) at 200 V with its contact distance
-// 0.4 mm on the tissue's surface nodes, the tip 0.5 mm under the top face, and its return pad
-// (radius 20 mm under the centre). Frame k: the tip at x_k = kStartM + k kStepM on y = 0
-// (slab_cut's 40 mm in 120 frames), a groove behind it (the tets whose centroid lies within
-// kGrooveHalfWidthM of y = 0, above kGrooveFloorM, between the cut's start and 1 mm behind
-// the tip removed, so the contacts and the field see the cut's walls).
+// Scene: scenarios/slab_cut.yaml's slab (60 x 30 x 10 mm, graded along the cut line and
+// toward the top; mesh.slab.nodes set to FINE_NODES), conductivity, blade, voltage, contact
+// rule and distance, and return pad, read from the file. Frame k: the blade posed by the
+// scene's tool path at frame kFirstFrame + k (x = -5 mm in frame 0 of slab_cut's 40 mm in
+// 120 frames), a groove behind it (the tets whose centroid lies within kGrooveHalfWidthM of
+// the path's line, above kGrooveFloorM, between the path's start and 1 mm behind the tip
+// removed, so the contacts and the field see the cut's walls).
 //   truth:  K_FF phi_F = -K_FD phi_D over the free nodes (CHOLMOD, factorized every frame as
 //           the contact set changes; "direct ms");
 //   held:   the nodes within MARGIN of the tip solved with every other node held at the
@@ -50,25 +50,20 @@
 #include "sim/fem_p1.h"
 #include "sim/mesh_slab.h"
 #include "sim/simulation.h"
+#include "tools/app/run_config.h"
 #include "tools/study_util.h"
 
 using namespace esim;
 using study::median;
 using study::seconds;
-using study::slabCutSpec;
 
 namespace {
 
-constexpr double kVoltageV = 200;           // slab_cut's tool.voltage_v
-constexpr double kContactDistanceM = 4e-4;  // slab_cut's tool.contact_distance_m
-constexpr double kTipZM = 0.0095;           // slab_cut's path: 0.5 mm under the top face
-constexpr double kStartM = -0.005;          // the tip's x in frame 0
-constexpr double kStepM = 0.04 / 120;       // slab_cut: 40 mm in 120 frames
-constexpr double kCutStartM = -0.02;        // where slab_cut's cut starts
+constexpr int kFirstFrame = 45;  // the scene's frame of the study's frame 0
 constexpr double kGrooveHalfWidthM = 7e-4;
-constexpr double kGrooveFloorM = 0.0085;
-constexpr double kGrooveLagM = 1e-3;  // the groove ends this far behind the tip
-constexpr double kNearM = 2e-3;       // "near the tool"
+constexpr double kGrooveFloorM = 0.0085;  // [m] above the slab's bottom (its top: 10 mm)
+constexpr double kGrooveLagM = 1e-3;      // the groove ends this far behind the tip
+constexpr double kNearM = 2e-3;           // "near the tool"
 
 // P (n x grid nodes): node v in cell c at local (x, y, z) in [0, 1]^3 gets the 8 trilinear
 // weights; the rows of nodes that are not free are zero. Columns no free node reaches are
@@ -163,16 +158,14 @@ int main(int argc, char** argv) {
   }
   if (margins.empty()) margins = {0.002, 0.004, 0.006, 0.008};
 
-  TetMesh mesh = makeSlab(slabCutSpec(fineNodes));
+  const Scenario scene = study::slabCutScenario(fineNodes);
+  const SimulationConfig config = app::makeSimulationConfig(scene);
+  TetMesh mesh = makeSlab(makeSlabSpec(scene));
   const int n = mesh.numNodes(), nt = mesh.numTets();
   const std::vector<TetGeometry> geo = tetGeometry(mesh);
-  const double sigma0 = defaultSimulationConfig().conductivityS_m;
-  const std::vector<double> sigma(nt, sigma0);
-  ElectrodeShape shape = defaultSimulationConfig().electrode;
-  shape.kind = ElectrodeKind::Blade;
-  ReturnElectrode pad;
-  pad.centerM = Vec3(0, 0, 0);
-  pad.radiusM = 0.02;
+  const std::vector<double> sigma(nt, config.conductivityS_m);
+  const double voltageV = config.toolVoltageV;
+  const Vec3 pathStart = config.toolPath.positionAt(0);
   std::vector<Vec3> centroid(nt);
   for (int t = 0; t < nt; ++t) {
     centroid[t] = Vec3::Zero();
@@ -192,19 +185,20 @@ int main(int argc, char** argv) {
   double worstCheck = 0;
   int gridColumns = 0;
   for (int k = 0; k < lag + frames; ++k) {
-    const double x = kStartM + k * kStepM;
-    const Vec3 tip(x, 0, kTipZM);
+    const ToolPose pose = config.toolPath.poseAt((kFirstFrame + k) * config.frameDtS);
+    const Vec3& tip = pose.tipM;
     // the groove behind the tip
     for (int t = 0; t < nt; ++t) {
       const Vec3& c = centroid[t];
-      mesh.alive[t] = !(std::abs(c(1)) < kGrooveHalfWidthM && c(2) > kGrooveFloorM &&
-                        c(0) > kCutStartM && c(0) < x - kGrooveLagM);
+      mesh.alive[t] = !(std::abs(c(1) - pathStart(1)) < kGrooveHalfWidthM && c(2) > kGrooveFloorM &&
+                        c(0) > pathStart(0) && c(0) < tip(0) - kGrooveLagM);
     }
     const std::vector<int> surface = boundaryNodes(mesh, boundaryFaces(mesh));
-    ToolPose pose;
-    pose.tipM = tip;
-    const std::vector<int> contacts = findContacts(mesh, surface, shape, pose, kContactDistanceM);
-    const std::vector<int> ground = returnElectrodeNodes(mesh, surface, pad);
+    const std::vector<int> candidates =
+        config.contactNodes == ContactNodes::Surface ? surface : aliveNodes(mesh);
+    const std::vector<int> contacts =
+        findContacts(mesh, candidates, config.electrode, pose, config.contactDistanceM);
+    const std::vector<int> ground = returnElectrodeNodes(mesh, surface, config.returnElectrode);
     if (contacts.empty()) {
       std::fprintf(stderr,
                    "electric_local_study: no contact in frame %d: no surface node within the "
@@ -221,7 +215,7 @@ int main(int argc, char** argv) {
     std::vector<char> dirichlet(n, 0);
     for (int v : contacts) {
       dirichlet[v] = 1;
-      g(v) = kVoltageV;
+      g(v) = voltageV;
     }
     for (int v : ground) dirichlet[v] = 1;
     for (int v = 0; v < n; ++v) isFree[v] = active[v] && !dirichlet[v];
@@ -321,7 +315,7 @@ int main(int argc, char** argv) {
       if (std::abs(excess) >= std::abs(model.powerErr)) model.powerErr = excess;
       model.nearErr = std::max(model.nearErr, nearMax / qMax);
       model.l2Err = std::max(model.l2Err, std::sqrt(num / qNorm));
-      model.phiErr = std::max(model.phiErr, phiMax / kVoltageV);
+      model.phiErr = std::max(model.phiErr, phiMax / voltageV);
       if (model.marginM < 0)
         worstCheck = std::max(worstCheck, phiMax / truth.cwiseAbs().maxCoeff());
       model.regionNodes.push_back(static_cast<double>(region.size()));
@@ -332,16 +326,18 @@ int main(int argc, char** argv) {
     }
   }
   std::printf(
-      "%d nodes, %d tets; %d frames (tip x from %.1f to %.1f mm), lag %d frames, coarse grid "
+      "scenarios/slab_cut.yaml, %.0f V: %d nodes, %d tets; %d frames (tip x from %.1f to %.1f mm), "
+      "lag %d frames, coarse grid "
       "%.1f mm (%d grid nodes); contacts %.0f (median); the truth (CHOLMOD, factorized and "
       "solved): %.1f ms median; power within %.0f mm of the tip: %.1f %% (median)\n",
-      n, nt, frames, 1e3 * (kStartM + lag * kStepM), 1e3 * (kStartM + (lag + frames - 1) * kStepM),
-      lag, 1e3 * gridM, gridColumns, median(contactCounts), median(directMs), 1e3 * kNearM,
+      voltageV, n, nt, frames,
+      1e3 * config.toolPath.positionAt((kFirstFrame + lag) * config.frameDtS)(0),
+      1e3 * config.toolPath.positionAt((kFirstFrame + lag + frames - 1) * config.frameDtS)(0), lag,
+      1e3 * gridM, gridColumns, median(contactCounts), median(directMs), 1e3 * kNearM,
       100 * median(nearShare));
   std::printf(
-      "| model | region nodes | region build ms | region solve ms | coarse build / solve ms | "
-      "power "
-      "excess | near-tool tet power error | tet power L2 error | phi error / V |\n");
+      "| model | region nodes | region build ms | region solve ms | coarse build / solve ms "
+      "| power excess | near-tool tet power error | tet power L2 error | phi error / V |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|\n");
   for (const Model& m : models)
     std::printf("| %s | %.0f | %.2f | %.2f | %.2f / %.2f | %.2e | %.2e | %.2e | %.2e |\n",
