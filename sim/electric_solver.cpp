@@ -38,9 +38,10 @@ ElectricStrategy parseElectricStrategy(const std::string& name) {
   if (name == "dense-inverse") return ElectricStrategy::DenseInverse;
   if (name == "capacitance") return ElectricStrategy::Capacitance;
   if (name == "pcg") return ElectricStrategy::Pcg;
+  if (name == "local") return ElectricStrategy::Local;
   if (name == "auto") return ElectricStrategy::Auto;
   throw Error("electric solver: unknown strategy '" + name +
-              "'; valid names: refactor, dense-inverse, capacitance, pcg, auto");
+              "'; valid names: refactor, dense-inverse, capacitance, pcg, local, auto");
 }
 
 const char* electricStrategyName(ElectricStrategy strategy) {
@@ -53,6 +54,8 @@ const char* electricStrategyName(ElectricStrategy strategy) {
       return "capacitance";
     case ElectricStrategy::Pcg:
       return "pcg";
+    case ElectricStrategy::Local:
+      return "local";
     case ElectricStrategy::Auto:
       return "auto";
   }
@@ -68,6 +71,10 @@ void validateElectricSolverOptions(const ElectricSolverOptions& options) {
               "electric solver: updateResidual must be a positive number");
   ESIM_VERIFY(options.denseMemoryLimitBytes > 0,
               "solvers.electric.dense_memory_limit_mb must be > 0");
+  ESIM_VERIFY(options.localMarginM > 0 && std::isfinite(options.localMarginM),
+              "solvers.electric.local_margin_m must be a positive number of metres");
+  ESIM_VERIFY(options.localRefreshFrames >= 1,
+              "solvers.electric.local_refresh_frames must be >= 1");
 }
 
 ElectricStrategy resolveElectricStrategy(const ElectricSolverOptions& options, double freeNodes,
@@ -91,6 +98,8 @@ std::unique_ptr<ElectricSolver> makeElectricSolver(const ElectricSolverOptions& 
       return electric_detail::makeCapacitanceSolver(options);
     case ElectricStrategy::Pcg:
       return electric_detail::makePcgSolver(options);
+    case ElectricStrategy::Local:
+      return electric_detail::makeLocalSolver(options);
     case ElectricStrategy::Auto:
       break;
   }

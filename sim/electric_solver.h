@@ -50,6 +50,12 @@
 //                   CapacitanceUpdate::Downdate modifies a simplicial LDL' factor
 //                   instead (CHOLMOD rowdel, updown; 1.6-2.6x slower solves after).
 //                   See electric_capacitance.cpp.
+//   local         - not exact: the nodes within localMarginM of the contacts solved each
+//                   frame with the potential elsewhere held from a full pcg solve
+//                   refreshed on a thread every localRefreshFrames solves (see
+//                   electric_local.cpp; its error measured in README "The potential
+//                   solved around the tool only"). setMatrix / updateMatrix: an O(nnz)
+//                   copy; the full solver takes the matrix at its next refresh.
 //   pcg           - conjugate gradients on the reduced system, warm-started from
 //                   the input potential, Jacobi or incomplete-Cholesky
 //                   preconditioner, stopping at ||r|| <= pcgTolerance ||b||.
@@ -107,7 +113,7 @@
 namespace esim {
 
 // Auto is not a solver: resolveElectricStrategy turns it into one for a mesh's size
-enum class ElectricStrategy { Refactor, DenseInverse, Capacitance, Pcg, Auto };
+enum class ElectricStrategy { Refactor, DenseInverse, Capacitance, Pcg, Local, Auto };
 
 enum class PcgPreconditioner { Jacobi, IncompleteCholesky, TwoLevel };
 
@@ -117,8 +123,8 @@ enum class CapacitanceUpdate {
   Downdate   // modify a simplicial LDL' factor (CHOLMOD rowdel, updown): slower solves
 };
 
-// "refactor", "dense-inverse", "capacitance", "pcg", "auto"; throws Error listing the valid
-// names
+// "refactor", "dense-inverse", "capacitance", "pcg", "local", "auto"; throws Error listing the
+// valid names
 ElectricStrategy parseElectricStrategy(const std::string& name);
 
 // the name parseElectricStrategy accepts
@@ -139,6 +145,11 @@ struct ElectricSolverOptions {
   // Woodbury term refines once, then refactorizes, and dense-inverse recomputes
   double updateResidual = 1e-10;
   int threads = 1;  // BLAS threads (CHOLMOD supernodal uses BLAS)
+  // local (sim/electric_local.cpp): the region solved each frame, nodes within this distance
+  // of a contact node [m]; the far field is held from a full solve (pcg) started every
+  // localRefreshFrames solves with contact on a thread and adopted as many solves later
+  double localMarginM = 0.006;
+  int localRefreshFrames = 3;
 };
 
 // Checks the options; throws Error naming the scenario key (solvers.electric.*).
@@ -173,6 +184,7 @@ struct ElectricSolveStats {
   int newColumns = 0;       // capacitance: columns computed in this solve
   int iterations = 0;       // pcg: iterations
   double residual = 0;      // pcg: relative residual reached
+  int regionNodes = 0;      // local: nodes solved in this frame (all free nodes in a full solve)
 };
 
 // what updateMatrix did
@@ -221,6 +233,9 @@ class ElectricSolver {
   // between setMatrix calls, candidates already in a patch keep it, new ones are grouped
   // into new patches and the column cache is kept.
   virtual void setContactCandidates(const std::vector<int>& /*nodes*/) {}
+  // node positions [m], one per node of K (local: its region is a distance from the
+  // contacts; the others ignore them). Call before the first solve.
+  virtual void setNodePositions(const std::vector<Vec3>& /*positionsM*/) {}
   // bytes held by factorizations, inverses, caches
   virtual double memoryBytes() const = 0;
   // caps the cache of solved data (capacitance's columns) at `bytes` from now on (at least
@@ -378,6 +393,7 @@ std::unique_ptr<ElectricSolver> makeRefactorSolver(const ElectricSolverOptions& 
 std::unique_ptr<ElectricSolver> makeDenseInverseSolver(const ElectricSolverOptions& options);
 std::unique_ptr<ElectricSolver> makeCapacitanceSolver(const ElectricSolverOptions& options);
 std::unique_ptr<ElectricSolver> makePcgSolver(const ElectricSolverOptions& options);
+std::unique_ptr<ElectricSolver> makeLocalSolver(const ElectricSolverOptions& options);
 
 }  // namespace electric_detail
 }  // namespace esim

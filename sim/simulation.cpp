@@ -641,6 +641,7 @@ std::unique_ptr<SimModel> Simulation::buildModel(std::vector<std::uint8_t> alive
     m.stiffness = assembleStiffness(m.mesh, *m.geo, m.sigmaAssembled);
     m.electric = makeElectricSolver(config_.electricSolver);
     m.electric->setContactCandidates(contactCandidates(m));
+    m.electric->setNodePositions(m.mesh.nodes);
     m.electric->setMatrix(m.stiffness, m.ground);
     if (prefetchTo >= prefetchFrom)
       m.electric->prefetch(scriptedContacts(m.contactFinder, m.ground, prefetchFrom, prefetchTo));

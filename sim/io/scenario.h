@@ -212,7 +212,7 @@ struct ScenarioSubgridContact {
 };
 
 struct ScenarioSolvers {
-  // refactor|dense-inverse|capacitance|pcg|auto
+  // refactor|dense-inverse|capacitance|pcg|local|auto
   ElectricStrategy electricStrategy = scenario_detail::core().electricSolver.strategy;
   // pcg relative residual
   double electricTolerance = scenario_detail::core().electricSolver.pcgTolerance;
@@ -227,6 +227,9 @@ struct ScenarioSolvers {
   int electricCacheMemoryLimitMb =
       static_cast<int>(scenario_detail::core().electricSolver.cacheMemoryLimitBytes / 1048576.0);
   int electricThreads = scenario_detail::core().electricSolver.threads;
+  // local: the region's radius around the contacts [m], the far field's refresh period
+  double electricLocalMarginM = scenario_detail::core().electricSolver.localMarginM;
+  int electricLocalRefreshFrames = scenario_detail::core().electricSolver.localRefreshFrames;
   bool electricPrefetchPath = true;  // precompute what the scripted tool path touches
   // explicit | backward-euler | crank-nicolson
   ThermalIntegrator thermalIntegrator = scenario_detail::core().thermal.integrator;

@@ -281,12 +281,23 @@ const std::vector<Field>& schema() {
                        "that cuts')"));
     // solvers
     f.push_back(choice("solvers.electric.strategy", ESIM_ENUM_REF(solvers.electricStrategy),
-                       {"refactor", "dense-inverse", "capacitance", "pcg", "auto"},
+                       {"refactor", "dense-inverse", "capacitance", "pcg", "local", "auto"},
                        "electric solver: refactor per contact change, the paper's dense inverse, "
-                       "cached sparse columns, warm-started CG, or auto: the dense inverse up "
+                       "cached sparse columns, warm-started CG, local (not exact: the nodes "
+                       "near the tool solved, the far field held from a pcg solve refreshed on "
+                       "a thread; README 'The potential solved around the tool only'), or "
+                       "auto: the dense inverse up "
                        "to 3000 nodes off the return electrode; above, pcg for a cut in "
                        "rebuild mode update, capacitance otherwise (the faster, measured: README "
                        "'The cut')"));
+    f.push_back(number("solvers.electric.local_margin_m", ESIM_REF(solvers.electricLocalMarginM),
+                       "m", positive(10.0),
+                       "local: the nodes within this distance of a contact node are solved each "
+                       "frame"));
+    f.push_back(integer("solvers.electric.local_refresh_frames",
+                        ESIM_REF(solvers.electricLocalRefreshFrames), "", closed(1, 1e6),
+                        "local: a full solve of the far field starts on a thread every this "
+                        "many frames with contact and is used from as many frames later"));
     f.push_back(number("solvers.electric.tolerance", ESIM_REF(solvers.electricTolerance), "",
                        {0.0, 1.0, true, true}, "relative residual for pcg"));
     f.push_back(integer("solvers.electric.max_iterations", ESIM_REF(solvers.electricMaxIterations),

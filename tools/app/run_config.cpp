@@ -35,6 +35,8 @@ void mapElectric(const Scenario& s, SimulationConfig& c) {
   c.electricSolver.denseMemoryLimitBytes = s.solvers.electricDenseMemoryLimitMb * 1048576.0;
   c.electricSolver.cacheMemoryLimitBytes = s.solvers.electricCacheMemoryLimitMb * 1048576.0;
   c.electricSolver.threads = s.solvers.electricThreads;
+  c.electricSolver.localMarginM = s.solvers.electricLocalMarginM;
+  c.electricSolver.localRefreshFrames = s.solvers.electricLocalRefreshFrames;
   c.prefetchUntilS = s.solvers.electricPrefetchPath ? s.time.durationS : 0.0;
   c.temperatureDependentConductivity = s.effects.temperatureDependentConductivity;
   c.conductivityTempCoeffPerK = m.conductivityTempCoeffPerK;

@@ -1,0 +1,272 @@
+// electric_local.cpp - the potential solved around the tool only, its far field held from
+// an earlier full solve refreshed on a thread (strategy `local`; issue #11, "the structural
+// solve at scale" for the electric phase). Not exact: it trades a measured error for time
+// (README, "The potential solved around the tool only").
+//
+// Method (the "held" model of tools/electric_local_study, measured there first):
+//   - a full solve (pcg, the same options) gives the potential u_h on every node; it is
+//     held, scaled by the tool voltage's ratio (the potential is linear in it);
+//   - each frame the region R is the set of free nodes, not in contact, within
+//     localMarginM of a contact node of this frame or of the held solve, reached from
+//     those nodes through such nodes (a breadth-first walk over the nonzeros of K): u_h
+//     is wrong around both (the tool has moved since), so both are solved; every other
+//     node keeps u_h (contacts: the tool voltage, the return electrode and floating
+//     nodes: 0 V);
+//   - R is solved exactly for that boundary: K_RR u_R = -K_R,out u_out (conjugate
+//     gradients, incomplete-Cholesky preconditioned, warm-started from u_h, to
+//     pcgTolerance), so the result is the energy minimum over the functions equal to
+//     u_h outside R: its Joule power is at least the true one and falls as R grows; a
+//     region covering the body gives the full solve's answer;
+//   - every localRefreshFrames solves a full solve with that frame's contacts starts on a
+//     thread (at nice +10) and is adopted localRefreshFrames solves later: the far field is
+//     R to 2R - 1 frames (solves with contact) old. The adoption points depend only on the
+//     count of solves, so a run is deterministic whatever the thread's timing;
+//   - the first solve after the solver is made (or when the held field's size no longer
+//     matches) is a full solve in the frame, exact.
+// setMatrix / updateMatrix: the region side takes the new K at once; the full solver gets
+// it when its next refresh starts (a refresh in flight is never waited for here), so a cut
+// costs an O(nnz) copy in the frame.
+// Thread safety: as every ElectricSolver; the refresh thread touches only the inner solver
+// and its own buffers, joined before they are read.
+#include <Eigen/IterativeLinearSolvers>
+#include <algorithm>
+#include <future>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+
+#include "sim/core_error.h"
+#include "sim/electric_solver.h"
+
+namespace esim::electric_detail {
+namespace {
+
+class LocalSolver final : public ElectricSolver {
+ public:
+  explicit LocalSolver(const ElectricSolverOptions& options) : options_(options) {
+    ElectricSolverOptions inner = options;
+    inner.strategy = ElectricStrategy::Pcg;
+    full_ = makePcgSolver(inner);
+    cg_.setTolerance(options_.pcgTolerance);
+    cg_.setMaxIterations(options_.pcgMaxIterations);
+  }
+  ~LocalSolver() override {
+    if (refresh_.valid()) refresh_.wait();  // the thread uses full_ and refreshed_
+  }
+  LocalSolver(const LocalSolver&) = delete;
+  LocalSolver& operator=(const LocalSolver&) = delete;
+
+  void setNodePositions(const std::vector<Vec3>& positionsM) override { positions_ = positionsM; }
+
+  void setMatrix(const SparseMatrix& K, const std::vector<int>& grounded) override {
+    const ResetOnThrow guard(classes_);
+    classes_.build(K, grounded);
+    K_ = K;
+    K_.makeCompressed();
+    grounded_ = grounded;
+    pending_ = true;  // the full solver takes it at its next start
+  }
+
+  // a new matrix is all this needs (O(nnz)); the held far field stays
+  ElectricUpdateStats updateMatrix(const SparseMatrix& K,
+                                   const std::vector<int>& grounded) override {
+    setMatrix(K, grounded);
+    return {};
+  }
+
+  ElectricSolveStats solve(const std::vector<int>& contact, double voltageV,
+                           Eigen::VectorXd& potential) override {
+    ESIM_CHECK(classes_.n > 0);  // setMatrix before solve
+    ESIM_VERIFY(static_cast<int>(positions_.size()) == classes_.n,
+                "electric solver local: node positions (" + std::to_string(positions_.size()) +
+                    ") do not match the matrix (" + std::to_string(classes_.n) + " nodes)");
+    ElectricSolveStats stats;
+    const std::vector<int> cf = classes_.contactFreeIndices(contact);
+    if (cf.empty()) {
+      potential.setZero(classes_.n);
+      return stats;
+    }
+    if (held_.size() != classes_.n) {  // nothing held yet: a full solve in the frame
+      if (refresh_.valid()) refresh_.get();
+      fullSolve(contact, voltageV, potential, stats);
+      held_ = potential;
+      heldVoltageV_ = voltageV;
+      heldContact_ = contact;
+      solves_ = 0;
+      nextRefresh_ = options_.localRefreshFrames;
+      return stats;
+    }
+    ++solves_;
+    if (solves_ >= nextRefresh_) {  // adopt the refresh started R solves ago, start the next
+      if (refresh_.valid()) {
+        refresh_.get();  // rethrows the refresh's error here
+        std::swap(held_, refreshed_);
+        heldVoltageV_ = refreshedVoltageV_;
+        heldContact_ = refreshedContact_;
+      }
+      startRefresh(contact, voltageV);
+      nextRefresh_ = solves_ + options_.localRefreshFrames;
+    }
+    regionSolve(contact, voltageV, potential, stats);
+    return stats;
+  }
+
+  double memoryBytes() const override {
+    return full_->memoryBytes() + 12.0 * static_cast<double>(K_.nonZeros()) +
+           8.0 * 3 * static_cast<double>(classes_.n);
+  }
+  const char* name() const override { return "local"; }
+
+ private:
+  // the inner full solve into `potential`, the matrix given first if it changed
+  void fullSolve(const std::vector<int>& contact, double voltageV, Eigen::VectorXd& potential,
+                 ElectricSolveStats& stats) {
+    if (pending_) {
+      full_->setMatrix(K_, grounded_);
+      pending_ = false;
+    }
+    stats = full_->solve(contact, voltageV, potential);
+    stats.regionNodes = classes_.numFree();
+  }
+
+  void startRefresh(const std::vector<int>& contact, double voltageV) {
+    if (pending_) {  // the thread gets its own copy: K_ may change while it runs
+      refreshK_ = K_;
+      refreshGrounded_ = grounded_;
+    }
+    const bool newMatrix = pending_;
+    pending_ = false;
+    refreshed_ = held_;  // the warm start
+    refreshedVoltageV_ = voltageV;
+    refreshedContact_ = contact;
+    if (heldVoltageV_ != 0 && voltageV != heldVoltageV_) refreshed_ *= voltageV / heldVoltageV_;
+    refresh_ = std::async(std::launch::async, [this, contact, voltageV, newMatrix] {
+      deprioritizeThisThread();  // needed R frames from now: the frame loop goes first
+      if (newMatrix) full_->setMatrix(refreshK_, refreshGrounded_);
+      full_->solve(contact, voltageV, refreshed_);
+    });
+  }
+
+  // the region around the contacts solved with the held field outside
+  void regionSolve(const std::vector<int>& contact, double voltageV, Eigen::VectorXd& potential,
+                   ElectricSolveStats& stats) {
+    const int n = classes_.n;
+    const double scale = heldVoltageV_ != 0 ? voltageV / heldVoltageV_ : 1.0;
+    potential.resize(n);
+    for (int i = 0; i < n; ++i) potential[i] = classes_.freeIndex[i] >= 0 ? scale * held_[i] : 0.0;
+    mark_.assign(n, -1);  // -2 contact, -3 seen and outside, >= 0 index in region
+    region_.clear();
+    std::vector<int>& queue = queue_;
+    queue.clear();
+    centres_.clear();  // the nodes the margin is measured from
+    for (int c : contact)
+      if (classes_.freeIndex[c] >= 0) {
+        potential[c] = voltageV;
+        mark_[c] = -2;
+        queue.push_back(c);
+        centres_.push_back(c);
+      }
+    // the held solve's contacts: u_h is the tool's potential there, no longer touched
+    for (int c : heldContact_)
+      if (c < n && classes_.freeIndex[c] >= 0 && mark_[c] == -1) {
+        mark_[c] = static_cast<int>(region_.size());
+        region_.push_back(c);
+        queue.push_back(c);
+        centres_.push_back(c);
+      }
+
+    // ---- the region: a walk from those nodes through free nodes within the margin ----
+    const double margin2 = options_.localMarginM * options_.localMarginM;
+    for (size_t head = 0; head < queue.size(); ++head) {
+      for (SparseMatrix::InnerIterator it(K_, queue[head]); it; ++it) {
+        const int v = static_cast<int>(it.row());
+        if (mark_[v] != -1) continue;
+        bool inside = classes_.freeIndex[v] >= 0;
+        if (inside) {
+          inside = false;
+          for (int c : centres_)
+            if ((positions_[v] - positions_[c]).squaredNorm() < margin2) {
+              inside = true;
+              break;
+            }
+        }
+        if (!inside) {
+          mark_[v] = -3;
+          continue;
+        }
+        mark_[v] = static_cast<int>(region_.size());
+        region_.push_back(v);
+        queue.push_back(v);
+      }
+    }
+    const int m = static_cast<int>(region_.size());
+    stats.regionNodes = m;
+    if (m == 0) return;
+
+    // ---- K_RR and b = -K_R,out u_out (K symmetric: its columns are its rows) ----
+    std::vector<Eigen::Triplet<double>> entries;
+    entries.reserve(static_cast<size_t>(m) * 16);
+    Eigen::VectorXd b = Eigen::VectorXd::Zero(m), x(m);
+    for (int q = 0; q < m; ++q) {
+      const int v = region_[q];
+      x[q] = potential[v];
+      for (SparseMatrix::InnerIterator it(K_, v); it; ++it) {
+        const int j = static_cast<int>(it.row());
+        if (mark_[j] >= 0)
+          entries.emplace_back(mark_[j], q, it.value());
+        else
+          b[q] -= it.value() * potential[j];
+      }
+    }
+    A_.resize(m, m);
+    A_.setFromTriplets(entries.begin(), entries.end());
+    cg_.compute(A_);
+    ESIM_VERIFY(cg_.info() == Eigen::Success,
+                "electric solver local: the region's incomplete Cholesky factorization failed");
+    x = cg_.solveWithGuess(b, Eigen::VectorXd(x));
+    stats.iterations = static_cast<int>(cg_.iterations());
+    stats.residual = cg_.error();
+    ESIM_RUN_CHECK(x.allFinite() && stats.residual <= options_.pcgTolerance,
+                   "solve_potential: the local region's CG did not converge: relative residual " +
+                       messageNumber(stats.residual) + " after " +
+                       std::to_string(stats.iterations) +
+                       " iterations, above solvers.electric.tolerance = " +
+                       messageNumber(options_.pcgTolerance) +
+                       "; raise solvers.electric.max_iterations or use pcg");
+    for (int q = 0; q < m; ++q) potential[region_[q]] = x[q];
+  }
+
+  ElectricSolverOptions options_;
+  NodeClasses classes_;
+  SparseMatrix K_;  // the current matrix (the region side)
+  std::vector<int> grounded_;
+  bool pending_ = false;  // K_ not yet given to the full solver
+  std::vector<Vec3> positions_;
+  std::unique_ptr<ElectricSolver> full_;  // pcg; on the refresh thread while it runs
+  Eigen::VectorXd held_;                  // the far field [V] at heldVoltageV_
+  double heldVoltageV_ = 0;
+  std::vector<int> heldContact_;  // the contact set of the held solve
+  int solves_ = 0;                // solves with contact since the first full one
+  int nextRefresh_ = 0;  // the solve count at which the next refresh is adopted and started
+  std::future<void> refresh_;
+  SparseMatrix refreshK_;  // the refresh thread's copies
+  std::vector<int> refreshGrounded_;
+  Eigen::VectorXd refreshed_;
+  double refreshedVoltageV_ = 0;
+  std::vector<int> refreshedContact_;
+  // the region's scratch, kept across frames
+  std::vector<int> mark_, region_, queue_, centres_;
+  SparseMatrix A_;
+  Eigen::ConjugateGradient<SparseMatrix, Eigen::Lower | Eigen::Upper,
+                           Eigen::IncompleteCholesky<double, Eigen::Lower, Eigen::AMDOrdering<int>>>
+      cg_;
+};
+
+}  // namespace
+
+std::unique_ptr<ElectricSolver> makeLocalSolver(const ElectricSolverOptions& options) {
+  return std::make_unique<LocalSolver>(options);
+}
+
+}  // namespace esim::electric_detail
