@@ -27,9 +27,15 @@
 // and structural method (the side-by-side ratio, one per round) and whether every round removed the
 // same tets in the same count (each strategy is deterministic: a difference is a finding, not
 // noise).
+// --structural and --electric list solver choices (solvers.structural.method,
+// solvers.electric.strategy): every pair runs, and each run after the first is compared with
+// the first: the tets removed by one of the two only, the frames before their removed sets
+// first differ, and the largest relative difference of the Joule power over those frames
+// (what an inexact method gives up, e.g. --electric pcg,local).
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <memory>
@@ -62,6 +68,7 @@ struct BenchCutOptions {
   bool stages = false;              // per-stage median / p95 / max under each row
   bool render = false;              // draw every frame, timed apart
   std::string structural = "full";  // solvers.structural.method values, comma separated
+  std::string electric;             // solvers.electric.strategy values (empty: the scene's)
   double paceHz = 0;  // > 0: each frame starts on its tick of a loop at this rate (as a
                       // haptic or display loop runs), not right after the last one
   std::vector<std::string> overrides;  // --set KEY=VALUE, after the bench's own
@@ -84,12 +91,19 @@ double quantile(std::vector<double> v, double q) {
 }
 
 // the scenario values of one run: the bench's own, then --set
+// one run's solver choice: a structural method and an electric strategy ("": the scene's)
+struct Variant {
+  std::string method, electric;
+  std::string name() const { return electric.empty() ? method : method + "+" + electric; }
+};
+
 std::vector<std::string> runSets(const BenchCutOptions& opt, int nodes, const std::string& strategy,
-                                 const std::string& method) {
+                                 const Variant& variant) {
   std::vector<std::string> sets = {
       "mesh.slab.nodes=" + std::to_string(nodes), "tool.voltage_v=" + scenarioNumber(opt.voltageV),
-      "solvers.rebuild.mode=" + strategy, "solvers.structural.method=" + method,
+      "solvers.rebuild.mode=" + strategy, "solvers.structural.method=" + variant.method,
       "physics=[electric,thermal,boiling,structural,rupture]"};
+  if (!variant.electric.empty()) sets.push_back("solvers.electric.strategy=" + variant.electric);
   sets.insert(sets.end(), opt.overrides.begin(), opt.overrides.end());
   return sets;
 }
@@ -163,13 +177,28 @@ int benchCut(const BenchCutOptions& opt) {
     ESIM_VERIFY(
         m == "full" || m == "local" || m == "coarse",
         "--structural: '" + m + "' is not full, local or coarse (solvers.structural.method)");
+  std::vector<std::string> electrics = app::splitList(opt.electric);
+  if (electrics.empty()) electrics.push_back("");
+  for (const std::string& e : electrics)
+    if (!e.empty()) {
+      try {
+        parseElectricStrategy(e);
+      } catch (const Error& err) {
+        throw Error("--electric: " + std::string(err.what()));
+      }
+    }
+  // every structural method with every electric strategy; the first is the reference the
+  // others' removed sets and powers are compared with
+  std::vector<Variant> variants;
+  for (const std::string& m : methods)
+    for (const std::string& e : electrics) variants.push_back({m, e});
   // every run's scenario checked before the first run (its mesh is built when it runs); the
   // first one's look serves --render
   std::optional<Scenario> first;
   for (const int nodes : sizes)
     for (const std::string& strategy : strategies)
-      for (const std::string& method : methods) {
-        Scenario sc = loadScenario(opt.scenario, runSets(opt, nodes, strategy, method));
+      for (const Variant& variant : variants) {
+        Scenario sc = loadScenario(opt.scenario, runSets(opt, nodes, strategy, variant));
         if (!first) first = std::move(sc);
       }
   // --render: one renderer for every run (the look is the same: --set applies to all), made
@@ -208,9 +237,13 @@ int benchCut(const BenchCutOptions& opt) {
   for (int round = 0; round < opt.repeat; ++round)
     for (const int nodes : sizes)
       for (const std::string& strategy : strategies) {
-        std::vector<std::uint8_t> fullAlive;  // the removed set of the full solve's run
-        for (const std::string& method : methods) {
-          const Scenario sc = loadScenario(opt.scenario, runSets(opt, nodes, strategy, method));
+        // the reference run's (the first variant's) removed set and power, frame by frame
+        std::vector<std::vector<std::uint8_t>> referenceAlive;
+        std::vector<double> referencePowerW;
+        for (const Variant& variant : variants) {
+          const std::string method = variant.name();
+          const bool reference = &variant == &variants.front();
+          const Scenario sc = loadScenario(opt.scenario, runSets(opt, nodes, strategy, variant));
           const SimulationConfig config = app::makeSimulationConfig(sc);
           Simulation sim(app::buildMesh(sc), config);
           const int frames =
@@ -222,6 +255,11 @@ int benchCut(const BenchCutOptions& opt) {
           std::array<std::vector<double>, 4> partMs;   // update mode: the parts of a removal
           std::vector<double> structuralWork, workMs;  // ... the structural updates' work, time
           int waits = 0;
+          // against the reference: the frames before the removed sets first differ, and the
+          // largest relative difference of the Joule power over those frames
+          int sameFrames = 0;
+          bool diverged = false;
+          double powerDiff = 0;
           // --pace: frame f starts at its tick; a frame that overruns its tick makes the loop
           // skip the ticks it covered (a real-time loop drops them), and counts as late
           int late = 0;
@@ -250,6 +288,18 @@ int benchCut(const BenchCutOptions& opt) {
               while (next < std::chrono::steady_clock::now()) next += period;
             }
             ms.push_back(r.physicsMs());
+            if (reference) {
+              referenceAlive.push_back(sim.mesh().alive);
+              referencePowerW.push_back(r.powerW);
+            } else if (!diverged && f < static_cast<int>(referenceAlive.size())) {
+              if (referencePowerW[f] > 0)
+                powerDiff = std::max(powerDiff,
+                                     std::abs(r.powerW - referencePowerW[f]) / referencePowerW[f]);
+              if (sim.mesh().alive == referenceAlive[f])
+                ++sameFrames;
+              else
+                diverged = true;
+            }
             for (int s = 0; s < kStageCount; ++s)
               if (r.status[s] == StageStatus::Ran) stageMs[s].push_back(r.ms[s]);
             if (r.removedTets > 0) rebuildMs.push_back(r.ms[static_cast<int>(Stage::Rebuild)]);
@@ -281,16 +331,16 @@ int benchCut(const BenchCutOptions& opt) {
           const double med = quantile(ms, 0.5), p95 = quantile(ms, 0.95),
                        mx = *std::max_element(ms.begin(), ms.end()),
                        rmed = quantile(rebuildMs, 0.5);
-          // removed-set difference against the full solve's run: tets removed by one only
+          // removed-set difference against the reference run: tets removed by one only
           const std::vector<std::uint8_t>& alive = sim.mesh().alive;
           int differ = -1;
-          if (method == "full") {
-            fullAlive = alive;
-          } else if (fullAlive.size() == alive.size()) {
+          if (!reference && !referenceAlive.empty() &&
+              referenceAlive.back().size() == alive.size()) {
             differ = 0;
-            for (size_t e = 0; e < alive.size(); ++e) differ += (alive[e] != fullAlive[e]);
+            for (size_t e = 0; e < alive.size(); ++e)
+              differ += (alive[e] != referenceAlive.back()[e]);
           }
-          std::string label = methods.size() > 1 ? strategy + "/" + method : strategy;
+          std::string label = variants.size() > 1 ? strategy + "/" + method : strategy;
           if (opt.paceHz > 0) label += "@" + messageNumber(opt.paceHz) + "Hz";
           rounds[round].push_back(
               {label, strategy, method, sim.mesh().numNodes(), med, p95, alive});
@@ -303,7 +353,11 @@ int benchCut(const BenchCutOptions& opt) {
             std::printf(" %10.2f %10.2f %15.2f %15.2f", quantile(renderMs, 0.5),
                         quantile(renderMs, 0.95), quantile(frameMs, 0.5), quantile(frameMs, 0.95));
           if (differ >= 0)
-            std::printf("  (%d tets removed by one of full/%s only)", differ, method.c_str());
+            std::printf(
+                "  (%d tets removed by one of %s/%s only; the same removed set in the first %d "
+                "frames, the power within %.2e of %s's there)",
+                differ, variants.front().name().c_str(), method.c_str(), sameFrames, powerDiff,
+                variants.front().name().c_str());
           if (opt.paceHz > 0) std::printf("  (%d frames ended after their tick)", late);
           // which solver the scene's electric strategy (auto: by the mesh's size) took
           if (const std::string electric = sim.electricSolverName(); !electric.empty())
@@ -393,6 +447,11 @@ cli::Registrar registerBenchCut(
       app.add_option("--structural", opt->structural,
                      "solvers.structural.method values, comma separated (full,local,coarse: "
                      "each later method's removed set compared with the full one's)")
+          ->capture_default_str();
+      app.add_option("--electric", opt->electric,
+                     "solvers.electric.strategy values, comma separated (e.g. pcg,local: each "
+                     "later one's removed set and power compared with the first's; empty: the "
+                     "scene's)")
           ->capture_default_str();
       app.add_option("--repeat", opt->repeat,
                      "N: the whole table N times, round after round, then each row's range over "
