@@ -56,6 +56,10 @@ TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
       // --voltage goes to the scene as written (it printed 309 digits)
       {"bench cut --sizes 50 --voltage 1e308",
        "--set tool.voltage_v=1e+308: tool.voltage_v = 1e+308 is outside [0, 10000]"},
+      {"bench cut --sizes 50 --electric pcg,foo",
+       "--electric: electric solver: unknown strategy 'foo'; valid names: refactor, "
+       "dense-inverse, capacitance, pcg, local, auto"},
+      {"bench electric --sizes 100 --local-margin 0", "--local-margin"},
       {"bench structural --sizes 100 --solves 0", "--solves must be >= 1"},
       {"bench structural --sizes 100 --volumetric element,foo",
        "bench structural: --volumetric: 'foo' is not a form of the volumetric strain; expected "
@@ -111,6 +115,23 @@ TEST_F(BenchCli, EverySlabBenchRunsAtTheSmallestSizeItAccepts) {
     EXPECT_TRUE(fs::is_regular_file(csv_)) << args;
     fs::remove(csv_);
   }
+}
+
+// --electric: each later strategy's run compared with the first's (the same scene, frames)
+TEST_F(BenchCli, CutComparesElectricStrategiesWithTheFirst) {
+  const auto r =
+      shell(esim("bench cut --frames 6 --sizes 1013 --strategy update --electric "
+                 "pcg,capacitance,local"));
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+  for (const char* row : {"update/full+pcg ", "update/full+capacitance ", "update/full+local "})
+    EXPECT_NE(r.output.find(row), std::string::npos) << row << "\n" << r.output;
+  // two direct-to-1e-8 solvers remove the same tets in every frame
+  EXPECT_NE(r.output.find("(0 tets removed by one of full+pcg/full+capacitance only; the same "
+                          "removed set in the first 6 frames"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("of full+pcg/full+local only"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("electric local"), std::string::npos) << r.output;
 }
 
 TEST_F(BenchCli, AResultsFolderThatIsAFileIsRefusedBeforeAnythingRuns) {
