@@ -24,7 +24,9 @@
 //     R to 2R - 1 frames (solves with contact) old. The adoption points depend only on the
 //     count of solves, so a run is deterministic whatever the thread's timing;
 //   - the first solve after the solver is made (or when the held field's size no longer
-//     matches) is a full solve in the frame, exact.
+//     matches), and a frame whose contacts lie farther than half the margin from every
+//     contact of the held solve (the tool jumped: see movedAway), is a full solve in the
+//     frame, exact, held from then on.
 // setMatrix / updateMatrix: the region side takes the new K at once; the full solver gets
 // it when its next refresh starts (a refresh in flight is never waited for here), so a cut
 // costs an O(nnz) copy in the frame.
@@ -43,6 +45,9 @@
 
 namespace esim::electric_detail {
 namespace {
+
+// a jump: a contact farther than this many margins from the held solve's contacts
+constexpr double kJumpMargins = 0.5;
 
 class LocalSolver final : public ElectricSolver {
  public:
@@ -89,7 +94,18 @@ class LocalSolver final : public ElectricSolver {
       potential.setZero(classes_.n);
       return stats;
     }
-    if (held_.size() != classes_.n) {  // nothing held yet: a full solve in the frame
+    ++solves_;
+    const bool due = solves_ >= nextRefresh_;
+    if (due && refresh_.valid()) {  // adopt the refresh started R solves ago
+      refresh_.get();               // rethrows the refresh's error here
+      std::swap(held_, refreshed_);
+      heldVoltageV_ = refreshedVoltageV_;
+      heldContact_ = refreshedContact_;
+    }
+    // nothing held yet, or the tool has jumped away from the held solve's contacts: a full
+    // solve in the frame (a refresh in flight is waited for and dropped: it is of the old
+    // place), held from now on
+    if (held_.size() != classes_.n || movedAway(contact)) {
       if (refresh_.valid()) refresh_.get();
       fullSolve(contact, voltageV, potential, stats);
       held_ = potential;
@@ -97,20 +113,15 @@ class LocalSolver final : public ElectricSolver {
       heldContact_ = contact;
       solves_ = 0;
       nextRefresh_ = options_.localRefreshFrames;
+      if (options_.localCheck) stats.powerError = 0;  // the full solve itself
       return stats;
     }
-    ++solves_;
-    if (solves_ >= nextRefresh_) {  // adopt the refresh started R solves ago, start the next
-      if (refresh_.valid()) {
-        refresh_.get();  // rethrows the refresh's error here
-        std::swap(held_, refreshed_);
-        heldVoltageV_ = refreshedVoltageV_;
-        heldContact_ = refreshedContact_;
-      }
+    if (due) {  // start the next refresh, adopted R solves from now
       startRefresh(contact, voltageV);
       nextRefresh_ = solves_ + options_.localRefreshFrames;
     }
     regionSolve(contact, voltageV, potential, stats);
+    if (options_.localCheck) checkPower(contact, voltageV, potential, stats);
     return stats;
   }
 
@@ -130,6 +141,31 @@ class LocalSolver final : public ElectricSolver {
     }
     stats = full_->solve(contact, voltageV, potential);
     stats.regionNodes = classes_.numFree();
+  }
+
+  // a contact node of this frame farther than kJumpMargins * localMarginM from every contact
+  // node of the held solve and not next to one (an edge of K: a coarse mesh's contacts move
+  // node by node): the tool has jumped (a new path, a pass's end), and the held far
+  // field is that of the old place. A blade moving continuously adds contacts at its front
+  // edge, as far from the held ones as it has travelled since (slab_cut: 1/3 mm a frame, so
+  // 1.7 mm at the held field's oldest with the defaults: never). Contacts that were held
+  // cost a binary search; only new ones are compared with the held set.
+  bool movedAway(const std::vector<int>& contact) const {
+    const double reach2 =
+        kJumpMargins * kJumpMargins * options_.localMarginM * options_.localMarginM;
+    for (int c : contact) {
+      if (classes_.freeIndex[c] < 0 ||
+          std::binary_search(heldContact_.begin(), heldContact_.end(), c))
+        continue;
+      bool near = false;
+      for (SparseMatrix::InnerIterator it(K_, c); it && !near; ++it)  // one edge away
+        near = std::binary_search(heldContact_.begin(), heldContact_.end(),
+                                  static_cast<int>(it.row()));
+      for (size_t k = 0; k < heldContact_.size() && !near; ++k)
+        near = (positions_[c] - positions_[heldContact_[k]]).squaredNorm() <= reach2;
+      if (!near) return true;
+    }
+    return false;
   }
 
   void startRefresh(const std::vector<int>& contact, double voltageV) {
@@ -206,10 +242,11 @@ class LocalSolver final : public ElectricSolver {
     stats.regionNodes = m;
     if (m == 0) return;
 
-    // ---- K_RR and b = -K_R,out u_out (K symmetric: its columns are its rows) ----
+    // ---- K_RR, and the two right-hand sides: from the contacts (b_V) and the held field
+    // outside (b_H); K symmetric: its columns are its rows ----
     std::vector<Eigen::Triplet<double>> entries;
     entries.reserve(static_cast<size_t>(m) * 16);
-    Eigen::VectorXd b = Eigen::VectorXd::Zero(m), x(m);
+    Eigen::VectorXd bV = Eigen::VectorXd::Zero(m), bH = Eigen::VectorXd::Zero(m), x(m);
     for (int q = 0; q < m; ++q) {
       const int v = region_[q];
       x[q] = potential[v];
@@ -217,24 +254,70 @@ class LocalSolver final : public ElectricSolver {
         const int j = static_cast<int>(it.row());
         if (mark_[j] >= 0)
           entries.emplace_back(mark_[j], q, it.value());
+        else if (mark_[j] == -2)
+          bV[q] -= it.value() * voltageV;
         else
-          b[q] -= it.value() * potential[j];
+          bH[q] -= it.value() * potential[j];
       }
     }
     A_.resize(m, m);
     A_.setFromTriplets(entries.begin(), entries.end());
     cg_.compute(A_);
-    x = cg_.solveWithGuess(b, Eigen::VectorXd(x));
-    stats.iterations = static_cast<int>(cg_.iterations());
-    stats.residual = cg_.error();
-    ESIM_RUN_CHECK(x.allFinite() && stats.residual <= options_.pcgTolerance,
+    // u_1: the region with the tool's voltage and the held field (warm: the held values);
+    // u_H: with the contacts at 0 V instead; u_V = u_1 - u_H
+    const Eigen::VectorXd x1 = regionCg(bV + bH, x, stats);
+    const Eigen::VectorXd xH = regionCg(bH, x, stats);
+
+    // ---- the far field's scale s: the energy minimum over u_V + s u_H (Galerkin) ----
+    // uH_ (full size): xH in the region, the held field outside, 0 at the contacts and at
+    // the fixed nodes; then E_HH = u_H' K u_H and E_VH = u_V' K u_H (u_V is nonzero on the
+    // region and the contacts only)
+    uH_ = potential;
+    for (int c : centres_)
+      if (mark_[c] == -2) uH_[c] = 0.0;
+    for (int q = 0; q < m; ++q) uH_[region_[q]] = xH[q];
+    kuH_.noalias() = K_ * uH_;
+    const double eHH = uH_.dot(kuH_);
+    double eVH = 0;
+    for (int q = 0; q < m; ++q) eVH += (x1[q] - xH[q]) * kuH_[region_[q]];
+    for (int c : centres_)
+      if (mark_[c] == -2) eVH += voltageV * kuH_[c];
+    const double sFar = eHH > 0 ? -eVH / eHH : 1.0;
+    stats.farFieldScale = sFar;
+    for (int i = 0; i < n; ++i)
+      if (mark_[i] != -2) potential[i] = sFar * uH_[i];
+    for (int q = 0; q < m; ++q) potential[region_[q]] = x1[q] - xH[q] + sFar * xH[q];
+  }
+
+  // localCheck: the power's relative excess over a full solve of this frame
+  void checkPower(const std::vector<int>& contact, double voltageV,
+                  const Eigen::VectorXd& potential, ElectricSolveStats& stats) {
+    if (!check_) {
+      ElectricSolverOptions o = options_;
+      o.strategy = ElectricStrategy::Pcg;
+      o.pcgTolerance = 1e-10;
+      check_ = makePcgSolver(o);
+    }
+    check_->setMatrix(K_, grounded_);
+    checkU_ = potential;  // the warm start
+    check_->solve(contact, voltageV, checkU_);
+    const double exact = checkU_.dot(K_ * checkU_);
+    stats.powerError = exact > 0 ? potential.dot(K_ * potential) / exact - 1.0 : 0.0;
+  }
+
+  // CG on the region's matrix from `guess`; the iterations add up in stats
+  Eigen::VectorXd regionCg(const Eigen::VectorXd& b, const Eigen::VectorXd& guess,
+                           ElectricSolveStats& stats) {
+    Eigen::VectorXd x = cg_.solveWithGuess(b, guess);
+    stats.iterations += static_cast<int>(cg_.iterations());
+    stats.residual = std::max(stats.residual, cg_.error());
+    ESIM_RUN_CHECK(x.allFinite() && cg_.error() <= options_.pcgTolerance,
                    "solve_potential: the local region's CG did not converge: relative residual " +
-                       messageNumber(stats.residual) + " after " +
-                       std::to_string(stats.iterations) +
+                       messageNumber(cg_.error()) + " after " + std::to_string(cg_.iterations()) +
                        " iterations, above solvers.electric.tolerance = " +
                        messageNumber(options_.pcgTolerance) +
                        "; raise solvers.electric.max_iterations or use pcg");
-    for (int q = 0; q < m; ++q) potential[region_[q]] = x[q];
+    return x;
   }
 
   ElectricSolverOptions options_;
@@ -257,6 +340,9 @@ class LocalSolver final : public ElectricSolver {
   std::vector<int> refreshedContact_;
   // the region's scratch, kept across frames
   std::vector<int> mark_, region_, queue_, centres_;
+  Eigen::VectorXd uH_, kuH_;
+  std::unique_ptr<ElectricSolver> check_;  // localCheck's full solver
+  Eigen::VectorXd checkU_;
   SparseMatrix A_;
   Eigen::ConjugateGradient<SparseMatrix, Eigen::Lower | Eigen::Upper,
                            Eigen::DiagonalPreconditioner<double>>

@@ -150,6 +150,9 @@ struct ElectricSolverOptions {
   // localRefreshFrames solves with contact on a thread and adopted as many solves later
   double localMarginM = 0.006;
   int localRefreshFrames = 3;
+  // local: also solve every frame fully (pcg at 1e-10, in the frame) and report the power's
+  // error in ElectricSolveStats::powerError (a measurement for benchmarks: costs a full solve)
+  bool localCheck = false;
 };
 
 // Checks the options; throws Error naming the scenario key (solvers.electric.*).
@@ -180,11 +183,15 @@ ElectricStrategy resolveElectricStrategy(const ElectricSolverOptions& options, d
 inline constexpr double kAutoDenseMaxFreeNodes = 3000;
 
 struct ElectricSolveStats {
-  bool refactored = false;  // refactor: the matrix was factorized in this solve
-  int newColumns = 0;       // capacitance: columns computed in this solve
-  int iterations = 0;       // pcg: iterations
-  double residual = 0;      // pcg: relative residual reached
-  int regionNodes = 0;      // local: nodes solved in this frame (all free nodes in a full solve)
+  bool refactored = false;   // refactor: the matrix was factorized in this solve
+  int newColumns = 0;        // capacitance: columns computed in this solve
+  int iterations = 0;        // pcg: iterations
+  double residual = 0;       // pcg: relative residual reached
+  int regionNodes = 0;       // local: nodes solved in this frame (all free nodes in a full solve)
+  double farFieldScale = 1;  // local: the held far field's scale (energy minimum) this frame
+  // local with localCheck: u'Ku / u*'Ku* - 1 against a full solve u* of the same frame (the
+  // Joule power's relative excess, >= 0 to the solves' tolerance); -1 when not measured
+  double powerError = -1;
 };
 
 // what updateMatrix did

@@ -1004,7 +1004,8 @@ void Simulation::advance(FrameRecord& rec) {
     } else {
       joinPrefetch();  // the wait for a removal's prefetch, if any, counts here
       if (m.thermal && config_.temperatureDependentConductivity) refreshConductivity();
-      m.electric->solve(st.contacts, config_.toolVoltageV, st.potentialV);
+      rec.electricPowerError =
+          m.electric->solve(st.contacts, config_.toolVoltageV, st.potentialV).powerError;
       // Joule power density (into the state's buffer, reused) and currents with the
       // assembled sigma
       const ElectricTotals totals =

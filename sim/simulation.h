@@ -74,9 +74,12 @@ struct FrameRecord {
   std::array<StageStatus, kStageCount> status{};  // absent / ran / skipped
   int contactNodes = 0;
   bool generatorOn = false;
-  double toolCurrentA = 0;     // into the tissue at the tool [A]
-  double returnCurrentA = 0;   // out at the return electrode [A]
-  double powerW = 0;           // Joule power this frame [W]
+  double toolCurrentA = 0;    // into the tissue at the tool [A]
+  double returnCurrentA = 0;  // out at the return electrode [A]
+  double powerW = 0;          // Joule power this frame [W]
+  // electric strategy local with ElectricSolverOptions::localCheck: this frame's Joule power
+  // over a full solve's of the same frame, minus 1 (>= 0); -1 when not measured
+  double electricPowerError = -1;
   double maxTemperatureC = 0;  // after heat, over the nodes of alive tets (removed tissue left out)
   double maxVonMisesPa = 0;    // structural phase, over alive tets
   int removedTets = 0;         // by the rebuild swapped in this frame

@@ -172,8 +172,9 @@ TEST(HardContact, ContactOnTheWholeTopFace) {
 // electric strategy takes the empty free set.
 TEST(HardContact, ContactOnEveryNodeButTheReturnPad) {
   const double side = 0.06, sigma = 0.144, volts = 72, h = kLz / 4;
-  for (ElectricStrategy s : {ElectricStrategy::DenseInverse, ElectricStrategy::Capacitance,
-                             ElectricStrategy::Refactor, ElectricStrategy::Pcg}) {
+  for (ElectricStrategy s :
+       {ElectricStrategy::DenseInverse, ElectricStrategy::Capacitance, ElectricStrategy::Refactor,
+        ElectricStrategy::Pcg, ElectricStrategy::Local}) {
     SimulationConfig c =
         hard::toolAt(ElectrodeKind::Blade, Vec3(0, side / 2 + 0.001, 0.00625), true);
     c.contactNodes = ContactNodes::Volume;

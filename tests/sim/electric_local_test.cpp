@@ -160,18 +160,29 @@ TEST(ElectricLocal, RegionCoveringTheBodyIsExactThroughRefreshesAndACut) {
 // u^T K u: twice the field energy, the Joule power [W] at 1 V^2 scale
 double energy(const SparseMatrix& K, const Eigen::VectorXd& u) { return u.dot(K * u); }
 
-// smaller regions: the same held field (the refreshes are the same full solves), so the
-// regions are nested spaces and the power excess is >= 0 and shrinks as the margin grows;
-// the nodes the tool left are solved (the held field had them at the tool's voltage)
+// smaller regions: the same held field (the refreshes are the same full solves, and the tool
+// moves 0.6 mm a frame on a 3.3 mm grid: its new contacts are next to the held ones, no jump
+// makes a full solve), so the regions are nested spaces and the power excess is >= 0 and
+// shrinks as the margin grows; localCheck reports the same excess
 TEST(ElectricLocal, PowerExcessIsNonNegativeAndFallsWithTheMargin) {
   Problem p(3000);
   const double margins[] = {0.004, 0.008, 0.016};
   std::vector<std::unique_ptr<ElectricSolver>> solvers;
-  for (double m : margins) solvers.push_back(makeLocal(p, m, 3));
+  for (double m : margins) {
+    ElectricSolverOptions o;
+    o.strategy = ElectricStrategy::Local;
+    o.pcgTolerance = 1e-12;
+    o.localMarginM = m;
+    o.localCheck = true;
+    solvers.push_back(makeElectricSolver(o));
+    solvers.back()->setNodePositions(p.mesh.nodes);
+    solvers.back()->setMatrix(p.K, p.grounded);
+  }
   std::vector<Eigen::VectorXd> u(3);
-  int checked = 0;
-  for (int f = 0; f < 14; ++f) {
-    const std::vector<int> contact = frameContacts(p, f);
+  int approximate = 0;
+  for (int f = 0; f < 20; ++f) {
+    const std::vector<int> contact = p.contactsAt(-0.02 + 0.0006 * f, 0.0, 0.004);
+    ASSERT_FALSE(contact.empty());
     const Eigen::VectorXd ref = referenceSolve(p, contact);
     const double truth = energy(p.K, ref);
     double last = std::numeric_limits<double>::infinity();
@@ -180,21 +191,43 @@ TEST(ElectricLocal, PowerExcessIsNonNegativeAndFallsWithTheMargin) {
       const double excess = energy(p.K, u[k]) - truth;
       EXPECT_GE(excess, -1e-9 * truth) << "frame " << f << " margin " << margins[k];
       EXPECT_LE(excess, last + 1e-9 * truth) << "frame " << f << " margin " << margins[k];
+      EXPECT_NEAR(st.powerError, excess / truth, 1e-8) << "frame " << f << " margin " << margins[k];
+      if (k == 2) EXPECT_LT(excess, 0.05 * truth) << "frame " << f;  // 4 mm: one grid cell
       last = excess;
       if (f > 0) EXPECT_GT(st.regionNodes, 0);
+      if (f > 0) EXPECT_LT(st.regionNodes, p.mesh.numNodes() / 2);  // never a full solve
       for (int c : contact) EXPECT_EQ(u[k][c], kVolt);
     }
-    if (f >= 4) {  // the held field is 3 to 5 frames old: some error, small at 16 mm
-      EXPECT_GT(energy(p.K, u[0]) - truth, 1e-6 * truth) << f;
-      EXPECT_LT(energy(p.K, u[2]) - truth, 0.05 * truth) << f;
-      ++checked;
-    }
-    if (f == 8) {  // the contacts of frame 3 (the held solve's) are solved now, not held at V
-      for (int c : frameContacts(p, 3))
-        if (!std::binary_search(contact.begin(), contact.end(), c)) EXPECT_LT(u[0][c], kVolt - 1);
-    }
+    approximate += energy(p.K, u[0]) - truth > 1e-6 * truth;
   }
-  EXPECT_EQ(checked, 10);
+  EXPECT_GE(approximate, 4);  // the contacts changed since the held solve in these frames
+}
+
+// the tool lifts off most of its contacts (a blade's contact set flickers on a graded mesh):
+// the held far field carries the old, larger current; its scale (the energy minimum over it)
+// takes the current down with it. Held at scale 1 the power was 1.9 times the truth here.
+TEST(ElectricLocal, AShrinkingContactSetScalesTheHeldFarFieldDown) {
+  Problem p(3000);
+  ElectricSolverOptions o;
+  o.strategy = ElectricStrategy::Local;
+  o.pcgTolerance = 1e-12;
+  o.localCheck = true;
+  auto solver = makeElectricSolver(o);
+  solver->setNodePositions(p.mesh.nodes);
+  solver->setMatrix(p.K, p.grounded);
+  const std::vector<int> wide = p.contactsAt(0.0, 0.0, 0.012);
+  const std::vector<int> one = p.contactsAt(0.0, 0.0, 0.002);
+  ASSERT_GE(wide.size(), 20u);
+  ASSERT_GE(one.size(), 1u);
+  ASSERT_LE(one.size(), 2u);
+  Eigen::VectorXd u;
+  EXPECT_EQ(solver->solve(wide, kVolt, u).powerError, 0.0);  // the first: a full solve
+  const ElectricSolveStats st = solver->solve(one, kVolt, u);
+  EXPECT_LT(st.farFieldScale, 0.5);
+  const double truth = energy(p.K, referenceSolve(p, one));
+  EXPECT_GE(energy(p.K, u), truth * (1 - 1e-9));
+  EXPECT_LT(energy(p.K, u), 1.1 * truth);
+  EXPECT_NEAR(st.powerError, energy(p.K, u) / truth - 1, 1e-8);
 }
 
 // the far field is adopted at fixed solve counts: two runs give the same bits

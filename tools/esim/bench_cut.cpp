@@ -69,6 +69,7 @@ struct BenchCutOptions {
   bool render = false;              // draw every frame, timed apart
   std::string structural = "full";  // solvers.structural.method values, comma separated
   std::string electric;             // solvers.electric.strategy values (empty: the scene's)
+  bool electricCheck = false;       // local: each frame's power against a full solve
   double paceHz = 0;  // > 0: each frame starts on its tick of a loop at this rate (as a
                       // haptic or display loop runs), not right after the last one
   std::vector<std::string> overrides;  // --set KEY=VALUE, after the bench's own
@@ -244,7 +245,8 @@ int benchCut(const BenchCutOptions& opt) {
           const std::string method = variant.name();
           const bool reference = &variant == &variants.front();
           const Scenario sc = loadScenario(opt.scenario, runSets(opt, nodes, strategy, variant));
-          const SimulationConfig config = app::makeSimulationConfig(sc);
+          SimulationConfig config = app::makeSimulationConfig(sc);
+          config.electricSolver.localCheck = opt.electricCheck;
           Simulation sim(app::buildMesh(sc), config);
           const int frames =
               opt.frames > 0 ? opt.frames
@@ -255,6 +257,7 @@ int benchCut(const BenchCutOptions& opt) {
           std::array<std::vector<double>, 4> partMs;   // update mode: the parts of a removal
           std::vector<double> structuralWork, workMs;  // ... the structural updates' work, time
           int waits = 0;
+          std::vector<double> powerErrors;  // --electric-check: local's, frame by frame
           // against the reference: the frames before the removed sets first differ, and the
           // largest relative difference of the Joule power over those frames
           int sameFrames = 0;
@@ -288,6 +291,7 @@ int benchCut(const BenchCutOptions& opt) {
               while (next < std::chrono::steady_clock::now()) next += period;
             }
             ms.push_back(r.physicsMs());
+            if (r.electricPowerError >= 0) powerErrors.push_back(r.electricPowerError);
             if (reference) {
               referenceAlive.push_back(sim.mesh().alive);
               referencePowerW.push_back(r.powerW);
@@ -363,6 +367,13 @@ int benchCut(const BenchCutOptions& opt) {
           if (const std::string electric = sim.electricSolverName(); !electric.empty())
             std::printf("  electric %s", electric.c_str());
           std::printf("\n");
+          if (!powerErrors.empty())
+            std::printf(
+                "  power error    against a full solve of the same frame (--electric-check): "
+                "median %.2e, p95 %.2e, max %.2e over %zu frames (%zu of them full solves)\n",
+                quantile(powerErrors, 0.5), quantile(powerErrors, 0.95),
+                *std::max_element(powerErrors.begin(), powerErrors.end()), powerErrors.size(),
+                static_cast<size_t>(std::count(powerErrors.begin(), powerErrors.end(), 0.0)));
           if (opt.stages)  // the whole process's (every thread's) CPU over the frames
             std::printf(
                 "  cpu            %.2f ms a frame, all threads; %.2f of %d CPUs busy (no "
@@ -453,6 +464,9 @@ cli::Registrar registerBenchCut(
                      "later one's removed set and power compared with the first's; empty: the "
                      "scene's)")
           ->capture_default_str();
+      app.add_flag("--electric-check", opt->electricCheck,
+                   "electric strategy local: solve every frame fully as well (in the frame: its "
+                   "times include it) and print the Joule power's error against it");
       app.add_option("--repeat", opt->repeat,
                      "N: the whole table N times, round after round, then each row's range over "
                      "the rounds, its ratio to the same round's update row, and whether every "
