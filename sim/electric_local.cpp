@@ -1,32 +1,38 @@
 // electric_local.cpp - the potential solved around the tool only, its far field held from
 // an earlier full solve refreshed on a thread (strategy `local`; issue #11, "the structural
 // solve at scale" for the electric phase). Not exact: it trades a measured error for time
-// (README, "The potential solved around the tool only").
+// (README, "The potential solved around the tool, built").
 //
 // Method (the "held" model of tools/electric_local_study, measured there first):
-//   - a full solve (pcg, the same options) gives the potential u_h on every node; it is
-//     held, scaled by the tool voltage's ratio (the potential is linear in it);
+//   - a full solve (pcg, the same options) gives the potential u_h on every node, held
+//     (scaled by the tool voltage's ratio when it changes: the potential is linear in it);
 //   - each frame the region R is the set of free nodes, not in contact, within
 //     localMarginM of a contact node of this frame or of the held solve, reached from
 //     those nodes through such nodes (a breadth-first walk over the nonzeros of K): u_h
 //     is wrong around both (the tool has moved since), so both are solved; every other
-//     node keeps u_h (contacts: the tool voltage, the return electrode and floating
+//     node keeps s u_h (contacts: the tool voltage, the return electrode and floating
 //     nodes: 0 V);
-//   - R is solved exactly for that boundary: K_RR u_R = -K_R,out u_out (conjugate
-//     gradients, Jacobi preconditioned, warm-started from u_h, to pcgTolerance; at 50k
-//     nodes, ~5900 region nodes: ~90 iterations, 6-20 ms with the refresh running beside
-//     it, against 8.7-18 ms with incomplete Cholesky in BFS order, 28-31 iterations, and
-//     14-57 ms with it in AMD order, ESIM_LOCAL_DEBUG timings since removed), so the result is the
-//     energy minimum over the functions equal to u_h outside R: its Joule power is at least the
-//     true one and falls as R grows; a region covering the body gives the full solve's answer;
+//   - R is solved twice for its boundary (conjugate gradients, Jacobi preconditioned,
+//     warm-started from u_h, to pcgTolerance): u_1 with the tool's voltage and u_h outside,
+//     u_H with 0 V at the tool and u_h outside; u_V = u_1 - u_H. The scale s minimizes the
+//     energy of u_V + s u_H (s = -u_V'K u_H / u_H'K u_H: one product with K). The result is
+//     the energy minimum over the functions equal to a multiple of u_h outside R, so its
+//     Joule power is at least the true one and falls as R grows, s = 1 when u_h is exact,
+//     and a region covering the body gives the full solve's answer. Without s (s = 1) a
+//     contact set that shrinks (a blade's flickers on a graded mesh: 3 nodes, 1, 3) kept
+//     the held field's larger current: on slab_cut the power's error p95 1.4e-1 against
+//     6.4e-3 with s (README). At 50k nodes, ~5900 region nodes: ~90 iterations a solve,
+//     6-20 ms with the refresh running beside it; incomplete Cholesky in BFS order took
+//     28-31 iterations but 8.7-18 ms, in AMD order 14-57 ms (ESIM_LOCAL_DEBUG timings of
+//     one solve a frame, since removed);
 //   - every localRefreshFrames solves a full solve with that frame's contacts starts on a
 //     thread (at nice +10) and is adopted localRefreshFrames solves later: the far field is
 //     R to 2R - 1 frames (solves with contact) old. The adoption points depend only on the
 //     count of solves, so a run is deterministic whatever the thread's timing;
 //   - the first solve after the solver is made (or when the held field's size no longer
-//     matches), and a frame whose contacts lie farther than half the margin from every
-//     contact of the held solve (the tool jumped: see movedAway), is a full solve in the
-//     frame, exact, held from then on.
+//     matches), and a frame whose contacts have jumped (a new contact farther than half the
+//     margin from, and not next to, every contact of the held solve: see movedAway), is a
+//     full solve in the frame, exact, held from then on.
 // setMatrix / updateMatrix: the region side takes the new K at once; the full solver gets
 // it when its next refresh starts (a refresh in flight is never waited for here), so a cut
 // costs an O(nnz) copy in the frame.
@@ -36,7 +42,6 @@
 #include <algorithm>
 #include <future>
 #include <memory>
-#include <optional>
 #include <string>
 #include <utility>
 
