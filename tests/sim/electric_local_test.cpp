@@ -7,7 +7,6 @@
 // repeatable; bad options and a missing position set are errors naming what is wrong.
 #include <gtest/gtest.h>
 
-#include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -19,6 +18,7 @@
 #include "sim/electric_solver.h"
 #include "sim/electrode.h"
 #include "sim/mesh_slab.h"
+#include "tests/sim/electric_reference.h"
 
 namespace esim {
 namespace {
@@ -56,52 +56,10 @@ struct Problem {
   }
 };
 
-// independent reference: Eigen LDLT of K_oo u_o = -K_oc u_c (o: the nodes reached from the
-// ground, neither grounded nor in contact; unreached nodes 0 V as the solvers hold them)
 Eigen::VectorXd referenceSolve(const Problem& p, const std::vector<int>& contact) {
-  const int n = static_cast<int>(p.K.rows());
-  std::vector<int> reached(n, 0), queue(p.grounded);
-  for (int g : p.grounded) reached[g] = 1;
-  for (size_t h = 0; h < queue.size(); ++h)
-    for (SparseMatrix::InnerIterator it(p.K, queue[h]); it; ++it)
-      if (!reached[it.row()] && it.value() != 0) {
-        reached[it.row()] = 1;
-        queue.push_back(static_cast<int>(it.row()));
-      }
-  std::vector<int> fixed(n, -1);  // -1 unknown, 0 ground or unreached, 1 contact
-  for (int i = 0; i < n; ++i)
-    if (!reached[i]) fixed[i] = 0;
-  for (int g : p.grounded) fixed[g] = 0;
-  for (int c : contact)
-    if (reached[c]) fixed[c] = 1;
-  std::vector<int> idx(n, -1);
-  int m = 0;
-  for (int i = 0; i < n; ++i)
-    if (fixed[i] < 0) idx[i] = m++;
-  std::vector<Eigen::Triplet<double>> t;
-  Eigen::VectorXd b = Eigen::VectorXd::Zero(m);
-  for (int j = 0; j < n; ++j)
-    for (SparseMatrix::InnerIterator it(p.K, j); it; ++it) {
-      const int i = static_cast<int>(it.row());
-      if (idx[i] < 0) continue;
-      if (idx[j] >= 0)
-        t.emplace_back(idx[i], idx[j], it.value());
-      else if (fixed[j] == 1)
-        b[idx[i]] -= it.value() * kVolt;
-    }
-  SparseMatrix a(m, m);
-  a.setFromTriplets(t.begin(), t.end());
-  Eigen::SimplicialLDLT<SparseMatrix> ldlt(a);
-  EXPECT_EQ(ldlt.info(), Eigen::Success);
-  const Eigen::VectorXd x = ldlt.solve(b);
-  Eigen::VectorXd u = Eigen::VectorXd::Zero(n);
-  for (int i = 0; i < n; ++i) u[i] = idx[i] >= 0 ? x[idx[i]] : (fixed[i] == 1 ? kVolt : 0.0);
-  return u;
+  return test::referenceSolve(p.K, p.grounded, contact, kVolt);
 }
-
-double relError(const Eigen::VectorXd& a, const Eigen::VectorXd& ref) {
-  return (a - ref).cwiseAbs().maxCoeff() / ref.cwiseAbs().maxCoeff();
-}
+using test::relError;
 
 std::unique_ptr<ElectricSolver> makeLocal(const Problem& p, double marginM, int refresh) {
   ElectricSolverOptions o;

@@ -19,6 +19,7 @@
 #include "sim/core_error.h"
 #include "sim/electrode.h"
 #include "sim/mesh_slab.h"
+#include "tests/sim/electric_reference.h"
 #include "tests/sim/suitesparse_fault_util.h"
 
 namespace esim {
@@ -50,41 +51,8 @@ Problem paperSlab(int targetNodes = 1013) {
   return p;
 }
 
-// independent reference: Eigen LDLT of K_oo u_o = -K_oc u_c with o = all but fixed
-Eigen::VectorXd referenceSolve(const SparseMatrix& K, const std::vector<int>& grounded,
-                               const std::vector<int>& contact, double v) {
-  const int n = static_cast<int>(K.rows());
-  std::vector<int> fixedValue(n, -1);  // -1 unknown, 0 ground, 1 contact
-  for (int g : grounded) fixedValue[g] = 0;
-  for (int c : contact) fixedValue[c] = 1;
-  std::vector<int> idx(n, -1);
-  int m = 0;
-  for (int i = 0; i < n; ++i)
-    if (fixedValue[i] < 0) idx[i] = m++;
-  std::vector<Eigen::Triplet<double>> t;
-  Eigen::VectorXd b = Eigen::VectorXd::Zero(m);
-  for (int j = 0; j < n; ++j)
-    for (SparseMatrix::InnerIterator it(K, j); it; ++it) {
-      const int i = static_cast<int>(it.row());
-      if (idx[i] < 0) continue;
-      if (idx[j] >= 0)
-        t.emplace_back(idx[i], idx[j], it.value());
-      else if (fixedValue[j] == 1)
-        b[idx[i]] -= it.value() * v;
-    }
-  SparseMatrix a(m, m);
-  a.setFromTriplets(t.begin(), t.end());
-  Eigen::SimplicialLDLT<SparseMatrix> ldlt(a);
-  EXPECT_EQ(ldlt.info(), Eigen::Success);
-  const Eigen::VectorXd x = ldlt.solve(b);
-  Eigen::VectorXd u = Eigen::VectorXd::Zero(n);
-  for (int i = 0; i < n; ++i) u[i] = idx[i] >= 0 ? x[idx[i]] : (fixedValue[i] == 1 ? v : 0.0);
-  return u;
-}
-
-double relError(const Eigen::VectorXd& a, const Eigen::VectorXd& ref) {
-  return (a - ref).cwiseAbs().maxCoeff() / std::max(ref.cwiseAbs().maxCoeff(), 1e-300);
-}
+using test::referenceSolve;
+using test::relError;
 
 // contact sets of a sphere electrode at a few spots on the top face (5..40 nodes)
 std::vector<std::vector<int>> sampleContacts(const Problem& p) {
