@@ -26,6 +26,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -309,6 +310,12 @@ inline auto removalWays() {
                            RemovalWay{RebuildMode::Update, StructuralSolveMethod::full},
                            RemovalWay{RebuildMode::Update, StructuralSolveMethod::coarse},
                            RemovalWay{RebuildMode::Update, StructuralSolveMethod::full, true});
+}
+// gtest prints the parameter by this (not as raw bytes, which showed the struct's padding)
+inline void PrintTo(const RemovalWay& w, std::ostream* os) {
+  *os << rebuildModeName(w.mode)
+      << (w.structural == StructuralSolveMethod::coarse ? ", coarse structural" : "")
+      << (w.localPotential ? ", local potential" : "");
 }
 inline std::string removalWayName(const ::testing::TestParamInfo<RemovalWay>& info) {
   return std::string(rebuildModeName(info.param.mode)) +
