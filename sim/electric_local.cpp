@@ -32,7 +32,9 @@
 //   - the first solve after the solver is made (or when the held field's size no longer
 //     matches), and a frame whose contacts have jumped (a new contact farther than half the
 //     margin from, and not next to, every contact of the held solve: see movedAway), is a
-//     full solve in the frame, exact, held from then on.
+//     full solve in the frame by a second pcg solver, exact, held from then on; a refresh
+//     in flight then is not waited for (it is dropped when due). Waiting for it made the
+//     liver's solve_potential p95 105 ms against pcg's 61 (README).
 // setMatrix / updateMatrix: the region side takes the new K at once; the full solver gets
 // it when its next refresh starts (a refresh in flight is never waited for here), so a cut
 // costs an O(nnz) copy in the frame.
@@ -60,6 +62,7 @@ class LocalSolver final : public ElectricSolver {
     ElectricSolverOptions inner = options;
     inner.strategy = ElectricStrategy::Pcg;
     full_ = makePcgSolver(inner);
+    now_ = makePcgSolver(inner);
     cg_.setTolerance(options_.pcgTolerance);
     cg_.setMaxIterations(options_.pcgMaxIterations);
   }
@@ -78,6 +81,7 @@ class LocalSolver final : public ElectricSolver {
     K_.makeCompressed();
     grounded_ = grounded;
     pending_ = true;  // the full solver takes it at its next start
+    nowPending_ = true;
   }
 
   // a new matrix is all this needs (O(nnz)); the held far field stays
@@ -103,15 +107,18 @@ class LocalSolver final : public ElectricSolver {
     const bool due = solves_ >= nextRefresh_;
     if (due && refresh_.valid()) {  // adopt the refresh started R solves ago
       refresh_.get();               // rethrows the refresh's error here
-      std::swap(held_, refreshed_);
-      heldVoltageV_ = refreshedVoltageV_;
-      heldContact_ = refreshedContact_;
+      if (!dropRefresh_) {
+        std::swap(held_, refreshed_);
+        heldVoltageV_ = refreshedVoltageV_;
+        heldContact_ = refreshedContact_;
+      }
+      dropRefresh_ = false;
     }
     // nothing held yet, or the tool has jumped away from the held solve's contacts: a full
-    // solve in the frame (a refresh in flight is waited for and dropped: it is of the old
-    // place), held from now on
+    // solve in the frame by a second solver (a refresh in flight is not waited for: it is of
+    // the old place, dropped when it is due), held from now on
     if (held_.size() != classes_.n || movedAway(contact)) {
-      if (refresh_.valid()) refresh_.get();
+      if (refresh_.valid()) dropRefresh_ = true;
       fullSolve(contact, voltageV, potential, stats);
       held_ = potential;
       heldVoltageV_ = voltageV;
@@ -131,20 +138,20 @@ class LocalSolver final : public ElectricSolver {
   }
 
   double memoryBytes() const override {
-    return full_->memoryBytes() + 12.0 * static_cast<double>(K_.nonZeros()) +
+    return full_->memoryBytes() + now_->memoryBytes() + 12.0 * static_cast<double>(K_.nonZeros()) +
            8.0 * 3 * static_cast<double>(classes_.n);
   }
   const char* name() const override { return "local"; }
 
  private:
-  // the inner full solve into `potential`, the matrix given first if it changed
+  // a full solve in the frame into `potential` (now_, the matrix given first if it changed)
   void fullSolve(const std::vector<int>& contact, double voltageV, Eigen::VectorXd& potential,
                  ElectricSolveStats& stats) {
-    if (pending_) {
-      full_->setMatrix(K_, grounded_);
-      pending_ = false;
+    if (nowPending_) {
+      now_->setMatrix(K_, grounded_);
+      nowPending_ = false;
     }
-    stats = full_->solve(contact, voltageV, potential);
+    stats = now_->solve(contact, voltageV, potential);
     stats.regionNodes = classes_.numFree();
   }
 
@@ -332,6 +339,9 @@ class LocalSolver final : public ElectricSolver {
   bool pending_ = false;  // K_ not yet given to the full solver
   std::vector<Vec3> positions_;
   std::unique_ptr<ElectricSolver> full_;  // pcg; on the refresh thread while it runs
+  std::unique_ptr<ElectricSolver> now_;   // pcg for the full solves in the frame
+  bool nowPending_ = false;               // K_ not yet given to now_
+  bool dropRefresh_ = false;              // the refresh in flight is of a place left since
   Eigen::VectorXd held_;                  // the far field [V] at heldVoltageV_
   double heldVoltageV_ = 0;
   std::vector<int> heldContact_;  // the contact set of the held solve

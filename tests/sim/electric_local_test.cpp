@@ -188,6 +188,23 @@ TEST(ElectricLocal, AShrinkingContactSetScalesTheHeldFarFieldDown) {
   EXPECT_NEAR(st.powerError, energy(p.K, u) / truth - 1, 1e-8);
 }
 
+// the tool set down 40 mm away while a refresh of the old place runs: that frame is a full
+// solve (exact), the old refresh is dropped when it is due, and the frames after stay exact
+// (the contacts stay where the full solve put them)
+TEST(ElectricLocal, AJumpIsAFullSolveAndDropsTheRefreshOfTheOldPlace) {
+  Problem p(2000);
+  auto solver = makeLocal(p, 0.006, 2);
+  Eigen::VectorXd u;
+  for (int f = 0; f < 9; ++f) {
+    const std::vector<int> contact = p.contactsAt(f < 3 ? -0.02 : 0.02, 0.0, 0.004);
+    const ElectricSolveStats st = solver->solve(contact, kVolt, u);
+    if (f == 3) EXPECT_GT(st.regionNodes, p.mesh.numNodes() / 2);  // the full solve
+    // ... and no other (adopting the old place's refresh would make the next one jump back)
+    if (f > 3) EXPECT_LT(st.regionNodes, p.mesh.numNodes() / 2) << "frame " << f;
+    if (f >= 3) EXPECT_LT(relError(u, referenceSolve(p, contact)), 1e-9) << "frame " << f;
+  }
+}
+
 // the far field is adopted at fixed solve counts: two runs give the same bits
 TEST(ElectricLocal, RunsAreBitwiseRepeatable) {
   Problem p(2000);
