@@ -256,29 +256,34 @@ class LocalSolver final : public ElectricSolver {
 
     // ---- K_RR, and the two right-hand sides: from the contacts (b_V) and the held field
     // outside (b_H); K symmetric: its columns are its rows ----
-    std::vector<Eigen::Triplet<double>> entries;
-    entries.reserve(static_cast<size_t>(m) * 16);
-    Eigen::VectorXd bV = Eigen::VectorXd::Zero(m), bH = Eigen::VectorXd::Zero(m), x(m);
+    entries_.clear();
+    b1_.setZero(m);  // b_V + b_H
+    bH_.setZero(m);
+    guess_.resize(m);
     for (int q = 0; q < m; ++q) {
       const int v = region_[q];
-      x[q] = potential[v];
+      guess_[q] = potential[v];
       for (SparseMatrix::InnerIterator it(K_, v); it; ++it) {
         const int j = static_cast<int>(it.row());
-        if (mark_[j] >= 0)
-          entries.emplace_back(mark_[j], q, it.value());
-        else if (mark_[j] == -2)
-          bV[q] -= it.value() * voltageV;
-        else
-          bH[q] -= it.value() * potential[j];
+        if (mark_[j] >= 0) {
+          entries_.emplace_back(mark_[j], q, it.value());
+        } else if (mark_[j] == -2) {
+          b1_[q] -= it.value() * voltageV;
+        } else {
+          b1_[q] -= it.value() * potential[j];
+          bH_[q] -= it.value() * potential[j];
+        }
       }
     }
     A_.resize(m, m);
-    A_.setFromTriplets(entries.begin(), entries.end());
+    A_.setFromTriplets(entries_.begin(), entries_.end());
     cg_.compute(A_);
     // u_1: the region with the tool's voltage and the held field (warm: the held values);
     // u_H: with the contacts at 0 V instead; u_V = u_1 - u_H
-    const Eigen::VectorXd x1 = regionCg(bV + bH, x, stats);
-    const Eigen::VectorXd xH = regionCg(bH, x, stats);
+    regionCg(b1_, x1_, stats);
+    regionCg(bH_, xH_, stats);
+    const Eigen::VectorXd& x1 = x1_;
+    const Eigen::VectorXd& xH = xH_;
 
     // ---- the far field's scale s: the energy minimum over u_V + s u_H (Galerkin) ----
     // uH_ (full size): xH in the region, the held field outside, 0 at the contacts and at
@@ -317,10 +322,9 @@ class LocalSolver final : public ElectricSolver {
     stats.powerError = exact > 0 ? potential.dot(K_ * potential) / exact - 1.0 : 0.0;
   }
 
-  // CG on the region's matrix from `guess`; the iterations add up in stats
-  Eigen::VectorXd regionCg(const Eigen::VectorXd& b, const Eigen::VectorXd& guess,
-                           ElectricSolveStats& stats) {
-    Eigen::VectorXd x = cg_.solveWithGuess(b, guess);
+  // CG on the region's matrix from guess_ into x; the iterations add up in stats
+  void regionCg(const Eigen::VectorXd& b, Eigen::VectorXd& x, ElectricSolveStats& stats) {
+    x = cg_.solveWithGuess(b, guess_);
     stats.iterations += static_cast<int>(cg_.iterations());
     stats.residual = std::max(stats.residual, cg_.error());
     ESIM_RUN_CHECK(x.allFinite() && cg_.error() <= options_.pcgTolerance,
@@ -329,7 +333,6 @@ class LocalSolver final : public ElectricSolver {
                        " iterations, above solvers.electric.tolerance = " +
                        messageNumber(options_.pcgTolerance) +
                        "; raise solvers.electric.max_iterations or use pcg");
-    return x;
   }
 
   ElectricSolverOptions options_;
@@ -355,8 +358,9 @@ class LocalSolver final : public ElectricSolver {
   std::vector<int> refreshedContact_;
   // the region's scratch, kept across frames
   std::vector<int> mark_, region_, queue_, centres_;
-  Eigen::VectorXd uH_, kuH_;
-  std::unique_ptr<ElectricSolver> check_;  // localCheck's full solver
+  Eigen::VectorXd uH_, kuH_, b1_, bH_, guess_, x1_, xH_;
+  std::vector<Eigen::Triplet<double>> entries_;  // K_RR's entries
+  std::unique_ptr<ElectricSolver> check_;        // localCheck's full solver
   Eigen::VectorXd checkU_;
   SparseMatrix A_;
   Eigen::ConjugateGradient<SparseMatrix, Eigen::Lower | Eigen::Upper,

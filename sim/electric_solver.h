@@ -54,7 +54,7 @@
 //                   frame with the potential elsewhere held from a full pcg solve
 //                   refreshed on a thread every localRefreshFrames solves (see
 //                   electric_local.cpp; its error measured in README "The potential
-//                   solved around the tool only"). setMatrix / updateMatrix: an O(nnz)
+//                   solved around the tool, built"). setMatrix / updateMatrix: an O(nnz)
 //                   copy; the full solver takes the matrix at its next refresh.
 //   pcg           - conjugate gradients on the reduced system, warm-started from
 //                   the input potential, Jacobi or incomplete-Cholesky

@@ -285,7 +285,7 @@ const std::vector<Field>& schema() {
                        "electric solver: refactor per contact change, the paper's dense inverse, "
                        "cached sparse columns, warm-started CG, local (not exact: the nodes "
                        "near the tool solved, the far field held from a pcg solve refreshed on "
-                       "a thread; README 'The potential solved around the tool only'), or "
+                       "a thread; README 'The potential solved around the tool, built'), or "
                        "auto: the dense inverse up "
                        "to 3000 nodes off the return electrode; above, pcg for a cut in "
                        "rebuild mode update, capacitance otherwise (the faster, measured: README "

@@ -91,13 +91,13 @@ double quantile(std::vector<double> v, double q) {
   return v[std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size())))];
 }
 
-// the scenario values of one run: the bench's own, then --set
 // one run's solver choice: a structural method and an electric strategy ("": the scene's)
 struct Variant {
   std::string method, electric;
   std::string name() const { return electric.empty() ? method : method + "+" + electric; }
 };
 
+// the scenario values of one run: the bench's own, then --set
 std::vector<std::string> runSets(const BenchCutOptions& opt, int nodes, const std::string& strategy,
                                  const Variant& variant) {
   std::vector<std::string> sets = {
@@ -457,7 +457,7 @@ cli::Registrar registerBenchCut(
           ->capture_default_str();
       app.add_option("--structural", opt->structural,
                      "solvers.structural.method values, comma separated (full,local,coarse: "
-                     "each later method's removed set compared with the full one's)")
+                     "each later run's removed set compared with the first's)")
           ->capture_default_str();
       app.add_option("--electric", opt->electric,
                      "solvers.electric.strategy values, comma separated (e.g. pcg,local: each "
