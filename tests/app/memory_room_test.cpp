@@ -318,7 +318,7 @@ TEST(TransparentHugePages, AreOffUnlessAllowed) {
   unsetenv("ESIM_ALLOW_THP");
 }
 
-// blocks up to 64 MiB come from the heap (glibc would map one of 40 MiB on its own), larger
+// blocks up to 256 MiB come from the heap (glibc would map one of 200 MiB on its own), larger
 // ones still get their own mapping; ESIM_DEFAULT_MALLOC=1 or GLIBC_TUNABLES leave glibc's
 // defaults. Not under the sanitizers, whose allocators take no mallopt.
 #if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
@@ -328,13 +328,13 @@ TEST(Malloc, LargeBlocksComeFromTheHeapUnlessDefaultsAreAsked) {
   unsetenv("GLIBC_TUNABLES");
   unsetenv("ESIM_DEFAULT_MALLOC");
   keepLargeBlocksInTheHeap();
-  EXPECT_EQ(mallocNote(), "blocks up to 64 MiB from the heap, up to 64 MiB kept free at its top");
+  EXPECT_EQ(mallocNote(), "blocks up to 256 MiB from the heap, up to 64 MiB kept free at its top");
   const size_t mapped = mallinfo2().hblks;
-  auto* p = static_cast<volatile char*>(std::malloc(40 << 20));
+  auto* p = static_cast<volatile char*>(std::malloc(200 << 20));
   ASSERT_NE(p, nullptr);
   p[0] = 1;
-  EXPECT_EQ(mallinfo2().hblks, mapped) << "a 40 MiB block had a mapping of its own";
-  auto* q = static_cast<volatile char*>(std::malloc(100 << 20));
+  EXPECT_EQ(mallinfo2().hblks, mapped) << "a 200 MiB block had a mapping of its own";
+  auto* q = static_cast<volatile char*>(std::malloc(300 << 20));
   ASSERT_NE(q, nullptr);
   q[0] = 1;
   EXPECT_EQ(mallinfo2().hblks, mapped + 1);
