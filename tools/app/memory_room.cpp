@@ -309,7 +309,9 @@ void keepLargeBlocksInTheHeap() {
   // (40-200 MB of values, README "Region builds without page faults")
   constexpr int kHeapBytes = 256 << 20, kTrimBytes = 64 << 20;
   gMalloc = mallopt(M_MMAP_THRESHOLD, kHeapBytes) == 1 && mallopt(M_TRIM_THRESHOLD, kTrimBytes) == 1
-                ? "blocks up to 256 MiB from the heap, up to 64 MiB kept free at its top"
+                ? "blocks up to " + std::to_string(kHeapBytes >> 20) +
+                      " MiB from the heap, up to " + std::to_string(kTrimBytes >> 20) +
+                      " MiB kept free at its top"
                 : "glibc's defaults (mallopt refused)";
 }
 
