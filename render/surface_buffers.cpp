@@ -30,8 +30,10 @@ void SurfaceBuffers::update(const SurfaceSnapshot& snap, float tDefaultC, bool p
     lastTriangles = snap.triangles;
     return;
   }
+  const bool wallStates = smoothCutWallStates(snap);
   for (size_t c = 0; c < source.size(); ++c) {
-    const std::array<float, 4> s = vertexState(snap, source[c], tDefaultC, potential);
+    std::array<float, 4> s = vertexState(snap, source[c], tDefaultC, potential);
+    if (wallStates) takeWallState(source[c], s);
     std::memcpy(&vertices[c * kFloatsPerVertex + kStateOffset], s.data(), sizeof s);
   }
 }
@@ -109,6 +111,7 @@ void SurfaceBuffers::build(const SurfaceSnapshot& snap, float tDefaultC, bool po
   // 3b. the cut walls' normals, averaged over their neighbours (the corners of wall faces
   //     take them; see surface_buffers.h)
   const bool wallNormals = smoothCutWallNormals(snap);
+  const bool wallStates = smoothCutWallStates(snap);
   // 3c. per corner
   for (int t = 0; t < nt; ++t) {
     const V3& nf = faceUnit[t];
@@ -136,7 +139,9 @@ void SurfaceBuffers::build(const SurfaceSnapshot& snap, float tDefaultC, bool po
         found = static_cast<int>(nextCopy.size());
         *link = found;
         nextCopy.push_back(-1);
-        pushVertex(out, pos(v), n, vertexState(snap, v, tDefaultC, potential));
+        std::array<float, 4> state = vertexState(snap, v, tDefaultC, potential);
+        if (wallStates) takeWallState(v, state);
+        pushVertex(out, pos(v), n, state);
         source.push_back(v);
       }
       indices[3 * t + k] = static_cast<std::uint32_t>(found);
@@ -145,7 +150,8 @@ void SurfaceBuffers::build(const SurfaceSnapshot& snap, float tDefaultC, bool po
 }
 
 bool SurfaceBuffers::smoothCutWallNormals(const SurfaceSnapshot& snap) {
-  if (cutWallNormalPasses <= 0 ||
+  wallAdjacency = false;
+  if (cutWallPasses <= 0 ||
       std::none_of(wallFace.begin(), wallFace.end(), [](std::uint8_t w) { return w != 0; }))
     return false;
   const int nv = snap.numVertices();
@@ -179,9 +185,10 @@ bool SurfaceBuffers::smoothCutWallNormals(const SurfaceSnapshot& snap) {
     }
   }
   if (!any) return false;  // every wall face degenerate
+  wallAdjacency = true;
   // passes of the mean of a vertex's unit normal and its neighbours' (Jacobi: each pass
   // reads the last one's)
-  for (int pass = 0; pass < cutWallNormalPasses; ++pass) {
+  for (int pass = 0; pass < cutWallPasses; ++pass) {
     wallNext = wallNormal;
     for (int v = 0; v < nv; ++v) {
       if (!hasWallNormal[v]) continue;
@@ -194,6 +201,38 @@ bool SurfaceBuffers::smoothCutWallNormals(const SurfaceSnapshot& snap) {
     wallNormal.swap(wallNext);
   }
   return true;
+}
+
+bool SurfaceBuffers::smoothCutWallStates(const SurfaceSnapshot& snap) {
+  if (!wallAdjacency || (snap.coagulation.empty() && snap.desiccation.empty())) return false;
+  const int nv = snap.numVertices();
+  // passes of the mean of a wall vertex's value and its wall neighbours' (Jacobi, in a
+  // fixed order); the other vertices keep the snapshot's
+  const auto smoothed = [&](const std::vector<float>& raw, std::vector<float>& value) {
+    if (raw.empty()) {
+      value.assign(nv, 0.0f);
+      return;
+    }
+    value.assign(raw.begin(), raw.end());
+    for (int pass = 0; pass < cutWallPasses; ++pass) {
+      wallStateNext = value;
+      for (int v = 0; v < nv; ++v) {
+        if (!hasWallNormal[v]) continue;
+        float sum = value[v];
+        for (int i = wallStart[v]; i < wallStart[v + 1]; ++i) sum += value[wallAdjacent[i]];
+        wallStateNext[v] = sum / static_cast<float>(1 + wallStart[v + 1] - wallStart[v]);
+      }
+      value.swap(wallStateNext);
+    }
+  };
+  smoothed(snap.coagulation, wallCoagulation);
+  smoothed(snap.desiccation, wallDesiccation);
+  return true;
+}
+
+void SurfaceBuffers::takeWallState(std::uint32_t v, std::array<float, 4>& state) const {
+  state[1] = wallCoagulation[v];
+  state[2] = wallDesiccation[v];
 }
 
 }  // namespace esim::render_detail

@@ -481,14 +481,16 @@ const std::vector<Field>& schema() {
     f.push_back(number("look.light_intensity", ESIM_REF(look.lightIntensity), "", closed(0.0, 4.0),
                        "strength of the key and fill lights and their highlights (1 = as is; "
                        "the ambient light stays)"));
-    // (at most render/renderer.h's kMaxCutWallNormalPasses: RunConfig's test checks)
+    // (at most render/renderer.h's kMaxCutWallPasses: RunConfig's test checks)
     f.push_back(integer("look.cut_wall_smoothing", ESIM_REF(look.cutWallSmoothing), "passes",
                         closed(0, 20),
-                        "the cut walls' shading: passes that average their normals over "
-                        "neighbouring vertices, so the stair steps removed tets leave are lit "
-                        "as one wall and its rim stays a crease (0: each vertex's own faces; "
-                        "the steps then show as lit and dark teeth along a groove); the "
-                        "geometry drawn is the same"));
+                        "the cut walls' shading: passes that average their normals, "
+                        "coagulation and desiccation over neighbouring vertices, so the stair "
+                        "steps removed tets leave are lit as one wall, its rim stays a crease "
+                        "and the damage under it is a band (0: each vertex's own faces and "
+                        "damage; the steps then show as lit and dark teeth along a groove, "
+                        "the whitening as teeth on its floor); the geometry drawn is the same "
+                        "(labels follow the colours drawn)"));
     // output
     f.push_back(boolean("output.video", ESIM_REF(output.video), "write video.mp4 (H.264)"));
     f.push_back(integer("output.crf", ESIM_REF(output.crf), "", closed(0, 51),

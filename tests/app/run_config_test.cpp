@@ -115,7 +115,7 @@ TEST(RunConfig, AppearanceKeysReachTheRenderer) {
   EXPECT_EQ(c.tissueTint, d.tissueTint);
   EXPECT_EQ(c.keyLightCamera, d.keyLightCamera);
   EXPECT_EQ(c.lightIntensity, d.lightIntensity);
-  EXPECT_EQ(c.cutWallNormalPasses, d.cutWallNormalPasses);
+  EXPECT_EQ(c.cutWallPasses, d.cutWallPasses);
   Scenario s = defaults();
   s.look.textureSeed = 123456789;
   s.look.tissueTint = {0.9, 1.1, 0.8};
@@ -127,13 +127,13 @@ TEST(RunConfig, AppearanceKeysReachTheRenderer) {
   EXPECT_EQ(r.tissueTint, (std::array<float, 3>{0.9f, 1.1f, 0.8f}));
   EXPECT_EQ(r.keyLightCamera, (std::array<float, 3>{1, 2, 3}));
   EXPECT_EQ(r.lightIntensity, 1.5f);
-  EXPECT_EQ(r.cutWallNormalPasses, 7);
+  EXPECT_EQ(r.cutWallPasses, 7);
   // the schema's range is the renderer's: its largest value renders, one more is refused
   EXPECT_NO_THROW(parseScenario(
-      "name: w\nlook:\n  cut_wall_smoothing: " + std::to_string(kMaxCutWallNormalPasses) + "\n",
+      "name: w\nlook:\n  cut_wall_smoothing: " + std::to_string(kMaxCutWallPasses) + "\n",
       "w.yaml"));
   EXPECT_THROW(parseScenario("name: w\nlook:\n  cut_wall_smoothing: " +
-                                 std::to_string(kMaxCutWallNormalPasses + 1) + "\n",
+                                 std::to_string(kMaxCutWallPasses + 1) + "\n",
                              "w.yaml"),
                Error);
 }

@@ -1,4 +1,5 @@
-// Tests for render/surface_buffers.cpp: crease-limited normals, the cut walls' wider crease.
+// Tests for render/surface_buffers.cpp: crease-limited normals, the cut walls' wider crease,
+// their normals and damage averaged over the wall.
 #include "render/surface_buffers.h"
 
 #include <gtest/gtest.h>
@@ -16,6 +17,7 @@ namespace {
 
 using render_detail::kFloatsPerVertex;
 using render_detail::kNormalOffset;
+using render_detail::kStateOffset;
 using render_detail::SurfaceBuffers;
 
 // two triangles folded along the edge (0, 1) (the x axis): their normals foldDeg apart;
@@ -106,7 +108,7 @@ SurfaceSnapshot sawToothWall() {
 std::pair<double, double> sawToothNormals(int passes) {
   const SurfaceSnapshot s = sawToothWall();
   SurfaceBuffers b;
-  b.cutWallNormalPasses = passes;
+  b.cutWallPasses = passes;
   b.build(s, 37.0f, false);
   auto angle = [&](int corner, std::array<double, 3> axis) {
     const float* n = &b.vertices[b.indices[corner] * kFloatsPerVertex + kNormalOffset];
@@ -145,7 +147,7 @@ TEST(SurfaceBuffers, CutWallNormalPassesLeaveFlatWallsAndOtherSurfacesAlone) {
   SurfaceSnapshot flat = sawToothWall();
   for (size_t v = 0; v < flat.positionsM.size() / 3 - 1; ++v) flat.positionsM[3 * v + 1] = 0;
   SurfaceBuffers b;
-  b.cutWallNormalPasses = 5;
+  b.cutWallPasses = 5;
   b.build(flat, 37.0f, false);
   for (int c = 0; c < 2 * 6 * kTeeth; ++c) {
     const float* n = &b.vertices[b.indices[c] * kFloatsPerVertex + kNormalOffset];
@@ -154,19 +156,102 @@ TEST(SurfaceBuffers, CutWallNormalPassesLeaveFlatWallsAndOtherSurfacesAlone) {
   SurfaceSnapshot noWall = sawToothWall();
   noWall.cutWall.assign(noWall.cutWall.size(), 0.0f);
   SurfaceBuffers off, on;
-  on.cutWallNormalPasses = 5;
+  on.cutWallPasses = 5;
   off.build(noWall, 37.0f, false);
   on.build(noWall, 37.0f, false);
   EXPECT_EQ(on.vertices, off.vertices);
   EXPECT_EQ(on.indices, off.indices);
   RenderOptions o;
-  o.cutWallNormalPasses = kMaxCutWallNormalPasses + 1;
+  o.cutWallPasses = kMaxCutWallPasses + 1;
   try {
     validateRenderOptions(o);
-    ADD_FAILURE() << "accepted " << o.cutWallNormalPasses << " passes";
+    ADD_FAILURE() << "accepted " << o.cutWallPasses << " passes";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("look.cut_wall_smoothing"), std::string::npos);
   }
+}
+
+// the state a corner's GPU vertex carries: (T, coagulation, desiccation, cut wall)
+std::array<float, 4> cornerState(const SurfaceBuffers& b, int corner) {
+  const float* q = &b.vertices[b.indices[corner] * kFloatsPerVertex + kStateOffset];
+  return {q[0], q[1], q[2], q[3]};
+}
+
+// the saw-tooth wall with the damage of the tets behind it: every other vertex of the
+// bottom row coagulated (and desiccated) fully, the rest none: the teeth of whitening a
+// groove's floor shows. The passes turn them into a band: each pass a mean over the wall
+// (the values stay in [0, 1], a pass never widens their range), the spread between
+// neighbouring bottom vertices shrinking pass by pass; the top face's far vertex (off the
+// wall) keeps its own value; 0 passes, or a surface without walls, draw each vertex's own
+TEST(SurfaceBuffers, CutWallPassesDrawTheDamageUnderAWallAsABand) {
+  SurfaceSnapshot s = sawToothWall();
+  const int nv = s.numVertices();
+  s.coagulation.assign(nv, 0.0f);
+  s.desiccation.assign(nv, 0.0f);
+  for (int i = 0; i <= kTeeth; i += 2) s.coagulation[i] = s.desiccation[i] = 1.0f;
+  s.coagulation[nv - 1] = 0.7f;  // the top face's far vertex
+  // the largest difference between bottom-row neighbours, of coagulation and desiccation,
+  // and the range of the values drawn
+  const auto spread = [&](int passes, const SurfaceSnapshot& snap) {
+    SurfaceBuffers b;
+    b.cutWallPasses = passes;
+    b.build(snap, 37.0f, false);
+    std::vector<std::array<float, 4>> state(nv);
+    for (size_t c = 0; c < b.indices.size(); ++c) {
+      const std::uint32_t v = snap.triangles[c];
+      state[v] = cornerState(b, static_cast<int>(c));
+    }
+    float jump = 0, lo = 1, hi = 0;
+    for (int i = 0; i < kTeeth; ++i)
+      for (int k : {1, 2}) jump = std::max(jump, std::abs(state[i][k] - state[i + 1][k]));
+    for (int v = 0; v < nv - 1; ++v) {
+      lo = std::min(lo, state[v][1]);
+      hi = std::max(hi, state[v][1]);
+      EXPECT_EQ(state[v][1], state[v][2]) << "coagulation and desiccation alike, vertex " << v;
+    }
+    EXPECT_EQ(state[nv - 1][1], 0.7f) << "off the wall: its own value";
+    return std::array<float, 3>{jump, lo, hi};
+  };
+  const auto raw = spread(0, s);
+  EXPECT_EQ(raw[0], 1.0f);  // the teeth: 1, 0, 1, ... along the floor
+  float last = raw[0];
+  for (int passes : {1, 2, 3, 6}) {
+    const auto [jump, lo, hi] = spread(passes, s);
+    EXPECT_LT(jump, last) << passes << " passes";
+    EXPECT_GE(lo, 0.0f);
+    EXPECT_LE(hi, 1.0f);
+    last = jump;
+  }
+  EXPECT_LT(spread(3, s)[0], 0.25f);
+  // without walls the passes change nothing, bit for bit
+  SurfaceSnapshot noWall = s;
+  noWall.cutWall.assign(noWall.cutWall.size(), 0.0f);
+  SurfaceBuffers off, on;
+  on.cutWallPasses = 5;
+  off.build(noWall, 37.0f, false);
+  on.build(noWall, 37.0f, false);
+  EXPECT_EQ(on.vertices, off.vertices);
+}
+
+// a frame whose geometry is kept (update rewrites the states only) averages the new damage
+// as a fresh build does, bit for bit
+TEST(SurfaceBuffers, CutWallPassesFollowTheDamageOnAKeptGeometry) {
+  SurfaceSnapshot s = sawToothWall();
+  const int nv = s.numVertices();
+  s.coagulation.assign(nv, 0.0f);
+  s.desiccation.assign(nv, 0.0f);
+  SurfaceBuffers kept;
+  kept.cutWallPasses = 3;
+  kept.update(s, 37.0f, false);
+  for (int i = 1; i <= kTeeth; i += 3) s.coagulation[i] = 0.9f;
+  s.desiccation[kTeeth + 2] = 0.5f;
+  kept.update(s, 37.0f, false);
+  ASSERT_TRUE(kept.geometryReused);
+  SurfaceBuffers fresh;
+  fresh.cutWallPasses = 3;
+  fresh.build(s, 37.0f, false);
+  EXPECT_EQ(kept.vertices, fresh.vertices);
+  EXPECT_NE(cornerState(kept, 0)[1], 0.0f);  // vertex 0 has a coagulated neighbour
 }
 
 }  // namespace

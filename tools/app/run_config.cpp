@@ -142,7 +142,7 @@ RenderOptions makeRenderOptions(const Scenario& s) {
     r.keyLightCamera[c] = static_cast<float>(s.look.lightDirection[c]);
   }
   r.lightIntensity = static_cast<float>(s.look.lightIntensity);
-  r.cutWallNormalPasses = s.look.cutWallSmoothing;
+  r.cutWallPasses = s.look.cutWallSmoothing;
   return r;
 }
 
