@@ -68,9 +68,12 @@ void validateRenderOptions(const RenderOptions& o) {
   ESIM_VERIFY(std::isfinite(o.lightIntensity) && o.lightIntensity >= 0 && o.lightIntensity <= 4,
               "look.light_intensity: " + std::to_string(o.lightIntensity) +
                   " is outside [0, 4] (1 = the default lights)");
-  ESIM_VERIFY(o.cutWallPasses >= 0 && o.cutWallPasses <= kMaxCutWallPasses,
-              "look.cut_wall_smoothing: " + std::to_string(o.cutWallPasses) + " is outside [0, " +
-                  std::to_string(kMaxCutWallPasses) + "]");
+  ESIM_VERIFY(o.cutWallNormalPasses >= 0 && o.cutWallNormalPasses <= kMaxCutWallPasses,
+              "look.cut_wall_smoothing: " + std::to_string(o.cutWallNormalPasses) +
+                  " is outside [0, " + std::to_string(kMaxCutWallPasses) + "]");
+  ESIM_VERIFY(o.cutWallDamagePasses >= 0 && o.cutWallDamagePasses <= kMaxCutWallPasses,
+              "look.cut_wall_damage_smoothing: " + std::to_string(o.cutWallDamagePasses) +
+                  " is outside [0, " + std::to_string(kMaxCutWallPasses) + "]");
   ESIM_VERIFY(o.backend == "osmesa" || o.backend == "egl",
               "RenderOptions::backend: '" + o.backend + "' is unknown, expected 'osmesa' or 'egl'");
 }
@@ -555,7 +558,8 @@ void Renderer::Impl::resolveAndReadBack() {
 Renderer::Renderer(const RenderOptions& options) : impl_(std::make_unique<Impl>()) {
   validateRenderOptions(options);
   impl_->opt = options;
-  impl_->surface.cutWallPasses = options.cutWallPasses;
+  impl_->surface.cutWallNormalPasses = options.cutWallNormalPasses;
+  impl_->surface.cutWallDamagePasses = options.cutWallDamagePasses;
   impl_->ctx = createGlContext(options.backend);
   impl_->init();
 }

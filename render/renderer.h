@@ -53,7 +53,8 @@ constexpr double kCreaseAngleDeg = 65.0;
 // teeth read at 65, faint stripes at 130-150, the rim blurred at 179); the outline is the
 // tets' still
 constexpr double kCutWallCreaseAngleDeg = 150.0;
-// RenderOptions::cutWallPasses at most (each pass reaches one ring further)
+// RenderOptions::cutWallNormalPasses and cutWallDamagePasses at most (each pass reaches one
+// ring further)
 constexpr int kMaxCutWallPasses = 20;
 
 struct RenderOptions {
@@ -85,12 +86,15 @@ struct RenderOptions {
   std::array<float, 3> keyLightCamera{-0.45f, 0.65f, 0.60f};
   float lightIntensity = 1;  // the key and fill lights' strength, highlights included
                              // (the ambient term stays)
-  // passes that average the cut walls' normals, coagulation and desiccation over their
-  // neighbours (surface_buffers.h): the stair steps of removed tets shaded as one wall, its rim
-  // a crease, the damage under it a band; 0: each corner's own faces, joined up to
-  // kCutWallCreaseAngleDeg, and each vertex's own damage (the zipper of lit and dark teeth
-  // along a groove, and whitened teeth on its floor)
-  int cutWallPasses = 3;
+  // passes that average the cut walls' normals over their neighbours (surface_buffers.h): the
+  // stair steps of removed tets shaded as one wall, its rim a crease; 0: each corner's own
+  // faces, joined up to kCutWallCreaseAngleDeg (the zipper of lit and dark teeth along a groove)
+  int cutWallNormalPasses = 3;
+  // passes that average the cut walls' coagulation and desiccation over their neighbours
+  // (surface_buffers.h): the damage under a groove's floor drawn as a band, its peaks paler
+  // (and the labels' coagulated area smaller: they follow the colours); 0: each vertex's own
+  // (the mean of the tets under its faces: whitened teeth along the floor)
+  int cutWallDamagePasses = 0;
 };
 
 // wall-clock split of the last render() call [ms]

@@ -110,6 +110,7 @@ void SurfaceBuffers::build(const SurfaceSnapshot& snap, float tDefaultC, bool po
   }
   // 3b. the cut walls' normals, averaged over their neighbours (the corners of wall faces
   //     take them; see surface_buffers.h)
+  buildWallAdjacency(snap);
   const bool wallNormals = smoothCutWallNormals(snap);
   const bool wallStates = smoothCutWallStates(snap);
   // 3c. per corner
@@ -149,9 +150,9 @@ void SurfaceBuffers::build(const SurfaceSnapshot& snap, float tDefaultC, bool po
   }
 }
 
-bool SurfaceBuffers::smoothCutWallNormals(const SurfaceSnapshot& snap) {
+bool SurfaceBuffers::buildWallAdjacency(const SurfaceSnapshot& snap) {
   wallAdjacency = false;
-  if (cutWallPasses <= 0 ||
+  if ((cutWallNormalPasses <= 0 && cutWallDamagePasses <= 0) ||
       std::none_of(wallFace.begin(), wallFace.end(), [](std::uint8_t w) { return w != 0; }))
     return false;
   const int nv = snap.numVertices();
@@ -184,11 +185,16 @@ bool SurfaceBuffers::smoothCutWallNormals(const SurfaceSnapshot& snap) {
       any = true;
     }
   }
-  if (!any) return false;  // every wall face degenerate
-  wallAdjacency = true;
+  wallAdjacency = any;  // false: every wall face degenerate
+  return wallAdjacency;
+}
+
+bool SurfaceBuffers::smoothCutWallNormals(const SurfaceSnapshot& snap) {
+  if (cutWallNormalPasses <= 0 || !wallAdjacency) return false;
+  const int nv = snap.numVertices();
   // passes of the mean of a vertex's unit normal and its neighbours' (Jacobi: each pass
   // reads the last one's)
-  for (int pass = 0; pass < cutWallPasses; ++pass) {
+  for (int pass = 0; pass < cutWallNormalPasses; ++pass) {
     wallNext = wallNormal;
     for (int v = 0; v < nv; ++v) {
       if (!hasWallNormal[v]) continue;
@@ -204,7 +210,9 @@ bool SurfaceBuffers::smoothCutWallNormals(const SurfaceSnapshot& snap) {
 }
 
 bool SurfaceBuffers::smoothCutWallStates(const SurfaceSnapshot& snap) {
-  if (!wallAdjacency || (snap.coagulation.empty() && snap.desiccation.empty())) return false;
+  if (cutWallDamagePasses <= 0 || !wallAdjacency ||
+      (snap.coagulation.empty() && snap.desiccation.empty()))
+    return false;
   const int nv = snap.numVertices();
   // passes of the mean of a wall vertex's value and its wall neighbours' (Jacobi, in a
   // fixed order); the other vertices keep the snapshot's
@@ -214,7 +222,7 @@ bool SurfaceBuffers::smoothCutWallStates(const SurfaceSnapshot& snap) {
       return;
     }
     value.assign(raw.begin(), raw.end());
-    for (int pass = 0; pass < cutWallPasses; ++pass) {
+    for (int pass = 0; pass < cutWallDamagePasses; ++pass) {
       wallStateNext = value;
       for (int v = 0; v < nv; ++v) {
         if (!hasWallNormal[v]) continue;

@@ -309,6 +309,7 @@ struct ScenarioLook {
   Vec3 lightDirection{-0.45, 0.65, 0.60};  // key light, camera frame (right, up, back)
   double lightIntensity = 1.0;             // key and fill lights' strength
   int cutWallSmoothing = 3;                // passes over the cut walls' normals
+  int cutWallDamageSmoothing = 0;          // passes over the cut walls' coagulation, desiccation
   bool operator==(const ScenarioLook&) const = default;
 };
 

@@ -484,13 +484,21 @@ const std::vector<Field>& schema() {
     // (at most render/renderer.h's kMaxCutWallPasses: RunConfig's test checks)
     f.push_back(integer("look.cut_wall_smoothing", ESIM_REF(look.cutWallSmoothing), "passes",
                         closed(0, 20),
-                        "the cut walls' shading: passes that average their normals, "
-                        "coagulation and desiccation over neighbouring vertices, so the stair "
-                        "steps removed tets leave are lit as one wall, its rim stays a crease "
-                        "and the damage under it is a band (0: each vertex's own faces and "
-                        "damage; the steps then show as lit and dark teeth along a groove, "
-                        "the whitening as teeth on its floor); the geometry drawn is the same "
-                        "(labels follow the colours drawn)"));
+                        "the cut walls' shading: passes that average their normals over "
+                        "neighbouring vertices, so the stair steps removed tets leave are lit "
+                        "as one wall and its rim stays a crease (0: each vertex's own faces; "
+                        "the steps then show as lit and dark teeth along a groove); the "
+                        "geometry drawn is the same"));
+    f.push_back(integer("look.cut_wall_damage_smoothing", ESIM_REF(look.cutWallDamageSmoothing),
+                        "passes", closed(0, 20),
+                        "the cut walls' colour: passes that average the coagulation and "
+                        "desiccation drawn at their vertices over neighbouring vertices, so "
+                        "the damage of the tets under a groove's floor is drawn as a band, "
+                        "its peaks paler (0: each vertex's own, the mean of the tets under "
+                        "its faces: whitened teeth along the floor); display only, but the "
+                        "labels (esim run --labels) follow the colours drawn: fewer pixels "
+                        "reach the coagulated class (liver_incision, 90 frames: 2302 against "
+                        "7893 with 3 passes)"));
     // output
     f.push_back(boolean("output.video", ESIM_REF(output.video), "write video.mp4 (H.264)"));
     f.push_back(integer("output.crf", ESIM_REF(output.crf), "", closed(0, 51),

@@ -115,27 +115,34 @@ TEST(RunConfig, AppearanceKeysReachTheRenderer) {
   EXPECT_EQ(c.tissueTint, d.tissueTint);
   EXPECT_EQ(c.keyLightCamera, d.keyLightCamera);
   EXPECT_EQ(c.lightIntensity, d.lightIntensity);
-  EXPECT_EQ(c.cutWallPasses, d.cutWallPasses);
+  EXPECT_EQ(c.cutWallNormalPasses, d.cutWallNormalPasses);
+  EXPECT_EQ(c.cutWallDamagePasses, d.cutWallDamagePasses);
   Scenario s = defaults();
   s.look.textureSeed = 123456789;
   s.look.tissueTint = {0.9, 1.1, 0.8};
   s.look.lightDirection = {1, 2, 3};
   s.look.lightIntensity = 1.5;
   s.look.cutWallSmoothing = 7;
+  s.look.cutWallDamageSmoothing = 5;
   const RenderOptions r = makeRenderOptions(s);
   EXPECT_EQ(r.textureSeed, 123456789u);
   EXPECT_EQ(r.tissueTint, (std::array<float, 3>{0.9f, 1.1f, 0.8f}));
   EXPECT_EQ(r.keyLightCamera, (std::array<float, 3>{1, 2, 3}));
   EXPECT_EQ(r.lightIntensity, 1.5f);
-  EXPECT_EQ(r.cutWallPasses, 7);
+  EXPECT_EQ(r.cutWallNormalPasses, 7);
+  EXPECT_EQ(r.cutWallDamagePasses, 5);
   // the schema's range is the renderer's: its largest value renders, one more is refused
-  EXPECT_NO_THROW(parseScenario(
-      "name: w\nlook:\n  cut_wall_smoothing: " + std::to_string(kMaxCutWallPasses) + "\n",
-      "w.yaml"));
-  EXPECT_THROW(parseScenario("name: w\nlook:\n  cut_wall_smoothing: " +
-                                 std::to_string(kMaxCutWallPasses + 1) + "\n",
-                             "w.yaml"),
-               Error);
+  for (const char* key : {"cut_wall_smoothing", "cut_wall_damage_smoothing"}) {
+    EXPECT_NO_THROW(parseScenario(
+        "name: w\nlook:\n  " + std::string(key) + ": " + std::to_string(kMaxCutWallPasses) + "\n",
+        "w.yaml"))
+        << key;
+    EXPECT_THROW(parseScenario("name: w\nlook:\n  " + std::string(key) + ": " +
+                                   std::to_string(kMaxCutWallPasses + 1) + "\n",
+                               "w.yaml"),
+                 Error)
+        << key;
+  }
 }
 
 // solvers.electric.preconditioner reaches pcg's options; the default is two-level

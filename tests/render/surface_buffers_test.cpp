@@ -108,7 +108,7 @@ SurfaceSnapshot sawToothWall() {
 std::pair<double, double> sawToothNormals(int passes) {
   const SurfaceSnapshot s = sawToothWall();
   SurfaceBuffers b;
-  b.cutWallPasses = passes;
+  b.cutWallNormalPasses = passes;
   b.build(s, 37.0f, false);
   auto angle = [&](int corner, std::array<double, 3> axis) {
     const float* n = &b.vertices[b.indices[corner] * kFloatsPerVertex + kNormalOffset];
@@ -145,7 +145,7 @@ TEST(SurfaceBuffers, CutWallNormalPassesShadeTheSawTeethAsOneWall) {
 void expectPassesChangeNothingWithoutWalls(SurfaceSnapshot s) {
   s.cutWall.assign(s.cutWall.size(), 0.0f);
   SurfaceBuffers off, on;
-  on.cutWallPasses = 5;
+  on.cutWallNormalPasses = on.cutWallDamagePasses = 5;
   off.build(s, 37.0f, false);
   on.build(s, 37.0f, false);
   EXPECT_EQ(on.vertices, off.vertices);
@@ -159,7 +159,7 @@ TEST(SurfaceBuffers, CutWallNormalPassesLeaveFlatWallsAndOtherSurfacesAlone) {
   SurfaceSnapshot flat = sawToothWall();
   for (size_t v = 0; v < flat.positionsM.size() / 3 - 1; ++v) flat.positionsM[3 * v + 1] = 0;
   SurfaceBuffers b;
-  b.cutWallPasses = 5;
+  b.cutWallNormalPasses = 5;
   b.build(flat, 37.0f, false);
   for (int c = 0; c < 2 * 6 * kTeeth; ++c) {
     const float* n = &b.vertices[b.indices[c] * kFloatsPerVertex + kNormalOffset];
@@ -167,12 +167,20 @@ TEST(SurfaceBuffers, CutWallNormalPassesLeaveFlatWallsAndOtherSurfacesAlone) {
   }
   expectPassesChangeNothingWithoutWalls(sawToothWall());
   RenderOptions o;
-  o.cutWallPasses = kMaxCutWallPasses + 1;
+  o.cutWallNormalPasses = kMaxCutWallPasses + 1;
   try {
     validateRenderOptions(o);
-    ADD_FAILURE() << "accepted " << o.cutWallPasses << " passes";
+    ADD_FAILURE() << "accepted " << o.cutWallNormalPasses << " passes";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("look.cut_wall_smoothing"), std::string::npos);
+  }
+  o.cutWallNormalPasses = 3;
+  o.cutWallDamagePasses = kMaxCutWallPasses + 1;
+  try {
+    validateRenderOptions(o);
+    ADD_FAILURE() << "accepted " << o.cutWallDamagePasses << " passes of the damage";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("look.cut_wall_damage_smoothing"), std::string::npos);
   }
 }
 
@@ -187,8 +195,9 @@ std::array<float, 4> cornerState(const SurfaceBuffers& b, int corner) {
 // groove's floor shows. The passes turn them into a band: each pass a mean over the wall
 // (the values stay in [0, 1], a pass never widens their range), the spread between
 // neighbouring bottom vertices shrinking pass by pass; the top face's far vertex (off the
-// wall) keeps its own value; 0 passes, or a surface without walls, draw each vertex's own
-TEST(SurfaceBuffers, CutWallPassesDrawTheDamageUnderAWallAsABand) {
+// wall) keeps its own value; 0 passes, or a surface without walls, draw each vertex's own.
+// The normals' passes are 0 here: the damage's passes build the wall's neighbours themselves
+TEST(SurfaceBuffers, CutWallDamagePassesDrawTheDamageUnderAWallAsABand) {
   SurfaceSnapshot s = sawToothWall();
   const int nv = s.numVertices();
   s.coagulation.assign(nv, 0.0f);
@@ -199,7 +208,7 @@ TEST(SurfaceBuffers, CutWallPassesDrawTheDamageUnderAWallAsABand) {
   // and the range of the values drawn
   const auto spread = [&](int passes, const SurfaceSnapshot& snap) {
     SurfaceBuffers b;
-    b.cutWallPasses = passes;
+    b.cutWallDamagePasses = passes;  // the normals' passes 0: the damage's work alone
     b.build(snap, 37.0f, false);
     std::vector<std::array<float, 4>> state(nv);
     for (size_t c = 0; c < b.indices.size(); ++c) {
@@ -233,23 +242,48 @@ TEST(SurfaceBuffers, CutWallPassesDrawTheDamageUnderAWallAsABand) {
 
 // a frame whose geometry is kept (update rewrites the states only) averages the new damage
 // as a fresh build does, bit for bit
-TEST(SurfaceBuffers, CutWallPassesFollowTheDamageOnAKeptGeometry) {
+TEST(SurfaceBuffers, CutWallDamagePassesFollowTheDamageOnAKeptGeometry) {
   SurfaceSnapshot s = sawToothWall();
   const int nv = s.numVertices();
   s.coagulation.assign(nv, 0.0f);
   s.desiccation.assign(nv, 0.0f);
   SurfaceBuffers kept;
-  kept.cutWallPasses = 3;
+  kept.cutWallDamagePasses = 3;
   kept.update(s, 37.0f, false);
   for (int i = 1; i <= kTeeth; i += 3) s.coagulation[i] = 0.9f;
   s.desiccation[kTeeth + 2] = 0.5f;
   kept.update(s, 37.0f, false);
   ASSERT_TRUE(kept.geometryReused);
   SurfaceBuffers fresh;
-  fresh.cutWallPasses = 3;
+  fresh.cutWallDamagePasses = 3;
   fresh.build(s, 37.0f, false);
   EXPECT_EQ(kept.vertices, fresh.vertices);
   EXPECT_NE(cornerState(kept, 0)[1], 0.0f);  // vertex 0 has a coagulated neighbour
+}
+
+// the two kinds of passes are independent: the damage's leave every normal as the normals'
+// passes alone make it, bit for bit, and the normals' leave every vertex's own damage
+TEST(SurfaceBuffers, CutWallNormalAndDamagePassesAreIndependent) {
+  SurfaceSnapshot s = sawToothWall();
+  const int nv = s.numVertices();
+  s.coagulation.assign(nv, 0.0f);
+  for (int i = 0; i <= kTeeth; i += 2) s.coagulation[i] = 1.0f;
+  SurfaceBuffers normals, both;
+  normals.cutWallNormalPasses = both.cutWallNormalPasses = 3;
+  both.cutWallDamagePasses = 3;
+  normals.build(s, 37.0f, false);
+  both.build(s, 37.0f, false);
+  ASSERT_EQ(normals.indices, both.indices);
+  bool damageDiffers = false;
+  for (size_t c = 0; c < normals.indices.size(); ++c) {
+    const float* a = &normals.vertices[normals.indices[c] * kFloatsPerVertex + kNormalOffset];
+    const float* b = &both.vertices[both.indices[c] * kFloatsPerVertex + kNormalOffset];
+    EXPECT_TRUE(a[0] == b[0] && a[1] == b[1] && a[2] == b[2]) << "corner " << c;
+    const std::uint32_t v = s.triangles[c];
+    EXPECT_EQ(cornerState(normals, static_cast<int>(c))[1], s.coagulation[v]) << "corner " << c;
+    damageDiffers |= cornerState(both, static_cast<int>(c))[1] != s.coagulation[v];
+  }
+  EXPECT_TRUE(damageDiffers);
 }
 
 }  // namespace

@@ -142,7 +142,8 @@ RenderOptions makeRenderOptions(const Scenario& s) {
     r.keyLightCamera[c] = static_cast<float>(s.look.lightDirection[c]);
   }
   r.lightIntensity = static_cast<float>(s.look.lightIntensity);
-  r.cutWallPasses = s.look.cutWallSmoothing;
+  r.cutWallNormalPasses = s.look.cutWallSmoothing;
+  r.cutWallDamagePasses = s.look.cutWallDamageSmoothing;
   return r;
 }
 
