@@ -109,7 +109,7 @@ void SurfaceBuffers::build(const SurfaceSnapshot& snap, float tDefaultC, bool po
     }
   }
   // 3b. the cut walls' normals, averaged over their neighbours (the corners of wall faces
-  //     take them; see surface_buffers.h)
+  //     take them), and their vertices' damage averaged the same way (see surface_buffers.h)
   buildWallAdjacency(snap);
   const bool wallNormals = smoothCutWallNormals(snap);
   const bool wallStates = smoothCutWallStates(snap);
