@@ -195,13 +195,19 @@ std::array<float, 4> cornerState(const SurfaceBuffers& b, int corner) {
 // neighbouring bottom vertices shrinking pass by pass; the top face's far vertex (off the
 // wall) keeps its own value; 0 passes, or a surface without walls, draw each vertex's own.
 // The normals' passes are 0 here: the damage's passes build the wall's neighbours themselves
-TEST(SurfaceBuffers, CutWallDamagePassesDrawTheDamageUnderAWallAsABand) {
+SurfaceSnapshot toothedDamage() {
   SurfaceSnapshot s = sawToothWall();
   const int nv = s.numVertices();
   s.coagulation.assign(nv, 0.0f);
   s.desiccation.assign(nv, 0.0f);
   for (int i = 0; i <= kTeeth; i += 2) s.coagulation[i] = s.desiccation[i] = 1.0f;
   s.coagulation[nv - 1] = 0.7f;  // the top face's far vertex
+  return s;
+}
+
+TEST(SurfaceBuffers, CutWallDamagePassesDrawTheDamageUnderAWallAsABand) {
+  const SurfaceSnapshot s = toothedDamage();
+  const int nv = s.numVertices();
   // the largest difference between bottom-row neighbours, of coagulation and desiccation,
   // and the range of the values drawn
   const auto spread = [&](int passes, const SurfaceSnapshot& snap) {
@@ -262,10 +268,7 @@ TEST(SurfaceBuffers, CutWallDamagePassesFollowTheDamageOnAKeptGeometry) {
 // the two kinds of passes are independent: the damage's leave every normal as the normals'
 // passes alone make it, bit for bit, and the normals' leave every vertex's own damage
 TEST(SurfaceBuffers, CutWallNormalAndDamagePassesAreIndependent) {
-  SurfaceSnapshot s = sawToothWall();
-  const int nv = s.numVertices();
-  s.coagulation.assign(nv, 0.0f);
-  for (int i = 0; i <= kTeeth; i += 2) s.coagulation[i] = 1.0f;
+  const SurfaceSnapshot s = toothedDamage();
   SurfaceBuffers normals, both;
   normals.cutWallNormalPasses = both.cutWallNormalPasses = 3;
   both.cutWallDamagePasses = 3;
