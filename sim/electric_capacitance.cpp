@@ -277,16 +277,9 @@ class CapacitanceSolver final : public ElectricSolver {
       z[k] = columns_[slot].data();
     }
     bringUpToDate(behind);
-    // 2. the capacitance system Z_cc f = u_c
-    Eigen::MatrixXd zcc(c, c);
-    for (int k = 0; k < c; ++k)
-      for (int i = 0; i < c; ++i) zcc(i, k) = z[k][cf[i]];
-    Eigen::LLT<Eigen::MatrixXd> llt(zcc);
-    ESIM_VERIFY(llt.info() == Eigen::Success, "capacitance: Z_cc is not positive definite");
-    const Eigen::VectorXd f = llt.solve(Eigen::VectorXd::Constant(c, voltageV));
-    // 3. u = Z f
-    Eigen::VectorXd u = Eigen::VectorXd::Zero(nf);
-    for (int k = 0; k < c; ++k) cblas_daxpy(nf, f[k], z[k], 1, u.data(), 1);
+    // 2. the capacitance system Z_cc f = u_c, then u = Z f
+    Eigen::VectorXd u;
+    combineColumns(z, cf, voltageV, nf, "capacitance", u);
     free_.scatter(u, cf, voltageV, potential);
     return stats;
   }

@@ -10,6 +10,7 @@
 
 #include <cblas.h>
 
+#include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -17,6 +18,8 @@
 
 #include "sim/cholmod_view.h"
 #include "sim/core_error.h"
+#include "sim/ldl_solve.h"
+#include "sim/ldl_updown.h"
 
 namespace esim {
 
@@ -39,9 +42,10 @@ ElectricStrategy parseElectricStrategy(const std::string& name) {
   if (name == "capacitance") return ElectricStrategy::Capacitance;
   if (name == "pcg") return ElectricStrategy::Pcg;
   if (name == "local") return ElectricStrategy::Local;
+  if (name == "downdate") return ElectricStrategy::Downdate;
   if (name == "auto") return ElectricStrategy::Auto;
   throw Error("electric solver: unknown strategy '" + name +
-              "'; valid names: refactor, dense-inverse, capacitance, pcg, local, auto");
+              "'; valid names: refactor, dense-inverse, capacitance, pcg, local, downdate, auto");
 }
 
 const char* electricStrategyName(ElectricStrategy strategy) {
@@ -56,6 +60,8 @@ const char* electricStrategyName(ElectricStrategy strategy) {
       return "pcg";
     case ElectricStrategy::Local:
       return "local";
+    case ElectricStrategy::Downdate:
+      return "downdate";
     case ElectricStrategy::Auto:
       return "auto";
   }
@@ -100,6 +106,8 @@ std::unique_ptr<ElectricSolver> makeElectricSolver(const ElectricSolverOptions& 
       return electric_detail::makePcgSolver(options);
     case ElectricStrategy::Local:
       return electric_detail::makeLocalSolver(options);
+    case ElectricStrategy::Downdate:
+      return electric_detail::makeDowndateSolver(options);
     case ElectricStrategy::Auto:
       break;
   }
@@ -298,6 +306,19 @@ void FreeBase::scatter(const Eigen::VectorXd& baseValues, const std::vector<int>
   for (int c : contactBase) potential[base.freeNodes[c]] = voltageV;
 }
 
+void combineColumns(const std::vector<const double*>& z, const std::vector<int>& cf,
+                    double voltageV, int nf, const char* what, Eigen::VectorXd& u) {
+  const int c = static_cast<int>(cf.size());
+  Eigen::MatrixXd zcc(c, c);
+  for (int k = 0; k < c; ++k)
+    for (int i = 0; i < c; ++i) zcc(i, k) = z[k][cf[i]];
+  Eigen::LLT<Eigen::MatrixXd> llt(zcc);
+  ESIM_VERIFY(llt.info() == Eigen::Success, std::string(what) + ": Z_cc is not positive definite");
+  const Eigen::VectorXd f = llt.solve(Eigen::VectorXd::Constant(c, voltageV));
+  u.setZero(nf);
+  for (int k = 0; k < c; ++k) cblas_daxpy(nf, f[k], z[k], 1, u.data(), 1);
+}
+
 void scatterPotential(const NodeClasses& classes, const Eigen::VectorXd& freeValues,
                       const std::vector<int>& contactFree, double voltageV,
                       Eigen::VectorXd& potential) {
@@ -338,6 +359,8 @@ struct CholmodFactor::Impl {
   cholmod_dense* x = nullptr;
   cholmod_dense* y = nullptr;
   cholmod_dense* e = nullptr;
+  LdlUpdownWork updown;  // the vectorized update's workspace (ldl_updown.h)
+  LdlSolveWork ldl;      // the simplicial factor's solve (ldl_solve.h)
 };
 
 CholmodFactor::CholmodFactor() : impl_(new Impl) {
@@ -397,6 +420,12 @@ void CholmodFactor::solve(const double* b, double* x, int ncols) {
   ESIM_CHECK(factorized_);  // solve after a successful factorization
   cholmod_common* c = &impl_->common;
   const int n = size();
+  if (ldlSolveSupports(*impl_->factor)) {  // simplicial LDL' (after toSimplicial): one thread
+    for (int k = 0; k < ncols; ++k)
+      ldlSolve(*impl_->factor, b + static_cast<size_t>(k) * n, x + static_cast<size_t>(k) * n, 1,
+               impl_->ldl);
+    return;
+  }
   cholmod_dense bd = cholmodViewDense(b, n, ncols);
   const int ok = cholmod_solve2(CHOLMOD_A, impl_->factor, &bd, nullptr, &impl_->x, nullptr,
                                 &impl_->y, &impl_->e, c);
@@ -450,10 +479,40 @@ void CholmodFactor::updateDowndate(bool update, const SparseMatrix& C) {
   permuted.setFromTriplets(t.begin(), t.end());  // compressed, rows sorted
   cholmod_sparse cs = cholmodViewLower(permuted);
   cs.stype = 0;  // unsymmetric n x r
-  const int ok = cholmod_updown(update, &cs, f, &impl_->common);
+  const int ok = ldlUpdown(update, cs, *f, impl_->updown, impl_->common);
   if (!ok) throwIfOutOfResources(impl_->common);
   ESIM_RUN_CHECK(ok, "electric solver: CHOLMOD update/downdate failed (status " +
                          std::to_string(impl_->common.status) + ")");
+}
+
+bool CholmodFactor::deleteRows(const std::vector<int>& indices, const SparseMatrix& A) {
+  toSimplicial();
+  cholmod_factor* f = impl_->factor;
+  const int n = static_cast<int>(f->n);
+  ESIM_CHECK(A.rows() == n && A.cols() == n);
+  if (indices.empty()) return true;
+  const int* perm = static_cast<const int*>(f->Perm);
+  std::vector<int> inversePerm(n);
+  for (int k = 0; k < n; ++k) inversePerm[perm[k]] = k;
+  std::vector<int> rows;
+  for (int i : indices) rows.push_back(inversePerm[i]);
+  std::sort(rows.begin(), rows.end());
+  std::vector<int> from, wp, wi;
+  std::vector<double> wx;
+  const auto subtree = [&](int k, std::vector<int>& out) {
+    from.clear();
+    for (SparseMatrix::InnerIterator it(A, perm[k]); it; ++it)
+      if (inversePerm[it.row()] < k) from.push_back(inversePerm[it.row()]);
+    ldlRowSubtree(*f, k, from.data(), static_cast<int>(from.size()), impl_->updown, out);
+  };
+  if (!ldlTakeRows(rows, subtree, *f, wp, wi, wx)) return false;
+  if (wp.size() == 1) return true;
+  cholmod_sparse w = cholmodViewColumns(f->n, wp.size() - 1, wp.data(), wi.data(), wx.data());
+  const int ok = ldlUpdown(true, w, *f, impl_->updown, impl_->common);
+  if (!ok) throwIfOutOfResources(impl_->common);
+  ESIM_RUN_CHECK(ok, "electric solver: the rows' update failed (CHOLMOD status " +
+                         std::to_string(impl_->common.status) + ")");
+  return true;
 }
 
 bool CholmodFactor::pivotsPositive() const {

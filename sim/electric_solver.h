@@ -56,6 +56,12 @@
 //                   electric_local.cpp; its error measured in README "The potential
 //                   solved around the tool, built"). setMatrix / updateMatrix: an O(nnz)
 //                   copy; the full solver takes the matrix at its next refresh.
+//   downdate      - capacitance's algebra on one simplicial LDL' factor of K_ff kept
+//                   exact through a cut: updateMatrix deletes the rows leaving the free
+//                   set and applies the change by low-rank updates and downdates (the
+//                   structural phase's kernels, ldl_updown.h), so no term grows and nothing
+//                   is refactorized; a contact node's column is solved (ldl_solve.h) on
+//                   first touch and kept until the next update. See electric_downdate.cpp.
 //   pcg           - conjugate gradients on the reduced system, warm-started from
 //                   the input potential, Jacobi or incomplete-Cholesky
 //                   preconditioner, stopping at ||r|| <= pcgTolerance ||b||.
@@ -113,7 +119,7 @@
 namespace esim {
 
 // Auto is not a solver: resolveElectricStrategy turns it into one for a mesh's size
-enum class ElectricStrategy { Refactor, DenseInverse, Capacitance, Pcg, Local, Auto };
+enum class ElectricStrategy { Refactor, DenseInverse, Capacitance, Pcg, Local, Downdate, Auto };
 
 enum class PcgPreconditioner { Jacobi, IncompleteCholesky, TwoLevel };
 
@@ -123,8 +129,8 @@ enum class CapacitanceUpdate {
   Downdate   // modify a simplicial LDL' factor (CHOLMOD rowdel, updown): slower solves
 };
 
-// "refactor", "dense-inverse", "capacitance", "pcg", "local", "auto"; throws Error listing the
-// valid names
+// "refactor", "dense-inverse", "capacitance", "pcg", "local", "downdate", "auto"; throws Error
+// listing the valid names
 ElectricStrategy parseElectricStrategy(const std::string& name);
 
 // the name parseElectricStrategy accepts
@@ -339,6 +345,12 @@ struct FreeBase {
   double identityResidual(const std::vector<int>& rows, const Eigen::MatrixXd& y) const;
 };
 
+// u = Z_:c f with Z_cc f = (voltageV, ..., voltageV): the potential on the free (base) indices
+// from the columns z[k] = K_ff^-1 e_cf[k] of the contact nodes cf (nf entries each); throws
+// Error naming `what` when Z_cc is not positive definite
+void combineColumns(const std::vector<const double*>& z, const std::vector<int>& cf,
+                    double voltageV, int nf, const char* what, Eigen::VectorXd& u);
+
 // scatters free values into a full-size potential (fixed and floating nodes: 0,
 // contact: voltage)
 void scatterPotential(const NodeClasses& classes, const Eigen::VectorXd& freeValues,
@@ -378,8 +390,13 @@ class CholmodFactor {
   bool isSupernodal() const;
   // A -> A with row and column i (an index of A, not of the permuted L) set to e_i
   void deleteRow(int i);
-  // A -> A + C C^T (update) or A - C C^T (downdate); C: n x r, rows are indices of A
+  // A -> A + C C^T (update) or A - C C^T (downdate); C: n x r, rows are indices of A (the
+  // vectorized kernel of ldl_updown.h for the columns that do not fill in L)
   void updateDowndate(bool update, const SparseMatrix& C);
+  // A -> A with the rows and columns `indices` (of A) set to the identity, in one update
+  // (ldlTakeRows); A: the matrix factorized (its pattern: where L's rows may hold entries).
+  // False, the factor unchanged, when a pivot of those rows is not positive.
+  bool deleteRows(const std::vector<int>& indices, const SparseMatrix& A);
   // simplicial LDL': every pivot D_jj finite and > 0
   bool pivotsPositive() const;
   // stored entries of L (a solve costs about 4 flops per entry per right-hand side)
@@ -401,6 +418,7 @@ std::unique_ptr<ElectricSolver> makeDenseInverseSolver(const ElectricSolverOptio
 std::unique_ptr<ElectricSolver> makeCapacitanceSolver(const ElectricSolverOptions& options);
 std::unique_ptr<ElectricSolver> makePcgSolver(const ElectricSolverOptions& options);
 std::unique_ptr<ElectricSolver> makeLocalSolver(const ElectricSolverOptions& options);
+std::unique_ptr<ElectricSolver> makeDowndateSolver(const ElectricSolverOptions& options);
 
 }  // namespace electric_detail
 }  // namespace esim

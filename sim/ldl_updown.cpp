@@ -325,4 +325,69 @@ bool ldlUpdown(bool update, const cholmod_sparse& c, cholmod_factor& l, LdlUpdow
   return cholmod_updown(update, &rest, &l, &cm);
 }
 
+void ldlRowSubtree(const cholmod_factor& l, int k, const int* from, int count, LdlUpdownWork& work,
+                   std::vector<int>& out) {
+  const int* lp = static_cast<const int*>(l.p);
+  const int* li = static_cast<const int*>(l.i);
+  const int* lnz = static_cast<const int*>(l.nz);
+  sizeMarks(work, l.n);
+  const int st = nextStamp(work);
+  const size_t start = out.size();
+  for (int q = 0; q < count; ++q) {
+    int j = from[q];
+    std::vector<int>& path = work.path;
+    path.clear();
+    while (j >= 0 && j < k && work.mark[j] != st) {
+      path.push_back(j);
+      j = lnz[j] > 1 ? li[lp[j] + 1] : -1;  // the parent in the elimination tree
+    }
+    if (j != k && (j < 0 || j > k)) continue;  // not below k in the tree: L(k, .) = 0 there
+    for (int p : path) work.mark[p] = st;
+    out.insert(out.end(), path.begin(), path.end());
+  }
+  std::sort(out.begin() + static_cast<long>(start), out.end());
+}
+
+bool ldlTakeRows(const std::vector<int>& rows,
+                 const std::function<void(int, std::vector<int>&)>& rowSubtree, cholmod_factor& l,
+                 std::vector<int>& wp, std::vector<int>& wi, std::vector<double>& wx) {
+  const int* lp = static_cast<const int*>(l.p);
+  const int* li = static_cast<const int*>(l.i);
+  const int* lnz = static_cast<const int*>(l.nz);
+  double* lx = static_cast<double*>(l.x);
+  const auto deleted = [&](int row) { return std::binary_search(rows.begin(), rows.end(), row); };
+  // W, from the columns H before anything changes
+  wp.assign(1, 0);
+  wi.clear();
+  wx.clear();
+  for (int k : rows)
+    if (!(lx[lp[k]] > 0)) return false;
+  for (int k : rows) {
+    const double scale = std::sqrt(lx[lp[k]]);
+    for (int q = lp[k] + 1; q < lp[k] + lnz[k]; ++q)
+      if (lx[q] != 0 && !deleted(li[q])) {
+        wi.push_back(li[q]);
+        wx.push_back(lx[q] * scale);
+      }
+    if (static_cast<int>(wi.size()) > wp.back()) wp.push_back(static_cast<int>(wi.size()));
+  }
+  // rows H cleared in the columns before them (each row's subtree), then columns H
+  std::vector<int> subtree;
+  for (int k : rows) {
+    subtree.clear();
+    rowSubtree(k, subtree);
+    for (int j : subtree) {
+      const int* first = li + lp[j] + 1;
+      const int* last = li + lp[j] + lnz[j];
+      const int* at = std::lower_bound(first, last, k);
+      if (at != last && *at == k) lx[at - li] = 0;
+    }
+  }
+  for (int k : rows) {
+    lx[lp[k]] = 1;
+    for (int q = lp[k] + 1; q < lp[k] + lnz[k]; ++q) lx[q] = 0;
+  }
+  return true;
+}
+
 }  // namespace esim

@@ -10,6 +10,7 @@
 
 #include <cholmod.h>
 
+#include <functional>
 #include <utility>
 #include <vector>
 
@@ -50,5 +51,25 @@ bool ldlColumnFillsIn(const cholmod_factor& l, const int* rows, int count, LdlUp
 // definiteness leaves a pivot <= 0, as cholmod_updown does.
 bool ldlUpdown(bool update, const cholmod_sparse& c, cholmod_factor& l, LdlUpdownWork& work,
                cholmod_common& cm);
+
+// The columns j < k of L that may hold a nonzero in row k (its row subtree), appended to out in
+// ascending order: the elimination tree climbed from each of `from` (the j < k where A(k, j)
+// may be nonzero, L's row order) until k. A superset of the truth while L's pattern is the
+// symbolic factor of A's (updates whose columns do not fill in, and ldlTakeRows, keep it).
+void ldlRowSubtree(const cholmod_factor& l, int k, const int* from, int count, LdlUpdownWork& work,
+                   std::vector<int>& out);
+
+// Deletes rows of a simplicial LDL' factor of A: each becomes an identity row and column (what
+// cholmod_rowdel makes of it) once the caller updates L by W W' (ldlUpdown), one multiple-rank
+// update instead of a rank-1 pass up the elimination tree per row. With H the deleted rows and
+// F the others, A_FF = L_FF D_F L_FF' + W W', W = L_FH D_H^(1/2) of the factor before, and L_FF
+// is unit lower triangular: so W is taken out of L's columns H, the rows and columns H are
+// cleared (D_H = 1), and W's columns lie in L's pattern (etree paths: nothing fills in).
+// rows: ascending, in L's row order; rowSubtree(k, out) appends the columns j < k that may
+// hold a nonzero in row k (ldlRowSubtree). W comes out in (wp, wi, wx): packed columns, rows
+// ascending (an empty column left out). False, L unchanged, when a pivot of H is not positive.
+bool ldlTakeRows(const std::vector<int>& rows,
+                 const std::function<void(int, std::vector<int>&)>& rowSubtree, cholmod_factor& l,
+                 std::vector<int>& wp, std::vector<int>& wi, std::vector<double>& wx);
 
 }  // namespace esim

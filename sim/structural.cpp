@@ -942,12 +942,9 @@ std::vector<int> StructuralPhase::Impl::rowPattern(int dof, const Target& target
 }
 
 // Deletes the rows (and columns) of the dofs from the simplicial LDL' factor: they become
-// identity rows, as cholmod_rowdel makes them, but in one multiple-rank update instead of a
-// rank-1 pass up the elimination tree per row. With H the deleted rows and F the others,
-// A_FF = L_FF D_F L_FF' + W W',  W = L_FH D_H^(1/2)  (of the factor before),
-// and L_FF is unit lower triangular: so W is taken out of L's columns H, the rows and
-// columns H are cleared (D_H = 1) and L is updated by W W' (cholmod_updown, up to 8 columns
-// a pass). W's columns lie in L's pattern (an etree path), so nothing fills in. Measured
+// identity rows, as cholmod_rowdel makes them, but in one multiple-rank update by L's own
+// columns instead of a rank-1 pass up the elimination tree per row (ldlTakeRows, ldl_updown.h;
+// the update by cholmod_updown or the kernel, as updown chooses). Measured
 // against one cholmod_rowdel per row (temporary instrumentation, both in one binary, the same
 // removals): esim bench cut --sizes 8000 --frames 60 --strategy update, 37 removals holding
 // 495 rows, the row deletions 1115 -> 753 ms in all (with the update's bookkeeping before
@@ -958,41 +955,22 @@ std::vector<int> StructuralPhase::Impl::rowPattern(int dof, const Target& target
 bool StructuralPhase::Impl::deleteRows(const std::vector<int>& dofs, const Target& target,
                                        cholmod_common& cm) {
   cholmod_factor* f = *target.factor;
-  const int* lp = static_cast<const int*>(f->p);
-  const int* li = static_cast<const int*>(f->i);
-  const int* lnz = static_cast<const int*>(f->nz);
-  double* lx = static_cast<double*>(f->x);
+  std::vector<std::pair<int, int>> rowDof;  // (row of L, dof), by row
+  for (int dof : dofs) rowDof.emplace_back((*target.rowOf)[dof], dof);
+  std::sort(rowDof.begin(), rowDof.end());
   std::vector<int> rows;
-  for (int dof : dofs) rows.push_back((*target.rowOf)[dof]);
-  std::sort(rows.begin(), rows.end());
-  const auto deleted = [&](int row) { return std::binary_search(rows.begin(), rows.end(), row); };
-  // W, from the columns H before anything changes (an empty column is left out)
-  std::vector<int> wp{0}, wi;
+  for (const auto& rd : rowDof) rows.push_back(rd.first);
+  std::vector<int> wp, wi;
   std::vector<double> wx;
-  for (int k : rows) {
-    if (!(lx[lp[k]] > 0)) return false;  // not positive definite: the caller refactorizes
-    const double scale = std::sqrt(lx[lp[k]]);
-    for (int q = lp[k] + 1; q < lp[k] + lnz[k]; ++q)
-      if (lx[q] != 0 && !deleted(li[q])) {
-        wi.push_back(li[q]);
-        wx.push_back(lx[q] * scale);
-      }
-    if (static_cast<int>(wi.size()) > wp.back()) wp.push_back(static_cast<int>(wi.size()));
-  }
-  // rows H cleared in the columns before them (each row's row subtree), then columns H
-  for (int dof : dofs) {
-    const int k = (*target.rowOf)[dof];
-    for (int j : rowPattern(dof, target)) {
-      const int* first = li + lp[j] + 1;
-      const int* last = li + lp[j] + lnz[j];
-      const int* at = std::lower_bound(first, last, k);
-      if (at != last && *at == k) lx[at - li] = 0;
-    }
-  }
-  for (int k : rows) {
-    lx[lp[k]] = 1;
-    for (int q = lp[k] + 1; q < lp[k] + lnz[k]; ++q) lx[q] = 0;
-  }
+  const bool taken = ldlTakeRows(
+      rows,
+      [&](int k, std::vector<int>& out) {
+        const auto at = std::lower_bound(rowDof.begin(), rowDof.end(), std::make_pair(k, -1));
+        const std::vector<int> pattern = rowPattern(at->second, target);
+        out.insert(out.end(), pattern.begin(), pattern.end());
+      },
+      *f, wp, wi, wx);
+  if (!taken) return false;  // not positive definite: the caller refactorizes
   if (wp.size() == 1) return true;
   cholmod_sparse w = cholmodViewColumns(f->n, wp.size() - 1, wp.data(), wi.data(), wx.data());
   return updown(true, w, target, cm);

@@ -212,7 +212,7 @@ struct ScenarioSubgridContact {
 };
 
 struct ScenarioSolvers {
-  // refactor|dense-inverse|capacitance|pcg|local|auto
+  // refactor|dense-inverse|capacitance|pcg|local|downdate|auto
   ElectricStrategy electricStrategy = scenario_detail::core().electricSolver.strategy;
   // pcg relative residual
   double electricTolerance = scenario_detail::core().electricSolver.pcgTolerance;

@@ -280,16 +280,19 @@ const std::vector<Field>& schema() {
                        "current (the model's one calibrated parameter; README, 'A coarse mesh "
                        "that cuts')"));
     // solvers
-    f.push_back(choice("solvers.electric.strategy", ESIM_ENUM_REF(solvers.electricStrategy),
-                       {"refactor", "dense-inverse", "capacitance", "pcg", "local", "auto"},
-                       "electric solver: refactor per contact change, the paper's dense inverse, "
-                       "cached sparse columns, warm-started CG, local (not exact: the nodes "
-                       "near the tool solved, the far field held from a pcg solve refreshed on "
-                       "a thread; README 'The potential solved around the tool, built'), or "
-                       "auto: the dense inverse up "
-                       "to 3000 nodes off the return electrode; above, pcg for a cut in "
-                       "rebuild mode update, capacitance otherwise (the faster, measured: README "
-                       "'The cut')"));
+    f.push_back(
+        choice("solvers.electric.strategy", ESIM_ENUM_REF(solvers.electricStrategy),
+               {"refactor", "dense-inverse", "capacitance", "pcg", "local", "downdate", "auto"},
+               "electric solver: refactor per contact change, the paper's dense inverse, "
+               "cached sparse columns, warm-started CG, local (not exact: the nodes "
+               "near the tool solved, the far field held from a pcg solve refreshed on "
+               "a thread; README 'The potential solved around the tool, built'), "
+               "downdate (one LDL' factor kept exact through a cut by low-rank "
+               "downdates, the contact columns solved on first touch), or "
+               "auto: the dense inverse up "
+               "to 3000 nodes off the return electrode; above, pcg for a cut in "
+               "rebuild mode update, capacitance otherwise (the faster, measured: README "
+               "'The cut')"));
     f.push_back(number("solvers.electric.local_margin_m", ESIM_REF(solvers.electricLocalMarginM),
                        "m", positive(10.0),
                        "local: the nodes within this distance of a contact node are solved each "

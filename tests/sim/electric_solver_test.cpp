@@ -1,4 +1,4 @@
-// Tests for sim/electric_solver.h and its four strategies: one discrete answer
+// Tests for sim/electric_solver.h and its strategies: one discrete answer
 // (checked against an independent Eigen solve of the reduced system), caching and
 // refactoring behaviour, matrix changes, floating nodes, error messages, in-place
 // updates after element removal (updateMatrix).
@@ -28,7 +28,8 @@ namespace {
 constexpr double kSigma = 0.144;
 constexpr double kVolt = 72.0;
 const ElectricStrategy kAll[] = {ElectricStrategy::Refactor, ElectricStrategy::DenseInverse,
-                                 ElectricStrategy::Capacitance, ElectricStrategy::Pcg};
+                                 ElectricStrategy::Capacitance, ElectricStrategy::Pcg,
+                                 ElectricStrategy::Downdate};
 
 struct Problem {
   TetMesh mesh;
@@ -79,7 +80,7 @@ TEST(ElectricSolver, StrategyNamesRoundTripAndUnknownNameIsAnError) {
   } catch (const Error& e) {
     const std::string msg = e.what();
     EXPECT_NE(msg.find("cholesky"), std::string::npos);
-    for (const char* name : {"refactor", "dense-inverse", "capacitance", "pcg", "auto"})
+    for (const char* name : {"refactor", "dense-inverse", "capacitance", "pcg", "downdate", "auto"})
       EXPECT_NE(msg.find(name), std::string::npos) << msg;
   }
 }
@@ -112,7 +113,7 @@ TEST(ElectricSolver, AutoPicksTheDenseInverseOnSmallMeshesAndCapacitanceAbove) {
   }
 }
 
-TEST(ElectricSolver, FourStrategiesGiveTheSameAnswerOnSeveralContactSets) {
+TEST(ElectricSolver, EveryStrategyGivesTheSameAnswerOnSeveralContactSets) {
   const Problem p = paperSlab();
   const auto sets = sampleContacts(p);
   for (ElectricStrategy s : kAll) {
@@ -369,7 +370,7 @@ TEST(ElectricSolver, MatrixChangeIsFollowedByEveryStrategy) {
     solver->setMatrix(K2, p.grounded);
     const ElectricSolveStats st = solver->solve(sets[0], kVolt, u);
     EXPECT_LT(relError(u, ref), s == ElectricStrategy::Pcg ? 1e-7 : 1e-9) << solver->name();
-    if (s == ElectricStrategy::Capacitance) {
+    if (s == ElectricStrategy::Capacitance || s == ElectricStrategy::Downdate) {
       EXPECT_EQ(st.newColumns, int(sets[0].size()));  // the cache was emptied
     }
     if (s == ElectricStrategy::Refactor) {
@@ -596,6 +597,12 @@ TEST(ElectricSolverUpdate, ThreeCutsMatchAFreshSolverForEveryStrategy) {
       }
       if (s == ElectricStrategy::DenseInverse) {
         EXPECT_GT(st.rank, 0);
+      }
+      if (s == ElectricStrategy::Downdate) {
+        EXPECT_GT(st.rank, 0);
+        EXPECT_GE(st.columnsDropped, 1);  // every column goes with an update
+        EXPECT_GT(solver->solve(sets[1], kVolt, u).newColumns, 0);
+        EXPECT_EQ(solver->solve(sets[1], kVolt, u).newColumns, 0);  // kept until an update
       }
       auto fresh = makeElectricSolver(opt);
       fresh->setMatrix(cut.K, cut.grounded);

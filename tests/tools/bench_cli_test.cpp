@@ -58,7 +58,7 @@ TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
        "--set tool.voltage_v=1e+308: tool.voltage_v = 1e+308 is outside [0, 10000]"},
       {"bench cut --sizes 50 --electric pcg,foo",
        "--electric: electric solver: unknown strategy 'foo'; valid names: refactor, "
-       "dense-inverse, capacitance, pcg, local, auto"},
+       "dense-inverse, capacitance, pcg, local, downdate, auto"},
       {"bench electric --sizes 100 --local-margin 0", "--local-margin"},
       {"bench structural --sizes 100 --solves 0", "--solves must be >= 1"},
       {"bench structural --sizes 100 --volumetric element,foo",

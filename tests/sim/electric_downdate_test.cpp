@@ -1,0 +1,191 @@
+// Tests for sim/electric_downdate.cpp (and CholmodFactor::deleteRows, which it relies on): the
+// factor kept exact through a cut as long as it goes on, against a fresh factorization and an
+// independent Eigen solve; the rank-one terms of both signs (an obtuse tet's conductance);
+// rows leaving the free set; and the fallback when a change is too large to pay.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+#include <vector>
+
+#include "sim/electric_solver.h"
+#include "sim/electrode.h"
+#include "sim/fem_p1.h"
+#include "sim/mesh_slab.h"
+#include "tests/sim/electric_reference.h"
+
+namespace esim {
+namespace {
+
+constexpr double kSigma = 0.144;  // S/m
+constexpr double kVolt = 100.0;   // V
+
+double relError(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  return (a - b).norm() / b.norm();
+}
+
+// slab_cut's graded slab, 2000 nodes, the return disc underneath, its inner nodes moved by up
+// to a tenth of the shortest edge (a fixed sequence): the boxes' Kuhn tets have no obtuse
+// dihedral angle, the moved ones some, so that a removal takes negative conductances away too
+struct GradedSlab {
+  TetMesh mesh;
+  std::vector<TetGeometry> geo;
+  SparseMatrix K;
+  std::vector<int> grounded, surface;
+  GradedSlab() {
+    SlabSpec spec;
+    spec.sizeM = Vec3(0.06, 0.03, 0.01);
+    spec.targetNodes = 2000;
+    spec.grading = {true, Vec3(-0.025, 0, 0.01), Vec3(0.025, 0, 0.01), 4.0, 0.004, true};
+    mesh = makeSlab(spec);
+    double shortest = 1.0;
+    for (const Tet& t : mesh.tets)
+      for (int a = 0; a < 4; ++a)
+        for (int b = a + 1; b < 4; ++b)
+          shortest = std::min(shortest, (mesh.nodes[t[a]] - mesh.nodes[t[b]]).norm());
+    const Vec3 lo = Vec3(-0.03, -0.015, 0.0), hi = Vec3(0.03, 0.015, 0.01);
+    unsigned seed = 12345;
+    const auto next = [&] {  // in [-1, 1)
+      seed = seed * 1103515245u + 12345u;
+      return static_cast<double>((seed >> 8) & 0xffff) / 32768.0 - 1.0;
+    };
+    for (Vec3& v : mesh.nodes) {
+      const bool inner = (v - lo).minCoeff() > 1e-9 && (hi - v).minCoeff() > 1e-9;
+      const Vec3 move(next(), next(), next());
+      if (inner) v += 0.1 * shortest * move;
+    }
+    geo = tetGeometry(mesh);
+    assemble();
+    grounded = returnElectrodeNodes(mesh, surface, ReturnElectrode{});
+  }
+  void assemble() {
+    K = assembleStiffness(mesh, geo, std::vector<double>(mesh.numTets(), kSigma));
+    surface = boundaryNodes(mesh, boundaryFaces(mesh));
+  }
+  // the alive tets whose centroid lies within r of p
+  std::vector<int> tetsNear(const Vec3& p, double r) const {
+    std::vector<int> out;
+    for (int e = 0; e < mesh.numTets(); ++e) {
+      if (!mesh.isAlive(e)) continue;
+      Vec3 c = Vec3::Zero();
+      for (int v : mesh.tets[e]) c += mesh.nodes[v] / 4;
+      if ((c - p).norm() < r) out.push_back(e);
+    }
+    return out;
+  }
+  // the surface nodes nearest p (sorted ids): a blade's contact set
+  std::vector<int> contactNear(const Vec3& p, int count) const {
+    std::vector<std::pair<double, int>> d;
+    for (int v : surface)
+      if (!std::binary_search(grounded.begin(), grounded.end(), v))
+        d.emplace_back((mesh.nodes[v] - p).squaredNorm(), v);
+    std::sort(d.begin(), d.end());
+    std::vector<int> out;
+    for (int k = 0; k < count && k < static_cast<int>(d.size()); ++k) out.push_back(d[k].second);
+    std::sort(out.begin(), out.end());
+    return out;
+  }
+};
+
+// A groove cut in twelve steps along the slab's top (each step the tets within 1.2 mm of the
+// blade's next position, the contacts the nearest surface nodes): after every update the
+// potential equals a fresh factorization's to 1e-12 and the independent solve's to 1e-9, with
+// no fallback; the conductances taken away include negative ones (obtuse tets), so both the
+// update and the downdate pass run; nodes whose last tet goes leave the free set.
+TEST(ElectricDowndate, AGrooveCutStepByStepMatchesAFreshFactorization) {
+  GradedSlab slab;
+  auto solver = makeElectricSolver({.strategy = ElectricStrategy::Downdate});
+  ASSERT_STREQ(solver->name(), "downdate");
+  solver->setMatrix(slab.K, slab.grounded);
+  Eigen::VectorXd u;
+  int negativeTaken = 0, dropped = 0, rank = 0;
+  for (int step = 0; step < 12; ++step) {
+    SCOPED_TRACE("step " + std::to_string(step));
+    const Vec3 at(-0.02 + 0.0035 * step, 0.0, 0.0095);
+    const std::vector<int> contact = slab.contactNear(at, 4);
+    solver->solve(contact, kVolt, u);  // columns that the update drops
+    const std::vector<int> cut = slab.tetsNear(at, 0.0016);
+    ASSERT_FALSE(cut.empty());
+    const SparseMatrix before = slab.K;
+    for (int e : cut) slab.mesh.alive[e] = 0;
+    slab.assemble();
+    const SparseMatrix change = slab.K - before;
+    for (int k = 0; k < change.outerSize(); ++k)
+      for (SparseMatrix::InnerIterator it(change, k); it; ++it)
+        negativeTaken += it.row() > it.col() && it.value() < -1e-12 * kSigma;
+    const ElectricUpdateStats st = solver->updateMatrix(slab.K, slab.grounded);
+    EXPECT_FALSE(st.fellBack) << st.fallbackReason;
+    EXPECT_GT(st.rank, 0);
+    dropped += st.droppedNodes;
+    rank += st.rank;
+    auto fresh = makeElectricSolver({.strategy = ElectricStrategy::Downdate});
+    fresh->setMatrix(slab.K, slab.grounded);
+    for (const Vec3& p : {at, Vec3(at.x() + 0.003, 0.0, 0.0095), Vec3(0.0, 0.01, 0.01)}) {
+      const std::vector<int> c = slab.contactNear(p, 5);
+      Eigen::VectorXd uf;
+      solver->solve(c, kVolt, u);
+      fresh->solve(c, kVolt, uf);
+      const Eigen::VectorXd ref = test::referenceSolve(slab.K, slab.grounded, c, kVolt);
+      ASSERT_TRUE(u.allFinite());
+      EXPECT_LT(relError(u, uf), 1e-12);
+      EXPECT_LT(relError(u, ref), 1e-9);
+    }
+  }
+  std::cout << "12 cuts: rank " << rank << ", " << dropped << " nodes left the free set, "
+            << negativeTaken << " negative off-diagonal changes (obtuse conductances)\n";
+  EXPECT_GT(negativeTaken, 0);  // the update pass ran
+  EXPECT_GT(dropped, 0);
+}
+
+// Removing most of the slab in one step is a larger change than an update pays for: the
+// solver factorizes again (stats.fellBack, named), with the right answer
+TEST(ElectricDowndate, AChangeTooLargeToPayIsAFactorization) {
+  GradedSlab slab;
+  auto solver = makeElectricSolver({.strategy = ElectricStrategy::Downdate});
+  solver->setMatrix(slab.K, slab.grounded);
+  for (int e : slab.tetsNear(Vec3(0, 0, 0.01), 0.012)) slab.mesh.alive[e] = 0;
+  slab.assemble();
+  const ElectricUpdateStats st = solver->updateMatrix(slab.K, slab.grounded);
+  EXPECT_TRUE(st.fellBack);
+  EXPECT_NE(st.fallbackReason.find("a new factorization is cheaper"), std::string::npos)
+      << st.fallbackReason;
+  const std::vector<int> c = slab.contactNear(Vec3(0.025, 0.0, 0.01), 5);
+  Eigen::VectorXd u;
+  solver->solve(c, kVolt, u);
+  EXPECT_LT(relError(u, test::referenceSolve(slab.K, slab.grounded, c, kVolt)), 1e-9);
+}
+
+// CholmodFactor::deleteRows: the factor of A with rows and columns set to the identity (in
+// one update by L's own columns) solves that matrix as a fresh factorization of it does
+TEST(CholmodFactor, DeletedRowsSolveAsAFreshFactorOfTheIdentityRows) {
+  GradedSlab slab;
+  SparseMatrix a = slab.K;
+  for (int i = 0; i < a.rows(); ++i) a.coeffRef(i, i) += kSigma * 1e-3;  // SPD
+  a.makeCompressed();
+  electric_detail::CholmodFactor f;
+  f.analyze(a);
+  f.factorize(a, "test");
+  const std::vector<int> rows = {3, 150, 151, 700, static_cast<int>(a.rows()) - 1};
+  ASSERT_TRUE(f.deleteRows(rows, a));
+  SparseMatrix b = a;  // the same pattern, identity rows and columns
+  for (int k = 0; k < b.outerSize(); ++k)
+    for (SparseMatrix::InnerIterator it(b, k); it; ++it)
+      if (std::count(rows.begin(), rows.end(), it.row()) ||
+          std::count(rows.begin(), rows.end(), it.col()))
+        it.valueRef() = it.row() == it.col() ? 1.0 : 0.0;
+  electric_detail::CholmodFactor g;
+  g.analyze(b);
+  g.factorize(b, "test");
+  const Eigen::VectorXd rhs = Eigen::VectorXd::LinSpaced(a.rows(), -1.0, 2.0);
+  Eigen::VectorXd x(a.rows()), y(a.rows());
+  f.solve(rhs.data(), x.data());
+  g.solve(rhs.data(), y.data());
+  EXPECT_LT(relError(x, y), 1e-12);
+  EXPECT_LT((b * x - rhs).norm(), 1e-10 * rhs.norm());
+  for (int r : rows) EXPECT_NEAR(x[r], rhs[r], 1e-12 * rhs.norm());
+  EXPECT_TRUE(f.pivotsPositive());
+}
+
+}  // namespace
+}  // namespace esim
