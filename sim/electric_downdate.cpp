@@ -44,6 +44,8 @@ constexpr double kMaxTermShare = 0.125;
 // a row's remaining diagonal r_i under this share of |E_ii| is rounding (a row whose removed
 // conductances all lead to nodes still free sums to 0): left out
 constexpr double kDiagonalRounding = 1e-13;
+// columns solved together (see solveColumns)
+constexpr int kBlockColumns = 4;
 
 class DowndateSolver final : public ElectricSolver {
  public:
@@ -222,20 +224,23 @@ class DowndateSolver final : public ElectricSolver {
         columns_.push_back(std::move(kept[slot]));
       }
     }
-    Eigen::VectorXd e = Eigen::VectorXd::Zero(nf);
-    int solved = 0;
-    for (int j : missing) {
+    // in blocks of kBlockColumns right-hand sides (CHOLMOD's simplicial solve reads L once for
+    // up to four)
+    const int count = static_cast<int>(missing.size());
+    for (int first = 0; first < count; first += kBlockColumns) {
       checkInterrupt();
-      e[j] = 1.0;
-      Eigen::VectorXd z(nf);
-      factor_.solve(e.data(), z.data());
-      e[j] = 0.0;
-      slotOf_[j] = static_cast<int>(columns_.size());
-      slotNode_.push_back(j);
-      columns_.push_back(std::move(z));
-      ++solved;
+      const int cols = std::min(kBlockColumns, count - first);
+      rhs_.setZero(nf, cols);
+      for (int k = 0; k < cols; ++k) rhs_(missing[first + k], k) = 1.0;
+      block_.resize(nf, cols);
+      factor_.solve(rhs_.data(), block_.data(), cols);
+      for (int k = 0; k < cols; ++k) {
+        slotOf_[missing[first + k]] = static_cast<int>(columns_.size());
+        slotNode_.push_back(missing[first + k]);
+        columns_.push_back(block_.col(k));
+      }
     }
-    return solved;
+    return count;
   }
 
   void dropColumns() {
@@ -250,6 +255,7 @@ class DowndateSolver final : public ElectricSolver {
   std::vector<Eigen::VectorXd> columns_;  // K_ff^-1 e_j for the current factor
   std::vector<int> slotNode_;             // slot -> base index j
   std::vector<int> slotOf_;               // base index -> slot (-1: not solved)
+  Eigen::MatrixXd rhs_, block_;           // unit right-hand sides and their solutions
 };
 
 }  // namespace

@@ -88,8 +88,9 @@ ElectricStrategy resolveElectricStrategy(const ElectricSolverOptions& options, d
   if (options.strategy != ElectricStrategy::Auto) return options.strategy;
   const bool denseFits = 8.0 * freeNodes * freeNodes <= options.denseMemoryLimitBytes;
   if (freeNodes <= kAutoDenseMaxFreeNodes && denseFits) return ElectricStrategy::DenseInverse;
-  return cuts && freeNodes > kAutoDenseMaxFreeNodes ? ElectricStrategy::Pcg
-                                                    : ElectricStrategy::Capacitance;
+  if (!cuts) return ElectricStrategy::Capacitance;
+  return freeNodes <= kAutoDowndateMaxFreeNodes ? ElectricStrategy::Downdate
+                                                : ElectricStrategy::Pcg;
 }
 
 std::unique_ptr<ElectricSolver> makeElectricSolver(const ElectricSolverOptions& options) {
@@ -420,10 +421,8 @@ void CholmodFactor::solve(const double* b, double* x, int ncols) {
   ESIM_CHECK(factorized_);  // solve after a successful factorization
   cholmod_common* c = &impl_->common;
   const int n = size();
-  if (ldlSolveSupports(*impl_->factor)) {  // simplicial LDL' (after toSimplicial): one thread
-    for (int k = 0; k < ncols; ++k)
-      ldlSolve(*impl_->factor, b + static_cast<size_t>(k) * n, x + static_cast<size_t>(k) * n, 1,
-               impl_->ldl);
+  if (ncols == 1 && ldlSolveSupports(*impl_->factor)) {  // simplicial LDL': one thread
+    ldlSolve(*impl_->factor, b, x, 1, impl_->ldl);
     return;
   }
   cholmod_dense bd = cholmodViewDense(b, n, ncols);

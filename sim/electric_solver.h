@@ -166,8 +166,9 @@ void validateElectricSolverOptions(const ElectricSolverOptions& options);
 
 // The strategy that solves fastest for freeNodes unknowns (nodes off the return electrode):
 // options.strategy unless it is Auto; then the paper's dense inverse up to
-// kAutoDenseMaxFreeNodes (and within denseMemoryLimitBytes); above, capacitance, or pcg when
-// the matrix changes in most frames (cuts: a removal updates it in the frame).
+// kAutoDenseMaxFreeNodes (and within denseMemoryLimitBytes); above, capacitance, or, when the
+// matrix changes in most frames (cuts: a removal updates it in the frame), downdate up to
+// kAutoDowndateMaxFreeNodes and pcg above.
 ElectricStrategy resolveElectricStrategy(const ElectricSolverOptions& options, double freeNodes,
                                          bool cuts = false);
 // Measured on the cut, physics per frame (esim bench cut --strategy update --set
@@ -187,6 +188,17 @@ ElectricStrategy resolveElectricStrategy(const ElectricSolverOptions& options, d
 // memory 1.2 against 2.8 GB. So auto takes pcg above kAutoDenseMaxFreeNodes for a cut; scenes
 // whose matrix stays (no rupture, or a rebuild mode that refactorizes) keep capacitance.
 inline constexpr double kAutoDenseMaxFreeNodes = 3000;
+// Downdate against pcg on the cut (esim bench cut --strategy update --electric pcg,downdate
+// [--stages], side by side in one run; the same tets removed, the power within 2e-14): 3996
+// nodes (3596 free, two rounds) median 4.2-4.5 against 5.0 ms, p95 7.6-7.8 against 7.8-8.2 ms;
+// 8000 (7200 free; two rounds of 120 frames, one of 60) median 14.6-17.8 against 16.1-18.2 ms,
+// p95 24.9-35.7 against 29.8-36.2 ms, the potential's median 1.7 against 6.1 ms; 12000 (60
+// frames) median 35.6 either, p95 54.1 against 50.5 ms; 14040 (two rounds) median 36.2-39.4
+// against 39.8-42.4 ms, p95 71-74 against 54-55 ms; 20130 median 72.7 against 80.3 ms, p95 162
+// against 148 ms. Above ~10 000 free nodes the frames where the blade enters (20-30 contact
+// nodes, each a new column after every removal, ~1 ms a column at 14k nodes) cost more than
+// pcg's iterations: auto takes downdate for a cut up to 9000 free nodes.
+inline constexpr double kAutoDowndateMaxFreeNodes = 9000;
 
 struct ElectricSolveStats {
   bool refactored = false;   // refactor: the matrix was factorized in this solve

@@ -290,9 +290,9 @@ const std::vector<Field>& schema() {
                "downdate (one LDL' factor kept exact through a cut by low-rank "
                "downdates, the contact columns solved on first touch), or "
                "auto: the dense inverse up "
-               "to 3000 nodes off the return electrode; above, pcg for a cut in "
-               "rebuild mode update, capacitance otherwise (the faster, measured: README "
-               "'The cut')"));
+               "to 3000 nodes off the return electrode; above, for a cut in rebuild mode "
+               "update, downdate up to 9000 and pcg beyond, capacitance otherwise (the "
+               "faster, measured: README 'The cut')"));
     f.push_back(number("solvers.electric.local_margin_m", ESIM_REF(solvers.electricLocalMarginM),
                        "m", positive(10.0),
                        "local: the nodes within this distance of a contact node are solved each "

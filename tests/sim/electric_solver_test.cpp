@@ -96,9 +96,14 @@ TEST(ElectricSolver, AutoPicksTheDenseInverseOnSmallMeshesAndCapacitanceAbove) {
   EXPECT_EQ(resolveElectricStrategy(o, kAutoDenseMaxFreeNodes), ElectricStrategy::DenseInverse);
   EXPECT_EQ(resolveElectricStrategy(o, kAutoDenseMaxFreeNodes + 1), ElectricStrategy::Capacitance);
   EXPECT_EQ(resolveElectricStrategy(o, 49966), ElectricStrategy::Capacitance);
-  // a cut (the matrix updated in most frames): pcg above the dense inverse's range
+  // a cut (the matrix updated in most frames): downdate above the dense inverse's range, then
+  // pcg
   EXPECT_EQ(resolveElectricStrategy(o, 863, true), ElectricStrategy::DenseInverse);
-  EXPECT_EQ(resolveElectricStrategy(o, kAutoDenseMaxFreeNodes + 1, true), ElectricStrategy::Pcg);
+  EXPECT_EQ(resolveElectricStrategy(o, kAutoDenseMaxFreeNodes + 1, true),
+            ElectricStrategy::Downdate);
+  EXPECT_EQ(resolveElectricStrategy(o, kAutoDowndateMaxFreeNodes, true),
+            ElectricStrategy::Downdate);
+  EXPECT_EQ(resolveElectricStrategy(o, kAutoDowndateMaxFreeNodes + 1, true), ElectricStrategy::Pcg);
   EXPECT_EQ(resolveElectricStrategy(o, 49966, true), ElectricStrategy::Pcg);
   o.denseMemoryLimitBytes = 8.0 * 863 * 863 - 1;  // 863 free nodes no longer fit
   EXPECT_EQ(resolveElectricStrategy(o, 863), ElectricStrategy::Capacitance);
