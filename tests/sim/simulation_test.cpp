@@ -502,6 +502,25 @@ TEST(Simulation, UpdateModeCutsLikeTheSynchronousRebuild) {
   EXPECT_EQ(sa.triangles, sb.triangles);
 }
 
+// solvers.electric.strategy: downdate (one factor edited through every removal: rows deleted,
+// rank-one updates and downdates) cuts like a synchronous rebuild that factorizes the potential's
+// matrix afresh at every contact change (refactor): the same tets in the same frames, the same
+// fields to 1e-9
+TEST(Simulation, TheDowndatePotentialCutsLikeAFreshFactorizationEveryFrame) {
+  auto run = [](RebuildMode mode, ElectricStrategy strategy) {
+    SimulationConfig c = fullCutConfig(mode);
+    c.electricSolver.strategy = strategy;
+    auto sim = std::make_unique<Simulation>(smallSlab(), c);
+    std::vector<int> removedPerFrame = removedPerStep(*sim, 45);
+    return std::make_pair(std::move(sim), removedPerFrame);
+  };
+  const auto [fresh, freshRemoved] = run(RebuildMode::Synchronous, ElectricStrategy::Refactor);
+  const auto [upd, updRemoved] = run(RebuildMode::Update, ElectricStrategy::Downdate);
+  ASSERT_GT(fresh->rebuilds(), 1) << "the scene does not cut";
+  EXPECT_EQ(freshRemoved, updRemoved);
+  expectTheSameCut(*upd, *fresh);
+}
+
 // the face-connected pieces of the alive tets: per piece, its volume [m^3] and whether a node of
 // it lies within the clamp band of the lowest node (held by a support)
 struct AlivePiece {
