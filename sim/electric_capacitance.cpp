@@ -249,14 +249,10 @@ class CapacitanceSolver final : public ElectricSolver {
 
   ElectricSolveStats solve(const std::vector<int>& contact, double voltageV,
                            Eigen::VectorXd& potential) override {
-    ESIM_CHECK(free_.current.n > 0);  // setMatrix before solve
     if (nextFactor_.valid()) ++solvesSinceNextFactor_;
     ElectricSolveStats stats;
-    const std::vector<int> cf = free_.contactBaseIndices(contact);
-    if (cf.empty()) {
-      potential.setZero(free_.current.n);
-      return stats;
-    }
+    const std::vector<int> cf = free_.contactsOrZero(contact, potential);
+    if (cf.empty()) return stats;
     setBlasThreads(options_.threads);
     ++frame_;
     const int c = static_cast<int>(cf.size());

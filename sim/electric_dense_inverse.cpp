@@ -150,12 +150,8 @@ class DenseInverseSolver final : public ElectricSolver {
 
   ElectricSolveStats solve(const std::vector<int>& contact, double voltageV,
                            Eigen::VectorXd& potential) override {
-    ESIM_CHECK(free_.current.n > 0);  // setMatrix before solve
-    const std::vector<int> cf = free_.contactBaseIndices(contact);
-    if (cf.empty()) {
-      potential.setZero(free_.current.n);
-      return {};
-    }
+    const std::vector<int> cf = free_.contactsOrZero(contact, potential);
+    if (cf.empty()) return {};
     setBlasThreads(options_.threads);
     const int c = static_cast<int>(cf.size());
     const int nf = free_.size();

@@ -107,13 +107,9 @@ class DowndateSolver final : public ElectricSolver {
 
   ElectricSolveStats solve(const std::vector<int>& contact, double voltageV,
                            Eigen::VectorXd& potential) override {
-    ESIM_CHECK(free_.current.n > 0);  // setMatrix before solve
     ElectricSolveStats stats;
-    const std::vector<int> cf = free_.contactBaseIndices(contact);
-    if (cf.empty()) {
-      potential.setZero(free_.current.n);
-      return stats;
-    }
+    const std::vector<int> cf = free_.contactsOrZero(contact, potential);
+    if (cf.empty()) return stats;
     stats.newColumns = solveColumns(cf, cf);
     std::vector<const double*> z;
     for (int j : cf) z.push_back(columns_[slotOf_[j]].data());

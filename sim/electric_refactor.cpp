@@ -52,13 +52,9 @@ class RefactorSolver final : public ElectricSolver {
 
   ElectricSolveStats solve(const std::vector<int>& contact, double voltageV,
                            Eigen::VectorXd& potential) override {
-    ESIM_CHECK(free_.current.n > 0);  // setMatrix before solve
     ElectricSolveStats stats;
-    const std::vector<int> cf = free_.contactBaseIndices(contact);
-    if (cf.empty()) {
-      potential.setZero(free_.current.n);
-      return stats;
-    }
+    const std::vector<int> cf = free_.contactsOrZero(contact, potential);
+    if (cf.empty()) return stats;
     setBlasThreads(options_.threads);
     Eigen::VectorXd b;
     dirichletSystem(free_.matrix, cf, voltageV, system_, b);

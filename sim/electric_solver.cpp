@@ -299,6 +299,14 @@ std::vector<int> FreeBase::contactBaseIndices(const std::vector<int>& contact) c
   return out;
 }
 
+std::vector<int> FreeBase::contactsOrZero(const std::vector<int>& contact,
+                                          Eigen::VectorXd& potential) const {
+  ESIM_CHECK(current.n > 0);  // setMatrix before solve
+  std::vector<int> cf = contactBaseIndices(contact);
+  if (cf.empty()) potential.setZero(current.n);
+  return cf;
+}
+
 void FreeBase::scatter(const Eigen::VectorXd& baseValues, const std::vector<int>& contactBase,
                        double voltageV, Eigen::VectorXd& potential) const {
   potential.setZero(base.n);

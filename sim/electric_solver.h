@@ -348,6 +348,10 @@ struct FreeBase {
   void apply(const BaseChange& change);
   // contactFreeIndices of the current classes, as base indices (ascending)
   std::vector<int> contactBaseIndices(const std::vector<int>& contact) const;
+  // ... and, when none of the contact is free (empty, or only floating nodes), the solve's whole
+  // answer: potential set to 0 (size n). An internal error before the first set.
+  std::vector<int> contactsOrZero(const std::vector<int>& contact,
+                                  Eigen::VectorXd& potential) const;
   // scatterPotential for base values (nodes no longer free: 0)
   void scatter(const Eigen::VectorXd& baseValues, const std::vector<int>& contactBase,
                double voltageV, Eigen::VectorXd& potential) const;
