@@ -202,7 +202,7 @@ inline constexpr double kAutoDowndateMaxFreeNodes = 9000;
 
 struct ElectricSolveStats {
   bool refactored = false;   // refactor: the matrix was factorized in this solve
-  int newColumns = 0;        // capacitance: columns computed in this solve
+  int newColumns = 0;        // capacitance, downdate: columns computed in this solve
   int iterations = 0;        // pcg: iterations
   double residual = 0;       // pcg: relative residual reached
   int regionNodes = 0;       // local: nodes solved in this frame (all free nodes in a full solve)
@@ -218,7 +218,7 @@ struct ElectricUpdateStats {
   std::string fallbackReason;  // why (empty when updated in place)
   int changedNodes = 0;        // free nodes whose row of K_ff changed (still free)
   int droppedNodes = 0;        // free nodes that left the free set (floating or grounded)
-  int rank = 0;                // capacitance, dense-inverse: rank of the change applied
+  int rank = 0;                // capacitance, dense-inverse, downdate: rank of the change applied
   bool adoptedFactor = false;  // capacitance: took the factor computed on a thread since the
                                // last update (of the matrix then; see electric_capacitance.cpp)
   bool refactored = false;     // capacitance: the factor was recomputed numerically (same
@@ -228,7 +228,8 @@ struct ElectricUpdateStats {
                                // alone; its solves now take one refinement step each
   int columnsCorrected = 0;    // capacitance: cached columns kept, corrected on next use
   int columnsDropped = 0;      // capacitance: cached columns dropped (node left the free
-                               // set, or correcting them would cost more than solving again)
+                               // set, or correcting them would cost more than solving again);
+                               // downdate: every column (an update drops them all)
 };
 
 class ElectricSolver {
