@@ -156,6 +156,32 @@ TEST(ElectricDowndate, AChangeTooLargeToPayIsAFactorization) {
   EXPECT_LT(relError(u, test::referenceSolve(slab.K, slab.grounded, c, kVolt)), 1e-9);
 }
 
+// prefetch solves the columns a later solve needs (it then solves none) until the next update;
+// limitCache gives the columns' memory back (the bytes returned) and changes no result
+TEST(ElectricDowndate, PrefetchedColumnsServeUntilAnUpdateAndACapChangesNoResult) {
+  GradedSlab slab;
+  auto solver = makeElectricSolver({.strategy = ElectricStrategy::Downdate});
+  solver->setMatrix(slab.K, slab.grounded);
+  const std::vector<int> c = slab.contactNear(Vec3(0.0, 0.0, 0.01), 5);
+  solver->prefetch(c);
+  Eigen::VectorXd u, capped;
+  EXPECT_EQ(solver->solve(c, kVolt, u).newColumns, 0);
+  const double before = solver->memoryBytes();
+  const double freed = solver->limitCache(1.0);  // at least one column stays allowed
+  EXPECT_GT(freed, 0.0);
+  EXPECT_NEAR(solver->memoryBytes(), before - freed, 1e-6 * before);
+  EXPECT_EQ(solver->solve(c, kVolt, capped).newColumns, static_cast<int>(c.size()));
+  EXPECT_EQ((u - capped).cwiseAbs().maxCoeff(), 0.0);  // the same blocks: the same bits
+  solver->prefetch(c);
+  for (int e : slab.tetsNear(Vec3(0.0, 0.0, 0.0095), 0.0012)) slab.mesh.alive[e] = 0;
+  slab.assemble();
+  const ElectricUpdateStats st = solver->updateMatrix(slab.K, slab.grounded);
+  EXPECT_FALSE(st.fellBack) << st.fallbackReason;
+  const std::vector<int> after = slab.contactNear(Vec3(0.0, 0.0, 0.01), 5);
+  EXPECT_GT(solver->solve(after, kVolt, u).newColumns, 0);  // the update dropped them
+  EXPECT_LT(relError(u, test::referenceSolve(slab.K, slab.grounded, after, kVolt)), 1e-9);
+}
+
 // CholmodFactor::deleteRows: the factor of A with rows and columns set to the identity (in
 // one update by L's own columns) solves that matrix as a fresh factorization of it does
 TEST(CholmodFactor, DeletedRowsSolveAsAFreshFactorOfTheIdentityRows) {
