@@ -411,8 +411,10 @@ class CholmodFactor {
   // vectorized kernel of ldl_updown.h for the columns that do not fill in L)
   void updateDowndate(bool update, const SparseMatrix& C);
   // A -> A with the rows and columns `indices` (of A) set to the identity, in one update
-  // (ldlTakeRows); A: the matrix factorized (its pattern: where L's rows may hold entries).
-  // False, the factor unchanged, when a pivot of those rows is not positive.
+  // (ldlTakeRows); A: the matrix factorized (its pattern: where L's rows may hold entries, so
+  // only while no update has filled in L: capacitance's Downdate mode, whose eigenvector columns
+  // do, deletes its rows one by one with deleteRow). False, the factor unchanged, when a pivot
+  // of those rows is not positive.
   bool deleteRows(const std::vector<int>& indices, const SparseMatrix& A);
   // simplicial LDL': every pivot D_jj finite and > 0
   bool pivotsPositive() const;

@@ -53,8 +53,9 @@ bool ldlUpdown(bool update, const cholmod_sparse& c, cholmod_factor& l, LdlUpdow
                cholmod_common& cm);
 
 // The columns j < k of L that may hold a nonzero in row k (its row subtree), appended to out in
-// ascending order: the elimination tree climbed from each of `from` (the j < k where A(k, j)
-// may be nonzero, L's row order) until k. A superset of the truth while L's pattern is the
+// ascending order: the elimination tree climbed from each of `from` (the rows j where A(k, j)
+// may be nonzero, L's row order; those not below k in the tree, or negative, are passed over)
+// until k. A superset of the truth while L's pattern is the
 // symbolic factor of A's (updates whose columns do not fill in, and ldlTakeRows, keep it).
 void ldlRowSubtree(const cholmod_factor& l, int k, const int* from, int count, LdlUpdownWork& work,
                    std::vector<int>& out);

@@ -900,17 +900,12 @@ void StructuralPhase::Impl::toSimplicial(cholmod_common& c, cholmod_factor* f) {
 }
 
 // Rows j < k of L's row k = rowOfDof[dof] that may hold a nonzero (what deleting the row
-// must clear): the row subtree, climbed up the elimination tree of L from the couplings of
-// the dof in the first A (every tet at its node) until k. Updates and row deletions only
-// change values inside L's pattern, so this superset stays valid.
+// must clear): the row subtree (ldlRowSubtree), climbed up the elimination tree of L from the
+// couplings of the dof in the first A (every tet at its node) until k. Updates and row
+// deletions only change values inside L's pattern, so this superset stays valid.
 std::vector<int> StructuralPhase::Impl::rowPattern(int dof, const Target& target) {
-  const SimplicialView l(*target.factor);
   const std::vector<int>& rowOf = *target.rowOf;
-  const int k = rowOf[dof];
   const int v = dof / 3;
-  std::vector<int> out, path;
-  RowMarks& rm = *target.marks;
-  ++rm.stamp;
   // the nodes coupled to v in the first A: those of its tets, and with the volumetric strain at
   // the nodes those two rings out (every tet at a node of v's tets)
   std::vector<int> coupled;
@@ -925,19 +920,11 @@ std::vector<int> StructuralPhase::Impl::rowPattern(int dof, const Target& target
     }
   std::sort(coupled.begin(), coupled.end());
   coupled.erase(std::unique(coupled.begin(), coupled.end()), coupled.end());
+  std::vector<int> from, out;
   for (int w : coupled)
-    for (int a = 0; a < 3; ++a) {
-      int j = rowOf[3 * w + a];
-      path.clear();
-      while (j >= 0 && j < k && rm.mark[j] != rm.stamp) {
-        path.push_back(j);
-        j = l.parent(j);
-      }
-      if (j != k && (j < 0 || j > k)) continue;  // not below k in the tree: L(k, .) = 0
-      for (int p : path) rm.mark[p] = rm.stamp;
-      out.insert(out.end(), path.begin(), path.end());
-    }
-  std::sort(out.begin(), out.end());
+    for (int a = 0; a < 3; ++a) from.push_back(rowOf[3 * w + a]);
+  ldlRowSubtree(**target.factor, rowOf[dof], from.data(), static_cast<int>(from.size()),
+                target.marks->updown, out);
   return out;
 }
 
