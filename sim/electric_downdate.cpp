@@ -71,7 +71,7 @@ class DowndateSolver final : public ElectricSolver {
     const BaseChange change = free_.diff(K, grounded);
     ElectricUpdateStats stats;
     const auto fallBack = [&](const std::string& why) {
-      stats.columnsDropped = static_cast<int>(columns_.size());
+      stats.columnsDropped += static_cast<int>(columns_.size());  // (none left once dropped)
       setMatrix(K, grounded);
       stats.fellBack = true;
       stats.fallbackReason = why;
@@ -82,7 +82,7 @@ class DowndateSolver final : public ElectricSolver {
     stats.changedNodes = static_cast<int>(change.touched.size());
     stats.droppedNodes = static_cast<int>(change.dropped.size());
     if (change.empty()) return stats;
-    std::vector<Term> terms = rankOneTerms(change);
+    const std::vector<Term> terms = rankOneTerms(change);
     if (static_cast<double>(terms.size()) > kMaxTermShare * free_.size())
       return fallBack(std::to_string(terms.size()) +
                       " rank-one changes: a new factorization is cheaper");
