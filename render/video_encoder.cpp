@@ -10,6 +10,7 @@ extern "C" {
 }
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -307,6 +308,7 @@ void VideoEncoder::open(const Options& o) {
   notes_.clear();
   encodeNs_ = convertNs_ = pushWaitNs_ = 0;
   framesEncoded_ = 0;
+  framesSpooled_ = 0;
   closing_ = false;
   error_ = nullptr;
   queue_.clear();
@@ -331,7 +333,21 @@ void VideoEncoder::open(const Options& o) {
   // 3. colour conversion and the frame buffers
   a.allocateFrames(o);
 
-  // 4. the encoder thread
+  // 4. deferred: the file of raw frames
+  framesSpooled_ = 0;
+  if (o.deferred) {
+    spool_ = std::fopen(spoolPath().c_str(), "w+b");
+    if (!spool_) {
+      const int e = errno;
+      av_.reset();
+      std::error_code ec;
+      std::filesystem::remove(tmpPath_, ec);
+      throw Error("video: cannot create '" + spoolPath() + "' (the frames kept until the end, " +
+                  "output.encode: after): " + std::strerror(e));
+    }
+  }
+
+  // 5. the encoder thread
   thread_ = std::thread([this] { run(); });
 }
 
@@ -387,6 +403,11 @@ void VideoEncoder::close() {
   }
   av_.reset();
   std::error_code ec;
+  if (spool_) {  // deferred: its frames are encoded, or the video failed
+    std::fclose(spool_);
+    spool_ = nullptr;
+    std::filesystem::remove(spoolPath(), ec);
+  }
   if (std::filesystem::is_regular_file(regularPath, ec)) std::filesystem::remove(regularPath, ec);
   if (!keepFragmented) std::filesystem::remove(tmpPath_, ec);
   if (err) std::rethrow_exception(err);
@@ -416,6 +437,24 @@ void VideoEncoder::encodeFrame(bool flush) {
   }
 }
 
+// one RGB24 frame: colour conversion, then the encoder and the muxer
+void VideoEncoder::convertAndEncode(const std::vector<std::uint8_t>& rgb) {
+  Av& a = *av_;
+  const std::int64_t t0 = nowNs();
+  int rc = av_frame_make_writable(a.frame);
+  ESIM_VERIFY(rc >= 0, "video: frame not writable: " + avError(rc));
+  const std::uint8_t* src[4] = {rgb.data(), nullptr, nullptr, nullptr};
+  const int srcStride[4] = {opt_.width * 3, 0, 0, 0};
+  sws_scale(a.sws, src, srcStride, 0, opt_.height, a.frame->data, a.frame->linesize);
+  a.frame->pts = a.nextPts++;
+  a.frame->pkt_duration = 1;
+  const std::int64_t t1 = nowNs();
+  convertNs_ += t1 - t0;
+  encodeFrame(false);
+  encodeNs_ += nowNs() - t1;
+  ++framesEncoded_;
+}
+
 void VideoEncoder::run() {
   Av& a = *av_;
   try {
@@ -429,21 +468,30 @@ void VideoEncoder::run() {
         queue_.pop_front();
         notFull_.notify_one();
       }
-      // colour conversion
-      const std::int64_t t0 = nowNs();
-      int rc = av_frame_make_writable(a.frame);
-      ESIM_VERIFY(rc >= 0, "video: frame not writable: " + avError(rc));
-      const std::uint8_t* src[4] = {rgb.data(), nullptr, nullptr, nullptr};
-      const int srcStride[4] = {opt_.width * 3, 0, 0, 0};
-      sws_scale(a.sws, src, srcStride, 0, opt_.height, a.frame->data, a.frame->linesize);
-      a.frame->pts = a.nextPts++;
-      a.frame->pkt_duration = 1;
-      const std::int64_t t1 = nowNs();
-      convertNs_ += t1 - t0;
-      // encode and mux
-      encodeFrame(false);
-      encodeNs_ += nowNs() - t1;
-      ++framesEncoded_;
+      if (!spool_) {
+        convertAndEncode(rgb);
+        continue;
+      }
+      // deferred: kept raw, in order, for close()
+      if (std::fwrite(rgb.data(), 1, rgb.size(), spool_) != rgb.size() || std::fflush(spool_) != 0)
+        throw Error("video: writing frame " + std::to_string(framesSpooled_.load()) + " to '" +
+                    spoolPath() + "' (the frames kept until the end, output.encode: after) " +
+                    "failed: " + std::strerror(errno));
+      ++framesSpooled_;
+    }
+    if (spool_) {  // closing: every frame kept, encoded in order
+      ESIM_VERIFY(std::fseek(spool_, 0, SEEK_SET) == 0,
+                  "video: cannot read back '" + spoolPath() + "': " + std::strerror(errno));
+      std::vector<std::uint8_t> rgb(static_cast<size_t>(opt_.width) * opt_.height * 3);
+      for (int f = 0; f < framesSpooled_.load(); ++f) {
+        ESIM_VERIFY(
+            std::fread(rgb.data(), 1, rgb.size(), spool_) == rgb.size(),
+            "video: reading frame " + std::to_string(f) + " back from '" + spoolPath() +
+                "' failed (" +
+                (std::ferror(spool_) ? std::strerror(errno) : std::string("the file is short")) +
+                ")");
+        convertAndEncode(rgb);
+      }
     }
     const std::int64_t t0 = nowNs();
     encodeFrame(true);

@@ -21,6 +21,13 @@
 // renamed to <path>, and removes the fragmented file. On an error both are removed,
 // except when only that rewrite failed: the fragmented file, complete, stays (the error
 // says so).
+// Deferred mode (Options::deferred): the thread writes each frame as it comes, raw (RGB24,
+// width*height*3 bytes), to "<path>.frames.partial" and encodes none until close(), which then
+// encodes them all in order (the same bytes in reproducible mode as encoding them as they
+// come) and removes that file, on success and on error alike. The frames' loop then has the
+// encoder's CPU free (esim run's output.encode: after), at the cost of that file's size on
+// disk until close() and of the encoding's time at the end; a process killed before close()
+// leaves no video, only that file.
 // The destructor closes an open encoder.
 // Logging: if libav's log level is still its default (info), open() lowers it to
 // warnings, so libx264's per-file banner does not flood stderr.
@@ -31,6 +38,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
+#include <cstdio>
 #include <deque>
 #include <exception>
 #include <memory>
@@ -61,6 +69,7 @@ class VideoEncoder {
     int queueCapacity = 8;            // frames waiting before push() blocks
     std::string codec = "libx264";    // wanted encoder
     bool allowFallback = true;        // try libopenh264, then mpeg4 if it is missing
+    bool deferred = false;            // spool the frames raw, encode them in close()
   };
 
   VideoEncoder();
@@ -73,12 +82,15 @@ class VideoEncoder {
   // queues one RGB24 frame (top row first, width*height*3 bytes); returns at
   // once unless the queue is full; rethrows an error of the encoder thread
   void push(std::vector<std::uint8_t> rgb);
-  // drains the queue, flushes the encoder, finishes the file and renames it;
-  // rethrows an error of the encoder thread (the partial file is then removed)
+  // drains the queue (deferred: encodes every frame spooled), flushes the encoder, finishes
+  // the file and renames it; rethrows an error of the encoder thread (the partial file is then
+  // removed)
   void close();
 
   bool isOpen() const { return thread_.joinable(); }
   int framesEncoded() const { return framesEncoded_.load(); }
+  int framesSpooled() const { return framesSpooled_.load(); }  // deferred: written raw so far
+  std::string spoolPath() const { return opt_.path + ".frames.partial"; }
   double encodeSeconds() const { return encodeNs_.load() * 1e-9; }      // encoder + muxer time
   double convertSeconds() const { return convertNs_.load() * 1e-9; }    // RGB -> YUV time
   double pushWaitSeconds() const { return pushWaitNs_.load() * 1e-9; }  // push() blocked
@@ -91,6 +103,7 @@ class VideoEncoder {
  private:
   struct Av;  // libav state (kept out of the header)
   void run();
+  void convertAndEncode(const std::vector<std::uint8_t>& rgb);
   void encodeFrame(bool flush);
   void fail();
 
@@ -103,7 +116,8 @@ class VideoEncoder {
   bool closing_ = false;
   std::exception_ptr error_;
   std::atomic<std::int64_t> encodeNs_{0}, convertNs_{0}, pushWaitNs_{0};
-  std::atomic<int> framesEncoded_{0};
+  std::atomic<int> framesEncoded_{0}, framesSpooled_{0};
+  std::FILE* spool_ = nullptr;  // deferred: the raw frames, written by the thread
   std::string codecName_, notes_, tmpPath_;
 };
 

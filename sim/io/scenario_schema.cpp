@@ -512,6 +512,15 @@ const std::vector<Field>& schema() {
                        "x264 speed preset (veryfast: on slab_cut less than half medium's "
                        "encoding time for a PSNR 0.06 dB lower and a smaller file; README, "
                        "\"Rendering\")"));
+    f.push_back(choice("output.encode", ESIM_REF(output.encode), {"during", "after"},
+                       "when the video is encoded: during the run, on a thread beside the "
+                       "frame loop (memory bounded; a killed run leaves the frames encoded so "
+                       "far in video.mp4.partial, which plays), or after its last frame (the "
+                       "frames kept raw in video.mp4.frames.partial, look.width x look.height "
+                       "x 3 bytes each, checked against the disk's free space at the start: "
+                       "the frame loop has the encoder's CPU, the same video bytes, the "
+                       "encoding's time added at the end; a killed run leaves no video; "
+                       "README, \"The video encoded after the frame loop\")"));
     f.push_back(boolean("output.reproducible", ESIM_REF(output.reproducible),
                         "deterministic single-threaded encoding (same bytes every run)"));
     f.push_back(integer("output.png_every", ESIM_REF(output.pngEvery), "", closed(0, 1e6),

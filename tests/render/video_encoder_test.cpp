@@ -212,6 +212,59 @@ TEST(VideoEncoder, ReproducibleModeGivesIdenticalBytes) {
   EXPECT_EQ(probe(a).packets, 30);
 }
 
+// deferred: the frames kept raw in one file as they come, none encoded before close(), which
+// encodes them all: the same bytes as encoding them as they come, and the raw file removed
+TEST(VideoEncoder, DeferredModeKeepsTheFramesRawAndGivesTheSameBytes) {
+  const std::string live = tempPath("deferred_live.mp4"), later = tempPath("deferred.mp4");
+  encode(smallOptions(live), 40);
+  VideoEncoder::Options o = smallOptions(later);
+  o.deferred = true;
+  VideoEncoder enc;
+  enc.open(o);
+  EXPECT_EQ(enc.spoolPath(), later + ".frames.partial");
+  for (int i = 0; i < 40; ++i) enc.push(frameAt(i));
+  for (int wait = 0; wait < 1000 && enc.framesSpooled() < 40; ++wait)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  ASSERT_EQ(enc.framesSpooled(), 40);
+  EXPECT_EQ(enc.framesEncoded(), 0);
+  const std::vector<char> raw = fileBytes(enc.spoolPath());  // frame after frame, as pushed
+  ASSERT_EQ(raw.size(), 40u * kW * kH * 3);
+  const std::vector<std::uint8_t> last = frameAt(39);
+  EXPECT_TRUE(std::equal(last.begin(), last.end(),
+                         reinterpret_cast<const std::uint8_t*>(raw.data()) + 39 * kW * kH * 3));
+  enc.close();
+  EXPECT_EQ(enc.framesEncoded(), 40);
+  EXPECT_FALSE(std::filesystem::exists(later + ".frames.partial"));
+  EXPECT_FALSE(std::filesystem::exists(later + ".partial"));
+  EXPECT_EQ(fileBytes(later), fileBytes(live));
+  EXPECT_EQ(probe(later).decoded, 40);
+}
+
+// the raw frames' file cannot be made (a folder has its name): open() fails naming it, and
+// leaves neither the video's partial file nor that folder's contents changed
+TEST(VideoEncoder, DeferredModeThatCannotKeepItsFramesFailsAtOpen) {
+  const std::string path = tempPath("deferred_blocked.mp4");
+  std::filesystem::remove(path + ".partial");
+  std::filesystem::create_directories(path + ".frames.partial");
+  VideoEncoder::Options o = smallOptions(path);
+  o.deferred = true;
+  VideoEncoder enc;
+  try {
+    enc.open(o);
+    ADD_FAILURE() << "open() succeeded";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("video: cannot create '" + path +
+                                         ".frames.partial' (the frames kept until the end, "
+                                         "output.encode: after): Is a directory"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_FALSE(enc.isOpen());
+  EXPECT_FALSE(std::filesystem::exists(path + ".partial"));
+  EXPECT_TRUE(std::filesystem::is_directory(path + ".frames.partial"));
+  std::filesystem::remove(path + ".frames.partial");
+}
+
 TEST(VideoEncoder, MissingEncoderFailsClearlyOrFallsBack) {
   const std::string path = tempPath("fallback.mp4");
   VideoEncoder::Options o = smallOptions(path);

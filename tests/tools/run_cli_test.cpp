@@ -773,6 +773,53 @@ TEST(RunCli, TheDrawThreadGivesTheSameFramesAndReportsThePeriod) {
   EXPECT_EQ(video[0], video[1]);
 }
 
+// output.encode: after keeps the frames raw and encodes them after the loop: the same video
+// bytes as encoding them during it, the raw frames' file gone, the reports saying which; a run
+// whose raw frames would not fit on the disk is refused before anything is written
+TEST(RunCli, TheVideoEncodedAfterTheLoopIsTheSameFile) {
+  std::string video[2];
+  for (int after = 0; after < 2; ++after) {
+    const fs::path out = tempOut(after ? "encode_after" : "encode_during");
+    const Result r = esimRun(
+        "scenarios/slab_cut.yaml --frames 12 --set mesh.slab.nodes=1013" + std::string(kSmall) +
+        " --set output.encode=" + (after ? "after" : "during") + " -o " + out.string());
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    video[after] = readFile(out / "video.mp4");
+    EXPECT_FALSE(fs::exists(out / "video.mp4.frames.partial"));
+    const auto timing = nlohmann::json::parse(readFile(out / "timing.json"));
+    EXPECT_EQ(timing["offline"]["encode"].get<std::string>(), after ? "after" : "during");
+    EXPECT_EQ(
+        timing["cpu"]["note"].get<std::string>().find("output.encode: after") != std::string::npos,
+        after == 1);
+    const std::string summary = readFile(out / "summary.txt");
+    EXPECT_EQ(summary.find(" s after the frame loop (output.encode: after)") != std::string::npos,
+              after == 1)
+        << summary;
+    EXPECT_NE(summary.find("/ {video.mp4, timing.csv"), std::string::npos) << summary;
+    fs::remove_all(out);
+  }
+  EXPECT_GT(video[0].size(), 1000u);
+  EXPECT_EQ(video[0], video[1]);
+
+  const fs::path out = tempOut("encode_after_no_room");
+  const Result r = esimRun(
+      "scenarios/slab_cut.yaml --frames 100000000 --set mesh.slab.nodes=1013 -q "
+      "--set output.encode=after -o " +
+      out.string());
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_NE(r.output.find("esim: error: output.encode: after keeps the 100000000 frames raw until "
+                          "the video is encoded at the end (1280 x 720 x 3 bytes each): "
+                          "276480000 MB on the disk of "),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("set output.encode: during (encodes as the frames come) or free disk "
+                          "space"),
+            std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_FALSE(fs::exists(out.string() + ".partial"));
+}
+
 // the CPU the frames cost (timing.json's cpu, the summary's cpu line): on one CPU (taskset)
 // the process cannot be busier than the one CPU, and what it reports is within what the
 // shell's `times` counts for the whole child (set-up and exit included)

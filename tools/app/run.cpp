@@ -250,6 +250,27 @@ std::size_t injectedFaultMegabytes(const char* kind) {
   return colon ? static_cast<std::size_t>(std::max(0L, std::atol(colon + 1))) : 0;
 }
 
+// output.encode: after keeps every frame raw until the end: refused up front (exit 2, nothing
+// written) when the folder's disk has not that much free, with 64 MiB to spare for the rest
+void checkSpoolRoom(const fs::path& dir, int frames, const VideoEncoder::Options& vo) {
+  const double frameBytes = 3.0 * vo.width * vo.height;
+  const double needBytes = frameBytes * frames;
+  std::error_code ec;
+  const fs::space_info room = fs::space(dir, ec);
+  if (ec) return;  // unknown: a write that fails says so, naming the file
+  const double freeBytes = static_cast<double>(room.available);
+  if (needBytes + 64.0 * 1048576 <= freeBytes) return;
+  char b[320];
+  std::snprintf(b, sizeof b,
+                "output.encode: after keeps the %d frames raw until the video is encoded at the "
+                "end (%d x %d x 3 bytes each): %.0f MB on the disk of %s, which has %.0f MB "
+                "free; set output.encode: during (encodes as the frames come) or free disk space",
+                frames, vo.width, vo.height, needBytes / 1e6,
+                (dir.has_parent_path() ? dir.parent_path() : dir).string().c_str(),
+                freeBytes / 1e6);
+  throw Error(b);
+}
+
 class FrameOutputs {
  public:
   FrameOutputs(const Setup& s, const fs::path& dir, bool pipelined) : s_(s), dir_(dir) {
@@ -262,6 +283,8 @@ class FrameOutputs {
     vo.crf = sc.output.crf;
     vo.preset = sc.output.preset;
     vo.reproducible = sc.output.reproducible;
+    vo.deferred = sc.output.encode == "after";
+    if (s.video && vo.deferred) checkSpoolRoom(dir, s.frames, vo);
     if (s.video) {
       encoder_ = std::make_unique<VideoEncoder>();
       encoder_->open(vo);
@@ -572,8 +595,10 @@ struct LoopResult {
   bool pipelined = false;             // drawn on a thread while the next frame was simulated
   double loopS = 0;
   // CPU: the process's from the loop's start until the video is closed (the frames' own
-  // encoding included), the loop's thread's over the loop, and that span's wall time [s]
+  // encoding included; with output.encode: after, until the loop's end, the encoding then
+  // following it), the loop's thread's over the loop, and that span's wall time [s]
   double cpuStartS = 0, loopThreadStartS = 0, cpuS = 0, loopThreadCpuS = 0, cpuWallS = 0;
+  bool encodeAfter = false;  // the video encoded after the loop (output.encode: after)
   double peakPowerW = 0;
   bool interrupted = false;
   // as of the last complete frame (a frame that failed or was interrupted halfway leaves
@@ -649,11 +674,14 @@ nlohmann::json cpuJson(const LoopResult& loop) {
           {"busy_cpus", c.busyCpus},
           {"period_floor_ms", c.periodFloorMs},
           {"note",
-           "CPU time of the whole process (every thread: the frame loop's, the solvers' "
-           "helpers, the renderer's, the encoder's) from the loop's start until the video is "
-           "closed, per frame run; busy_cpus: that time over the same span's wall time; "
-           "period_floor_ms = ms_per_frame / cpus (the CPUs the process may run on): no "
-           "scheduling gives a frame period below it"}};
+           std::string("CPU time of the whole process (every thread: the frame loop's, the "
+                       "solvers' helpers, the renderer's, the encoder's) from the loop's start ") +
+               (loop.encodeAfter ? "until its end (output.encode: after: the video is encoded "
+                                   "after it, see offline.encode_s)"
+                                 : "until the video is closed") +
+               ", per frame run; busy_cpus: that time over the same span's wall time; "
+               "period_floor_ms = ms_per_frame / cpus (the CPUs the process may run on): no "
+               "scheduling gives a frame period below it"}};
 }
 
 // timing.json's block beyond the per-stage statistics
@@ -705,9 +733,13 @@ nlohmann::json timingExtra(const Setup& s, const FrameOutputs& out, const LoopRe
   extra["frame_latency"] =
       statsJson(seriesStats(frameLatenciesMs(loop.frameStartUs, loop.frameDoneUs)));
   extra["frame_latency"]["note"] = "from the start of a frame's physics to its outputs done";
-  extra["offline"] = {{"encode_s", out.encodeSeconds()},
-                      {"codec", out.codec()},
-                      {"note", "libav encoding on its own thread, not in the 30 Hz budget"}};
+  extra["offline"] = {
+      {"encode_s", out.encodeSeconds()},
+      {"codec", out.codec()},
+      {"encode", sc.output.encode},
+      {"note", sc.output.encode == "after"
+                   ? "libav encoding after the frame loop (the frames kept raw until then)"
+                   : "libav encoding on its own thread, not in the 30 Hz budget"}};
   extra["cpu"] = cpuJson(loop);
   extra["machine"] = machineInfo();
   extra["threads"] = {{"blas", sc.solvers.electricThreads},
@@ -835,7 +867,8 @@ void summaryStructural(std::ostringstream& sum, const Simulation& sim, const Loo
 }
 
 std::string summaryText(const Setup& s, const FrameOutputs& out, const LoopResult& loop,
-                        const nlohmann::json& timing, const fs::path& dir, bool plotted) {
+                        const nlohmann::json& timing, const fs::path& dir, bool plotted,
+                        const std::string& video) {
   const Scenario& sc = s.scenario;
   const Simulation& sim = *s.sim;
   std::ostringstream sum;
@@ -855,7 +888,9 @@ std::string summaryText(const Setup& s, const FrameOutputs& out, const LoopResul
   sum << "  frames      " << loop.records.size() << " of " << s.frames << ", simulated "
       << sim.timeS() << " s at " << sc.time.fps << " fps, wall " << loop.loopS << " s\n";
   summaryStages(sum, loop, timing);
-  sum << "  encode        " << out.encodeSeconds() << " s offline (own thread)\n";
+  sum << "  encode        " << out.encodeSeconds()
+      << (loop.encodeAfter ? " s after the frame loop (output.encode: after)\n"
+                           : " s offline (own thread)\n");
   const CpuUse cpu = cpuUse(loop);
   sum << "  cpu           " << cpu.msPerFrame << " ms a frame, all threads (the loop's own "
       << cpu.loopThreadMsPerFrame << " ms); " << cpu.busyCpus << " of " << cpu.cpus
@@ -902,7 +937,7 @@ std::string summaryText(const Setup& s, const FrameOutputs& out, const LoopResul
     sum << "\n";
   }
   if (sim.config().phases.structural) summaryStructural(sum, sim, loop);
-  sum << "  outputs       " << dir.string() << "/ {" << (s.video ? "video.mp4, " : "")
+  sum << "  outputs       " << dir.string() << "/ {" << (video.empty() ? "" : video + ", ")
       << "timing.csv, timing.json, trace.json, scenario.yaml" << (plotted ? ", timing.png" : "")
       << (s.renderer && sc.output.hashes ? ", hashes.json" : "")
       << (sc.output.pngEvery > 0 ? ", frames/" : "") << (s.fieldsEvery > 0 ? ", fields/" : "")
@@ -933,7 +968,14 @@ std::string writeReports(const Setup& s, const FrameOutputs& out, const LoopResu
     plotted = p.status == PlotStatus::Written;
     if (!plotted) std::cerr << "esim: warning: no timing.png: " << p.message << "\n";
   }
-  const std::string summary = summaryText(s, out, loop, timing, finalDir, plotted);
+  // the video as it is (none after a failure that removed it, the fragmented file when only
+  // its rewrite failed)
+  std::error_code ec;
+  const std::string video = !s.video                                    ? ""
+                            : fs::exists(dir / "video.mp4", ec)         ? "video.mp4"
+                            : fs::exists(dir / "video.mp4.partial", ec) ? "video.mp4.partial"
+                                                                        : "";
+  const std::string summary = summaryText(s, out, loop, timing, finalDir, plotted, video);
   writeFileAtomic(dir / "summary.txt", summary);
   return summary;
 }
@@ -1146,8 +1188,11 @@ int runScenario(const RunOptions& opt) {
   } catch (const std::bad_alloc&) {
     closeFailed("out of memory", ErrorKind::Run);
   }
-  loop.cpuS = processCpuSeconds() - loop.cpuStartS;
-  loop.cpuWallS = loop.loopS + secondsSince(closeStart);
+  loop.encodeAfter = s.video && s.scenario.output.encode == "after";
+  if (!loop.encodeAfter) {  // (after: the loop's own, taken at its end)
+    loop.cpuS = processCpuSeconds() - loop.cpuStartS;
+    loop.cpuWallS = loop.loopS + secondsSince(closeStart);
+  }
   const fs::path where = loop.complete() ? output.final() : output.partial();
   std::string summary;
   try {
