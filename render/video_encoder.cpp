@@ -334,7 +334,6 @@ void VideoEncoder::open(const Options& o) {
   a.allocateFrames(o);
 
   // 4. deferred: the file of raw frames
-  framesSpooled_ = 0;
   if (o.deferred) {
     spool_ = std::fopen(spoolPath().c_str(), "w+b");
     if (!spool_) {

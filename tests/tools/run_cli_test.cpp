@@ -818,6 +818,17 @@ TEST(RunCli, TheVideoEncodedAfterTheLoopIsTheSameFile) {
       << r.output;
   EXPECT_FALSE(fs::exists(out));
   EXPECT_FALSE(fs::exists(out.string() + ".partial"));
+  // the labels' preview video is kept raw too, and counted
+  const Result p = esimRun(
+      "scenarios/slab_cut.yaml --frames 100000000 --set mesh.slab.nodes=1013 -q --no-video "
+      "--labels preview --set output.encode=after -o " +
+      out.string());
+  EXPECT_EQ(p.exitCode, 2) << p.output;
+  EXPECT_NE(p.output.find("(the labels' preview: 2560 x 720 x 3 bytes each): 552960000 MB on "
+                          "the disk of "),
+            std::string::npos)
+      << p.output;
+  EXPECT_FALSE(fs::exists(out.string() + ".partial"));
 }
 
 // the CPU the frames cost (timing.json's cpu, the summary's cpu line): on one CPU (taskset)

@@ -250,25 +250,29 @@ std::size_t injectedFaultMegabytes(const char* kind) {
   return colon ? static_cast<std::size_t>(std::max(0L, std::atol(colon + 1))) : 0;
 }
 
-// output.encode: after keeps every frame raw until the end: refused up front (exit 2, nothing
-// written) when the folder's disk has not that much free, with 64 MiB to spare for the rest
-void checkSpoolRoom(const fs::path& dir, int frames, const VideoEncoder::Options& vo) {
-  const double frameBytes = 3.0 * vo.width * vo.height;
+// output.encode: after keeps every frame raw until the end (and the labels' preview's, twice
+// as wide, with --labels preview): refused up front (exit 2, nothing written) when the
+// folder's disk has not that much free, with 64 MiB to spare for the rest
+void checkSpoolRoom(const fs::path& dir, int frames, const VideoEncoder::Options& vo, bool video,
+                    bool preview) {
+  const double frameBytes = 3.0 * vo.width * vo.height * ((video ? 1 : 0) + (preview ? 2 : 0));
   const double needBytes = frameBytes * frames;
   std::error_code ec;
   const fs::space_info room = fs::space(dir, ec);
   if (ec) return;  // unknown: a write that fails says so, naming the file
   const double freeBytes = static_cast<double>(room.available);
   if (needBytes + 64.0 * 1048576 <= freeBytes) return;
-  char b[320];
-  std::snprintf(b, sizeof b,
-                "output.encode: after keeps the %d frames raw until the video is encoded at the "
-                "end (%d x %d x 3 bytes each): %.0f MB on the disk of %s, which has %.0f MB "
-                "free; set output.encode: during (encodes as the frames come) or free disk space",
-                frames, vo.width, vo.height, needBytes / 1e6,
-                (dir.has_parent_path() ? dir.parent_path() : dir).string().c_str(),
-                freeBytes / 1e6);
-  throw Error(b);
+  const auto mb = [](double bytes) { return std::to_string(std::llround(bytes / 1e6)); };
+  throw Error("output.encode: after keeps the " + std::to_string(frames) +
+              " frames raw until the video is encoded at the end (" +
+              (video ? "" : "the labels' preview: ") + std::to_string((video ? 1 : 2) * vo.width) +
+              " x " + std::to_string(vo.height) + " x 3 bytes each" +
+              (video && preview ? ", and the labels' preview's twice that" : "") +
+              "): " + mb(needBytes) + " MB on the disk of " +
+              (dir.has_parent_path() ? dir.parent_path() : dir).string() + ", which has " +
+              mb(freeBytes) +
+              " MB free; set output.encode: during (encodes as the frames come) or free disk "
+              "space");
 }
 
 class FrameOutputs {
@@ -284,7 +288,8 @@ class FrameOutputs {
     vo.preset = sc.output.preset;
     vo.reproducible = sc.output.reproducible;
     vo.deferred = sc.output.encode == "after";
-    if (s.video && vo.deferred) checkSpoolRoom(dir, s.frames, vo);
+    if (vo.deferred && (s.video || s.labels.preview))
+      checkSpoolRoom(dir, s.frames, vo, s.video, s.labels.preview);
     if (s.video) {
       encoder_ = std::make_unique<VideoEncoder>();
       encoder_->open(vo);
