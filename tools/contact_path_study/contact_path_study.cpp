@@ -1,0 +1,259 @@
+// contact_path_study - what the potential of a new contact set costs on a kept factor, two ways
+// (issue #11: the columns `downdate` solves again after each removal; README, "Not done yet").
+// The scene is slab_cut's (scenarios/slab_cut.yaml: its graded slab at NODES nodes, its
+// conductivity, its return pad grounded); the potential's matrix K_ff on the nodes off the pad is
+// factorized as the electric strategies factorize it (simplicial LDL', METIS); the contacts are
+// the CONTACTS free nodes nearest the blade's edge (x in [-2.5, 2.5] mm, y = 0, on the top face)
+// at 1 V. Capacitance's algebra (sim/electric_solver.h): Z = K_ff^-1 E_C, Z_CC f = 1, u = Z f.
+//   columns:  each column of Z by a full solve, one by one (ldl_solve.h, one thread);
+//   blocks:   the same by CHOLMOD's simplicial solve in blocks of 4 (what `downdate` does);
+//   paths:    y_c = L^-1 e_c, whose nonzeros lie on c's path up the elimination tree, solved
+//             on that path alone; Z_CC = Y' D^-1 Y over the paths' common rows; then one full
+//             solve u = K_ff^-1 E_C f.
+// Each time is the best of five. The study checks what it times: the three potentials agree
+// (the largest relative difference is printed; exit 1 above 1e-10).
+// Usage: contact_path_study [--contacts N] [NODES ...] (default 24 contacts; 8000 27000 50000)
+#include <cholmod.h>
+
+#include <Eigen/Dense>
+#include <Eigen/SparseCore>
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "sim/electrode.h"
+#include "sim/fem_p1.h"
+#include "sim/ldl_solve.h"
+#include "sim/mesh_tet.h"
+#include "tools/app/run_config.h"
+#include "tools/study_util.h"
+
+using namespace esim;
+
+namespace {
+
+constexpr int kRepeats = 5;
+constexpr int kBlock = 4;  // columns a CHOLMOD solve takes at once, as `downdate` does
+
+struct Row {
+  int nodes = 0, free = 0, contacts = 0;
+  long factorEntries = 0, pathEntries = 0;
+  double columnsMs = 0, blocksMs = 0, pathsMs = 0, difference = 0;
+};
+
+Row measure(int targetNodes, int contacts) {
+  const Scenario sc = study::slabCutScenario(targetNodes);
+  const SimulationConfig config = app::makeSimulationConfig(sc);
+  const TetMesh mesh = app::buildMesh(sc);
+  const std::vector<TetGeometry> geo = tetGeometry(mesh);
+  const int n = mesh.numNodes();
+  const SparseMatrix k = assembleStiffness(
+      mesh, geo, std::vector<double>(mesh.numTets(), sc.material.electricConductivitySPerM));
+  const std::vector<int> pad =
+      returnElectrodeNodes(mesh, boundaryNodes(mesh, boundaryFaces(mesh)), config.returnElectrode);
+  std::vector<int> freeIndex(n, -1), freeNode;
+  {
+    std::vector<char> grounded(n, 0);
+    for (int g : pad) grounded[g] = 1;
+    for (int i = 0; i < n; ++i)
+      if (!grounded[i]) {
+        freeIndex[i] = static_cast<int>(freeNode.size());
+        freeNode.push_back(i);
+      }
+  }
+  const int nf = static_cast<int>(freeNode.size());
+  std::vector<Eigen::Triplet<double>> entries;
+  for (int j = 0; j < k.outerSize(); ++j)
+    for (SparseMatrix::InnerIterator it(k, j); it; ++it) {
+      const int r = freeIndex[it.row()], c = freeIndex[it.col()];
+      if (r >= 0 && c >= 0 && r >= c) entries.emplace_back(r, c, it.value());
+    }
+  Eigen::SparseMatrix<double> a(nf, nf);
+  a.setFromTriplets(entries.begin(), entries.end());
+  a.makeCompressed();
+
+  cholmod_common cm;
+  cholmod_start(&cm);
+  cm.supernodal = CHOLMOD_SIMPLICIAL;
+  cm.final_ll = 0;
+  cm.nmethods = 1;
+  cm.method[0].ordering = CHOLMOD_METIS;
+  cm.postorder = 1;
+  cholmod_sparse as{};
+  as.nrow = as.ncol = nf;
+  as.nzmax = a.nonZeros();
+  as.p = a.outerIndexPtr();
+  as.i = a.innerIndexPtr();
+  as.x = a.valuePtr();
+  as.stype = -1;
+  as.itype = CHOLMOD_INT;
+  as.xtype = CHOLMOD_REAL;
+  as.dtype = CHOLMOD_DOUBLE;
+  as.sorted = as.packed = 1;
+  cholmod_factor* l = cholmod_analyze(&as, &cm);
+  cholmod_factorize(&as, l, &cm);
+  const int* lp = static_cast<const int*>(l->p);
+  const int* li = static_cast<const int*>(l->i);
+  const int* lnz = static_cast<const int*>(l->nz);
+  const double* lx = static_cast<const double*>(l->x);
+  const int* perm = static_cast<const int*>(l->Perm);
+  std::vector<int> position(nf);  // free index -> row of L
+  for (int i = 0; i < nf; ++i) position[perm[i]] = i;
+
+  Row row;
+  row.nodes = n;
+  row.free = nf;
+  for (int j = 0; j < nf; ++j) row.factorEntries += lnz[j];
+  // the contacts: the free nodes nearest the blade's edge
+  std::vector<std::pair<double, int>> nearest;
+  for (int f = 0; f < nf; ++f) {
+    const Vec3& p = mesh.nodes[freeNode[f]];
+    const double x = std::clamp(p.x(), -0.0025, 0.0025);
+    nearest.push_back({(p - Vec3(x, 0, 0.01)).squaredNorm(), f});
+  }
+  std::sort(nearest.begin(), nearest.end());
+  row.contacts = std::min(contacts, nf);
+  std::vector<int> c(row.contacts);
+  for (int q = 0; q < row.contacts; ++q) c[q] = nearest[q].second;
+  const int nc = row.contacts;
+  const Eigen::VectorXd volts = Eigen::VectorXd::Ones(nc);
+
+  LdlSolveWork work;
+  Eigen::VectorXd uColumns, uBlocks, uPaths;
+  row.columnsMs = row.blocksMs = row.pathsMs = 1e30;
+  for (int rep = 0; rep < kRepeats; ++rep) {
+    // columns, one by one
+    double t = study::seconds();
+    Eigen::MatrixXd z(nf, nc);
+    std::vector<double> e(nf, 0.0);
+    for (int q = 0; q < nc; ++q) {
+      e[c[q]] = 1;
+      ldlSolve(*l, e.data(), z.col(q).data(), 1, work);
+      e[c[q]] = 0;
+    }
+    Eigen::MatrixXd zcc(nc, nc);
+    for (int p = 0; p < nc; ++p)
+      for (int q = 0; q < nc; ++q) zcc(p, q) = z(c[p], q);
+    uColumns = z * zcc.ldlt().solve(volts);
+    row.columnsMs = std::min(row.columnsMs, 1e3 * (study::seconds() - t));
+
+    // columns, in blocks of 4 by CHOLMOD
+    t = study::seconds();
+    Eigen::MatrixXd zb(nf, nc);
+    for (int q0 = 0; q0 < nc; q0 += kBlock) {
+      const int w = std::min(kBlock, nc - q0);
+      Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(nf, w);
+      for (int q = 0; q < w; ++q) rhs(c[q0 + q], q) = 1;
+      cholmod_dense b{};
+      b.nrow = nf;
+      b.ncol = w;
+      b.nzmax = static_cast<size_t>(nf) * w;
+      b.d = nf;
+      b.x = rhs.data();
+      b.xtype = CHOLMOD_REAL;
+      b.dtype = CHOLMOD_DOUBLE;
+      cholmod_dense* x = cholmod_solve(CHOLMOD_A, l, &b, &cm);
+      zb.middleCols(q0, w) = Eigen::Map<Eigen::MatrixXd>(static_cast<double*>(x->x), nf, w);
+      cholmod_free_dense(&x, &cm);
+    }
+    for (int p = 0; p < nc; ++p)
+      for (int q = 0; q < nc; ++q) zcc(p, q) = zb(c[p], q);
+    uBlocks = zb * zcc.ldlt().solve(volts);
+    row.blocksMs = std::min(row.blocksMs, 1e3 * (study::seconds() - t));
+
+    // paths up the elimination tree, then one full solve
+    t = study::seconds();
+    std::vector<std::vector<int>> path(nc);
+    std::vector<std::vector<double>> y(nc);
+    std::vector<double> dense(nf, 0.0);
+    row.pathEntries = 0;
+    for (int q = 0; q < nc; ++q) {
+      const int start = position[c[q]];
+      for (int j = start; j >= 0; j = lnz[j] > 1 ? li[lp[j] + 1] : -1) path[q].push_back(j);
+      dense[start] = 1;
+      for (int j : path[q]) {
+        const double yj = dense[j];
+        if (yj != 0)
+          for (int p = lp[j] + 1; p < lp[j] + lnz[j]; ++p) dense[li[p]] -= lx[p] * yj;
+        row.pathEntries += lnz[j];
+      }
+      y[q].resize(path[q].size());
+      for (size_t s = 0; s < path[q].size(); ++s) {
+        y[q][s] = dense[path[q][s]];
+        dense[path[q][s]] = 0;
+      }
+    }
+    Eigen::MatrixXd zp(nc, nc);
+    for (int p = 0; p < nc; ++p) {
+      for (size_t s = 0; s < path[p].size(); ++s)
+        dense[path[p][s]] = y[p][s] / lx[lp[path[p][s]]];  // D_j at the head of column j
+      for (int q = p; q < nc; ++q) {
+        double sum = 0;
+        for (size_t s = 0; s < path[q].size(); ++s) sum += dense[path[q][s]] * y[q][s];
+        zp(p, q) = zp(q, p) = sum;
+      }
+      for (int j : path[p]) dense[j] = 0;
+    }
+    const Eigen::VectorXd f = zp.ldlt().solve(volts);
+    std::vector<double> rhs(nf, 0.0);
+    for (int q = 0; q < nc; ++q) rhs[c[q]] = f[q];
+    uPaths.resize(nf);
+    ldlSolve(*l, rhs.data(), uPaths.data(), 1, work);
+    row.pathsMs = std::min(row.pathsMs, 1e3 * (study::seconds() - t));
+  }
+  row.difference =
+      std::max((uBlocks - uColumns).norm(), (uPaths - uColumns).norm()) / uColumns.norm();
+  cholmod_free_factor(&l, &cm);
+  cholmod_finish(&cm);
+  return row;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int contacts = 24;
+  std::vector<int> sizes;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    char* end = nullptr;
+    if (arg == "--contacts" && i + 1 < argc) {
+      contacts = static_cast<int>(std::strtol(argv[++i], &end, 10));
+      if (*end != 0 || contacts < 1 || contacts > 10000) {
+        std::fprintf(stderr, "contact_path_study: --contacts %s: expected 1 to 10000\n", argv[i]);
+        return 2;
+      }
+      continue;
+    }
+    const long nodes = std::strtol(argv[i], &end, 10);
+    if (*end != 0 || nodes < 100 || nodes > 2000000) {
+      std::fprintf(stderr,
+                   "contact_path_study: '%s': expected a node count from 100 to 2000000, or "
+                   "--contacts N\n",
+                   argv[i]);
+      return 2;
+    }
+    sizes.push_back(static_cast<int>(nodes));
+  }
+  if (sizes.empty()) sizes = {8000, 27000, 50000};
+  std::printf(
+      "# the potential of a new contact set on a kept factor (best of %d, one thread)\n"
+      "# nodes free entries_of_L contacts columns_ms blocks_ms paths_ms path_entries "
+      "max_rel_difference\n",
+      kRepeats);
+  double worst = 0;
+  for (int nodes : sizes) {
+    const Row r = measure(nodes, contacts);
+    std::printf("%d %d %ld %d %.3f %.3f %.3f %ld %.1e\n", r.nodes, r.free, r.factorEntries,
+                r.contacts, r.columnsMs, r.blocksMs, r.pathsMs, r.pathEntries, r.difference);
+    std::fflush(stdout);
+    worst = std::max(worst, r.difference);
+  }
+  if (!(worst <= 1e-10)) {
+    std::fprintf(stderr, "contact_path_study: the potentials differ by %.1e (> 1e-10)\n", worst);
+    return 1;
+  }
+  return 0;
+}
