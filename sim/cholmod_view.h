@@ -68,6 +68,21 @@ inline cholmod_sparse cholmodViewLower(const SparseMatrix& a) {
   return s;
 }
 
+// a simplicial LDL' factor's arrays (columns sorted, the diagonal D(j) first), read only
+struct SimplicialView {
+  const int* p;
+  const int* i;
+  const int* nz;
+  const double* x;
+  explicit SimplicialView(const cholmod_factor* f)
+      : p(static_cast<const int*>(f->p)),
+        i(static_cast<const int*>(f->i)),
+        nz(static_cast<const int*>(f->nz)),
+        x(static_cast<const double*>(f->x)) {}
+  int parent(int j) const { return nz[j] > 1 ? i[p[j] + 1] : -1; }  // elimination tree
+  double diagonal(int j) const { return x[p[j]]; }                  // D(j)
+};
+
 // the symbolic analysis of `a` with the fill-reducing ordering `perm` (n entries; no AMD or
 // METIS search): the common's ordering methods are set to CHOLMOD_GIVEN for the call and
 // restored; nullptr when CHOLMOD fails (out of memory)

@@ -550,6 +550,11 @@ void CholmodFactor::swap(CholmodFactor& other) {
   std::swap(factorizeFlops_, other.factorizeFlops_);
 }
 
+const cholmod_factor& CholmodFactor::cholmod() const {
+  ESIM_CHECK(impl_->factor != nullptr);  // analyze first
+  return *impl_->factor;
+}
+
 int CholmodFactor::size() const { return impl_->factor ? static_cast<int>(impl_->factor->n) : 0; }
 
 double CholmodFactor::memoryBytes() const {

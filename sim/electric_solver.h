@@ -116,6 +116,8 @@
 
 #include "sim/fem_p1.h"
 
+struct cholmod_factor_struct;  // cholmod.h's cholmod_factor
+
 namespace esim {
 
 // Auto is not a solver: resolveElectricStrategy turns it into one for a mesh's size
@@ -420,6 +422,9 @@ class CholmodFactor {
   bool pivotsPositive() const;
   // stored entries of L (a solve costs about 4 flops per entry per right-hand side)
   double factorEntries() const;
+  // the CHOLMOD factor itself, to read (e.g. a simplicial one's L, D and Perm through
+  // cholmod_view.h's SimplicialView); an internal error before an analysis
+  const cholmod_factor_struct& cholmod() const;
   // flops of one numeric factorization (from the symbolic analysis)
   double factorizeFlops() const { return factorizeFlops_; }
   void swap(CholmodFactor& other);  // exchanges the two factors (and their workspaces)

@@ -251,21 +251,6 @@ struct Piece {
   std::vector<int> supports;  // ascending indices of the supports on its nodes (not islands)
 };
 
-// per-dof views of a simplicial LDL' factor (columns sorted, diagonal first)
-struct SimplicialView {
-  const int* p;
-  const int* i;
-  const int* nz;
-  const double* x;
-  explicit SimplicialView(const cholmod_factor* f)
-      : p(static_cast<const int*>(f->p)),
-        i(static_cast<const int*>(f->i)),
-        nz(static_cast<const int*>(f->nz)),
-        x(static_cast<const double*>(f->x)) {}
-  int parent(int j) const { return nz[j] > 1 ? i[p[j] + 1] : -1; }  // elimination tree
-  double diagonal(int j) const { return x[p[j]]; }                  // D(j)
-};
-
 // a phase's per-tet stresses on two threads from this many tets (~0.1 us a tet; a thread's
 // start, 50-100 us here, made the 1026-node slab's solve 0.1 ms slower with 2000: esim bench
 // structural)

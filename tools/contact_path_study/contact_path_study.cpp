@@ -2,9 +2,10 @@
 // (issue #11: the columns `downdate` solves again after each removal; README, "Not done yet").
 // The scene is slab_cut's (scenarios/slab_cut.yaml: its graded slab at NODES nodes, its
 // conductivity, its return pad grounded); the potential's matrix K_ff on the nodes off the pad is
-// factorized as the electric strategies factorize it (simplicial LDL', METIS); the contacts are
-// the CONTACTS free nodes nearest the blade's edge (x in [-2.5, 2.5] mm, y = 0, on the top face)
-// at 1 V. Capacitance's algebra (sim/electric_solver.h): Z = K_ff^-1 E_C, Z_CC f = 1, u = Z f.
+// factorized as `downdate` factorizes it (CholmodFactor: supernodal, then simplicial LDL'); the
+// contacts are the CONTACTS free nodes nearest the blade's edge (x in [-2.5, 2.5] mm, y = 0, on the
+// top face) at 1 V. Capacitance's algebra (sim/electric_solver.h): Z = K_ff^-1 E_C, Z_CC f = 1, u =
+// Z f.
 //   columns:  each column of Z by a full solve, one by one (ldl_solve.h, one thread);
 //   blocks:   the same by CHOLMOD's simplicial solve in blocks of 4 (what `downdate` does);
 //   paths:    y_c = L^-1 e_c, whose nonzeros lie on c's path up the elimination tree, solved
@@ -13,8 +14,6 @@
 // Each time is the best of five. The study checks what it times: the three potentials agree
 // (the largest relative difference is printed; exit 1 above 1e-10).
 // Usage: contact_path_study [--contacts N] [NODES ...] (default 24 contacts; 8000 27000 50000)
-#include <cholmod.h>
-
 #include <Eigen/Dense>
 #include <Eigen/SparseCore>
 #include <algorithm>
@@ -24,9 +23,10 @@
 #include <string>
 #include <vector>
 
+#include "sim/cholmod_view.h"
+#include "sim/electric_solver.h"
 #include "sim/electrode.h"
 #include "sim/fem_p1.h"
-#include "sim/ldl_solve.h"
 #include "sim/mesh_tet.h"
 #include "tools/app/run_config.h"
 #include "tools/study_util.h"
@@ -52,61 +52,26 @@ Row measure(int targetNodes, int contacts) {
   const int n = mesh.numNodes();
   const SparseMatrix k = assembleStiffness(
       mesh, geo, std::vector<double>(mesh.numTets(), sc.material.electricConductivitySPerM));
-  const std::vector<int> pad =
-      returnElectrodeNodes(mesh, boundaryNodes(mesh, boundaryFaces(mesh)), config.returnElectrode);
-  std::vector<int> freeIndex(n, -1), freeNode;
-  {
-    std::vector<char> grounded(n, 0);
-    for (int g : pad) grounded[g] = 1;
-    for (int i = 0; i < n; ++i)
-      if (!grounded[i]) {
-        freeIndex[i] = static_cast<int>(freeNode.size());
-        freeNode.push_back(i);
-      }
-  }
-  const int nf = static_cast<int>(freeNode.size());
-  std::vector<Eigen::Triplet<double>> entries;
-  for (int j = 0; j < k.outerSize(); ++j)
-    for (SparseMatrix::InnerIterator it(k, j); it; ++it) {
-      const int r = freeIndex[it.row()], c = freeIndex[it.col()];
-      if (r >= 0 && c >= 0 && r >= c) entries.emplace_back(r, c, it.value());
-    }
-  Eigen::SparseMatrix<double> a(nf, nf);
-  a.setFromTriplets(entries.begin(), entries.end());
-  a.makeCompressed();
-
-  cholmod_common cm;
-  cholmod_start(&cm);
-  cm.supernodal = CHOLMOD_SIMPLICIAL;
-  cm.final_ll = 0;
-  cm.nmethods = 1;
-  cm.method[0].ordering = CHOLMOD_METIS;
-  cm.postorder = 1;
-  cholmod_sparse as{};
-  as.nrow = as.ncol = nf;
-  as.nzmax = a.nonZeros();
-  as.p = a.outerIndexPtr();
-  as.i = a.innerIndexPtr();
-  as.x = a.valuePtr();
-  as.stype = -1;
-  as.itype = CHOLMOD_INT;
-  as.xtype = CHOLMOD_REAL;
-  as.dtype = CHOLMOD_DOUBLE;
-  as.sorted = as.packed = 1;
-  cholmod_factor* l = cholmod_analyze(&as, &cm);
-  cholmod_factorize(&as, l, &cm);
-  const int* lp = static_cast<const int*>(l->p);
-  const int* li = static_cast<const int*>(l->i);
-  const int* lnz = static_cast<const int*>(l->nz);
-  const double* lx = static_cast<const double*>(l->x);
-  const int* perm = static_cast<const int*>(l->Perm);
+  electric_detail::NodeClasses classes;
+  classes.build(k, returnElectrodeNodes(mesh, boundaryNodes(mesh, boundaryFaces(mesh)),
+                                        config.returnElectrode));
+  const SparseMatrix a = electric_detail::restrictToFree(k, classes);
+  const int nf = classes.numFree();
+  const std::vector<int>& freeNode = classes.freeNodes;
+  // factorized as `downdate` factorizes it: supernodal, then simplicial LDL'
+  electric_detail::CholmodFactor factor;
+  factor.analyze(a);
+  factor.factorize(a, "contact_path_study");
+  factor.toSimplicial();
+  const SimplicialView l(&factor.cholmod());
   std::vector<int> position(nf);  // free index -> row of L
+  const std::vector<int> perm = factor.ordering();
   for (int i = 0; i < nf; ++i) position[perm[i]] = i;
 
   Row row;
   row.nodes = n;
   row.free = nf;
-  for (int j = 0; j < nf; ++j) row.factorEntries += lnz[j];
+  row.factorEntries = static_cast<long>(factor.factorEntries());
   // the contacts: the free nodes nearest the blade's edge
   std::vector<std::pair<double, int>> nearest;
   for (int f = 0; f < nf; ++f) {
@@ -121,17 +86,16 @@ Row measure(int targetNodes, int contacts) {
   const int nc = row.contacts;
   const Eigen::VectorXd volts = Eigen::VectorXd::Ones(nc);
 
-  LdlSolveWork work;
   Eigen::VectorXd uColumns, uBlocks, uPaths;
   row.columnsMs = row.blocksMs = row.pathsMs = 1e30;
   for (int rep = 0; rep < kRepeats; ++rep) {
-    // columns, one by one
+    // columns, one by one (ldl_solve.h on one thread)
     double t = study::seconds();
     Eigen::MatrixXd z(nf, nc);
     std::vector<double> e(nf, 0.0);
     for (int q = 0; q < nc; ++q) {
       e[c[q]] = 1;
-      ldlSolve(*l, e.data(), z.col(q).data(), 1, work);
+      factor.solve(e.data(), z.col(q).data());
       e[c[q]] = 0;
     }
     Eigen::MatrixXd zcc(nc, nc);
@@ -140,24 +104,14 @@ Row measure(int targetNodes, int contacts) {
     uColumns = z * zcc.ldlt().solve(volts);
     row.columnsMs = std::min(row.columnsMs, 1e3 * (study::seconds() - t));
 
-    // columns, in blocks of 4 by CHOLMOD
+    // columns in blocks of 4 (CHOLMOD's simplicial solve)
     t = study::seconds();
     Eigen::MatrixXd zb(nf, nc);
     for (int q0 = 0; q0 < nc; q0 += kBlock) {
       const int w = std::min(kBlock, nc - q0);
       Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(nf, w);
       for (int q = 0; q < w; ++q) rhs(c[q0 + q], q) = 1;
-      cholmod_dense b{};
-      b.nrow = nf;
-      b.ncol = w;
-      b.nzmax = static_cast<size_t>(nf) * w;
-      b.d = nf;
-      b.x = rhs.data();
-      b.xtype = CHOLMOD_REAL;
-      b.dtype = CHOLMOD_DOUBLE;
-      cholmod_dense* x = cholmod_solve(CHOLMOD_A, l, &b, &cm);
-      zb.middleCols(q0, w) = Eigen::Map<Eigen::MatrixXd>(static_cast<double*>(x->x), nf, w);
-      cholmod_free_dense(&x, &cm);
+      factor.solve(rhs.data(), zb.middleCols(q0, w).data(), w);
     }
     for (int p = 0; p < nc; ++p)
       for (int q = 0; q < nc; ++q) zcc(p, q) = zb(c[p], q);
@@ -172,13 +126,13 @@ Row measure(int targetNodes, int contacts) {
     row.pathEntries = 0;
     for (int q = 0; q < nc; ++q) {
       const int start = position[c[q]];
-      for (int j = start; j >= 0; j = lnz[j] > 1 ? li[lp[j] + 1] : -1) path[q].push_back(j);
+      for (int j = start; j >= 0; j = l.parent(j)) path[q].push_back(j);
       dense[start] = 1;
       for (int j : path[q]) {
         const double yj = dense[j];
         if (yj != 0)
-          for (int p = lp[j] + 1; p < lp[j] + lnz[j]; ++p) dense[li[p]] -= lx[p] * yj;
-        row.pathEntries += lnz[j];
+          for (int p = l.p[j] + 1; p < l.p[j] + l.nz[j]; ++p) dense[l.i[p]] -= l.x[p] * yj;
+        row.pathEntries += l.nz[j];
       }
       y[q].resize(path[q].size());
       for (size_t s = 0; s < path[q].size(); ++s) {
@@ -189,7 +143,7 @@ Row measure(int targetNodes, int contacts) {
     Eigen::MatrixXd zp(nc, nc);
     for (int p = 0; p < nc; ++p) {
       for (size_t s = 0; s < path[p].size(); ++s)
-        dense[path[p][s]] = y[p][s] / lx[lp[path[p][s]]];  // D_j at the head of column j
+        dense[path[p][s]] = y[p][s] / l.diagonal(path[p][s]);
       for (int q = p; q < nc; ++q) {
         double sum = 0;
         for (size_t s = 0; s < path[q].size(); ++s) sum += dense[path[q][s]] * y[q][s];
@@ -201,13 +155,11 @@ Row measure(int targetNodes, int contacts) {
     std::vector<double> rhs(nf, 0.0);
     for (int q = 0; q < nc; ++q) rhs[c[q]] = f[q];
     uPaths.resize(nf);
-    ldlSolve(*l, rhs.data(), uPaths.data(), 1, work);
+    factor.solve(rhs.data(), uPaths.data());
     row.pathsMs = std::min(row.pathsMs, 1e3 * (study::seconds() - t));
   }
   row.difference =
       std::max((uBlocks - uColumns).norm(), (uPaths - uColumns).norm()) / uColumns.norm();
-  cholmod_free_factor(&l, &cm);
-  cholmod_finish(&cm);
   return row;
 }
 
