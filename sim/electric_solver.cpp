@@ -441,6 +441,11 @@ void CholmodFactor::solve(const double* b, double* x, int ncols) {
   std::copy_n(static_cast<const double*>(impl_->x->x), static_cast<size_t>(n) * ncols, x);
 }
 
+void CholmodFactor::solveBackward(const double* y, double* x) {
+  ESIM_CHECK(factorized_ && ldlSolveSupports(*impl_->factor));  // a simplicial LDL' factor
+  ldlSolveBackward(*impl_->factor, y, x, 1, impl_->ldl);
+}
+
 void CholmodFactor::toSimplicial() {
   ESIM_CHECK(factorized_);
   cholmod_factor* f = impl_->factor;

@@ -60,8 +60,10 @@
 //                   exact through a cut: updateMatrix deletes the rows leaving the free
 //                   set and applies the change by low-rank updates and downdates (the
 //                   structural phase's kernels, ldl_updown.h), so no term grows and nothing
-//                   is refactorized; a contact node's column is solved (ldl_solve.h) on
-//                   first touch and kept until the next update. See electric_downdate.cpp.
+//                   is refactorized; a contact node's path up the elimination tree (its
+//                   column's forward half, L^-1 e_j) is solved on first touch and kept
+//                   until the next update, and a new contact set's potential is one backward
+//                   solve (ldlSolveBackward). See electric_downdate.cpp.
 //   pcg           - conjugate gradients on the reduced system, warm-started from
 //                   the input potential, Jacobi or incomplete-Cholesky
 //                   preconditioner, stopping at ||r|| <= pcgTolerance ||b||.
@@ -199,8 +201,21 @@ inline constexpr double kAutoDenseMaxFreeNodes = 3000;
 // against 39.8-42.4 ms, p95 71-74 against 54-55 ms; 20130 median 72.7 against 80.3 ms, p95 162
 // against 148 ms. Above ~10 000 free nodes the frames where the blade enters (20-30 contact
 // nodes, each a new column after every removal, ~1 ms a column at 14k nodes) cost more than
-// pcg's iterations: auto takes downdate for a cut up to 9000 free nodes.
-inline constexpr double kAutoDowndateMaxFreeNodes = 9000;
+// pcg's iterations: auto took downdate for a cut up to 9000 free nodes. Since the contacts'
+// columns became paths up the elimination tree, solved in one pass, with one backward solve
+// for the potential (electric_downdate.cpp; tools/contact_path_study, 24 contacts, the
+// solver's own solve: 2.5 ms at 8000 nodes, 8.3 at 20 130, 13.7 at 26 928, against 15.0, 101
+// and 100 ms for the columns in blocks of 4), downdate against pcg (esim bench cut --sizes
+// 12000,14040,20000 --frames 60 --strategy update --electric pcg,downdate --repeat 2; the
+// same tets removed): median 35.8-37.1 against 38.9-40.5 ms at 12 000 nodes, 38.2-38.8
+// against 44.6-45.5 at 14 040, 66.3-67.9 against 73.4-75.5 at 20 130 (19 004 free); p95
+// 60.0-60.2 against 49.8-63.0, 56.6-68.5 against 55.7-58.3, 109.8-122.8 against 113.7-152.7
+// ms; the potential's median at 20 130 nodes 8.4-9.6 against 26.8-28.0 ms. On liver_incision
+// (27 908 nodes; esim run --frames 30 --no-video, three pairs) the frame loop took 5.6-6.0 s
+// against 4.9-6.2 s: a tie, its factor's updates (37 against 25 ms a removal) eating the
+// potential's gain (24-27 against 43-58 ms). So auto takes downdate for a cut up to 20 000
+// free nodes.
+inline constexpr double kAutoDowndateMaxFreeNodes = 20000;
 
 struct ElectricSolveStats {
   bool refactored = false;   // refactor: the matrix was factorized in this solve
@@ -400,6 +415,9 @@ class CholmodFactor {
   void factorize(const SparseMatrix& A, const char* what);
   // x = A^-1 b for `ncols` column-major right-hand sides of length n
   void solve(const double* b, double* x, int ncols = 1);
+  // x = P' L'^-1 D^-1 y (simplicial LDL' only): the backward half of a solve, y = L^-1 P b given
+  // in L's row order (ldlSolveBackward; one thread)
+  void solveBackward(const double* y, double* x);
   int size() const;
   double memoryBytes() const;
   bool factorized() const { return factorized_; }

@@ -243,9 +243,10 @@ void backward(const View& l, const std::vector<LdlChain>& chains, double* w) {
 
 }  // namespace
 
-void ldlSolve(const cholmod_factor& factor, const double* b, double* x, int threads,
-              LdlSolveWork& work, long minSplitEntries) {
-  const View l(factor);
+namespace {
+
+// the plan for l's pattern: work.plan, made again when the pattern changed
+LdlSolvePlan& planFor(const View& l, long minSplitEntries, LdlSolveWork& work) {
   const int n = l.n;
   if (!work.plan) work.plan = std::make_shared<LdlSolvePlan>();
   LdlSolvePlan& plan = *work.plan;
@@ -258,16 +259,39 @@ void ldlSolve(const cholmod_factor& factor, const double* b, double* x, int thre
     makePlan(l, minSplitEntries, plan);
     plan.minSplitEntries = minSplitEntries;
   }
+  std::copy(std::begin(plan.work), std::end(plan.work), std::begin(work.work));
+  return plan;
+}
+
+// w = D^-1 w, then w = L'^-1 w (the top first, then the two shares), and x = P' w
+void backwardAndScatter(const View& l, const LdlSolvePlan& plan, int threads, LdlSolveWork& work,
+                        double* x) {
+  std::vector<double>& w = work.y;
+  if (!plan.split) {
+    backward(l, plan.chains[0], w.data());
+  } else {
+    backward(l, plan.chains[2], w.data());
+    if (runTwoShares(threads, [&](int t) { backward(l, plan.chains[t], w.data()); }))
+      work.threadsUsed = 2;
+  }
+  for (int k = 0; k < l.n; ++k) x[l.perm ? l.perm[k] : k] = w[k];
+}
+
+}  // namespace
+
+void ldlSolve(const cholmod_factor& factor, const double* b, double* x, int threads,
+              LdlSolveWork& work, long minSplitEntries) {
+  const View l(factor);
+  const int n = l.n;
+  const LdlSolvePlan& plan = planFor(l, minSplitEntries, work);
   std::vector<double>& w = work.y;
   w.resize(n);
   for (int k = 0; k < n; ++k) w[k] = b[l.perm ? l.perm[k] : k];
+  work.threadsUsed = 1;
   if (!plan.split) {
     forward(l, plan.chains[0], w.data(), nullptr);
-    backward(l, plan.chains[0], w.data());
-    work.threadsUsed = 1;
   } else {
     for (auto& a : work.acc) a.resize(n, 0.0);  // only top rows are written, reset below
-    work.threadsUsed = 1;
     if (runTwoShares(threads,
                      [&](int t) { forward(l, plan.chains[t], w.data(), work.acc[t].data()); }))
       work.threadsUsed = 2;
@@ -276,11 +300,17 @@ void ldlSolve(const cholmod_factor& factor, const double* b, double* x, int thre
       work.acc[0][r] = work.acc[1][r] = 0.0;
     }
     forward(l, plan.chains[2], w.data(), nullptr);
-    backward(l, plan.chains[2], w.data());
-    runTwoShares(threads, [&](int t) { backward(l, plan.chains[t], w.data()); });
   }
-  for (int k = 0; k < n; ++k) x[l.perm ? l.perm[k] : k] = w[k];
-  std::copy(std::begin(plan.work), std::end(plan.work), std::begin(work.work));
+  backwardAndScatter(l, plan, threads, work, x);
+}
+
+void ldlSolveBackward(const cholmod_factor& factor, const double* y, double* x, int threads,
+                      LdlSolveWork& work, long minSplitEntries) {
+  const View l(factor);
+  const LdlSolvePlan& plan = planFor(l, minSplitEntries, work);
+  work.y.assign(y, y + l.n);
+  work.threadsUsed = 1;
+  backwardAndScatter(l, plan, threads, work, x);
 }
 
 }  // namespace esim

@@ -52,4 +52,10 @@ bool ldlSolveSupports(const cholmod_factor& l);
 void ldlSolve(const cholmod_factor& l, const double* b, double* x, int threads, LdlSolveWork& work,
               long minSplitEntries = 1000000);  // ~1 ms of one thread here
 
+// x = P' L'^-1 D^-1 y: the second half of ldlSolve, for a y = L^-1 P b already known (y in L's
+// row order, n entries; e.g. a sum of sparse forward solves, as electric_downdate.cpp's contact
+// paths). The same plan and threads as ldlSolve; from the same y, the same bits as its x.
+void ldlSolveBackward(const cholmod_factor& l, const double* y, double* x, int threads,
+                      LdlSolveWork& work, long minSplitEntries = 1000000);
+
 }  // namespace esim

@@ -288,10 +288,10 @@ const std::vector<Field>& schema() {
                "near the tool solved, the far field held from a pcg solve refreshed on "
                "a thread; README 'The potential solved around the tool, built'), "
                "downdate (one LDL' factor kept exact through a cut by low-rank "
-               "downdates, the contact columns solved on first touch), or "
-               "auto: the dense inverse up "
+               "downdates, each contact's path up its elimination tree solved on first "
+               "touch), or auto: the dense inverse up "
                "to 3000 nodes off the return electrode; above, for a cut in rebuild mode "
-               "update, downdate up to 9000 and pcg beyond, capacitance otherwise (the "
+               "update, downdate up to 20000 and pcg beyond, capacitance otherwise (the "
                "faster, measured: README 'The cut')"));
     f.push_back(number("solvers.electric.local_margin_m", ESIM_REF(solvers.electricLocalMarginM),
                        "m", positive(10.0),

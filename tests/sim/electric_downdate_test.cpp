@@ -156,9 +156,9 @@ TEST(ElectricDowndate, AChangeTooLargeToPayIsAFactorization) {
   EXPECT_LT(relError(u, test::referenceSolve(slab.K, slab.grounded, c, kVolt)), 1e-9);
 }
 
-// prefetch solves the columns a later solve needs (it then solves none) until the next update;
-// limitCache gives the columns' memory back (the bytes returned) and changes no result
-TEST(ElectricDowndate, PrefetchedColumnsServeUntilAnUpdateAndACapChangesNoResult) {
+// prefetch solves the contacts' paths a later solve needs (it then solves none) until the next
+// update; limitCache gives the paths' memory back (the bytes returned) and changes no result
+TEST(ElectricDowndate, PrefetchedPathsServeUntilAnUpdateAndACapChangesNoResult) {
   GradedSlab slab;
   auto solver = makeElectricSolver({.strategy = ElectricStrategy::Downdate});
   solver->setMatrix(slab.K, slab.grounded);
@@ -167,11 +167,11 @@ TEST(ElectricDowndate, PrefetchedColumnsServeUntilAnUpdateAndACapChangesNoResult
   Eigen::VectorXd u, capped;
   EXPECT_EQ(solver->solve(c, kVolt, u).newColumns, 0);
   const double before = solver->memoryBytes();
-  const double freed = solver->limitCache(1.0);  // at least one column stays allowed
+  const double freed = solver->limitCache(1.0);
   EXPECT_GT(freed, 0.0);
   EXPECT_NEAR(solver->memoryBytes(), before - freed, 1e-6 * before);
   EXPECT_EQ(solver->solve(c, kVolt, capped).newColumns, static_cast<int>(c.size()));
-  EXPECT_EQ((u - capped).cwiseAbs().maxCoeff(), 0.0);  // the same blocks: the same bits
+  EXPECT_EQ((u - capped).cwiseAbs().maxCoeff(), 0.0);  // the same paths: the same bits
   solver->prefetch(c);
   for (int e : slab.tetsNear(Vec3(0.0, 0.0, 0.0095), 0.0012)) slab.mesh.alive[e] = 0;
   slab.assemble();
@@ -180,6 +180,39 @@ TEST(ElectricDowndate, PrefetchedColumnsServeUntilAnUpdateAndACapChangesNoResult
   const std::vector<int> after = slab.contactNear(Vec3(0.0, 0.0, 0.01), 5);
   EXPECT_GT(solver->solve(after, kVolt, u).newColumns, 0);  // the update dropped them
   EXPECT_LT(relError(u, test::referenceSolve(slab.K, slab.grounded, after, kVolt)), 1e-9);
+}
+
+// Many contacts at once (a blade pressed in: every surface node within 4 mm, their paths solved
+// in one pass) against the independent solve; the same contacts again, at another voltage,
+// solve nothing (the unit potential is kept: exactly the scaled potential); new contacts next
+// to kept ones solve only theirs; a cap of 1 byte keeps only what each solve needs
+TEST(ElectricDowndate, ManyContactsTheSameContactsAgainAndATinyCap) {
+  GradedSlab slab;
+  auto solver = makeElectricSolver({.strategy = ElectricStrategy::Downdate});
+  solver->setMatrix(slab.K, slab.grounded);
+  const std::vector<int> many = slab.contactNear(Vec3(0.0, 0.0, 0.01), 60);
+  Eigen::VectorXd u, again;
+  EXPECT_EQ(solver->solve(many, kVolt, u).newColumns, 60);
+  EXPECT_LT(relError(u, test::referenceSolve(slab.K, slab.grounded, many, kVolt)), 1e-9);
+  EXPECT_EQ(solver->solve(many, 2 * kVolt, again).newColumns, 0);
+  EXPECT_EQ((again - 2 * u).cwiseAbs().maxCoeff(), 0.0);
+  std::vector<int> more = many;
+  for (int v : slab.contactNear(Vec3(0.004, 0.0, 0.01), 64))
+    if (!std::binary_search(many.begin(), many.end(), v)) more.push_back(v);
+  std::sort(more.begin(), more.end());
+  ASSERT_GT(more.size(), many.size());
+  EXPECT_EQ(solver->solve(more, kVolt, u).newColumns, static_cast<int>(more.size() - many.size()));
+  EXPECT_LT(relError(u, test::referenceSolve(slab.K, slab.grounded, more, kVolt)), 1e-9);
+  solver->limitCache(1.0);
+  const std::vector<int> few = slab.contactNear(Vec3(-0.01, 0.0, 0.01), 3);
+  std::vector<int> kept;  // after a solve over the cap: its contacts' paths only
+  for (const auto* c : {&few, &many, &few}) {
+    int fresh = 0;
+    for (int v : *c) fresh += !std::binary_search(kept.begin(), kept.end(), v);
+    EXPECT_EQ(solver->solve(*c, kVolt, u).newColumns, fresh);
+    kept = *c;
+    EXPECT_LT(relError(u, test::referenceSolve(slab.K, slab.grounded, *c, kVolt)), 1e-9);
+  }
 }
 
 // CholmodFactor::deleteRows: the factor of A with rows and columns set to the identity (in

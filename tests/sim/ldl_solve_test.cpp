@@ -3,7 +3,7 @@
 // structural phase's), with one and two threads, the same bits every run, the plan's
 // split (both threads busy, balanced as promised), after an update and a row deletion
 // (explicit zeros, a changed pattern: a new plan), and degenerate factors (one unknown, a
-// diagonal: a forest of single columns).
+// diagonal: a forest of single columns); its backward half alone (ldlSolveBackward).
 #include "sim/ldl_solve.h"
 
 #include <gtest/gtest.h>
@@ -111,6 +111,32 @@ TEST(LdlSolve, MatchesCholmodWithOneAndTwoThreadsAndSplitsTheWorkEvenly) {
   EXPECT_EQ(work.threadsUsed, 1);
   EXPECT_EQ(work.work[1] + work.work[2], 0);
   EXPECT_LT(relativeDifference(x, want), 1e-13);
+}
+
+// ldlSolveBackward: from y = L^-1 P b (CHOLMOD's permutation and forward solve), the second
+// half gives A^-1 b, on one thread and split over two with the same bits
+TEST(LdlSolve, TheBackwardHalfFromCholmodsForwardHalfIsTheWholeSolve) {
+  Grid3 g(12);
+  const std::vector<double> b = g.rhs(11), want = g.cholmodSolve(b);
+  cholmod_dense bd{};
+  bd.nrow = bd.nzmax = bd.d = g.n;
+  bd.ncol = 1;
+  bd.x = const_cast<double*>(b.data());
+  bd.xtype = CHOLMOD_REAL;
+  bd.dtype = CHOLMOD_DOUBLE;
+  cholmod_dense* pb = cholmod_solve(CHOLMOD_P, g.l, &bd, &g.cm);
+  cholmod_dense* y = cholmod_solve(CHOLMOD_L, g.l, pb, &g.cm);
+  ASSERT_NE(y, nullptr);
+  std::vector<double> one(g.n), two(g.n);
+  LdlSolveWork work;
+  ldlSolveBackward(*g.l, static_cast<const double*>(y->x), one.data(), 1, work, 100000);
+  EXPECT_EQ(work.threadsUsed, 1);
+  ldlSolveBackward(*g.l, static_cast<const double*>(y->x), two.data(), 2, work, 100000);
+  EXPECT_EQ(work.threadsUsed, 2);
+  EXPECT_LT(relativeDifference(one, want), 1e-13);
+  EXPECT_EQ(one, two);
+  cholmod_free_dense(&y, &g.cm);
+  cholmod_free_dense(&pb, &g.cm);
 }
 
 TEST(LdlSolve, GivesTheSameBitsEveryRunAndKeepsItsPlan) {

@@ -1,6 +1,7 @@
 // contact_path_study_test.cpp - tools/contact_path_study end to end on a small slab: a row per
-// size with the three ways' potentials equal to round-off, the paths walking fewer entries of L
-// than the full column solves would; bad arguments exit 2 naming them. Times are never asserted.
+// size with the four ways' potentials (the downdate solver's among them) equal to round-off, the
+// paths walking fewer entries of L than the full column solves would; bad arguments exit 2 naming
+// them. Times are never asserted.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -26,11 +27,12 @@ TEST(ContactPathStudy, ThePathsGiveTheSamePotentialWalkingLessOfL) {
   while (std::getline(lines, line)) {
     int nodes = 0, free = 0, contacts = 0;
     long entries = 0, pathEntries = 0;
-    double columns = 0, blocks = 0, paths = 0, difference = 1;
+    double columns = 0, blocks = 0, paths = 0, difference = 1, solver = 0;
     if (line.empty() || line[0] == '#') continue;
-    ASSERT_EQ(std::sscanf(line.c_str(), "%d %d %ld %d %lf %lf %lf %ld %lf", &nodes, &free, &entries,
-                          &contacts, &columns, &blocks, &paths, &pathEntries, &difference),
-              9)
+    ASSERT_EQ(
+        std::sscanf(line.c_str(), "%d %d %ld %d %lf %lf %lf %ld %lf %lf", &nodes, &free, &entries,
+                    &contacts, &columns, &blocks, &paths, &pathEntries, &difference, &solver),
+        10)
         << line;
     EXPECT_GT(nodes, 900) << line;
     EXPECT_LT(free, nodes) << line;  // the return pad's nodes are grounded
@@ -42,6 +44,7 @@ TEST(ContactPathStudy, ThePathsGiveTheSamePotentialWalkingLessOfL) {
     EXPECT_GT(columns, 0.0) << line;
     EXPECT_GT(blocks, 0.0) << line;
     EXPECT_GT(paths, 0.0) << line;
+    EXPECT_GT(solver, 0.0) << line;
     ++rows;
   }
   EXPECT_EQ(rows, 2) << r.output;
