@@ -210,12 +210,15 @@ inline constexpr double kAutoDenseMaxFreeNodes = 3000;
 // same tets removed): median 35.8-37.1 against 38.9-40.5 ms at 12 000 nodes, 38.2-38.8
 // against 44.6-45.5 at 14 040, 66.3-67.9 against 73.4-75.5 at 20 130 (19 004 free); p95
 // 60.0-60.2 against 49.8-63.0, 56.6-68.5 against 55.7-58.3, 109.8-122.8 against 113.7-152.7
-// ms; the potential's median at 20 130 nodes 8.4-9.6 against 26.8-28.0 ms. On liver_incision
-// (27 908 nodes; esim run --frames 30 --no-video, three pairs) the frame loop took 5.6-6.0 s
-// against 4.9-6.2 s: a tie, its factor's updates (37 against 25 ms a removal) eating the
-// potential's gain (24-27 against 43-58 ms). So auto takes downdate for a cut up to 20 000
-// free nodes.
-inline constexpr double kAutoDowndateMaxFreeNodes = 20000;
+// ms; the potential's median at 20 130 nodes 8.4-9.6 against 26.8-28.0 ms; 49 966 nodes
+// (47 753 free; --sizes 50000 --frames 30, three rounds) median 221-265 against 283-326 ms, p95
+// 533-601 against 560-623 ms, the potential's median 22 against 71 ms, the CPU 561 against 636
+// ms a frame. liver_incision (27 908 nodes; esim run -q --set output.png_every=60, two
+// alternating pairs): its frame loop 19.5 / 20.5 s against 21.2 / 21.4 s, the same 9822 tets
+// removed, 66 MB more memory; its factor's updates cost more (37 against 26 ms a removal) than
+// the potential gains (16-19 against 44-48 ms, median) only in part. So auto takes downdate for
+// a cut up to 50 000 free nodes, the largest measured; pcg above (less memory, not measured).
+inline constexpr double kAutoDowndateMaxFreeNodes = 50000;
 
 struct ElectricSolveStats {
   bool refactored = false;   // refactor: the matrix was factorized in this solve

@@ -291,7 +291,7 @@ const std::vector<Field>& schema() {
                "downdates, each contact's path up its elimination tree solved on first "
                "touch), or auto: the dense inverse up "
                "to 3000 nodes off the return electrode; above, for a cut in rebuild mode "
-               "update, downdate up to 20000 and pcg beyond, capacitance otherwise (the "
+               "update, downdate up to 50000 and pcg beyond, capacitance otherwise (the "
                "faster, measured: README 'The cut')"));
     f.push_back(number("solvers.electric.local_margin_m", ESIM_REF(solvers.electricLocalMarginM),
                        "m", positive(10.0),

@@ -104,7 +104,8 @@ TEST(ElectricSolver, AutoPicksTheDenseInverseOnSmallMeshesAndCapacitanceAbove) {
   EXPECT_EQ(resolveElectricStrategy(o, kAutoDowndateMaxFreeNodes, true),
             ElectricStrategy::Downdate);
   EXPECT_EQ(resolveElectricStrategy(o, kAutoDowndateMaxFreeNodes + 1, true), ElectricStrategy::Pcg);
-  EXPECT_EQ(resolveElectricStrategy(o, 49966, true), ElectricStrategy::Pcg);
+  EXPECT_EQ(resolveElectricStrategy(o, 47753, true), ElectricStrategy::Downdate);  // 50k slab
+  EXPECT_EQ(resolveElectricStrategy(o, 200000, true), ElectricStrategy::Pcg);
   o.denseMemoryLimitBytes = 8.0 * 863 * 863 - 1;  // 863 free nodes no longer fit
   EXPECT_EQ(resolveElectricStrategy(o, 863), ElectricStrategy::Capacitance);
   EXPECT_EQ(resolveElectricStrategy(o, 862), ElectricStrategy::DenseInverse);
