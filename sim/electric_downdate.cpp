@@ -35,6 +35,8 @@
 // contacts did not change costs a scaling. prefetch solves paths ahead of need.
 // When the change has more terms than kMaxTermShare of the free nodes, a new factorization is
 // cheaper: setMatrix (stats.fellBack).
+#include <cblas.h>
+
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
@@ -57,22 +59,88 @@ constexpr double kMaxTermShare = 0.125;
 // a row's remaining diagonal r_i under this share of |E_ii| is rounding (a row whose removed
 // conductances all lead to nodes still free sums to 0): left out
 constexpr double kDiagonalRounding = 1e-13;
+// a run of the paths' union (forwardRuns) is solved dense from kRunMinRows rows and
+// kRunMinContacts contacts, and cut every kRunMaxRows rows (its triangle: 8 MB at 1024)
+constexpr int kRunMinRows = 8;
+constexpr int kRunMinContacts = 16;
+constexpr int kRunMaxRows = 1024;
 
-// w = L_UU^-1 w for the rows U of L (ascending, closed under the elimination tree's
-// ancestors: every row of a column of U is in U) and m right-hand sides, w row-major (the row
-// of U's k-th row at w + slot[row] * m): column by column, each read once for all m
-__attribute__((target_clones("avx512f", "avx2", "default"))) void forwardBlock(
-    const SimplicialView& l, const std::vector<int>& rows, const int* slot, int m, double* w) {
-  for (int k : rows) {
-    const double* wk = w + static_cast<size_t>(slot[k]) * m;
-    bool any = false;
-    for (int q = 0; q < m; ++q) any |= wk[q] != 0.0;
-    if (!any) continue;
+// The union U of the paths of some contacts up the elimination tree (closed under ancestors),
+// the contacts numbered 0 .. c-1 in the order of their rows of L. A row is on the paths of the
+// contacts [lo, hi] at most: CHOLMOD postorders the tree, so the contacts below a row form a
+// contiguous range, and a range holding them all is correct in any case (the values of the
+// others there stay 0). Its values are kept jagged: U's s-th row holds the hi - lo + 1 values
+// of its range at offset[s], so consecutive rows with one range form a dense row-major block.
+struct PathUnion {
+  std::vector<int> rows;            // U, ascending (rows of L)
+  std::vector<int> lo, hi;          // each row's range of contacts
+  std::vector<std::size_t> offset;  // each row's values; offset.back(): their number
+  int width(int s) const { return hi[s] - lo[s] + 1; }
+
+  // from the contacts' rows of L, ascending; slot: row of L -> place in U, -1 on entry and
+  // left so until release()
+  void build(const SimplicialView& l, const std::vector<int>& starts, std::vector<int>& slot) {
+    rows.clear();
+    for (int start : starts)
+      for (int k = start; k >= 0 && slot[k] < 0; k = l.parent(k)) {
+        slot[k] = 0;
+        rows.push_back(k);
+      }
+    std::sort(rows.begin(), rows.end());
+    const int u = static_cast<int>(rows.size());
+    for (int s = 0; s < u; ++s) slot[rows[s]] = s;
+    lo.assign(u, static_cast<int>(starts.size()));
+    hi.assign(u, -1);
+    for (int q = 0; q < static_cast<int>(starts.size()); ++q)
+      for (int k = starts[q]; k >= 0; k = l.parent(k)) {
+        lo[slot[k]] = std::min(lo[slot[k]], q);
+        hi[slot[k]] = std::max(hi[slot[k]], q);
+      }
+    offset.assign(u + 1, 0);
+    for (int s = 0; s < u; ++s) offset[s + 1] = offset[s] + width(s);
+  }
+  void release(std::vector<int>& slot) const {
+    for (int k : rows) slot[k] = -1;
+  }
+};
+
+// the forward solve's part for the union's columns [first, last) (w jagged as PathUnion's
+// values): column by column, each read once, each row updated on its column's range of
+// contacts only (the rows below a column are its ancestors, whose ranges hold its own)
+__attribute__((target_clones("avx512f", "avx2", "default"))) void forwardColumns(
+    const SimplicialView& l, const PathUnion& u, const int* slot, int first, int last, double* w) {
+  for (int s = first; s < last; ++s) {
+    const int k = u.rows[s];
+    const double* wk = w + u.offset[s];
+    const int width = u.width(s);
     for (int p = l.p[k] + 1; p < l.p[k] + l.nz[k]; ++p) {
-      double* wr = w + static_cast<size_t>(slot[l.i[p]]) * m;
+      const int r = slot[l.i[p]];
+      double* wr = w + u.offset[r] + (u.lo[s] - u.lo[r]);
       const double lk = l.x[p];
-      for (int q = 0; q < m; ++q) wr[q] -= lk * wk[q];
+      for (int t = 0; t < width; ++t) wr[t] -= lk * wk[t];
     }
+  }
+}
+
+// Z += Y_U' D_U^-1 Y_U (c x c, lower triangle) for Y jagged on the union: block by block of
+// consecutive rows with one range, a block scaled by D^-1/2 (the pivots are positive) and
+// added by one BLAS rank-k update (the paths' common top is one block); scratch: workspace
+void addGram(const SimplicialView& l, const PathUnion& u, const double* y, Eigen::MatrixXd& z,
+             std::vector<double>& scratch) {
+  const int rows = static_cast<int>(u.rows.size()), c = static_cast<int>(z.rows());
+  for (int s0 = 0, s1 = 0; s0 < rows; s0 = s1) {
+    for (s1 = s0 + 1; s1 < rows && u.lo[s1] == u.lo[s0] && u.hi[s1] == u.hi[s0];) ++s1;
+    const int len = s1 - s0, width = u.width(s0);
+    scratch.resize(static_cast<std::size_t>(len) * width);
+    for (int t = 0; t < len; ++t) {
+      const double scale = 1.0 / std::sqrt(l.diagonal(u.rows[s0 + t]));
+      const double* from = y + u.offset[s0 + t];
+      for (int q = 0; q < width; ++q)
+        scratch[static_cast<std::size_t>(t) * width + q] = scale * from[q];
+    }
+    // z is column-major: its lower triangle is the upper one of the row-major view
+    cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, width, len, 1.0, scratch.data(), width, 1.0,
+                z.data() + static_cast<std::size_t>(u.lo[s0]) * c + u.lo[s0], c);
   }
 }
 
@@ -257,34 +325,93 @@ class DowndateSolver final : public ElectricSolver {
       for (size_t slot = 0; slot < kept.size(); ++slot)
         keepPath(keptNode[slot], std::move(kept[slot]));
     }
-    // the union of the missing paths (closed under ancestors), in L's row order
+    // their union, the contacts in row order; W = L_UU^-1 E, E their unit columns, in one
+    // pass over the union's columns of L
+    std::sort(missing.begin(), missing.end(), [&](int a, int b) { return rowOf_[a] < rowOf_[b]; });
+    std::vector<int> starts;
+    for (int j : missing) starts.push_back(rowOf_[j]);
     const SimplicialView l(&factor_.cholmod());
-    std::vector<int> rows;
-    for (int j : missing)
-      for (int k = rowOf_[j]; k >= 0 && unionSlot_[k] < 0; k = l.parent(k)) {
-        unionSlot_[k] = 0;
-        rows.push_back(k);
-      }
-    std::sort(rows.begin(), rows.end());
-    for (size_t r = 0; r < rows.size(); ++r) unionSlot_[rows[r]] = static_cast<int>(r);
-    // W = L_UU^-1 E, E the unit columns of the missing contacts' rows: one pass over the
-    // union's columns of L for all of them (W row-major, a row's m values contiguous)
     checkInterrupt();
+    union_.build(l, starts, unionSlot_);
+    block_.assign(union_.offset.back(), 0.0);
+    const auto at = [&](int k, int q) {
+      const int s = unionSlot_[k];
+      return union_.offset[s] + (q - union_.lo[s]);
+    };
     const int m = static_cast<int>(missing.size());
-    block_.assign(rows.size() * m, 0.0);
-    for (int q = 0; q < m; ++q)
-      block_[static_cast<size_t>(unionSlot_[rowOf_[missing[q]]]) * m + q] = 1.0;
-    forwardBlock(l, rows, unionSlot_.data(), m, block_.data());
+    for (int q = 0; q < m; ++q) block_[at(starts[q], q)] = 1.0;
+    forwardRuns(l, block_.data());
     for (int q = 0; q < m; ++q) {
       Path path;
-      for (int k = rowOf_[missing[q]]; k >= 0; k = l.parent(k)) {
+      for (int k = starts[q]; k >= 0; k = l.parent(k)) {
         path.rows.push_back(k);
-        path.y.push_back(block_[static_cast<size_t>(unionSlot_[k]) * m + q]);
+        path.y.push_back(block_[at(k, q)]);
       }
       keepPath(missing[q], std::move(path));
     }
-    for (int k : rows) unionSlot_[k] = -1;
+    union_.release(unionSlot_);
     return m;
+  }
+
+  // w = L_UU^-1 w on union_ (w jagged on it), run by run of consecutive rows with one range
+  // of contacts: a short or narrow run column by column (forwardColumns); a larger one as a
+  // supernodal solve does, its own triangle of L copied dense and solved for its contacts by
+  // one BLAS triangular solve, then its columns' entries below it gathered dense (the rows
+  // below: ancestors, the paths' common top among them) and applied by one BLAS product
+  void forwardRuns(const SimplicialView& l, double* w) {
+    const int u = static_cast<int>(union_.rows.size());
+    const int* slot = unionSlot_.data();
+    std::vector<int> target(u, -1);  // a row below the run -> its row in the gathered block
+    std::vector<int> targets;
+    for (int s0 = 0, s1 = 0; s0 < u; s0 = s1) {
+      for (s1 = s0 + 1; s1 < u && s1 - s0 < kRunMaxRows && union_.lo[s1] == union_.lo[s0] &&
+                        union_.hi[s1] == union_.hi[s0];)
+        ++s1;
+      const int len = s1 - s0, width = union_.width(s0);
+      if (len < kRunMinRows || width < kRunMinContacts) {
+        forwardColumns(l, union_, slot, s0, s1, w);
+        continue;
+      }
+      dense_.assign(static_cast<std::size_t>(len) * len, 0.0);  // column-major, unit diagonal
+      targets.clear();
+      for (int s = s0; s < s1; ++s) {
+        const int k = union_.rows[s];
+        for (int p = l.p[k] + 1; p < l.p[k] + l.nz[k]; ++p) {
+          const int r = slot[l.i[p]];
+          if (r < s1) {
+            dense_[static_cast<std::size_t>(s - s0) * len + (r - s0)] = l.x[p];
+          } else if (target[r] < 0) {
+            target[r] = static_cast<int>(targets.size());
+            targets.push_back(r);
+          }
+        }
+      }
+      double* run = w + union_.offset[s0];  // len x width, row-major
+      // L X = B for B row-major is X' L' = B' for B' column-major
+      cblas_dtrsm(CblasColMajor, CblasRight, CblasLower, CblasTrans, CblasUnit, width, len, 1.0,
+                  dense_.data(), len, run, width);
+      if (targets.empty()) continue;
+      const int t = static_cast<int>(targets.size());
+      gather_.assign(static_cast<std::size_t>(t) * len, 0.0);  // t x len, column-major
+      for (int s = s0; s < s1; ++s) {
+        const int k = union_.rows[s];
+        for (int p = l.p[k] + 1; p < l.p[k] + l.nz[k]; ++p) {
+          const int r = slot[l.i[p]];
+          if (r >= s1) gather_[static_cast<std::size_t>(s - s0) * t + target[r]] = l.x[p];
+        }
+      }
+      product_.resize(static_cast<std::size_t>(t) * width);
+      // P = G B (t x width, row-major) as P' = B' G' (column-major)
+      cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, width, t, len, 1.0, run, width,
+                  gather_.data(), t, 0.0, product_.data(), width);
+      for (int row = 0; row < t; ++row) {
+        const int r = targets[row];
+        double* wr = w + union_.offset[r] + (union_.lo[s0] - union_.lo[r]);
+        const double* pr = product_.data() + static_cast<std::size_t>(row) * width;
+        for (int q = 0; q < width; ++q) wr[q] -= pr[q];
+        target[r] = -1;
+      }
+    }
   }
 
   void keepPath(int j, Path path) {
@@ -295,37 +422,39 @@ class DowndateSolver final : public ElectricSolver {
   }
 
   // unit_ = the potential of the contacts cf (paths solved) at 1 V: Y on the union U of their
-  // paths, Z_cc = Y_U' D_U^-1 Y_U, Z_cc f = 1, unit_ = P' L'^-1 D^-1 (Y f)
+  // paths (the contacts in row order), Z_cc = Y_U' D_U^-1 Y_U, Z_cc f = 1, unit_ = P' L'^-1
+  // D^-1 (Y f)
   void unitPotential(const std::vector<int>& cf) {
+    std::vector<int> order = cf;
+    std::sort(order.begin(), order.end(), [&](int a, int b) { return rowOf_[a] < rowOf_[b]; });
+    std::vector<int> starts;
+    for (int j : order) starts.push_back(rowOf_[j]);
     const SimplicialView l(&factor_.cholmod());
-    const int c = static_cast<int>(cf.size());
-    std::vector<int> rows;  // U
-    for (int j : cf)
-      for (int k : paths_[slotOf_[j]].rows)
-        if (unionSlot_[k] < 0) {
-          unionSlot_[k] = static_cast<int>(rows.size());
-          rows.push_back(k);
-        }
-    const int u = static_cast<int>(rows.size());
-    Eigen::MatrixXd y = Eigen::MatrixXd::Zero(u, c);
+    union_.build(l, starts, unionSlot_);
+    const int c = static_cast<int>(order.size());
+    block_.assign(union_.offset.back(), 0.0);
     for (int q = 0; q < c; ++q) {
-      const Path& path = paths_[slotOf_[cf[q]]];
-      for (size_t s = 0; s < path.rows.size(); ++s) y(unionSlot_[path.rows[s]], q) = path.y[s];
+      const Path& path = paths_[slotOf_[order[q]]];
+      for (size_t t = 0; t < path.rows.size(); ++t) {
+        const int s = unionSlot_[path.rows[t]];
+        block_[union_.offset[s] + (q - union_.lo[s])] = path.y[t];
+      }
     }
-    Eigen::VectorXd inverseD(u);
-    for (int r = 0; r < u; ++r) inverseD[r] = 1.0 / l.diagonal(rows[r]);
-    const Eigen::MatrixXd zcc = y.transpose() * (inverseD.asDiagonal() * y);
-    const Eigen::LLT<Eigen::MatrixXd> llt(zcc);
+    Eigen::MatrixXd zcc = Eigen::MatrixXd::Zero(c, c);
+    addGram(l, union_, block_.data(), zcc, dense_);
+    const Eigen::LLT<Eigen::MatrixXd> llt(zcc);  // reads the lower triangle
     ESIM_VERIFY(llt.info() == Eigen::Success, "downdate: Z_cc is not positive definite");
     const Eigen::VectorXd f = llt.solve(Eigen::VectorXd::Ones(c));
-    const Eigen::VectorXd yf = y * f;
-    for (int r = 0; r < u; ++r) scratch_[rows[r]] = yf[r];
+    for (int s = 0; s < static_cast<int>(union_.rows.size()); ++s) {
+      double sum = 0;
+      for (int t = 0; t < union_.width(s); ++t)
+        sum += block_[union_.offset[s] + t] * f[union_.lo[s] + t];
+      scratch_[union_.rows[s]] = sum;
+    }
     unit_.resize(free_.size());
     factor_.solveBackward(scratch_.data(), unit_.data());
-    for (int k : rows) {
-      scratch_[k] = 0.0;
-      unionSlot_[k] = -1;
-    }
+    for (int k : union_.rows) scratch_[k] = 0.0;
+    union_.release(unionSlot_);
     unitContacts_ = cf;
     unitValid_ = true;
   }
@@ -348,7 +477,11 @@ class DowndateSolver final : public ElectricSolver {
   double pathBytes_ = 0;           // the paths' memory
   std::vector<double> scratch_;    // n_f zeros between uses (L's row order)
   std::vector<int> unionSlot_;     // row of L -> its place in U (-1 between uses)
-  std::vector<double> block_;      // the paths' forward solve (solvePaths)
+  PathUnion union_;                // the paths' union (solvePaths, unitPotential)
+  std::vector<double> block_;      // values on it
+  std::vector<double> dense_;      // a run's triangle of L (forwardRuns); addGram's blocks
+  std::vector<double> gather_;     // a run's entries of L below it (forwardRuns)
+  std::vector<double> product_;    // ... times its values
   Eigen::VectorXd unit_;           // the potential of unitContacts_ at 1 V (base indices)
   std::vector<int> unitContacts_;  // ... whose contacts
   bool unitValid_ = false;         // ... computed on the current factor
