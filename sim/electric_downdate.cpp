@@ -107,8 +107,9 @@ struct PathUnion {
 // the forward solve's part for the union's columns [first, last) (w jagged as PathUnion's
 // values): column by column, each read once, each row updated on its column's range of
 // contacts only (the rows below a column are its ancestors, whose ranges hold its own)
-__attribute__((target_clones("avx512f", "avx2", "default"))) void forwardColumns(
-    const SimplicialView& l, const PathUnion& u, const int* slot, int first, int last, double* w) {
+inline __attribute__((always_inline)) void forwardColumnsBody(const SimplicialView& l,
+                                                              const PathUnion& u, const int* slot,
+                                                              int first, int last, double* w) {
   for (int s = first; s < last; ++s) {
     const int k = u.rows[s];
     const double* wk = w + u.offset[s];
@@ -120,6 +121,23 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void forwardColumns
       for (int t = 0; t < width; ++t) wr[t] -= lk * wk[t];
     }
   }
+}
+
+// ... compiled twice, for AVX2 + FMA and for any x86-64, chosen once by the CPU (no ifunc:
+// ThreadSanitizer's runtime is not up when the loader resolves one)
+__attribute__((target("avx2,fma"))) void forwardColumnsAvx2(const SimplicialView& l,
+                                                            const PathUnion& u, const int* slot,
+                                                            int first, int last, double* w) {
+  forwardColumnsBody(l, u, slot, first, last, w);
+}
+void forwardColumnsGeneric(const SimplicialView& l, const PathUnion& u, const int* slot, int first,
+                           int last, double* w) {
+  forwardColumnsBody(l, u, slot, first, last, w);
+}
+void forwardColumns(const SimplicialView& l, const PathUnion& u, const int* slot, int first,
+                    int last, double* w) {
+  static const bool avx2 = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+  (avx2 ? forwardColumnsAvx2 : forwardColumnsGeneric)(l, u, slot, first, last, w);
 }
 
 // Z += Y_U' D_U^-1 Y_U (c x c, lower triangle) for Y jagged on the union: block by block of
