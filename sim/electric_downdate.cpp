@@ -3,8 +3,8 @@
 //
 // Per contact set c, as capacitance: z_j = K_ff^-1 e_j for each contact node, the small SPD
 // system Z_cc f = u_c, u = Z_:c f. What differs is how it follows a cut. The factor is a
-// simplicial LDL' (CHOLMOD's supernodal factorization converted at setMatrix), solved by
-// ldlSolve, and updateMatrix edits it in place as the structural phase edits its own:
+// simplicial LDL' (CHOLMOD's supernodal factorization converted at setMatrix), and
+// updateMatrix edits it in place as the structural phase edits its own:
 //   1. the rows leaving the free set (their last tet removed, an island cut off, a node
 //      newly grounded) become identity rows in one multiple-rank update by L's own columns
 //      (CholmodFactor::deleteRows, ldlTakeRows);
@@ -25,12 +25,14 @@
 // is z_j = P' L'^-1 D^-1 y_j with y_j = L^-1 e_(row of j), and y_j is nonzero only on the path
 // from j's row up the elimination tree (L's column k has its rows among k's ancestors): a
 // sparse forward solve over that path's columns, kept as the contact's "path" until the next
-// update drops it. Then Z_cc = Y' D^-1 Y over the union of the contacts' paths (one small
-// dense product), Z_cc f = 1, and the potential of unit voltage is u = P' L'^-1 D^-1 (Y f):
-// one backward solve (ldlSolveBackward), half a solve, whatever the number of contacts.
-// Measured before it was built (tools/contact_path_study, README "The potential on a factor
-// kept exact through the cut"): 24 contacts on slab_cut's factor, 3.7-4.2 ms against 18.8-18.9
-// ms for the columns in CHOLMOD's blocks of 4 at 8000 nodes, 17-18 against 94-101 ms at 26 928.
+// update drops it. The paths of the contacts new in a solve are solved together over their
+// union (forwardRuns: each column of L read once; the paths' common top, dense, by BLAS). Then
+// Z_cc = Y' D^-1 Y over the union of the contacts' paths, Z_cc f = 1, and the potential of unit
+// voltage is u = P' L'^-1 D^-1 (Y f): one backward solve (ldlSolveBackward), half a solve,
+// whatever the number of contacts. tools/contact_path_study times this solve against the
+// columns in CHOLMOD's blocks of 4 it replaced (README "The potential on a factor kept exact
+// through the cut"): 24 contacts 2.7 against 16.0 ms at 8000 nodes, 23.0 against 216 ms at
+// 49 966; 150 contacts 20.3 against 722 ms at 20 130.
 // The unit potential is kept with its contact set until the next update: a frame whose
 // contacts did not change costs a scaling. prefetch solves paths ahead of need.
 // When the change has more terms than kMaxTermShare of the free nodes, a new factorization is
@@ -102,6 +104,13 @@ struct PathUnion {
   void release(std::vector<int>& slot) const {
     for (int k : rows) slot[k] = -1;
   }
+};
+
+// releases a union's slots at the end of a scope, thrown through or not
+struct ReleaseUnion {
+  const PathUnion& u;
+  std::vector<int>& slot;
+  ~ReleaseUnion() { u.release(slot); }
 };
 
 // the forward solve's part for the union's columns [first, last) (w jagged as PathUnion's
@@ -251,11 +260,13 @@ class DowndateSolver final : public ElectricSolver {
     solvePaths(want, {});
   }
 
-  // the factor, K_ff, the paths, and five vectors of the free nodes (the unit potential, the
-  // backward solve's input, the row maps and the scratch)
+  // the factor, K_ff, the paths, five vectors of the free nodes (the unit potential, the
+  // backward solve's input, the row maps and the scratch) and the paths' workspaces
   double memoryBytes() const override {
+    const double work = static_cast<double>(block_.capacity() + dense_.capacity() +
+                                            gather_.capacity() + product_.capacity());
     return factor_.memoryBytes() + 20.0 * static_cast<double>(free_.matrix.nonZeros()) +
-           pathBytes_ + 32.0 * free_.size();
+           pathBytes_ + 32.0 * free_.size() + 8.0 * work;
   }
 
   double limitCache(double bytes) override {
@@ -351,6 +362,7 @@ class DowndateSolver final : public ElectricSolver {
     const SimplicialView l(&factor_.cholmod());
     checkInterrupt();
     union_.build(l, starts, unionSlot_);
+    const ReleaseUnion release{union_, unionSlot_};
     block_.assign(union_.offset.back(), 0.0);
     const auto at = [&](int k, int q) {
       const int s = unionSlot_[k];
@@ -367,7 +379,6 @@ class DowndateSolver final : public ElectricSolver {
       }
       keepPath(missing[q], std::move(path));
     }
-    union_.release(unionSlot_);
     return m;
   }
 
@@ -449,6 +460,7 @@ class DowndateSolver final : public ElectricSolver {
     for (int j : order) starts.push_back(rowOf_[j]);
     const SimplicialView l(&factor_.cholmod());
     union_.build(l, starts, unionSlot_);
+    const ReleaseUnion release{union_, unionSlot_};
     const int c = static_cast<int>(order.size());
     block_.assign(union_.offset.back(), 0.0);
     for (int q = 0; q < c; ++q) {
@@ -472,7 +484,6 @@ class DowndateSolver final : public ElectricSolver {
     unit_.resize(free_.size());
     factor_.solveBackward(scratch_.data(), unit_.data());
     for (int k : union_.rows) scratch_[k] = 0.0;
-    union_.release(unionSlot_);
     unitContacts_ = cf;
     unitValid_ = true;
   }
