@@ -244,7 +244,8 @@ class DowndateSolver final : public ElectricSolver {
       stats.newColumns = solvePaths(cf, cf);
       unitPotential(cf);
     }
-    free_.scatter(voltageV * unit_, cf, voltageV, potential);
+    scaled_ = voltageV * unit_;  // (its storage kept from frame to frame)
+    free_.scatter(scaled_, cf, voltageV, potential);
     return stats;
   }
 
@@ -260,13 +261,14 @@ class DowndateSolver final : public ElectricSolver {
     solvePaths(want, {});
   }
 
-  // the factor, K_ff, the paths, five vectors of the free nodes (the unit potential, the
-  // backward solve's input, the row maps and the scratch) and the paths' workspaces
+  // the factor, K_ff, the paths, six vectors of the free nodes (the unit potential and its
+  // scaled copy, the backward solve's input, the row maps and the scratch) and the paths'
+  // workspaces
   double memoryBytes() const override {
     const double work = static_cast<double>(block_.capacity() + dense_.capacity() +
                                             gather_.capacity() + product_.capacity());
     return factor_.memoryBytes() + 20.0 * static_cast<double>(free_.matrix.nonZeros()) +
-           pathBytes_ + 32.0 * free_.size() + 8.0 * work;
+           pathBytes_ + 40.0 * free_.size() + 8.0 * work;
   }
 
   double limitCache(double bytes) override {
@@ -328,10 +330,10 @@ class DowndateSolver final : public ElectricSolver {
   }
 
   // a contact's path up the elimination tree and y = L^-1 e_(its row) there
+  // (its rows are the walk up the tree from the contact's row: not kept)
   struct Path {
-    std::vector<int> rows;  // rows of L, ascending (the contact's row first, the root last)
-    std::vector<double> y;  // y on those rows
-    double bytes() const { return 12.0 * static_cast<double>(rows.size()); }
+    std::vector<double> y;  // y on the path's rows, the contact's row first, the root last
+    double bytes() const { return 8.0 * static_cast<double>(y.size()); }
   };
 
   // solves and keeps the paths of the base indices `want` not kept yet; keep: those that must
@@ -373,10 +375,7 @@ class DowndateSolver final : public ElectricSolver {
     forwardRuns(l, block_.data());
     for (int q = 0; q < m; ++q) {
       Path path;
-      for (int k = starts[q]; k >= 0; k = l.parent(k)) {
-        path.rows.push_back(k);
-        path.y.push_back(block_[at(k, q)]);
-      }
+      for (int k = starts[q]; k >= 0; k = l.parent(k)) path.y.push_back(block_[at(k, q)]);
       keepPath(missing[q], std::move(path));
     }
     return m;
@@ -464,10 +463,11 @@ class DowndateSolver final : public ElectricSolver {
     const int c = static_cast<int>(order.size());
     block_.assign(union_.offset.back(), 0.0);
     for (int q = 0; q < c; ++q) {
-      const Path& path = paths_[slotOf_[order[q]]];
-      for (size_t t = 0; t < path.rows.size(); ++t) {
-        const int s = unionSlot_[path.rows[t]];
-        block_[union_.offset[s] + (q - union_.lo[s])] = path.y[t];
+      const std::vector<double>& y = paths_[slotOf_[order[q]]].y;
+      std::size_t t = 0;
+      for (int k = starts[q]; k >= 0; k = l.parent(k), ++t) {
+        const int s = unionSlot_[k];
+        block_[union_.offset[s] + (q - union_.lo[s])] = y[t];
       }
     }
     Eigen::MatrixXd zcc = Eigen::MatrixXd::Zero(c, c);
@@ -512,6 +512,7 @@ class DowndateSolver final : public ElectricSolver {
   std::vector<double> gather_;     // a run's entries of L below it (forwardRuns)
   std::vector<double> product_;    // ... times its values
   Eigen::VectorXd unit_;           // the potential of unitContacts_ at 1 V (base indices)
+  Eigen::VectorXd scaled_;         // ... times the solve's voltage
   std::vector<int> unitContacts_;  // ... whose contacts
   bool unitValid_ = false;         // ... computed on the current factor
 };
