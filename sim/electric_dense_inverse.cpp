@@ -81,11 +81,11 @@ class DenseInverseSolver final : public ElectricSolver {
     }
   }
 
-  ElectricUpdateStats updateMatrix(const SparseMatrix& K,
-                                   const std::vector<int>& grounded) override {
+  ElectricUpdateStats updateMatrix(const SparseMatrix& K, const std::vector<int>& grounded,
+                                   const std::vector<int>* changedNodes) override {
     ESIM_CHECK(free_.current.n > 0);  // setMatrix before updateMatrix
     const ResetOnThrow guard(free_.current);
-    const BaseChange change = free_.diff(K, grounded);
+    const BaseChange change = free_.diff(K, grounded, changedNodes);
     ElectricUpdateStats stats;
     const auto fallBack = [&](const std::string& why) {
       setMatrix(K, grounded);

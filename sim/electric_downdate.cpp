@@ -193,11 +193,11 @@ class DowndateSolver final : public ElectricSolver {
     for (int k = 0; k < nf; ++k) rowOf_[perm[k]] = k;
   }
 
-  ElectricUpdateStats updateMatrix(const SparseMatrix& K,
-                                   const std::vector<int>& grounded) override {
+  ElectricUpdateStats updateMatrix(const SparseMatrix& K, const std::vector<int>& grounded,
+                                   const std::vector<int>* changedNodes) override {
     ESIM_CHECK(free_.current.n > 0);  // setMatrix before updateMatrix
     const ResetOnThrow guard(free_.current);
-    const BaseChange change = free_.diff(K, grounded);
+    const BaseChange change = free_.diff(K, grounded, changedNodes);
     ElectricUpdateStats stats;
     const auto fallBack = [&](const std::string& why) {
       stats.columnsDropped += static_cast<int>(paths_.size());  // (none left once dropped)

@@ -85,8 +85,8 @@ class LocalSolver final : public ElectricSolver {
   }
 
   // a new matrix is all this needs (O(nnz)); the held far field stays
-  ElectricUpdateStats updateMatrix(const SparseMatrix& K,
-                                   const std::vector<int>& grounded) override {
+  ElectricUpdateStats updateMatrix(const SparseMatrix& K, const std::vector<int>& grounded,
+                                   const std::vector<int>* /*changedNodes*/) override {
     setMatrix(K, grounded);
     return {};
   }

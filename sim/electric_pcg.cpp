@@ -94,8 +94,8 @@ class PcgSolver final : public ElectricSolver {
   }
 
   // a new matrix is all pcg needs (O(nnz); the warm start carries over)
-  ElectricUpdateStats updateMatrix(const SparseMatrix& K,
-                                   const std::vector<int>& grounded) override {
+  ElectricUpdateStats updateMatrix(const SparseMatrix& K, const std::vector<int>& grounded,
+                                   const std::vector<int>* /*changedNodes*/) override {
     setMatrix(K, grounded);
     return {};
   }

@@ -30,11 +30,11 @@ class RefactorSolver final : public ElectricSolver {
     hasFactor_ = false;
   }
 
-  ElectricUpdateStats updateMatrix(const SparseMatrix& K,
-                                   const std::vector<int>& grounded) override {
+  ElectricUpdateStats updateMatrix(const SparseMatrix& K, const std::vector<int>& grounded,
+                                   const std::vector<int>* changedNodes) override {
     ESIM_CHECK(free_.current.n > 0);  // setMatrix before updateMatrix
     const ResetOnThrow guard(free_.current);
-    const BaseChange change = free_.diff(K, grounded);
+    const BaseChange change = free_.diff(K, grounded, changedNodes);
     ElectricUpdateStats stats;
     if (!change.fallback.empty()) {
       setMatrix(K, grounded);

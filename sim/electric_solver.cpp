@@ -13,6 +13,9 @@
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <iterator>
+#include <limits>
 #include <string>
 #include <utility>
 
@@ -26,7 +29,8 @@ namespace esim {
 ElectricSolver::~ElectricSolver() = default;
 
 ElectricUpdateStats ElectricSolver::updateMatrix(const SparseMatrix& K,
-                                                 const std::vector<int>& grounded) {
+                                                 const std::vector<int>& grounded,
+                                                 const std::vector<int>* /*changedNodes*/) {
   setMatrix(K, grounded);
   ElectricUpdateStats stats;
   stats.fellBack = true;
@@ -127,29 +131,46 @@ namespace electric_detail {
 
 // ---- node classes ----
 
-void NodeClasses::build(const SparseMatrix& K, const std::vector<int>& grounded) {
+namespace {
+
+const char* const kNotFinite =
+    "electric solver: the stiffness matrix has a non-finite entry (a NaN or infinite "
+    "conductivity?)";
+
+void verifySquare(const SparseMatrix& K) {
   ESIM_VERIFY(K.rows() == K.cols(), "electric solver: the stiffness matrix must be square");
-  n = static_cast<int>(K.rows());
-  for (Eigen::Index k = 0; k < K.nonZeros(); ++k)
-    ESIM_VERIFY(std::isfinite(K.valuePtr()[k]),
-                "electric solver: the stiffness matrix has a non-finite entry (a NaN or "
-                "infinite conductivity?)");
+}
+
+void verifyGrounded(const std::vector<int>& grounded, int n) {
   ESIM_VERIFY(!grounded.empty(),
               "electric solver: no grounded node (the return electrode touches no mesh node); "
               "the potential would be undefined");
-  isGrounded.assign(n, 0);
   for (size_t k = 0; k < grounded.size(); ++k) {
     const int g = grounded[k];
     ESIM_VERIFY(g >= 0 && g < n, "electric solver: grounded node id " + std::to_string(g) +
                                      " out of range [0, " + std::to_string(n) + ")");
     ESIM_VERIFY(k == 0 || grounded[k - 1] < g,
                 "electric solver: grounded node ids must be sorted and unique");
-    isGrounded[g] = 1;
   }
+}
+
+}  // namespace
+
+void NodeClasses::build(const SparseMatrix& K, const std::vector<int>& grounded,
+                        std::vector<int>* towardGround) {
+  verifySquare(K);
+  n = static_cast<int>(K.rows());
+  for (Eigen::Index k = 0; k < K.nonZeros(); ++k)
+    ESIM_VERIFY(std::isfinite(K.valuePtr()[k]), kNotFinite);
+  verifyGrounded(grounded, n);
+  isGrounded.assign(n, 0);
+  for (int g : grounded) isGrounded[g] = 1;
+  this->grounded = grounded;
   // breadth-first search from the grounded nodes over the nonzeros of K
   std::vector<std::uint8_t> reached(n, 0);
   std::vector<int> queue(grounded.begin(), grounded.end());
   for (int g : grounded) reached[g] = 1;
+  if (towardGround) towardGround->assign(n, -1);
   for (size_t head = 0; head < queue.size(); ++head) {
     const int j = queue[head];
     for (SparseMatrix::InnerIterator it(K, j); it; ++it) {
@@ -157,6 +178,7 @@ void NodeClasses::build(const SparseMatrix& K, const std::vector<int>& grounded)
       if (!reached[i] && it.value() != 0.0) {
         reached[i] = 1;
         queue.push_back(i);
+        if (towardGround) (*towardGround)[i] = j;
       }
     }
   }
@@ -210,15 +232,61 @@ SparseMatrix restrictToFree(const SparseMatrix& K, const NodeClasses& classes) {
 
 void FreeBase::set(const SparseMatrix& K, const std::vector<int>& grounded) {
   current = NodeClasses{};
-  base.build(K, grounded);
+  base.build(K, grounded, &towardGround);
   matrix = restrictToFree(K, base);
   active.assign(base.numFree(), 1);
+  mark.assign(base.n, 0);
+  walked.assign(base.n, 0);
+  position.assign(base.numFree(), -1);
+  epoch = walks = 0;
   current = base;
 }
 
-BaseChange FreeBase::diff(const SparseMatrix& K, const std::vector<int>& grounded) const {
+BaseChange FreeBase::diff(const SparseMatrix& K, const std::vector<int>& grounded,
+                          const std::vector<int>* changed) const {
+  if (changed) {
+    BaseChange ch;
+    if (diffNear(K, grounded, *changed, ch)) return ch;
+  }
+  return diffAll(K, grounded);
+}
+
+namespace {
+
+// the entries of the base matrix's column j whose bits change to `values` (its new values,
+// in its storage order from `first`), into ch (positions, values, the delta's triplets), and
+// the rows staying free that the change touches
+void recordColumn(const SparseMatrix& matrix, int j, const double* values, int first,
+                  const std::vector<std::uint8_t>& stays, BaseChange& ch,
+                  std::vector<Eigen::Triplet<double>>& delta, std::vector<int>& touched) {
+  const int* outer = matrix.outerIndexPtr();
+  const int* inner = matrix.innerIndexPtr();
+  const double* old = matrix.valuePtr();
+  for (int p = outer[j]; p < outer[j + 1]; ++p) {
+    const double v = values[p - first];
+    if (std::memcmp(&v, &old[p], sizeof v) != 0) {
+      ch.positions.push_back(p);
+      ch.values.push_back(v);
+    }
+    const int i = inner[p];
+    const double d = v - old[p];
+    if (d != 0.0) {
+      delta.emplace_back(i, j, d);
+      if (stays[i] && stays[j]) {
+        touched.push_back(i);
+        touched.push_back(j);
+      }
+    }
+  }
+}
+
+}  // namespace
+
+BaseChange FreeBase::diffAll(const SparseMatrix& K, const std::vector<int>& grounded) const {
   BaseChange ch;
-  ch.classes.build(K, grounded);
+  std::vector<int> forest;
+  ch.classes.build(K, grounded, &forest);
+  if (ch.classes.n == base.n) towardGround = std::move(forest);  // a fresh guide
   if (ch.classes.n != base.n) {
     ch.fallback = "the node count changed";
     return ch;
@@ -235,48 +303,223 @@ BaseChange FreeBase::diff(const SparseMatrix& K, const std::vector<int>& grounde
     stays[b] = ch.classes.freeIndex[base.freeNodes[b]] >= 0;
     if (active[b] && !stays[b]) ch.dropped.push_back(b);
   }
-  // new values in the base pattern: K's entries between nodes still free, identity rows
-  // and columns for the others
-  const int* outer = matrix.outerIndexPtr();
-  const int* inner = matrix.innerIndexPtr();
-  const double* old = matrix.valuePtr();
-  ch.values.assign(matrix.nonZeros(), 0.0);
-  std::vector<int> position(m, -1);
   std::vector<Eigen::Triplet<double>> delta;
-  std::vector<std::uint8_t> touched(m, 0);
+  std::vector<int> touched;
+  std::vector<double> column;
   for (int j = 0; j < m; ++j) {
-    for (int p = outer[j]; p < outer[j + 1]; ++p) position[inner[p]] = p;
-    if (!stays[j]) {
-      ESIM_CHECK(position[j] >= 0);  // restrictToFree keeps the diagonal of a free node
-      ch.values[position[j]] = 1.0;
-    } else {
-      for (SparseMatrix::InnerIterator it(K, base.freeNodes[j]); it; ++it) {
-        const int b = base.freeIndex[it.row()];
-        if (b < 0 || !stays[b]) continue;
-        if (position[b] < 0) {
-          if (it.value() != 0.0 && ch.fallback.empty())
-            ch.fallback = "K_ff gained a nonzero outside the pattern of the last setMatrix";
-          continue;
-        }
-        ch.values[position[b]] = it.value();
-      }
-    }
-    for (int p = outer[j]; p < outer[j + 1]; ++p) {
-      const int i = inner[p];
-      const double d = ch.values[p] - old[p];
-      if (d != 0.0) {
-        delta.emplace_back(i, j, d);
-        if (stays[i] && stays[j]) touched[i] = touched[j] = 1;
-      }
-      position[i] = -1;
-    }
+    newColumn(K, j, stays, column, ch.fallback);
+    recordColumn(matrix, j, column.data(), matrix.outerIndexPtr()[j], stays, ch, delta, touched);
   }
   if (!ch.fallback.empty()) return ch;
+  finishChange(m, delta, touched, ch);
+  return ch;
+}
+
+// the new values of the base matrix's column j (in its storage order) given which base
+// indices stay free: K's entries between nodes still free, identity rows and columns for the
+// others; a nonzero of K_ff outside the base pattern sets `fallback`
+void FreeBase::newColumn(const SparseMatrix& K, int j, const std::vector<std::uint8_t>& stays,
+                         std::vector<double>& column, std::string& fallback) const {
+  const int* outer = matrix.outerIndexPtr();
+  const int* inner = matrix.innerIndexPtr();
+  const int first = outer[j], count = outer[j + 1] - first;
+  column.assign(count, 0.0);
+  for (int p = 0; p < count; ++p) position[inner[first + p]] = p;
+  if (!stays[j]) {
+    ESIM_CHECK(position[j] >= 0);  // restrictToFree keeps the diagonal of a free node
+    column[position[j]] = 1.0;
+  } else {
+    for (SparseMatrix::InnerIterator it(K, base.freeNodes[j]); it; ++it) {
+      const int b = base.freeIndex[it.row()];
+      if (b < 0 || !stays[b]) continue;
+      if (position[b] < 0) {
+        if (it.value() != 0.0 && fallback.empty())
+          fallback = "K_ff gained a nonzero outside the pattern of the last setMatrix";
+        continue;
+      }
+      column[position[b]] = it.value();
+    }
+  }
+  for (int p = 0; p < count; ++p) position[inner[first + p]] = -1;
+}
+
+// the delta from its triplets, the touched rows ascending
+void FreeBase::finishChange(int m, std::vector<Eigen::Triplet<double>>& delta,
+                            std::vector<int>& touched, BaseChange& ch) {
   ch.delta.resize(m, m);
   ch.delta.setFromTriplets(delta.begin(), delta.end());
-  for (int b = 0; b < m; ++b)
-    if (touched[b]) ch.touched.push_back(b);
-  return ch;
+  std::sort(touched.begin(), touched.end());
+  touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+  ch.touched = std::move(touched);
+}
+
+// The change from the changed nodes (a cut: the removed elements' nodes). Every edge K
+// lost joins two changed nodes, so a node cut off from the ground is in the component of a
+// changed node: a node whose path to the ground (the forest) crossed a removed edge reaches,
+// along the part of that path still there, an endpoint of one. Each changed node free now
+// is followed up its forest path; a path that ends on a grounded node over nonzeros of K
+// marks its nodes connected, else a breadth-first search from the node runs until a node
+// whose path holds (that branch of the forest then goes through it) or until its component
+// is exhausted (floating). The matrix's columns of the changed nodes, of the nodes leaving
+// the free set and of their neighbours are then made as diffAll makes them. The O(nnz) way
+// is taken where that reasoning needs more than a removal gives: a changed column that
+// joins a node outside the free set to another, a node leaving the ground that keeps an
+// element, a floating node newly grounded that has one, or a search past a quarter of
+// nnz(K) (a cut that undercuts much of the forest).
+bool FreeBase::diffNear(const SparseMatrix& K, const std::vector<int>& grounded,
+                        const std::vector<int>& changed, BaseChange& ch) const {
+  verifySquare(K);
+  const int n = base.n;
+  if (K.rows() != n || current.n != n) return false;  // diffAll names it
+  for (size_t k = 0; k < changed.size(); ++k)
+    ESIM_CHECK(changed[k] >= 0 && changed[k] < n && (k == 0 || changed[k - 1] < changed[k]));
+  verifyGrounded(grounded, n);
+  for (int c : changed)
+    for (SparseMatrix::InnerIterator it(K, c); it; ++it)
+      ESIM_VERIFY(std::isfinite(it.value()), kNotFinite);
+  const auto entry = [&](int i, int j) {  // K(i, j), 0 where not stored
+    const int* begin = K.innerIndexPtr() + K.outerIndexPtr()[j];
+    const int* end = K.innerIndexPtr() + K.outerIndexPtr()[j + 1];
+    const int* at = std::lower_bound(begin, end, i);
+    return at != end && *at == i ? K.valuePtr()[at - K.innerIndexPtr()] : 0.0;
+  };
+  const auto linked = [&](int j) {  // a nonzero off the diagonal in K's column j
+    for (SparseMatrix::InnerIterator it(K, j); it; ++it)
+      if (it.row() != j && it.value() != 0.0) return true;
+    return false;
+  };
+
+  // the ground's change
+  NodeClasses& nc = ch.classes;
+  nc = current;
+  nc.grounded = grounded;
+  std::vector<int> joined, left;
+  std::set_difference(grounded.begin(), grounded.end(), current.grounded.begin(),
+                      current.grounded.end(), std::back_inserter(joined));
+  std::set_difference(current.grounded.begin(), current.grounded.end(), grounded.begin(),
+                      grounded.end(), std::back_inserter(left));
+  for (int g : joined) nc.isGrounded[g] = 1;
+  for (int g : left) nc.isGrounded[g] = 0;
+  for (int g : left)
+    if (linked(g)) return false;
+  for (int g : joined)
+    if (current.freeIndex[g] < 0 && linked(g)) return false;
+  const auto outside = [&](int v) { return current.freeIndex[v] < 0 && !nc.isGrounded[v]; };
+  long work = 0;
+  for (int c : changed)
+    for (SparseMatrix::InnerIterator it(K, c); it; ++it) {
+      ++work;
+      if (it.row() != c && it.value() != 0.0 && (outside(c) || outside(it.row()))) return false;
+    }
+
+  // which changed nodes still reach the ground
+  if (epoch >= std::numeric_limits<int>::max() / 4 - 1) {
+    std::fill(mark.begin(), mark.end(), 0);
+    epoch = 0;
+  }
+  ++epoch;
+  const int connected = 4 * epoch + 1, floating = 4 * epoch + 2, searched = 4 * epoch + 3;
+  const long budget = K.nonZeros() / 4 + 64;
+  std::vector<int> path;
+  // follows v's forest path: true when it ends on a grounded node over nonzeros of K
+  const auto holds = [&](int v) {
+    if (walks == std::numeric_limits<int>::max()) {
+      std::fill(walked.begin(), walked.end(), 0);
+      walks = 0;
+    }
+    ++walks;
+    path.clear();
+    bool ok = false;
+    for (int x = v;; ++work) {
+      if (nc.isGrounded[x] || mark[x] == connected) {
+        ok = true;
+        break;
+      }
+      if (walked[x] == walks || mark[x] == floating) break;  // a loop: the guide is stale
+      walked[x] = walks;
+      path.push_back(x);
+      const int up = towardGround[x];
+      if (up < 0 || outside(up) || entry(x, up) == 0.0) break;
+      x = up;
+    }
+    if (ok)
+      for (int x : path) mark[x] = connected;
+    return ok;
+  };
+  std::vector<std::pair<int, int>> queue;  // (node, its parent's place in the queue)
+  std::vector<int> lost;                   // free nodes now floating
+  for (int s : changed) {
+    if (current.freeIndex[s] < 0 || nc.isGrounded[s] || mark[s] == connected ||
+        mark[s] == floating || holds(s))
+      continue;
+    queue.assign(1, {s, -1});
+    mark[s] = searched;
+    int found = -1, from = -1;
+    for (size_t head = 0; head < queue.size() && found < 0; ++head) {
+      const int x = queue[head].first;
+      for (SparseMatrix::InnerIterator it(K, x); it; ++it) {
+        const int i = static_cast<int>(it.row());
+        if (++work > budget) return false;
+        if (i == x || it.value() == 0.0 || mark[i] == searched) continue;
+        if (holds(i)) {
+          found = i;
+          from = static_cast<int>(head);
+          break;
+        }
+        mark[i] = searched;
+        queue.emplace_back(i, static_cast<int>(head));
+      }
+    }
+    if (found >= 0) {  // the branch of the forest from s goes through the search's path
+      for (int k = from, up = found; k >= 0; up = queue[k].first, k = queue[k].second)
+        towardGround[queue[k].first] = up;
+      for (const auto& q : queue) mark[q.first] = connected;
+    } else {
+      for (const auto& q : queue) {
+        mark[q.first] = floating;
+        lost.push_back(q.first);
+      }
+    }
+  }
+
+  // the new classes: the free nodes less the floating and the newly grounded
+  const auto leaves = [&](int v) { return mark[v] == floating || nc.isGrounded[v]; };
+  bool anyLeft = !lost.empty();
+  for (int g : joined) anyLeft = anyLeft || current.freeIndex[g] >= 0;
+  if (anyLeft) {
+    nc.freeNodes.clear();
+    for (int v : current.freeNodes) {
+      if (leaves(v)) {
+        nc.freeIndex[v] = -1;
+        ch.dropped.push_back(base.freeIndex[v]);
+      } else {
+        nc.freeIndex[v] = static_cast<int>(nc.freeNodes.size());
+        nc.freeNodes.push_back(v);
+      }
+    }
+  }
+
+  // the columns that change: the changed nodes', the dropped ones' and their neighbours'
+  const int m = size();
+  std::vector<std::uint8_t> stays(m, 0);
+  for (int b = 0; b < m; ++b) stays[b] = nc.freeIndex[base.freeNodes[b]] >= 0;
+  std::vector<int> columns;
+  for (int c : changed)
+    if (base.freeIndex[c] >= 0) columns.push_back(base.freeIndex[c]);
+  for (int d : ch.dropped)
+    for (SparseMatrix::InnerIterator it(matrix, d); it; ++it)
+      columns.push_back(static_cast<int>(it.row()));
+  std::sort(columns.begin(), columns.end());
+  columns.erase(std::unique(columns.begin(), columns.end()), columns.end());
+  std::vector<Eigen::Triplet<double>> delta;
+  std::vector<int> touched;
+  std::vector<double> column;
+  for (int j : columns) {
+    newColumn(K, j, stays, column, ch.fallback);
+    recordColumn(matrix, j, column.data(), matrix.outerIndexPtr()[j], stays, ch, delta, touched);
+  }
+  if (ch.fallback.empty()) finishChange(m, delta, touched, ch);
+  return true;
 }
 
 double FreeBase::identityResidual(const std::vector<int>& rows, const Eigen::MatrixXd& y) const {
@@ -287,9 +530,11 @@ double FreeBase::identityResidual(const std::vector<int>& rows, const Eigen::Mat
 }
 
 void FreeBase::apply(const BaseChange& change) {
-  ESIM_CHECK(change.fallback.empty() && change.values.size() == size_t(matrix.nonZeros()));
+  ESIM_CHECK(change.fallback.empty() && change.values.size() == change.positions.size());
   current = change.classes;
-  std::copy(change.values.begin(), change.values.end(), matrix.valuePtr());
+  double* values = matrix.valuePtr();
+  for (size_t k = 0; k < change.positions.size(); ++k)
+    values[change.positions[k]] = change.values[k];
   for (int d : change.dropped) active[d] = 0;
 }
 

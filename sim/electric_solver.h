@@ -84,7 +84,12 @@
 //     recompressed, both accepted). The change is read from K itself: the entries that
 //     differ from the current matrix (an O(nnz) comparison plus the node classes,
 //     O(nnz) breadth-first search). Unchanged entries must be bitwise unchanged (a
-//     fresh assembly gives that), otherwise they only count as changed rows;
+//     fresh assembly gives that), otherwise they only count as changed rows. Given
+//     changedNodes (every node whose column of K may differ from the last K: a cut's
+//     removed elements' nodes), the FreeBase strategies (refactor, dense-inverse,
+//     capacitance, downdate) read only those columns, their neighbours' and a spanning
+//     forest's paths to the ground: O(the change), with the same result bit for bit
+//     (FreeBase::diff; it takes the O(nnz) way where a change is not a removal);
 //   - nodes may leave the free set (no alive element left, an island cut off from the
 //     ground, a node newly grounded): they keep their index with an identity
 //     row/column, so orderings and factor sizes stay those of the last setMatrix;
@@ -264,7 +269,15 @@ class ElectricSolver {
   // call setContactCandidates with the new surface (cache and patches are kept, the new
   // candidates get patches) and prefetch the newly exposed nodes the tool may touch, so
   // their columns are solved here and not in the frame loop.
-  virtual ElectricUpdateStats updateMatrix(const SparseMatrix& K, const std::vector<int>& grounded);
+  // changedNodes: sorted, every node whose column of K may differ from the K of the last
+  // setMatrix/updateMatrix (a cut: the nodes of the removed elements; nodes that only joined or
+  // left `grounded` need not be listed), or nullptr: any column may have changed. A list that
+  // misses a changed column gives a wrong matrix: it is the caller's to keep.
+  virtual ElectricUpdateStats updateMatrix(const SparseMatrix& K, const std::vector<int>& grounded,
+                                           const std::vector<int>* changedNodes);
+  ElectricUpdateStats updateMatrix(const SparseMatrix& K, const std::vector<int>& grounded) {
+    return updateMatrix(K, grounded, nullptr);
+  }
   // contact: sorted ids held at voltageV (disjoint from grounded, else Error "short
   // circuit"); potential: size n, in: warm start (pcg), out: the solution.
   // Empty contact -> potential 0 everywhere.
@@ -312,9 +325,13 @@ struct NodeClasses {
   std::vector<int> freeNodes;            // sorted node ids of the free nodes
   std::vector<int> freeIndex;            // node -> index in freeNodes, -1 if not free
   std::vector<std::uint8_t> isGrounded;  // per node
+  std::vector<int> grounded;             // the grounded ids, sorted
 
-  // throws Error for a non-square K, empty/unsorted/out-of-range grounded
-  void build(const SparseMatrix& K, const std::vector<int>& grounded);
+  // throws Error for a non-square K, a non-finite entry, empty/unsorted/out-of-range grounded;
+  // towardGround (optional): per node the node its breadth-first search from the grounded
+  // nodes reached it from (-1: grounded or not reached), a spanning forest of the free nodes
+  void build(const SparseMatrix& K, const std::vector<int>& grounded,
+             std::vector<int>* towardGround = nullptr);
   // checks contact (sorted, in range, not grounded) and returns the free indices of
   // its free nodes (floating ones dropped), ascending
   std::vector<int> contactFreeIndices(const std::vector<int>& contact) const;
@@ -347,7 +364,8 @@ SparseMatrix restrictToFree(const SparseMatrix& K, const NodeClasses& classes);
 // the difference between a new (K, grounded) and a FreeBase's current matrix
 struct BaseChange {
   NodeClasses classes;         // of the new (K, grounded)
-  std::vector<double> values;  // the new base matrix values, in the base pattern
+  std::vector<int> positions;  // the base matrix's entries (storage positions) whose bits change
+  std::vector<double> values;  // ... their new values
   std::vector<int> dropped;    // base indices leaving the free set now, ascending
   std::vector<int> touched;    // base indices staying free whose row changes, ascending
   SparseMatrix delta;          // new - current base matrix (both triangles, changed entries)
@@ -360,11 +378,31 @@ struct FreeBase {
   NodeClasses current;               // classes now (free nodes: a subset of base's)
   SparseMatrix matrix;               // current K_ff in base indices (both triangles)
   std::vector<std::uint8_t> active;  // base index -> still free
+  // the spanning forest of the last set (NodeClasses::build's towardGround), its paths mended
+  // by diff where a removal broke them: only a guide, diff checks every path it follows
+  // against K; and diff's scratch (per node: its class in this diff, the last walk through
+  // it; per base index: a position in a column)
+  mutable std::vector<int> towardGround, mark, walked, position;
+  mutable int epoch = 0, walks = 0;
 
   // setMatrix: classes and K_ff (throws Error on bad input)
   void set(const SparseMatrix& K, const std::vector<int>& grounded);
-  // the change to (K, grounded): O(nnz(K) + nnz(matrix)); throws Error on bad input
-  BaseChange diff(const SparseMatrix& K, const std::vector<int>& grounded) const;
+  // the change to (K, grounded); throws Error on bad input. changed == nullptr: O(nnz(K) +
+  // nnz(matrix)). Else (sorted, see ElectricSolver::updateMatrix) the same change from the
+  // columns of the changed nodes and their neighbours, the ground's change, and the forest
+  // (towardGround) checked from the changed nodes: O(the change x the forest's depth); the
+  // O(nnz) way when a changed column joins a node outside the free set to the rest, a
+  // node leaving the ground keeps an element, or the search grows past a quarter of nnz(K)
+  BaseChange diff(const SparseMatrix& K, const std::vector<int>& grounded,
+                  const std::vector<int>* changed = nullptr) const;
+  BaseChange diffAll(const SparseMatrix& K, const std::vector<int>& grounded) const;
+  // diff from the changed nodes; false: the O(nnz) way is needed (ch is then undefined)
+  bool diffNear(const SparseMatrix& K, const std::vector<int>& grounded,
+                const std::vector<int>& changed, BaseChange& ch) const;
+  void newColumn(const SparseMatrix& K, int j, const std::vector<std::uint8_t>& stays,
+                 std::vector<double>& column, std::string& fallback) const;
+  static void finishChange(int m, std::vector<Eigen::Triplet<double>>& delta,
+                           std::vector<int>& touched, BaseChange& ch);
   // adopts a change without a fallback reason
   void apply(const BaseChange& change);
   // contactFreeIndices of the current classes, as base indices (ascending)

@@ -737,7 +737,14 @@ void Simulation::updateModel(const std::vector<int>& broken, FrameRecord& rec) {
       // update, then the new candidates (the capacitance cache is kept; new surface nodes
       // get their columns on first touch)
       removeFromStiffness(m.stiffness, m.mesh, *m.geo, m.sigmaAssembled, *m.nodeTets, broken);
-      m.electric->updateMatrix(m.stiffness, m.ground);
+      // only the removed tets' nodes have columns that changed: the solver reads those
+      // (FreeBase::diff), not the whole matrix
+      std::vector<int> changed;
+      for (int e : broken)
+        changed.insert(changed.end(), m.mesh.tets[e].begin(), m.mesh.tets[e].end());
+      std::sort(changed.begin(), changed.end());
+      changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
+      m.electric->updateMatrix(m.stiffness, m.ground, &changed);
       m.electric->setContactCandidates(contactCandidates(m));
       // the columns the scripted tool will need on the new surface in the next second, on a
       // thread while the frame is drawn (the next solve joins it): not solved on first touch

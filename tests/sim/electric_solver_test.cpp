@@ -841,6 +841,192 @@ TEST(ElectricSolverUpdate, ANodeJoiningTheFreeSetFallsBackToSetMatrix) {
   }
 }
 
+// the nodes of some tets, sorted (the columns of K their removal changes)
+std::vector<int> nodesOfTets(const TetMesh& mesh, const std::vector<int>& tets) {
+  std::vector<int> out;
+  for (int e : tets) out.insert(out.end(), mesh.tets[e].begin(), mesh.tets[e].end());
+  return sortedUnion(out, {});
+}
+
+// two diffs of one change are the same: classes, rows dropped and touched, the delta, the
+// entries written
+void expectSameChange(const electric_detail::BaseChange& a, const electric_detail::BaseChange& b) {
+  EXPECT_EQ(a.fallback, b.fallback);
+  if (!a.fallback.empty()) return;
+  EXPECT_EQ(a.classes.n, b.classes.n);
+  EXPECT_EQ(a.classes.freeNodes, b.classes.freeNodes);
+  EXPECT_EQ(a.classes.freeIndex, b.classes.freeIndex);
+  EXPECT_EQ(a.classes.isGrounded, b.classes.isGrounded);
+  EXPECT_EQ(a.classes.grounded, b.classes.grounded);
+  EXPECT_EQ(a.dropped, b.dropped);
+  EXPECT_EQ(a.touched, b.touched);
+  EXPECT_EQ(a.positions, b.positions);
+  EXPECT_EQ(a.values, b.values);
+  ASSERT_EQ(a.delta.rows(), b.delta.rows());
+  EXPECT_EQ(Eigen::MatrixXd(a.delta), Eigen::MatrixXd(b.delta));
+}
+
+// FreeBase::diff told the changed nodes gives the change that reading every column gives,
+// bit for bit, over 40 cuts of 3-40 tets at random places of the slab (some orphan nodes,
+// some take nodes off the return electrode) and the cuts that cut off the corner island,
+// with nodes newly grounded and nodes leaving the ground without an element; it takes the
+// O(nnz) way only where it must (a node leaving the ground that keeps an element: "joined
+// the free set"), and its forest, mended by each diff, keeps leading to the ground
+TEST(ElectricSolverUpdate, TheChangedNodesGiveTheChangeThatReadingEveryColumnGives) {
+  CutSlab cut(1013);
+  electric_detail::FreeBase told, blind;
+  told.set(cut.K, cut.grounded);
+  blind.set(cut.K, cut.grounded);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> x(-0.05, 0.05), z(0.0, 0.01);
+  std::vector<int> extra;  // free nodes grounded besides the return electrode (they stay)
+  const auto step = [&](const std::vector<int>& tets, int near) {  // -1: either way
+    cut.remove(tets);
+    const std::vector<int> grounded = sortedUnion(cut.grounded, extra);
+    const std::vector<int> changed = nodesOfTets(cut.mesh, tets);
+    electric_detail::BaseChange a;
+    const bool wasNear = told.diffNear(cut.K, grounded, changed, a);
+    if (near >= 0) EXPECT_EQ(wasNear, near == 1);
+    a = told.diff(cut.K, grounded, &changed);
+    const electric_detail::BaseChange b = blind.diff(cut.K, grounded);
+    expectSameChange(a, b);
+    if (!a.fallback.empty()) return a;
+    told.apply(a);
+    blind.apply(b);
+    EXPECT_EQ(told.matrix.nonZeros(), blind.matrix.nonZeros());
+    EXPECT_TRUE(std::equal(told.matrix.valuePtr(), told.matrix.valuePtr() + told.matrix.nonZeros(),
+                           blind.matrix.valuePtr()));
+    return a;
+  };
+  int dropped = 0, groundedNow = 0;
+  for (int round = 0; round < 40; ++round) {
+    SCOPED_TRACE("cut " + std::to_string(round));
+    // the k alive tets nearest a random point
+    const Vec3 at(x(rng), x(rng), round % 4 == 3 ? 0.0 : z(rng));
+    std::vector<std::pair<double, int>> near;
+    for (int e = 0; e < cut.mesh.numTets(); ++e) {
+      if (!cut.mesh.isAlive(e)) continue;
+      Vec3 c = Vec3::Zero();
+      for (int v : cut.mesh.tets[e]) c += 0.25 * cut.mesh.nodes[v];
+      near.emplace_back((c - at).squaredNorm(), e);
+    }
+    const int k = 3 + static_cast<int>(rng() % 38);
+    std::partial_sort(near.begin(), near.begin() + k, near.end());
+    std::vector<int> tets;
+    for (int q = 0; q < k; ++q) tets.push_back(near[q].second);
+    // the return electrode as the new surface gives it (a pad node whose last tet goes
+    // leaves it), and every 5th cut a free node of the top grounded as well (a node newly
+    // grounded that keeps its elements)
+    if (round % 5 == 4) {
+      const int node = cut.nearestNode(Vec3(0.6 * x(rng), x(rng), 0.01));  // |x| <= 30 mm
+      if (told.current.freeIndex[node] >= 0) {
+        extra = sortedUnion(extra, {node});
+        ++groundedNow;
+      }
+    }
+    const electric_detail::BaseChange a = step(tets, 1);
+    dropped += static_cast<int>(a.dropped.size());
+  }
+  EXPECT_GT(dropped, 0);
+  EXPECT_GT(groundedNow, 0);
+  // the corner island cut off (its nodes float), then told by the forest mended so far
+  const std::vector<int> island = cut.cornerIsland();
+  const electric_detail::BaseChange a = step(cut.tetsAcross(island), 1);
+  for (int v : island) EXPECT_LT(a.classes.freeIndex[v], 0);
+  // the slab cut through at x = 44 mm, past the return disc (radius 40 mm): the strip
+  // beyond floats
+  const auto across = [](const TetMesh& mesh, double atX) {
+    std::vector<int> out;
+    for (int e = 0; e < mesh.numTets(); ++e) {
+      if (!mesh.isAlive(e)) continue;
+      double lo = 1, hi = -1;
+      for (int v : mesh.tets[e]) {
+        lo = std::min(lo, mesh.nodes[v].x());
+        hi = std::max(hi, mesh.nodes[v].x());
+      }
+      if (lo < atX && hi > atX) out.push_back(e);
+    }
+    return out;
+  };
+  const electric_detail::BaseChange strip = step(across(cut.mesh, 0.044), 1);
+  EXPECT_GT(strip.dropped.size(), 30u);
+  // grounded only at x < -30 mm and cut through at x = -25 mm: three quarters of the slab
+  // float, past the search's budget (a quarter of nnz(K)): the O(nnz) way, the same change
+  CutSlab fresh(1013);
+  std::vector<int> west;
+  for (int g : fresh.grounded)
+    if (fresh.mesh.nodes[g].x() < -0.03) west.push_back(g);
+  electric_detail::FreeBase t2, b2;
+  t2.set(fresh.K, west);
+  b2.set(fresh.K, west);
+  const std::vector<int> wall = across(fresh.mesh, -0.025);
+  fresh.remove(wall);
+  const std::vector<int> changed = nodesOfTets(fresh.mesh, wall);
+  electric_detail::BaseChange e;
+  EXPECT_FALSE(t2.diffNear(fresh.K, west, changed, e));
+  const electric_detail::BaseChange most = t2.diff(fresh.K, west, &changed);
+  expectSameChange(most, b2.diff(fresh.K, west));
+  EXPECT_GT(most.dropped.size(), 500u);
+  // a grounded node that leaves the return electrode keeping its elements joins the free
+  // set: the O(nnz) way names it as setMatrix would
+  std::vector<int> fewer = sortedUnion(cut.grounded, extra);
+  int keeps = -1;
+  for (size_t q = 0; q < fewer.size() && keeps < 0; ++q)
+    if (!cut.aliveTetsWith(fewer[q]).empty()) keeps = static_cast<int>(q);
+  ASSERT_GE(keeps, 0);
+  const int node = fewer[keeps];
+  fewer.erase(fewer.begin() + keeps);
+  const std::vector<int> none;
+  electric_detail::BaseChange c;
+  EXPECT_FALSE(told.diffNear(cut.K, fewer, none, c));
+  const electric_detail::BaseChange d = told.diff(cut.K, fewer, &none);
+  EXPECT_EQ(d.fallback, "node " + std::to_string(node) + " joined the free set");
+}
+
+// the solvers told the changed nodes give the potential they give told nothing, bit for
+// bit, over the three cuts of ThreeCutsMatchAFreshSolverForEveryStrategy
+TEST(ElectricSolverUpdate, EveryStrategyToldTheChangedNodesGivesTheSameBits) {
+  const CutSlab initial(1013);
+  const Problem p = paperSlab(1013);
+  const std::vector<std::vector<int>> sets = sampleContacts(p);
+  const int orphan = initial.nearestNode(Vec3(0.0, 0.0, 0.01));
+  const int groundNode = initial.nearestNode(Vec3(0.01, 0.01, 0.0));
+  const std::vector<std::vector<int>> cuts = {initial.aliveTetsWith(orphan),
+                                              initial.tetsAcross(initial.cornerIsland()),
+                                              initial.aliveTetsWith(groundNode)};
+  for (ElectricStrategy s : kAll) {
+    SCOPED_TRACE(electricStrategyName(s));
+    CutSlab cut = initial;
+    auto told = makeElectricSolver({.strategy = s});
+    auto blind = makeElectricSolver({.strategy = s});
+    for (auto* solver : {told.get(), blind.get()}) {
+      solver->setContactCandidates(cut.surface);
+      solver->setMatrix(cut.K, cut.grounded);
+    }
+    Eigen::VectorXd u, ub;
+    for (const auto& contact : sets) {
+      told->solve(contact, kVolt, u);
+      blind->solve(contact, kVolt, ub);
+    }
+    for (const std::vector<int>& tets : cuts) {
+      cut.remove(tets);
+      const std::vector<int> changed = nodesOfTets(cut.mesh, tets);
+      const ElectricUpdateStats a = told->updateMatrix(cut.K, cut.grounded, &changed);
+      const ElectricUpdateStats b = blind->updateMatrix(cut.K, cut.grounded);
+      EXPECT_EQ(a.fellBack, b.fellBack);
+      EXPECT_EQ(a.changedNodes, b.changedNodes);
+      EXPECT_EQ(a.droppedNodes, b.droppedNodes);
+      EXPECT_EQ(a.rank, b.rank);
+      for (auto* solver : {told.get(), blind.get()}) solver->setContactCandidates(cut.surface);
+      for (const auto& contact : sets) {
+        told->solve(contact, kVolt, u);
+        blind->solve(contact, kVolt, ub);
+        EXPECT_TRUE((u.array() == ub.array()).all()) << "c=" << contact.size();
+      }
+    }
+  }
+}
+
 // capacitance: the columns of the nodes a cut exposes can be solved outside the frame
 // loop (setContactCandidates with the new surface, prefetch), and the update is
 // deterministic (the same sequence twice gives the same bits)
