@@ -12,6 +12,7 @@
 
 #include <Eigen/Cholesky>
 #include <algorithm>
+#include <climits>
 #include <cmath>
 #include <cstring>
 #include <iterator>
@@ -613,8 +614,25 @@ struct CholmodFactor::Impl {
   cholmod_dense* x = nullptr;
   cholmod_dense* y = nullptr;
   cholmod_dense* e = nullptr;
-  LdlUpdownWork updown;  // the vectorized update's workspace (ldl_updown.h)
-  LdlSolveWork ldl;      // the simplicial factor's solve (ldl_solve.h)
+  LdlUpdownWork updown;          // the vectorized update's workspace (ldl_updown.h)
+  LdlSolveWork ldl;              // the simplicial factor's solve (ldl_solve.h)
+  std::vector<int> inversePerm;  // the row of L of each row of A (made on use, per analysis)
+  // the pivots: every one was checked positive since the factorization (pivotsChecked),
+  // but those on the paths up the elimination tree from pivotStarts (rows of L), which the
+  // updates since may have changed (an update changes the columns on the path from each
+  // column's first row, in L as it leaves it)
+  bool pivotsChecked = false;
+  std::vector<int> pivotStarts, pivotMark;
+  int pivotStamp = 0;
+
+  const std::vector<int>& rowOfL() {
+    if (inversePerm.empty()) {
+      const int* perm = static_cast<const int*>(factor->Perm);
+      inversePerm.resize(factor->n);
+      for (int k = 0; k < static_cast<int>(factor->n); ++k) inversePerm[perm[k]] = k;
+    }
+    return inversePerm;
+  }
 };
 
 CholmodFactor::CholmodFactor() : impl_(new Impl) {
@@ -642,6 +660,7 @@ void CholmodFactor::analyze(const SparseMatrix& A, const std::vector<int>& order
   cholmod_common* c = &impl_->common;
   if (impl_->factor) cholmod_free_factor(&impl_->factor, c);
   factorized_ = false;
+  impl_->inversePerm.clear();
   cholmod_sparse s = cholmodViewLower(A);
   std::vector<int> perm(ordering);  // CHOLMOD takes a non-const pointer
   impl_->factor = perm.empty() ? cholmod_analyze(&s, c) : cholmodAnalyzeGiven(&s, perm.data(), c);
@@ -661,6 +680,8 @@ void CholmodFactor::factorize(const SparseMatrix& A, const char* what) {
   cholmod_common* c = &impl_->common;
   cholmod_sparse s = cholmodViewLower(A);
   const int ok = cholmod_factorize(&s, impl_->factor, c);
+  impl_->pivotsChecked = false;
+  impl_->pivotStarts.clear();
   throwIfOutOfResources(*c);
   factorized_ = ok && c->status == CHOLMOD_OK && impl_->factor->minor == impl_->factor->n;
   ESIM_RUN_CHECK(factorized_, std::string(what) +
@@ -712,6 +733,7 @@ void CholmodFactor::deleteRow(int i) {
   while (k < static_cast<int>(f->n) && perm[k] != i) ++k;
   ESIM_CHECK(k < static_cast<int>(f->n));
   const int ok = cholmod_rowdel(k, nullptr, f, &impl_->common);
+  impl_->pivotsChecked = false;  // (rowdel's columns: not followed here)
   if (!ok) throwIfOutOfResources(impl_->common);
   ESIM_RUN_CHECK(ok, "electric solver: CHOLMOD rowdel failed (status " +
                          std::to_string(impl_->common.status) + ")");
@@ -724,9 +746,7 @@ void CholmodFactor::updateDowndate(bool update, const SparseMatrix& C) {
   ESIM_CHECK(C.rows() == n);
   if (C.cols() == 0) return;
   // rows of C in the order of L: row i of A is row inversePerm[i] of L
-  const int* perm = static_cast<const int*>(f->Perm);
-  std::vector<int> inversePerm(n);
-  for (int k = 0; k < n; ++k) inversePerm[perm[k]] = k;
+  const std::vector<int>& inversePerm = impl_->rowOfL();
   std::vector<Eigen::Triplet<double>> t;
   t.reserve(C.nonZeros());
   for (int j = 0; j < C.cols(); ++j)
@@ -736,6 +756,9 @@ void CholmodFactor::updateDowndate(bool update, const SparseMatrix& C) {
   permuted.setFromTriplets(t.begin(), t.end());  // compressed, rows sorted
   cholmod_sparse cs = cholmodViewLower(permuted);
   cs.stype = 0;  // unsymmetric n x r
+  for (int j = 0; j < permuted.cols(); ++j)
+    if (permuted.outerIndexPtr()[j] < permuted.outerIndexPtr()[j + 1])
+      impl_->pivotStarts.push_back(permuted.innerIndexPtr()[permuted.outerIndexPtr()[j]]);
   const int ok = ldlUpdown(update, cs, *f, impl_->updown, impl_->common);
   if (!ok) throwIfOutOfResources(impl_->common);
   ESIM_RUN_CHECK(ok, "electric solver: CHOLMOD update/downdate failed (status " +
@@ -749,8 +772,7 @@ bool CholmodFactor::deleteRows(const std::vector<int>& indices, const SparseMatr
   ESIM_CHECK(A.rows() == n && A.cols() == n);
   if (indices.empty()) return true;
   const int* perm = static_cast<const int*>(f->Perm);
-  std::vector<int> inversePerm(n);
-  for (int k = 0; k < n; ++k) inversePerm[perm[k]] = k;
+  const std::vector<int>& inversePerm = impl_->rowOfL();
   std::vector<int> rows;
   for (int i : indices) rows.push_back(inversePerm[i]);
   std::sort(rows.begin(), rows.end());
@@ -763,6 +785,9 @@ bool CholmodFactor::deleteRows(const std::vector<int>& indices, const SparseMatr
     ldlRowSubtree(*f, k, from.data(), static_cast<int>(from.size()), impl_->updown, out);
   };
   if (!ldlTakeRows(rows, subtree, *f, wp, wi, wx)) return false;
+  impl_->pivotStarts.insert(impl_->pivotStarts.end(), rows.begin(), rows.end());
+  for (size_t c = 0; c + 1 < wp.size(); ++c)
+    if (wp[c] < wp[c + 1]) impl_->pivotStarts.push_back(wi[wp[c]]);
   if (wp.size() == 1) return true;
   cholmod_sparse w = cholmodViewColumns(f->n, wp.size() - 1, wp.data(), wi.data(), wx.data());
   const int ok = ldlUpdown(true, w, *f, impl_->updown, impl_->common);
@@ -772,15 +797,40 @@ bool CholmodFactor::deleteRows(const std::vector<int>& indices, const SparseMatr
   return true;
 }
 
+// every pivot once after a factorization (O(n), each a cache line of its own); after that
+// those on the paths the updates since walked (O(the change): a removal's update no longer
+// reads the whole factor for its check)
 bool CholmodFactor::pivotsPositive() const {
   const cholmod_factor* f = impl_->factor;
   if (!f || f->is_super || f->is_ll) return factorized_;
+  const int n = static_cast<int>(f->n);
   const int* p = static_cast<const int*>(f->p);
+  const int* i = static_cast<const int*>(f->i);
+  const int* nz = static_cast<const int*>(f->nz);
   const double* x = static_cast<const double*>(f->x);
-  for (size_t j = 0; j < f->n; ++j) {
+  const auto positive = [&](int j) {
     const double d = x[p[j]];  // the diagonal comes first in each column
-    if (!(d > 0.0) || !std::isfinite(d)) return false;
+    return d > 0.0 && std::isfinite(d);
+  };
+  Impl& m = *impl_;
+  if (!m.pivotsChecked) {
+    for (int j = 0; j < n; ++j)
+      if (!positive(j)) return false;
+    m.pivotsChecked = true;
+    m.pivotStarts.clear();
+    return true;
   }
+  if (static_cast<int>(m.pivotMark.size()) != n || m.pivotStamp == INT_MAX) {
+    m.pivotMark.assign(n, 0);
+    m.pivotStamp = 0;
+  }
+  const int stamp = ++m.pivotStamp;
+  for (int start : m.pivotStarts)
+    for (int j = start; j >= 0 && m.pivotMark[j] != stamp; j = nz[j] > 1 ? i[p[j] + 1] : -1) {
+      m.pivotMark[j] = stamp;
+      if (!positive(j)) return false;  // (the starts kept: asked again, the same answer)
+    }
+  m.pivotStarts.clear();
   return true;
 }
 

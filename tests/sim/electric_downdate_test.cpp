@@ -246,5 +246,33 @@ TEST(CholmodFactor, DeletedRowsSolveAsAFreshFactorOfTheIdentityRows) {
   EXPECT_TRUE(f.pivotsPositive());
 }
 
+// CholmodFactor::pivotsPositive checks every pivot once after a factorization, then only the
+// paths the updates since walked: a downdate that takes a row's diagonal below zero is found
+// there (the matrix then indefinite), an update elsewhere keeps the answer, and it stays
+// false when asked again
+TEST(CholmodFactor, APivotThatADowndateTookBelowZeroIsFoundOnItsPath) {
+  GradedSlab slab;
+  SparseMatrix a = slab.K;
+  for (int i = 0; i < a.rows(); ++i) a.coeffRef(i, i) += kSigma * 1e-3;  // SPD
+  a.makeCompressed();
+  electric_detail::CholmodFactor f;
+  f.analyze(a);
+  f.factorize(a, "test");
+  f.toSimplicial();
+  EXPECT_TRUE(f.pivotsPositive());  // the whole check
+  const auto column = [&](int row, double value) {
+    SparseMatrix c(a.rows(), 1);
+    c.insert(row, 0) = value;
+    c.makeCompressed();
+    return c;
+  };
+  f.updateDowndate(true, column(10, 1.0));
+  EXPECT_TRUE(f.pivotsPositive());  // the path from row 10
+  const int k = static_cast<int>(a.rows()) / 2;
+  f.updateDowndate(false, column(k, std::sqrt(2.0 * a.coeff(k, k))));  // A_kk - 2 A_kk < 0
+  EXPECT_FALSE(f.pivotsPositive());
+  EXPECT_FALSE(f.pivotsPositive());
+}
+
 }  // namespace
 }  // namespace esim
