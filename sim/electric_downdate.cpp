@@ -41,13 +41,16 @@
 
 #include <Eigen/Cholesky>
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
 #include <string>
 #include <vector>
 
 #include "sim/cholmod_view.h"
 #include "sim/core_error.h"
 #include "sim/electric_solver.h"
+#include "sim/ldl_updown.h"
 
 namespace esim::electric_detail {
 namespace {
@@ -66,6 +69,11 @@ constexpr double kDiagonalRounding = 1e-13;
 constexpr int kRunMinRows = 8;
 constexpr int kRunMinContacts = 16;
 constexpr int kRunMaxRows = 1024;
+// changeColumns: a pivot at least this share of the largest remaining diagonal (the
+// structural phase's kPivotShare, structural.cpp), clusters up to this many rows (its dense
+// LDL' ~m^3/3 flops)
+constexpr double kPivotShare = 1e-3;
+constexpr int kMaxClusterRows = 256;
 
 // The union U of the paths of some contacts up the elimination tree (closed under ancestors),
 // the contacts numbered 0 .. c-1 in the order of their rows of L. A row is on the paths of the
@@ -221,10 +229,10 @@ class DowndateSolver final : public ElectricSolver {
       if (!factor_.deleteRows(change.dropped, free_.matrix))
         return fallBack("a row leaving the free set had a pivot <= 0");
       free_.apply(change);
+      const std::array<SparseMatrix, 2> c = changeColumns(change, terms);
       for (bool update : {true, false}) {
-        const SparseMatrix c = termColumns(terms, update);
-        factor_.updateDowndate(update, c);
-        stats.rank += static_cast<int>(c.cols());
+        factor_.updateDowndate(update, c[update]);
+        stats.rank += static_cast<int>(c[update].cols());
       }
     } catch (const Error& e) {
       if (e.kind() == ErrorKind::Internal) throw;
@@ -312,20 +320,149 @@ class DowndateSolver final : public ElectricSolver {
     return terms;
   }
 
-  // the terms of one sign as the columns of C (C C' their sum, signs dropped): sqrt|value|
-  // times e_i - e_j, or e_i
-  SparseMatrix termColumns(const std::vector<Term>& terms, bool positive) const {
-    std::vector<Eigen::Triplet<double>> t;
-    int cols = 0;
+  // E = K' - K on the rows staying free as the columns of two matrices, [0] the downdate
+  // and [1] the update (E = C1 C1' - C0 C0'). Rows that E couples form clusters; each
+  // cluster's -E (a removal's: the removed elements' conductances, a sum of positive
+  // semidefinite element matrices, so semidefinite) is factored as the structural phase
+  // factors its removed tets' stiffness (structural.cpp, step 4): an LDL' that takes as pivot
+  // the first row (in L's order) whose remaining diagonal is at least kPivotShare of the
+  // largest, and stops when the rest is rounding (1e-12 of the largest diagonal). A pivot d
+  // gives the column g / sqrt|d|: a downdate for d > 0, an update for d < 0. A cluster's
+  // columns are at most its rows less one where all its rows stay free (the constant
+  // potential is in -E's null space), against one per changed edge (the rank-one terms,
+  // each edge's e_i - e_j, which cannot fill in L): a removal's rank about halves
+  // (bench electric --only-update, "rank"). A cluster of more than kMaxClusterRows rows, whose
+  // rest is not rounding (an indefinite -E whose diagonal runs out first), or with a column
+  // that would fill in L (a pivot out of row order) takes its rank-one terms instead.
+  std::array<SparseMatrix, 2> changeColumns(const BaseChange& change,
+                                            const std::vector<Term>& terms) {
+    std::array<std::vector<Eigen::Triplet<double>>, 2> t;
+    std::array<int, 2> cols{0, 0};
+    const auto add = [&](bool update, const std::vector<std::pair<int, double>>& entries) {
+      for (const auto& [row, value] : entries) t[update].emplace_back(row, cols[update], value);
+      ++cols[update];
+    };
+    // clusters: union-find over the rows the terms join
+    std::vector<int> rows;
     for (const Term& term : terms) {
-      if ((term.value > 0) != positive || term.value == 0) continue;
-      const double scale = std::sqrt(std::abs(term.value));
-      t.emplace_back(term.i, cols, scale);
-      if (term.j != term.i) t.emplace_back(term.j, cols, -scale);
-      ++cols;
+      rows.push_back(term.i);
+      rows.push_back(term.j);
     }
-    SparseMatrix c(free_.size(), cols);
-    c.setFromTriplets(t.begin(), t.end());
+    std::sort(rows.begin(), rows.end());
+    rows.erase(std::unique(rows.begin(), rows.end()), rows.end());
+    const auto at = [&](int b) {
+      return static_cast<int>(std::lower_bound(rows.begin(), rows.end(), b) - rows.begin());
+    };
+    std::vector<int> parent(rows.size());
+    for (size_t k = 0; k < rows.size(); ++k) parent[k] = static_cast<int>(k);
+    const auto find = [&](int k) {
+      while (parent[k] != k) k = parent[k] = parent[parent[k]];
+      return k;
+    };
+    for (const Term& term : terms) parent[find(at(term.i))] = find(at(term.j));
+    std::vector<std::vector<int>> clusters;  // rows (base indices), in L's row order
+    {
+      std::vector<int> clusterOf(rows.size(), -1);
+      for (size_t k = 0; k < rows.size(); ++k) {
+        int& c = clusterOf[find(static_cast<int>(k))];
+        if (c < 0) {
+          c = static_cast<int>(clusters.size());
+          clusters.emplace_back();
+        }
+        clusters[c].push_back(rows[k]);
+      }
+      for (auto& c : clusters)
+        std::sort(c.begin(), c.end(), [&](int a, int b) { return rowOf_[a] < rowOf_[b]; });
+    }
+    std::vector<std::vector<Term>> termsOf(clusters.size());
+    {
+      std::vector<int> clusterOfRow(rows.size());
+      for (size_t c = 0; c < clusters.size(); ++c)
+        for (int b : clusters[c]) clusterOfRow[at(b)] = static_cast<int>(c);
+      for (const Term& term : terms) termsOf[clusterOfRow[at(term.i)]].push_back(term);
+    }
+    std::vector<std::pair<int, double>> entries;
+    std::vector<int> lRows;
+    for (size_t c = 0; c < clusters.size(); ++c) {
+      const std::vector<int>& cr = clusters[c];
+      const int m = static_cast<int>(cr.size());
+      const auto byTerms = [&] {  // the cluster's rank-one terms, as before
+        for (const Term& term : termsOf[c]) {
+          if (term.value == 0) continue;
+          const double scale = std::sqrt(std::abs(term.value));
+          entries.assign(1, {term.i, scale});
+          if (term.j != term.i) entries.emplace_back(term.j, -scale);
+          add(term.value > 0, entries);
+        }
+      };
+      if (m > kMaxClusterRows) {
+        byTerms();
+        continue;
+      }
+      // -E on the cluster's rows (their order in L)
+      Eigen::MatrixXd g = Eigen::MatrixXd::Zero(m, m);
+      for (const Term& term : termsOf[c]) {
+        const int a = static_cast<int>(std::find(cr.begin(), cr.end(), term.i) - cr.begin());
+        const int b = static_cast<int>(std::find(cr.begin(), cr.end(), term.j) - cr.begin());
+        if (a == b) {
+          g(a, a) -= term.value;
+        } else {  // value (e_i - e_j)(e_i - e_j)'
+          g(a, a) -= term.value;
+          g(b, b) -= term.value;
+          g(a, b) += term.value;
+          g(b, a) += term.value;
+        }
+      }
+      double largest = 0;
+      for (int a = 0; a < m; ++a) largest = std::max(largest, std::abs(g(a, a)));
+      std::vector<std::uint8_t> done(m, 0);
+      const size_t from[2] = {t[0].size(), t[1].size()};
+      const int fromCols[2] = {cols[0], cols[1]};
+      bool ok = true;
+      for (;;) {
+        double most = 0;
+        for (int a = 0; a < m; ++a)
+          if (!done[a]) most = std::max(most, std::abs(g(a, a)));
+        if (!(most > 1e-12 * largest)) break;
+        int p = 0;
+        while (done[p] || std::abs(g(p, p)) < kPivotShare * most) ++p;
+        const double d = g(p, p);
+        const double scale = 1 / std::sqrt(std::abs(d));
+        entries.clear();
+        lRows.clear();
+        for (int a = 0; a < m; ++a)
+          if (!done[a] && g(a, p) != 0.0) {
+            entries.emplace_back(cr[a], g(a, p) * scale);
+            lRows.push_back(rowOf_[cr[a]]);
+          }
+        if (ldlColumnFillsIn(factor_.cholmod(), lRows.data(), static_cast<int>(lRows.size()),
+                             fill_)) {
+          ok = false;
+          break;
+        }
+        add(d < 0, entries);
+        const Eigen::VectorXd col = g.col(p);
+        for (int a = 0; a < m; ++a)
+          for (int b = 0; b < m; ++b)
+            if (!done[a] && !done[b]) g(a, b) -= col[a] * col[b] / d;
+        done[p] = 1;
+      }
+      for (int a = 0; ok && a < m; ++a)  // the rest must be rounding
+        for (int b = 0; ok && b < m; ++b)
+          ok = done[a] || done[b] || std::abs(g(a, b)) <= 1e-12 * largest;
+      if (!ok) {  // back to before the cluster, then its terms
+        for (int k : {0, 1}) {
+          t[k].resize(from[k]);
+          cols[k] = fromCols[k];
+        }
+        byTerms();
+      }
+    }
+    std::array<SparseMatrix, 2> c;
+    for (int k : {0, 1}) {
+      c[k].resize(free_.size(), cols[k]);
+      c[k].setFromTriplets(t[k].begin(), t[k].end());
+    }
     return c;
   }
 
@@ -500,6 +637,7 @@ class DowndateSolver final : public ElectricSolver {
   FreeBase free_;  // node classes, K_ff in base indices
   CholmodFactor factor_;
   std::vector<int> rowOf_;         // base index -> row of L
+  LdlUpdownWork fill_;             // changeColumns' fill-in checks
   std::vector<Path> paths_;        // the contacts' paths for the current factor
   std::vector<int> slotNode_;      // slot -> base index j
   std::vector<int> slotOf_;        // base index -> slot (-1: not solved)

@@ -1,6 +1,6 @@
 // Tests for sim/electric_downdate.cpp (and CholmodFactor::deleteRows, which it relies on): the
 // factor kept exact through a cut as long as it goes on, against a fresh factorization and an
-// independent Eigen solve; the rank-one terms of both signs (an obtuse tet's conductance);
+// independent Eigen solve; a change's columns (its clusters factored; growth an update);
 // rows leaving the free set; and the fallback when a change is too large to pay.
 #include <gtest/gtest.h>
 
@@ -91,8 +91,9 @@ struct GradedSlab {
 // A groove cut in twelve steps along the slab's top (each step the tets within 1.2 mm of the
 // blade's next position, the contacts the nearest surface nodes): after every update the
 // potential equals a fresh factorization's to 1e-12 and the independent solve's to 1e-9, with
-// no fallback; the conductances taken away include negative ones (obtuse tets), so both the
-// update and the downdate pass run; nodes whose last tet goes leave the free set.
+// no fallback; the conductances taken away include negative ones (obtuse tets: as rank-one
+// terms they were updates; the clusters' columns are downdates only); nodes whose last tet
+// goes leave the free set.
 TEST(ElectricDowndate, AGrooveCutStepByStepMatchesAFreshFactorization) {
   GradedSlab slab;
   auto solver = makeElectricSolver({.strategy = ElectricStrategy::Downdate});
@@ -134,8 +135,63 @@ TEST(ElectricDowndate, AGrooveCutStepByStepMatchesAFreshFactorization) {
   }
   std::cout << "12 cuts: rank " << rank << ", " << dropped << " nodes left the free set, "
             << negativeTaken << " negative off-diagonal changes (obtuse conductances)\n";
-  EXPECT_GT(negativeTaken, 0);  // the update pass ran
+  EXPECT_GT(negativeTaken, 0);  // obtuse conductances taken away
   EXPECT_GT(dropped, 0);
+}
+
+// A change's columns (changeColumns): a removal's rank is at most the rows it changes (one
+// per cluster of rows, less one where the constant potential is in its null space), well
+// under its rank-one terms (one per changed edge); conductances that grow (update columns),
+// shrink (downdate columns) or both in one cluster (an indefinite change) give the potential
+// of a fresh factorization to 1e-12
+TEST(ElectricDowndate, AChangesColumnsAreItsClustersFactoredAndGrowthIsAnUpdate) {
+  GradedSlab slab;
+  auto solver = makeElectricSolver({.strategy = ElectricStrategy::Downdate});
+  solver->setMatrix(slab.K, slab.grounded);
+  const auto check = [&](const char* what) {
+    SCOPED_TRACE(what);
+    auto fresh = makeElectricSolver({.strategy = ElectricStrategy::Downdate});
+    fresh->setMatrix(slab.K, slab.grounded);
+    for (const Vec3& p : {Vec3(-0.01, 0.0, 0.01), Vec3(0.012, 0.004, 0.01)}) {
+      const std::vector<int> c = slab.contactNear(p, 5);
+      Eigen::VectorXd u, uf;
+      solver->solve(c, kVolt, u);
+      fresh->solve(c, kVolt, uf);
+      EXPECT_LT(relError(u, uf), 1e-12);
+      EXPECT_LT(relError(u, test::referenceSolve(slab.K, slab.grounded, c, kVolt)), 1e-9);
+    }
+  };
+  // a removal: the changed edges (rank-one terms) against the rank
+  const std::vector<int> cut = slab.tetsNear(Vec3(0.0, 0.0, 0.0095), 0.0016);
+  const SparseMatrix before = slab.K;
+  for (int e : cut) slab.mesh.alive[e] = 0;
+  slab.assemble();
+  const SparseMatrix change = slab.K - before;
+  int edges = 0;
+  for (int k = 0; k < change.outerSize(); ++k)
+    for (SparseMatrix::InnerIterator it(change, k); it; ++it)
+      edges += it.row() > it.col() && it.value() != 0.0;
+  const ElectricUpdateStats removal = solver->updateMatrix(slab.K, slab.grounded);
+  EXPECT_FALSE(removal.fellBack) << removal.fallbackReason;
+  EXPECT_GT(removal.rank, 0);
+  EXPECT_LE(removal.rank, removal.changedNodes);
+  EXPECT_LT(2 * removal.rank, edges + removal.changedNodes);
+  std::cout << "removal of " << cut.size() << " tets: " << removal.changedNodes << " rows, "
+            << edges << " edges, rank " << removal.rank << "\n";
+  check("removal");
+  // conductances that grow (x2 near one point), shrink (x0.5 near another), and both in
+  // turn near a third (one cluster of both signs)
+  std::vector<double> sigma(slab.mesh.numTets(), kSigma);
+  for (int e : slab.tetsNear(Vec3(-0.02, 0.0, 0.005), 0.002)) sigma[e] = 2 * kSigma;
+  for (int e : slab.tetsNear(Vec3(0.02, 0.0, 0.005), 0.002)) sigma[e] = 0.5 * kSigma;
+  int turn = 0;
+  for (int e : slab.tetsNear(Vec3(0.0, 0.008, 0.005), 0.002))
+    sigma[e] = (turn++ % 2 == 0 ? 2.0 : 0.5) * kSigma;
+  slab.K = assembleStiffness(slab.mesh, slab.geo, sigma);
+  const ElectricUpdateStats both = solver->updateMatrix(slab.K, slab.grounded);
+  EXPECT_FALSE(both.fellBack) << both.fallbackReason;
+  EXPECT_GT(both.rank, 0);
+  check("growth and shrinkage");
 }
 
 // Removing most of the slab in one step is a larger change than an update pays for: the
