@@ -271,13 +271,18 @@ TEST(ElectricDowndate, ManyContactsTheSameContactsAgainAndATinyCap) {
   }
 }
 
+// the graded slab's K with a small shift on the diagonal: positive definite as it is
+SparseMatrix shiftedSlabMatrix() {
+  SparseMatrix a = GradedSlab().K;
+  for (int i = 0; i < a.rows(); ++i) a.coeffRef(i, i) += kSigma * 1e-3;
+  a.makeCompressed();
+  return a;
+}
+
 // CholmodFactor::deleteRows: the factor of A with rows and columns set to the identity (in
 // one update by L's own columns) solves that matrix as a fresh factorization of it does
 TEST(CholmodFactor, DeletedRowsSolveAsAFreshFactorOfTheIdentityRows) {
-  GradedSlab slab;
-  SparseMatrix a = slab.K;
-  for (int i = 0; i < a.rows(); ++i) a.coeffRef(i, i) += kSigma * 1e-3;  // SPD
-  a.makeCompressed();
+  const SparseMatrix a = shiftedSlabMatrix();
   electric_detail::CholmodFactor f;
   f.analyze(a);
   f.factorize(a, "test");
@@ -307,10 +312,7 @@ TEST(CholmodFactor, DeletedRowsSolveAsAFreshFactorOfTheIdentityRows) {
 // there (the matrix then indefinite), an update elsewhere keeps the answer, and it stays
 // false when asked again
 TEST(CholmodFactor, APivotThatADowndateTookBelowZeroIsFoundOnItsPath) {
-  GradedSlab slab;
-  SparseMatrix a = slab.K;
-  for (int i = 0; i < a.rows(); ++i) a.coeffRef(i, i) += kSigma * 1e-3;  // SPD
-  a.makeCompressed();
+  const SparseMatrix a = shiftedSlabMatrix();
   electric_detail::CholmodFactor f;
   f.analyze(a);
   f.factorize(a, "test");
