@@ -143,7 +143,7 @@ TEST(ElectricDowndate, AGrooveCutStepByStepMatchesAFreshFactorization) {
 // per cluster of rows, less one where the constant potential is in its null space), well
 // under its rank-one terms (one per changed edge); conductances that grow (update columns),
 // shrink (downdate columns) or both in one cluster (an indefinite change) give the potential
-// of a fresh factorization to 1e-12
+// of a fresh factorization to 1e-12, and so does a change with no pivot (its terms)
 TEST(ElectricDowndate, AChangesColumnsAreItsClustersFactoredAndGrowthIsAnUpdate) {
   GradedSlab slab;
   auto solver = makeElectricSolver({.strategy = ElectricStrategy::Downdate});
@@ -192,6 +192,23 @@ TEST(ElectricDowndate, AChangesColumnsAreItsClustersFactoredAndGrowthIsAnUpdate)
   EXPECT_FALSE(both.fellBack) << both.fallbackReason;
   EXPECT_GT(both.rank, 0);
   check("growth and shrinkage");
+  // one off-diagonal pair changed, the diagonal not: -E = [0 -x; -x 0] on its two rows has no
+  // pivot (its diagonal is zero, its rest is not): that cluster takes its rank-one terms
+  // (x (e_i - e_j)(e_i - e_j)' and x e_i e_i' + x e_j e_j', of both signs)
+  const int i = slab.contactNear(Vec3(0.0, 0.0, 0.01), 1)[0];
+  int j = -1;
+  for (SparseMatrix::InnerIterator it(slab.K, i); it; ++it)
+    if (it.row() != i && it.value() != 0.0 &&
+        !std::binary_search(slab.grounded.begin(), slab.grounded.end(), it.row()))
+      j = static_cast<int>(it.row());
+  ASSERT_GE(j, 0);
+  const double x = 0.01 * std::abs(slab.K.coeff(i, j));
+  slab.K.coeffRef(i, j) += x;
+  slab.K.coeffRef(j, i) += x;
+  const ElectricUpdateStats pair = solver->updateMatrix(slab.K, slab.grounded);
+  EXPECT_FALSE(pair.fellBack) << pair.fallbackReason;
+  EXPECT_EQ(pair.rank, 3);  // the three terms, not one column per row
+  check("an off-diagonal pair");
 }
 
 // Removing most of the slab in one step is a larger change than an update pays for: the
