@@ -49,7 +49,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -405,7 +404,7 @@ class DowndateSolver final : public ElectricSolver {
         byTerms();
         continue;
       }
-      // -E on the cluster's rows (their order in L)
+      // -E on the cluster's rows (their order in L; the lower triangle is read)
       Eigen::MatrixXd g = Eigen::MatrixXd::Zero(m, m);
       for (const Term& term : termsOf[c]) {
         const int a = static_cast<int>(std::find(cr.begin(), cr.end(), term.i) - cr.begin());
@@ -419,44 +418,25 @@ class DowndateSolver final : public ElectricSolver {
           g(b, a) += term.value;
         }
       }
-      double largest = 0;
-      for (int a = 0; a < m; ++a) largest = std::max(largest, std::abs(g(a, a)));
-      std::vector<std::uint8_t> done(m, 0);
       const size_t from[2] = {t[0].size(), t[1].size()};
       const int fromCols[2] = {cols[0], cols[1]};
-      bool ok = true;
-      for (;;) {
-        double most = 0;
-        for (int a = 0; a < m; ++a)
-          if (!done[a]) most = std::max(most, std::abs(g(a, a)));
-        if (!(most > 1e-12 * largest)) break;
-        int p = 0;
-        while (done[p] || std::abs(g(p, p)) < kPivotShare * most) ++p;
-        const double d = g(p, p);
-        const double scale = 1 / std::sqrt(std::abs(d));
-        entries.clear();
-        lRows.clear();
-        for (int a = 0; a < m; ++a)
-          if (!done[a] && g(a, p) != 0.0) {
-            entries.emplace_back(cr[a], g(a, p) * scale);
-            lRows.push_back(rowOf_[cr[a]]);
-          }
-        if (ldlColumnFillsIn(factor_.cholmod(), lRows.data(), static_cast<int>(lRows.size()),
-                             fill_)) {
-          ok = false;
-          break;
-        }
-        add(d < 0, entries);
-        const Eigen::VectorXd col = g.col(p);
-        for (int a = 0; a < m; ++a)
-          for (int b = 0; b < m; ++b)
-            if (!done[a] && !done[b]) g(a, b) -= col[a] * col[b] / d;
-        done[p] = 1;
-      }
-      for (int a = 0; ok && a < m; ++a)  // the rest must be rounding
-        for (int b = 0; ok && b < m; ++b)
-          ok = done[a] || done[b] || std::abs(g(a, b)) <= 1e-12 * largest;
-      if (!ok) {  // back to before the cluster, then its terms
+      bool fills = false;
+      const double rest =
+          pivotedLdl(g, kPivotShare, true, [&](double d, const Eigen::VectorXd& col) {
+            const double scale = 1 / std::sqrt(std::abs(d));
+            entries.clear();
+            lRows.clear();
+            for (int a = 0; a < m; ++a)
+              if (col[a] != 0.0) {
+                entries.emplace_back(cr[a], col[a] * scale);
+                lRows.push_back(rowOf_[cr[a]]);
+              }
+            fills = fills || ldlColumnFillsIn(factor_.cholmod(), lRows.data(),
+                                              static_cast<int>(lRows.size()), fill_);
+            add(d < 0, entries);
+          });
+      const bool ok = !fills && rest <= 1e-12;  // the rest must be round-off
+      if (!ok) {                                // back to before the cluster, then its terms
         for (int k : {0, 1}) {
           t[k].resize(from[k]);
           cols[k] = fromCols[k];

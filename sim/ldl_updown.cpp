@@ -390,4 +390,33 @@ bool ldlTakeRows(const std::vector<int>& rows,
   return true;
 }
 
+double pivotedLdl(Eigen::MatrixXd& g, double pivotShare, bool indefinite,
+                  const std::function<void(double d, const Eigen::VectorXd& c)>& column) {
+  const int m = static_cast<int>(g.rows());
+  // a diagonal's size as a pivot: semidefinite, one <= 0 is round-off, never a pivot
+  const auto size = [indefinite](double x) { return indefinite ? std::abs(x) : x; };
+  double largest = 0;
+  for (int a = 0; a < m; ++a) largest = std::max(largest, size(g(a, a)));
+  std::vector<std::uint8_t> done(m, 0);
+  Eigen::VectorXd c(m);
+  for (;;) {
+    double most = 0;
+    for (int a = 0; a < m; ++a)
+      if (!done[a]) most = std::max(most, size(g(a, a)));
+    if (!(most > 1e-12 * largest)) break;
+    int p = 0;
+    while (done[p] || size(g(p, p)) < pivotShare * most) ++p;
+    const double d = g(p, p);
+    for (int a = 0; a < m; ++a) c[a] = done[a] ? 0.0 : (a >= p ? g(a, p) : g(p, a));
+    column(d, c);
+    g.selfadjointView<Eigen::Lower>().rankUpdate(c, -1 / d);
+    done[p] = 1;
+  }
+  double rest = 0;
+  for (int b = 0; b < m; ++b)
+    for (int a = b; a < m; ++a)
+      if (!done[a] && !done[b]) rest = std::max(rest, std::abs(g(a, b)));
+  return rest == 0 ? 0.0 : rest / largest;  // (largest 0, rest not: infinite)
+}
+
 }  // namespace esim

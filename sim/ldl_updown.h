@@ -10,6 +10,7 @@
 
 #include <cholmod.h>
 
+#include <Eigen/Core>
 #include <functional>
 #include <utility>
 #include <vector>
@@ -32,6 +33,21 @@ struct LdlUpdownWork {
   long vectorColumns = 0;                  // columns of C the kernel applied
   long choleskyColumns = 0;                // ... and cholmod_updown (they would fill in L)
 };
+
+// The LDL' of a small dense symmetric matrix g (its lower triangle read and overwritten) as
+// the columns of a multiple-rank change, pivoted in index order (the order of L's rows: a
+// column is zero on the indices pivoted before it, so its path starts at the lowest index
+// left): each pivot is the first index whose remaining diagonal is at least pivotShare of
+// the largest remaining one, until that largest is at most 1e-12 of the largest diagonal at
+// the start; the diagonals' sizes are their values (g semidefinite: one <= 0 is round-off)
+// or, indefinite, their absolute values (a negative pivot: an update column). For each pivot, in
+// order, column(d, c): d the pivot, c = g(:, p) on the indices not pivoted yet (0 on the others),
+// so that g = sum c c' / d plus the rest. Returns the rest's largest |entry| over that starting
+// largest (0 when nothing is left): round-off for a semidefinite g, more for an indefinite one
+// whose diagonal ran out first. The structural phase's removed stiffness (semidefinite) and
+// electric_downdate's change take their columns from it.
+double pivotedLdl(Eigen::MatrixXd& g, double pivotShare, bool indefinite,
+                  const std::function<void(double d, const Eigen::VectorXd& c)>& column);
 
 // true when this machine runs the vectorized kernel (AVX-512F)
 bool ldlUpdownAvailable();

@@ -1818,18 +1818,8 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
         for (int j = 0; j < 12; ++j)
           if (at[i] >= 0 && at[j] >= 0) sum(at[i], at[j]) += ke(i, j);
     }
-    const double largest = sum.diagonal().maxCoeff();
-    std::vector<std::uint8_t> done(m, 0);
-    Eigen::VectorXd g(m);
-    for (;;) {
-      double most = 0;
-      for (int a = 0; a < m; ++a)
-        if (!done[a]) most = std::max(most, sum(a, a));
-      if (!(most > 1e-12 * largest)) break;  // the rest: rigid modes (round-off)
-      int p = 0;
-      while (done[p] || sum(p, p) < kPivotShare * most) ++p;
-      const double d = sum(p, p);
-      for (int a = 0; a < m; ++a) g[a] = done[a] ? 0.0 : (a >= p ? sum(a, p) : sum(p, a));
+    // (the rest: rigid modes, round-off)
+    pivotedLdl(sum, kPivotShare, false, [&](double d, const Eigen::VectorXd& g) {
       const double scale = 1 / std::sqrt(d);
       for (int a = 0; a < m; ++a)
         if (g[a] != 0.0) {
@@ -1837,9 +1827,7 @@ StructuralUpdateStats StructuralPhase::Impl::updateFactor(std::chrono::steady_cl
           cx.push_back(g[a] * scale);
         }
       cp.push_back(static_cast<int>(ci.size()));
-      sum.selfadjointView<Eigen::Lower>().rankUpdate(g, -1 / d);
-      done[p] = 1;
-    }
+    });
   };
   // 5. L becomes simplicial LDL' (once after each factorization: only those can be updated),
   // before C's columns, which addSplit checks against its pattern

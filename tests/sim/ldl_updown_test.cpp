@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Core>
 #include <Eigen/SparseCore>
 #include <algorithm>
 #include <cmath>
@@ -259,6 +260,49 @@ TEST(LdlUpdown, DowndateLosingDefinitenessLeavesANonPositivePivot) {
     EXPECT_LE(x[static_cast<const int*>(l->p)[j]], 0.0) << (kernel ? "kernel" : "cholmod");
     cholmod_free_factor(&l, &g.cm);
   }
+}
+
+// pivotedLdl: a semidefinite g of rank 2 (3 x 3) gives two columns whose sum c c' / d is g, the
+// rest round-off; an indefinite g gives a negative pivot (an update column) and is g again;
+// one whose diagonal is zero gives no column and says its rest is not round-off; a pivot
+// tiny against the largest diagonal is passed over for the next index
+TEST(PivotedLdl, ColumnsSumToTheMatrixAndTheRestSaysWhatIsLeft) {
+  const auto run = [](Eigen::MatrixXd g, bool indefinite, double share, std::vector<double>& d,
+                      std::vector<int>& first) {
+    const Eigen::MatrixXd g0 = g;
+    Eigen::MatrixXd sum = Eigen::MatrixXd::Zero(g.rows(), g.cols());
+    d.clear();
+    first.clear();
+    const double rest = pivotedLdl(g, share, indefinite, [&](double p, const Eigen::VectorXd& c) {
+      d.push_back(p);
+      int k = 0;
+      while (c[k] == 0.0) ++k;
+      first.push_back(k);
+      sum += c * c.transpose() / p;
+    });
+    if (rest <= 1e-12) EXPECT_LT((sum - g0).norm(), 1e-14 * g0.norm());
+    return rest;
+  };
+  std::vector<double> d;
+  std::vector<int> first;
+  Eigen::Vector3d u(1, 2, 3), v(0, 1, -1);
+  EXPECT_LE(run(u * u.transpose() + v * v.transpose(), false, 1e-3, d, first), 1e-12);
+  EXPECT_EQ(d.size(), 2u);
+  EXPECT_EQ(first, (std::vector<int>{0, 1}));
+  Eigen::Matrix2d h;
+  h << 1, 2, 2, 1;  // eigenvalues 3 and -1
+  EXPECT_LE(run(h, true, 1e-3, d, first), 1e-12);
+  ASSERT_EQ(d.size(), 2u);
+  EXPECT_EQ(d[0], 1.0);
+  EXPECT_EQ(d[1], -3.0);
+  h << 0, 1, 1, 0;
+  EXPECT_GT(run(h, true, 1e-3, d, first), 1e-12);
+  EXPECT_TRUE(d.empty());
+  h << 1e-6, 0, 0, 1;  // the first diagonal under 1e-3 of the largest
+  run(h, false, 1e-3, d, first);
+  ASSERT_EQ(d.size(), 2u);
+  EXPECT_EQ(first[0], 1);
+  EXPECT_EQ(first[1], 0);
 }
 
 }  // namespace
