@@ -258,6 +258,15 @@ std::vector<int> aliveNodes(const TetMesh& mesh) {
   return ids;
 }
 
+std::vector<int> nodesOfTets(const TetMesh& mesh, const std::vector<int>& tets) {
+  std::vector<int> out;
+  out.reserve(4 * tets.size());
+  for (int t : tets) out.insert(out.end(), mesh.tets[t].begin(), mesh.tets[t].end());
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
+}
+
 std::vector<int> nodesWithoutAliveTets(const TetMesh& mesh, const Adjacency& nodeTets,
                                        const std::vector<int>& removed) {
   std::vector<int> out;

@@ -115,6 +115,10 @@ std::vector<int> boundaryNodes(const TetMesh& mesh, const std::vector<BoundaryFa
 // sorted ids of the nodes of the alive tets
 std::vector<int> aliveNodes(const TetMesh& mesh);
 
+// sorted ids of the nodes of the given tets (alive or not): the columns of an assembled matrix
+// their removal changes
+std::vector<int> nodesOfTets(const TetMesh& mesh, const std::vector<int>& tets);
+
 // the nodes of the `removed` tets that no alive tet holds any more (sorted), after their
 // alive flags were cleared; nodeTets: the tets at each node of an alive set holding the
 // current one (as for updateBoundaryNodes). Cost: the removed tets' nodes and their tets

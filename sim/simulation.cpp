@@ -739,11 +739,7 @@ void Simulation::updateModel(const std::vector<int>& broken, FrameRecord& rec) {
       removeFromStiffness(m.stiffness, m.mesh, *m.geo, m.sigmaAssembled, *m.nodeTets, broken);
       // only the removed tets' nodes have columns that changed: the solver reads those
       // (FreeBase::diff), not the whole matrix
-      std::vector<int> changed;
-      for (int e : broken)
-        changed.insert(changed.end(), m.mesh.tets[e].begin(), m.mesh.tets[e].end());
-      std::sort(changed.begin(), changed.end());
-      changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
+      const std::vector<int> changed = nodesOfTets(m.mesh, broken);
       m.electric->updateMatrix(m.stiffness, m.ground, &changed);
       m.electric->setContactCandidates(contactCandidates(m));
       // the columns the scripted tool will need on the new surface in the next second, on a

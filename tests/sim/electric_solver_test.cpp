@@ -841,13 +841,6 @@ TEST(ElectricSolverUpdate, ANodeJoiningTheFreeSetFallsBackToSetMatrix) {
   }
 }
 
-// the nodes of some tets, sorted (the columns of K their removal changes)
-std::vector<int> nodesOfTets(const TetMesh& mesh, const std::vector<int>& tets) {
-  std::vector<int> out;
-  for (int e : tets) out.insert(out.end(), mesh.tets[e].begin(), mesh.tets[e].end());
-  return sortedUnion(out, {});
-}
-
 // two diffs of one change are the same: classes, rows dropped and touched, the delta, the
 // entries written
 void expectSameChange(const electric_detail::BaseChange& a, const electric_detail::BaseChange& b) {

@@ -300,6 +300,8 @@ TEST(MeshTet, NodesWithoutAliveTetsAreWhatTheAliveNodesLost) {
   EXPECT_EQ(aliveNodes(pair), (std::vector<int>{0, 1, 2, 3, 4}));
   pair.alive = {1, 0};
   EXPECT_EQ(aliveNodes(pair), (std::vector<int>{0, 1, 2, 3}));
+  EXPECT_EQ(nodesOfTets(pair, {1}), (std::vector<int>{1, 2, 3, 4}));  // dead or alive
+  EXPECT_EQ(nodesOfTets(pair, {1, 0, 1}), (std::vector<int>{0, 1, 2, 3, 4}));
   EXPECT_EQ(nodesWithoutAliveTets(pair, nodeTets(twoTets()), {1}), std::vector<int>{4});
   TetMesh mesh = removalSlab();
   const Adjacency tetsAt = nodeTets(mesh);

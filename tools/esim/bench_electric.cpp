@@ -377,13 +377,10 @@ UpdateTiming timeUpdate(const Scene& s, ElectricStrategy strategy, const BenchEl
   }
   std::partial_sort(byDistance.begin(), byDistance.begin() + tets, byDistance.end());
   TetMesh cut = s.mesh;
-  std::vector<int> changed;  // the removed tets' nodes: the columns of K that change
-  for (int k = 0; k < tets; ++k) {
-    cut.alive[byDistance[k].second] = 0;
-    for (int v : s.mesh.tets[byDistance[k].second]) changed.push_back(v);
-  }
-  std::sort(changed.begin(), changed.end());
-  changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
+  std::vector<int> removed;
+  for (int k = 0; k < tets; ++k) removed.push_back(byDistance[k].second);
+  for (int e : removed) cut.alive[e] = 0;
+  const std::vector<int> changed = nodesOfTets(cut, removed);  // the columns of K that change
   const SparseMatrix K =
       assembleStiffness(cut, tetGeometry(cut), std::vector<double>(cut.numTets(), 0.144));
   const std::vector<int> surface = boundaryNodes(cut, boundaryFaces(cut));
