@@ -9,6 +9,7 @@
 #include <iostream>
 #include <vector>
 
+#include "sim/cholmod_view.h"
 #include "sim/electric_solver.h"
 #include "sim/electrode.h"
 #include "sim/fem_p1.h"
@@ -209,6 +210,87 @@ TEST(ElectricDowndate, AChangesColumnsAreItsClustersFactoredAndGrowthIsAnUpdate)
   EXPECT_FALSE(pair.fellBack) << pair.fallbackReason;
   EXPECT_EQ(pair.rank, 3);  // the three terms, not one column per row
   check("an off-diagonal pair");
+}
+
+// A cluster whose first pivot is out of L's row order: -E = w1 (e_a - e_b)(e_a - e_b)' +
+// w2 (e_b - e_c)(e_b - e_c)' with a < b < c in L's order, w1 under the pivot threshold, so b is
+// the first pivot and its column holds a, b and c; c is not in L's column a, so that column
+// would fill in L. The cluster takes its two rank-one terms instead (which cannot fill in):
+// L keeps its pattern and its memory (with the fill-in check off, the column went to
+// cholmod_updown, which grew L by 8 entries and its memory by 131 kB), every column goes to
+// the vectorized kernel, and grounding c afterwards (its row deleted from L by the pattern of
+// K_ff) still gives a fresh factorization's potential.
+TEST(ElectricDowndate, AClusterColumnThatWouldFillInLTakesItsTerms) {
+  GradedSlab slab;
+  auto solver = makeElectricSolver({.strategy = ElectricStrategy::Downdate});
+  solver->setMatrix(slab.K, slab.grounded);
+  // the solver's factor, made the same way here to find such a triple in its pattern
+  electric_detail::NodeClasses classes;
+  classes.build(slab.K, slab.grounded);
+  const SparseMatrix a = electric_detail::restrictToFree(slab.K, classes);
+  electric_detail::CholmodFactor f;
+  f.analyze(a);
+  f.factorize(a, "test");
+  f.toSimplicial();
+  const std::vector<int> perm = f.ordering();
+  std::vector<int> rowOf(perm.size());
+  for (size_t k = 0; k < perm.size(); ++k) rowOf[perm[k]] = static_cast<int>(k);
+  const SimplicialView l(&f.cholmod());
+  const auto inColumn = [&](int row, int column) {  // L's rows, column `column`
+    return std::find(l.i + l.p[column], l.i + l.p[column] + l.nz[column], row) !=
+           l.i + l.p[column] + l.nz[column];
+  };
+  int ia = -1, ib = -1, ic = -1;  // free indices
+  for (int x = 0; x < a.cols() && ia < 0; ++x)
+    for (SparseMatrix::InnerIterator bx(a, x); bx && ia < 0; ++bx) {
+      const int y = static_cast<int>(bx.row());
+      if (rowOf[y] <= rowOf[x]) continue;
+      for (SparseMatrix::InnerIterator cy(a, y); cy; ++cy) {
+        const int z = static_cast<int>(cy.row());
+        if (rowOf[z] > rowOf[y] && !inColumn(rowOf[z], rowOf[x])) {
+          ia = x, ib = y, ic = z;
+          break;
+        }
+      }
+    }
+  ASSERT_GE(ia, 0) << "no triple a < b < c whose column would fill in L";
+  const int na = classes.freeNodes[ia], nb = classes.freeNodes[ib], nc = classes.freeNodes[ic];
+  const auto lessConductance = [&](int i, int j, double w) {  // the edge's, by w [S]
+    slab.K.coeffRef(i, j) += w;
+    slab.K.coeffRef(j, i) += w;
+    slab.K.coeffRef(i, i) -= w;
+    slab.K.coeffRef(j, j) -= w;
+  };
+  lessConductance(na, nb, 1e-6 * std::abs(slab.K.coeff(na, nb)));
+  lessConductance(nb, nc, 0.5 * std::abs(slab.K.coeff(nb, nc)));
+  std::vector<int> changed = {na, nb, nc};
+  std::sort(changed.begin(), changed.end());
+  const auto check = [&](const char* what) {
+    SCOPED_TRACE(what);
+    auto fresh = makeElectricSolver({.strategy = ElectricStrategy::Downdate});
+    fresh->setMatrix(slab.K, slab.grounded);
+    for (const Vec3& p : {Vec3(-0.01, 0.0, 0.01), Vec3(0.012, 0.004, 0.01)}) {
+      const std::vector<int> c = slab.contactNear(p, 5);
+      Eigen::VectorXd u, uf;
+      solver->solve(c, kVolt, u);
+      fresh->solve(c, kVolt, uf);
+      EXPECT_LT(relError(u, uf), 1e-12);
+      EXPECT_LT(relError(u, test::referenceSolve(slab.K, slab.grounded, c, kVolt)), 1e-9);
+    }
+  };
+  const double bytes = solver->memoryBytes();  // (no path solved yet)
+  const ElectricUpdateStats st = solver->updateMatrix(slab.K, slab.grounded, &changed);
+  EXPECT_FALSE(st.fellBack) << st.fallbackReason;
+  EXPECT_EQ(solver->memoryBytes(), bytes);  // L did not grow
+  EXPECT_GE(st.rank, 2);                    // the two edges' terms (and a diagonal one of rounding)
+  check("the change");
+  // c grounded: its row leaves L by K_ff's pattern
+  slab.grounded.insert(std::lower_bound(slab.grounded.begin(), slab.grounded.end(), nc), nc);
+  const std::vector<int> grounding = {nc};
+  const ElectricUpdateStats gr = solver->updateMatrix(slab.K, slab.grounded, &grounding);
+  EXPECT_FALSE(gr.fellBack) << gr.fallbackReason;
+  EXPECT_EQ(gr.droppedNodes, 1);
+  check("c grounded");
 }
 
 // Removing most of the slab in one step is a larger change than an update pays for: the
