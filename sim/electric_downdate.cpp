@@ -234,7 +234,7 @@ class DowndateSolver final : public ElectricSolver {
       if (!factor_.deleteRows(change.dropped, free_.matrix))
         return fallBack("a row leaving the free set had a pivot <= 0");
       free_.apply(change);
-      const std::array<SparseMatrix, 2> c = changeColumns(change, terms);
+      const std::array<SparseMatrix, 2> c = changeColumns(terms);
       for (bool update : {true, false}) {
         factor_.updateDowndate(update, c[update]);
         stats.rank += static_cast<int>(c[update].cols());
@@ -339,8 +339,7 @@ class DowndateSolver final : public ElectricSolver {
   // (bench electric --only-update, "rank"). A cluster of more than kMaxClusterRows rows, whose
   // rest is not rounding (an indefinite -E whose diagonal runs out first), or with a column
   // that would fill in L (a pivot out of row order) takes its rank-one terms instead.
-  std::array<SparseMatrix, 2> changeColumns(const BaseChange& change,
-                                            const std::vector<Term>& terms) {
+  std::array<SparseMatrix, 2> changeColumns(const std::vector<Term>& terms) {
     std::array<std::vector<Eigen::Triplet<double>>, 2> t;
     std::array<int, 2> cols{0, 0};
     const auto add = [&](bool update, const std::vector<std::pair<int, double>>& entries) {

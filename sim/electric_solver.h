@@ -221,9 +221,14 @@ inline constexpr double kAutoDenseMaxFreeNodes = 3000;
 // ms a frame. liver_incision (27 908 nodes; esim run -q --set output.png_every=60, two
 // alternating pairs): its frame loop 19.5 / 20.5 s against 21.2 / 21.4 s, the same 9822 tets
 // removed, 66 MB more memory; its factor's updates cost more (37 against 26 ms a removal) than
-// the potential gains (16-19 against 44-48 ms, median) only in part. So auto takes downdate for
-// a cut up to 50 000 free nodes, the largest measured; pcg above (less memory, not measured).
-inline constexpr double kAutoDowndateMaxFreeNodes = 50000;
+// the potential gains (16-19 against 44-48 ms, median) only in part. 100 170 nodes (96 709
+// free; esim bench cut --sizes 100000 --frames 20 --strategy update --electric pcg,downdate
+// --stages, one run, 2026-12-07): median 1146 against 1238 ms, p95 3289 against 3418 ms, the
+// potential's median 84 against 332 ms (its factor's update 118 against 57 ms a removal), the
+// CPU 2741 against 2816 ms a frame, the same 3977 tets removed. So auto takes downdate for a
+// cut up to 100 000 free nodes (the largest measured rounded up, as 47 753 was to 50 000); pcg
+// above (less memory, not measured).
+inline constexpr double kAutoDowndateMaxFreeNodes = 100000;
 
 struct ElectricSolveStats {
   bool refactored = false;   // refactor: the matrix was factorized in this solve
