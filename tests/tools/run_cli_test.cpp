@@ -773,6 +773,40 @@ TEST(RunCli, TheDrawThreadGivesTheSameFramesAndReportsThePeriod) {
   EXPECT_EQ(video[0], video[1]);
 }
 
+// --physics-first moves the drawing thread and llvmpipe's threads to SCHED_IDLE (the reports
+// count them; drawn in the loop, only llvmpipe's) and changes no byte of the frames or the video
+TEST(RunCli, PhysicsFirstIdlesTheDrawingAndGivesTheSameFrames) {
+  std::string hash[3], video[3];
+  const std::string more[3] = {"", " --physics-first", " --physics-first --no-draw-thread"};
+  for (int k = 0; k < 3; ++k) {
+    const fs::path out = tempOut("physics_first_" + std::to_string(k));
+    const Result r = esimRun("scenarios/slab_cut.yaml --frames 12 --set mesh.slab.nodes=1013" +
+                             std::string(kSmall) + more[k] + " --overwrite -o " + out.string());
+    ASSERT_EQ(r.exitCode, 0) << r.output;
+    const auto timing = nlohmann::json::parse(readFile(out / "timing.json"));
+    const int idle = timing["drawing_threads_idle"].get<int>();
+    const std::string summary = readFile(out / "summary.txt");
+    if (k == 0) {
+      EXPECT_EQ(idle, 0);
+      EXPECT_EQ(summary.find("SCHED_IDLE"), std::string::npos) << summary;
+    } else {
+      // llvmpipe's rasterizer threads (one a core, LP_NUM_THREADS unset), and the drawing
+      // thread when there is one
+      EXPECT_GE(idle, k == 1 ? 2 : 1);
+      EXPECT_NE(summary.find(std::to_string(idle) + " threads at SCHED_IDLE"), std::string::npos)
+          << summary;
+    }
+    hash[k] = nlohmann::json::parse(readFile(out / "hashes.json"))["all_frames_xxh3"];
+    video[k] = readFile(out / "video.mp4");
+    fs::remove_all(out);
+  }
+  EXPECT_EQ(hash[1], hash[0]);
+  EXPECT_EQ(hash[2], hash[0]);
+  EXPECT_FALSE(video[0].empty());
+  EXPECT_EQ(video[1], video[0]);
+  EXPECT_EQ(video[2], video[0]);
+}
+
 // output.encode: after keeps the frames raw and encodes them after the loop: the same video
 // bytes as encoding them during it, the raw frames' file gone, the reports saying which; a run
 // whose raw frames would not fit on the disk is refused before anything is written

@@ -51,6 +51,7 @@
 #include "tools/app/run_labels.h"
 #include "tools/app/run_output.h"
 #include "tools/app/run_report.h"
+#include "tools/app/thread_priority.h"
 
 namespace esim::app {
 
@@ -277,7 +278,8 @@ void checkSpoolRoom(const fs::path& dir, int frames, const VideoEncoder::Options
 
 class FrameOutputs {
  public:
-  FrameOutputs(const Setup& s, const fs::path& dir, bool pipelined) : s_(s), dir_(dir) {
+  FrameOutputs(const Setup& s, const fs::path& dir, bool pipelined, bool physicsFirst)
+      : s_(s), dir_(dir) {
     const Scenario& sc = s.scenario;
     VideoEncoder::Options vo;
     vo.path = (dir / "video.mp4").string();
@@ -298,8 +300,19 @@ class FrameOutputs {
       labels_ = std::make_unique<LabelWriter>(s.renderer->options(), dir, s.labels.preview, vo);
     if (sc.output.pngEvery > 0) fs::create_directories(dir / "frames");
     if (s.fieldsEvery > 0) fs::create_directories(dir / "fields");
-    if (s.renderer && pipelined) worker_ = std::thread([this] { drawLoop(); });
+    // --physics-first: llvmpipe's rasterizer threads (made with the renderer's context) and
+    // the drawing thread, if any, at SCHED_IDLE
+    if (s.renderer && pipelined)
+      worker_ = std::thread([this, physicsFirst] {
+        if (physicsFirst) idleThreads_ = idleThreadsNamed("llvmpipe-", true);
+        drawLoop();
+      });
+    else if (s.renderer && physicsFirst)
+      idleThreads_ = idleThreadsNamed("llvmpipe-", false);
   }
+
+  // --physics-first: the threads moved to SCHED_IDLE (read once the loop is done)
+  int idleThreads() const { return idleThreads_; }
 
   // a frame whose outputs are done: its record (render stages timed in) and when it was done
   struct Done {
@@ -551,6 +564,7 @@ class FrameOutputs {
   int drawFaultFrame_ = injectedFaultFrame("draw");
   // the drawing thread and its one-frame hand-over
   std::thread worker_;
+  std::atomic<int> idleThreads_{0};
   std::mutex mutex_;
   std::condition_variable wake_, idle_;
   std::optional<Job> job_;
@@ -598,6 +612,7 @@ struct LoopResult {
   std::vector<double> frameDoneUs;    // each frame's outputs done (from the loop's start)
   std::vector<double> renderStartUs;  // each frame's drawing started
   bool pipelined = false;             // drawn on a thread while the next frame was simulated
+  int idleThreads = 0;                // --physics-first: the drawing's threads at SCHED_IDLE
   double loopS = 0;
   // CPU: the process's from the loop's start until the video is closed (the frames' own
   // encoding included; with output.encode: after, until the loop's end, the encoding then
@@ -730,6 +745,7 @@ nlohmann::json timingExtra(const Setup& s, const FrameOutputs& out, const LoopRe
   // frames delivered: with the drawing on its own thread, the period is what a viewer sees,
   // the latency what a hand on the tool would (physics + render is each frame's own work)
   extra["draw_thread"] = loop.pipelined;
+  extra["drawing_threads_idle"] = loop.idleThreads;  // --physics-first: moved to SCHED_IDLE
   const std::vector<double> periods = framePeriodsMs(loop.frameDoneUs);
   extra["frame_period"] = statsJson(seriesStats(periods));
   extra["frame_period"]["frames_over_budget"] = countOverBudget(periods);
@@ -838,6 +854,9 @@ void summaryStages(std::ostringstream& sum, const LoopResult& loop, const nlohma
       latency["p50_ms"].get<double>(), latency["p95_ms"].get<double>(),
       loop.pipelined ? "; drawn on a thread while the next frame is simulated" : "");
   sum << line;
+  if (loop.idleThreads > 0)
+    sum << "  drawing       " << loop.idleThreads
+        << " threads at SCHED_IDLE (--physics-first: drawn on CPU the physics does not want)\n";
 }
 
 void summaryStructural(std::ostringstream& sum, const Simulation& sim, const LoopResult& loop) {
@@ -1139,6 +1158,7 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, TimingCsvStream& csv, bool qui
   loop.peakResidentBytes = memory.peakResidentBytes();
   loop.interrupted = gStop.load();
   loop.loopS = secondsSince(t0);
+  loop.idleThreads = out.idleThreads();
   loop.loopThreadCpuS = threadCpuSeconds() - loop.loopThreadStartS;
   loop.cpuS = processCpuSeconds() - loop.cpuStartS;  // until close adds to it
   loop.cpuWallS = loop.loopS;
@@ -1166,7 +1186,7 @@ int runScenario(const RunOptions& opt) {
   output.create();
   std::optional<FrameOutputs> out;
   try {
-    out.emplace(s, output.partial(), opt.drawOnThread);
+    out.emplace(s, output.partial(), opt.drawOnThread, opt.physicsFirst);
   } catch (...) {
     output.discard();
     throw;

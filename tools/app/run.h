@@ -37,6 +37,10 @@ struct RunOptions {
   // draw frame f on a thread of its own while frame f+1 is simulated (the same images;
   // false: draw each frame after its physics, in the loop)
   bool drawOnThread = true;
+  // the drawing thread and llvmpipe's rasterizer threads at SCHED_IDLE (thread_priority.h):
+  // the physics never waits for the renderer's CPU; on a machine shared with other work the
+  // frames are drawn only on CPU nothing else wants
+  bool physicsFirst = false;
 };
 
 // runs the scenario; returns the exit code (0 complete, 1 failed or interrupted, outputs

@@ -57,6 +57,11 @@ Registrar reg(
                    "draw each frame after its physics, in the frame loop (by default frame k "
                    "is drawn on a thread of its own while frame k+1 is simulated: the same "
                    "images, a frame period closer to the slower of the two)");
+      app.add_flag("--physics-first", opt->physicsFirst,
+                   "draw only on CPU the physics does not want: the drawing thread and "
+                   "llvmpipe's rasterizer threads in Linux's SCHED_IDLE class (the same "
+                   "images; on a machine shared with other work the video then waits for "
+                   "idle CPU: for interactive runs, not for batches)");
       app.add_flag("--plots", opt->plots,
                    "also write timing.png (stage times per frame, power, temperature, removed "
                    "tets; needs python3-matplotlib, else a warning)");
