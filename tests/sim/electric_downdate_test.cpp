@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <string>
 #include <vector>
 
 #include "sim/cholmod_view.h"
@@ -90,9 +91,11 @@ struct GradedSlab {
 };
 
 // The solver's potential for two blades' contacts equals a fresh factorization's to
-// `tolerance` and the independent solve's to 1e-9; returns the larger difference to the fresh
-// one
-double expectAsFresh(ElectricSolver& solver, const GradedSlab& slab, double tolerance = 1e-12) {
+// `tolerance` and the independent solve's to 1e-9 (failures traced with `what`); returns the
+// larger difference to the fresh one
+double expectAsFresh(ElectricSolver& solver, const GradedSlab& slab, const std::string& what,
+                     double tolerance = 1e-12) {
+  SCOPED_TRACE(what);
   auto fresh = makeElectricSolver({.strategy = ElectricStrategy::Downdate});
   fresh->setMatrix(slab.K, slab.grounded);
   double worst = 0;
@@ -202,8 +205,7 @@ TEST(ElectricDowndate, FourHundredRemovalsDoNotDriftFromAFreshFactorization) {
     ASSERT_FALSE(st.fellBack) << "step " << step << ": " << st.fallbackReason;
     dropped += st.droppedNodes;
     if (step % 50 != 0) continue;
-    SCOPED_TRACE("step " + std::to_string(step));
-    worst = std::max(worst, expectAsFresh(*solver, slab, 1e-11));
+    worst = std::max(worst, expectAsFresh(*solver, slab, "step " + std::to_string(step), 1e-11));
   }
   std::cout << "400 removals, " << removed << " tets, " << dropped
             << " nodes left the free set; largest difference to a fresh factorization " << worst
@@ -220,10 +222,6 @@ TEST(ElectricDowndate, AChangesColumnsAreItsClustersFactoredAndGrowthIsAnUpdate)
   GradedSlab slab;
   auto solver = makeElectricSolver({.strategy = ElectricStrategy::Downdate});
   solver->setMatrix(slab.K, slab.grounded);
-  const auto check = [&](const char* what) {
-    SCOPED_TRACE(what);
-    expectAsFresh(*solver, slab);
-  };
   // a removal: the changed edges (rank-one terms) against the rank
   const std::vector<int> cut = slab.tetsNear(Vec3(0.0, 0.0, 0.0095), 0.0016);
   const SparseMatrix before = slab.K;
@@ -241,7 +239,7 @@ TEST(ElectricDowndate, AChangesColumnsAreItsClustersFactoredAndGrowthIsAnUpdate)
   EXPECT_LT(2 * removal.rank, edges + removal.changedNodes);
   std::cout << "removal of " << cut.size() << " tets: " << removal.changedNodes << " rows, "
             << edges << " edges, rank " << removal.rank << "\n";
-  check("removal");
+  expectAsFresh(*solver, slab, "removal");
   // conductances that grow (x2 near one point), shrink (x0.5 near another), and both in
   // turn near a third (one cluster of both signs)
   std::vector<double> sigma(slab.mesh.numTets(), kSigma);
@@ -254,7 +252,7 @@ TEST(ElectricDowndate, AChangesColumnsAreItsClustersFactoredAndGrowthIsAnUpdate)
   const ElectricUpdateStats both = solver->updateMatrix(slab.K, slab.grounded);
   EXPECT_FALSE(both.fellBack) << both.fallbackReason;
   EXPECT_GT(both.rank, 0);
-  check("growth and shrinkage");
+  expectAsFresh(*solver, slab, "growth and shrinkage");
   // one off-diagonal pair changed, the diagonal not: -E = [0 -x; -x 0] on its two rows has no
   // pivot (its diagonal is zero, its rest is not): that cluster takes its rank-one terms
   // (x (e_i - e_j)(e_i - e_j)' and x e_i e_i' + x e_j e_j', of both signs)
@@ -271,7 +269,7 @@ TEST(ElectricDowndate, AChangesColumnsAreItsClustersFactoredAndGrowthIsAnUpdate)
   const ElectricUpdateStats pair = solver->updateMatrix(slab.K, slab.grounded);
   EXPECT_FALSE(pair.fellBack) << pair.fallbackReason;
   EXPECT_EQ(pair.rank, 3);  // the three terms, not one column per row
-  check("an off-diagonal pair");
+  expectAsFresh(*solver, slab, "an off-diagonal pair");
 }
 
 // A cluster whose first pivot is out of L's row order: -E = w1 (e_a - e_b)(e_a - e_b)' +
@@ -327,23 +325,19 @@ TEST(ElectricDowndate, AClusterColumnThatWouldFillInLTakesItsTerms) {
   lessConductance(nb, nc, 0.5 * std::abs(slab.K.coeff(nb, nc)));
   std::vector<int> changed = {na, nb, nc};
   std::sort(changed.begin(), changed.end());
-  const auto check = [&](const char* what) {
-    SCOPED_TRACE(what);
-    expectAsFresh(*solver, slab);
-  };
   const double bytes = solver->memoryBytes();  // (no path solved yet)
   const ElectricUpdateStats st = solver->updateMatrix(slab.K, slab.grounded, &changed);
   EXPECT_FALSE(st.fellBack) << st.fallbackReason;
   EXPECT_EQ(solver->memoryBytes(), bytes);  // L did not grow
   EXPECT_GE(st.rank, 2);                    // the two edges' terms (and a diagonal one of rounding)
-  check("the change");
+  expectAsFresh(*solver, slab, "the change");
   // c grounded: its row leaves L by K_ff's pattern
   slab.grounded.insert(std::lower_bound(slab.grounded.begin(), slab.grounded.end(), nc), nc);
   const std::vector<int> grounding = {nc};
   const ElectricUpdateStats gr = solver->updateMatrix(slab.K, slab.grounded, &grounding);
   EXPECT_FALSE(gr.fellBack) << gr.fallbackReason;
   EXPECT_EQ(gr.droppedNodes, 1);
-  check("c grounded");
+  expectAsFresh(*solver, slab, "c grounded");
 }
 
 // Removing most of the slab in one step is a larger change than an update pays for: the

@@ -1,6 +1,7 @@
 // thread_priority.cpp - see thread_priority.h.
 #include "tools/app/thread_priority.h"
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 
@@ -25,10 +26,8 @@ int idleThreadsNamed(const std::string& prefix, bool andThisThread) {
     std::ifstream comm(task.path() / "comm");
     std::string name;
     if (!std::getline(comm, name) || name.compare(0, prefix.size(), prefix) != 0) continue;
-    try {
-      moved += idle(static_cast<pid_t>(std::stol(task.path().filename().string()))) ? 1 : 0;
-    } catch (const std::exception&) {  // not a thread id
-    }
+    moved +=
+        idle(static_cast<pid_t>(std::strtol(task.path().filename().c_str(), nullptr, 10))) ? 1 : 0;
   }
   return moved;
 #else
