@@ -21,8 +21,13 @@
 //   but is recomputed whenever the contact set or the matrix changes, which on the slab
 //   benchmark costs more than it saves (`esim bench electric --pcg-preconditioner ic`).
 // setMatrix only replaces the matrix: the warm start carries over, so a small conductivity
-// change costs a few iterations. updateMatrix (a cut) is setMatrix: O(nnz), nothing to
-// update.
+// change costs a few iterations. updateMatrix (a cut) takes the change in place (FreeBase:
+// read from the changed nodes' columns when told them, the nodes leaving the free set kept
+// as identity rows), so the aggregates stay those of the last setMatrix: the nodes that left
+// are out of the coarse space, as the contact rows are, and their rows stay exactly 0 in
+// CG's iterates. Before (setMatrix at every removal: the node classes' search, K_ff copied
+// anew, the graph compared or aggregated again) it cost O(nnz) (README, "The potential's
+// two-level preconditioner").
 // Not converging is an error (esim::RunError naming the residual), never a silent result.
 // Single-threaded (Eigen without OpenMP), deterministic.
 #include <Eigen/IterativeLinearSolvers>
@@ -84,44 +89,59 @@ class PcgSolver final : public ElectricSolver {
   }
 
   void setMatrix(const SparseMatrix& K, const std::vector<int>& grounded) override {
-    const ResetOnThrow guard(classes_);
-    classes_.build(K, grounded);
-    kff_ = restrictToFree(K, classes_);
-    system_ = kff_;  // a new pattern: the preconditioner is computed again
+    const ResetOnThrow guard(free_.current);
+    free_.set(K, grounded);
+    system_ = free_.matrix;  // a new pattern: the preconditioner is computed again
     if (options_.pcgPreconditioner == PcgPreconditioner::TwoLevel)
-      coarse_.setGraph(kff_, kAggregationPasses);
+      coarse_.setGraph(free_.matrix, kAggregationPasses);
+    dropped_.clear();
     prepared_ = false;
   }
 
-  // a new matrix is all pcg needs (O(nnz); the warm start carries over)
+  // the change in place (the warm start carries over); setMatrix where FreeBase cannot
   ElectricUpdateStats updateMatrix(const SparseMatrix& K, const std::vector<int>& grounded,
-                                   const std::vector<int>* /*changedNodes*/) override {
-    setMatrix(K, grounded);
-    return {};
+                                   const std::vector<int>* changedNodes) override {
+    ESIM_CHECK(free_.current.n > 0);  // setMatrix before updateMatrix
+    const ResetOnThrow guard(free_.current);
+    const BaseChange change = free_.diff(K, grounded, changedNodes);
+    ElectricUpdateStats stats;
+    if (!change.fallback.empty()) {
+      setMatrix(K, grounded);
+      stats.fellBack = true;
+      stats.fallbackReason = change.fallback;
+      return stats;
+    }
+    stats.changedNodes = static_cast<int>(change.touched.size());
+    stats.droppedNodes = static_cast<int>(change.dropped.size());
+    if (change.empty()) return stats;
+    free_.apply(change);
+    dropped_.insert(dropped_.end(), change.dropped.begin(), change.dropped.end());
+    prepared_ = false;  // new values: the preconditioner is computed again
+    return stats;
   }
 
   ElectricSolveStats solve(const std::vector<int>& contact, double voltageV,
                            Eigen::VectorXd& potential) override {
-    ESIM_CHECK(classes_.n > 0);  // setMatrix before solve
     ElectricSolveStats stats;
-    const std::vector<int> cf = classes_.contactFreeIndices(contact);
-    if (cf.empty()) {
-      potential.setZero(classes_.n);
-      return stats;
-    }
-    const int nf = classes_.numFree();
+    const std::vector<int> cf = free_.contactsOrZero(contact, potential);
+    if (cf.empty()) return stats;
+    const int nf = free_.size();
     Eigen::VectorXd b;
-    dirichletSystem(kff_, cf, voltageV, system_, b);
-    // warm start from the input potential
+    dirichletSystem(free_.matrix, cf, voltageV, system_, b);
+    // warm start from the input potential (the rows that left the free set: 0, their b)
     Eigen::VectorXd x = Eigen::VectorXd::Zero(nf);
-    if (potential.size() == classes_.n && potential.allFinite())
-      for (int i = 0; i < nf; ++i) x[i] = potential[classes_.freeNodes[i]];
+    if (potential.size() == free_.base.n && potential.allFinite())
+      for (int i = 0; i < nf; ++i)
+        if (free_.active[i]) x[i] = potential[free_.base.freeNodes[i]];
     // the contact rows are decoupled identity rows: solve them as 0 = 0 so that the
     // relative residual measures the unknowns only (u_c is scattered below)
     for (int c : cf) x[c] = b[c] = 0.0;
     if (!prepared_ || cf != preparedContact_) {  // the preconditioner of this system
       if (options_.pcgPreconditioner == PcgPreconditioner::TwoLevel) {
-        coarse_.compute(system_, cf);  // the contact rows out of its coarse space
+        // the contact rows, and those that left the free set, out of its coarse space
+        std::vector<int> excluded = cf;
+        excluded.insert(excluded.end(), dropped_.begin(), dropped_.end());
+        coarse_.compute(system_, excluded);
       } else if (options_.pcgPreconditioner == PcgPreconditioner::IncompleteCholesky) {
         ic_.compute(system_);
         ESIM_VERIFY(ic_.info() == Eigen::Success, "pcg: incomplete Cholesky preconditioner failed");
@@ -162,16 +182,16 @@ class PcgSolver final : public ElectricSolver {
             messageNumber(options_.pcgTolerance) + "; raise solvers.electric.max_iterations (now " +
             std::to_string(options_.pcgMaxIterations) +
             "), loosen the tolerance, or use a direct strategy (capacitance)");
-    scatterPotential(classes_, x, cf, voltageV, potential);
+    free_.scatter(x, cf, voltageV, potential);
     return stats;
   }
 
   double memoryBytes() const override {
-    const double nnz = static_cast<double>(kff_.nonZeros());
+    const double nnz = static_cast<double>(free_.matrix.nonZeros());
     const double preconditioner =
         options_.pcgPreconditioner == PcgPreconditioner::IncompleteCholesky ? 12.0 * nnz
         : options_.pcgPreconditioner == PcgPreconditioner::TwoLevel         ? coarse_.memoryBytes()
-                                                                            : 8.0 * kff_.rows();
+                                                                            : 8.0 * free_.size();
     return 2.0 * 12.0 * nnz + preconditioner;
   }
   const char* name() const override { return "pcg"; }
@@ -202,9 +222,9 @@ class PcgSolver final : public ElectricSolver {
                                           Eigen::DiagonalPreconditioner<double>>;
 
   ElectricSolverOptions options_;
-  NodeClasses classes_;
-  SparseMatrix kff_;
-  SparseMatrix system_;
+  FreeBase free_;             // K_ff in base indices (the nodes that left: identity rows)
+  std::vector<int> dropped_;  // base indices that left the free set since setMatrix
+  SparseMatrix system_;       // free_.matrix with the contact rows set to the identity
   using TwoLevel =
       Eigen::ConjugateGradient<SparseMatrix, Eigen::Lower | Eigen::Upper, TwoLevelAdapter>;
   Ic ic_;

@@ -68,7 +68,8 @@
 //                   the input potential, Jacobi or incomplete-Cholesky
 //                   preconditioner, stopping at ||r|| <= pcgTolerance ||b||.
 //                   setMatrix: only the matrix is replaced (the warm start stays);
-//                   updateMatrix is setMatrix.
+//                   updateMatrix: the change in place (FreeBase), the preconditioner's
+//                   aggregates kept.
 // All strategies run with explicit thread counts (OpenBLAS set to `threads`,
 // Eigen single-threaded) and are deterministic for a given input.
 // Ownership: a solver owns copies of what it needs; K is not referenced after
@@ -87,7 +88,7 @@
 //     fresh assembly gives that), otherwise they only count as changed rows. Given
 //     changedNodes (every node whose column of K may differ from the last K: a cut's
 //     removed elements' nodes), the FreeBase strategies (refactor, dense-inverse,
-//     capacitance, downdate) read only those columns, their neighbours' and a spanning
+//     capacitance, downdate, pcg) read only those columns, their neighbours' and a spanning
 //     forest's paths to the ground: O(the change), with the same result bit for bit
 //     (FreeBase::diff; it takes the O(nnz) way where a change is not a removal);
 //   - nodes may leave the free set (no alive element left, an island cut off from the
@@ -106,7 +107,9 @@
 //     machine): capacitance 0.12-0.35 s vs 0.7-2.0 s for setMatrix at 50k nodes,
 //     with ~340 cached columns corrected, and the next solve of a cached contact set
 //     costs < 1 ms instead of solving its columns; refactor 7-24 ms (next solve
-//     refactors as always); pcg = setMatrix; dense-inverse 0.1 s vs 5 s at 8k nodes.
+//     refactors as always); pcg 0.4-0.7 ms vs 14-15 ms for its old setMatrix at 50k
+//     nodes (5-95 tets, README "The potential's two-level preconditioner");
+//     dense-inverse 0.1 s vs 5 s at 8k nodes.
 // Capacitance after a cut, in this order: updateMatrix(K, grounded);
 // setContactCandidates(new surface nodes); prefetch(newly exposed nodes the tool may
 // touch) - all outside the frame loop, so the frame's solve finds its columns cached.
