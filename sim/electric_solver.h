@@ -55,7 +55,8 @@
 //                   refreshed on a thread every localRefreshFrames solves (see
 //                   electric_local.cpp; its error measured in README "The potential
 //                   solved around the tool, built"). setMatrix / updateMatrix: an O(nnz)
-//                   copy; the full solver takes the matrix at its next refresh.
+//                   copy; the full solver takes the matrix at its next refresh (a cut as
+//                   pcg's update in place, told the changed nodes since it last took one).
 //   downdate      - capacitance's algebra on one simplicial LDL' factor of K_ff kept
 //                   exact through a cut: updateMatrix deletes the rows leaving the free
 //                   set and applies the change by low-rank updates and downdates (the
@@ -228,10 +229,15 @@ inline constexpr double kAutoDenseMaxFreeNodes = 3000;
 // free; esim bench cut --sizes 100000 --frames 20 --strategy update --electric pcg,downdate
 // --stages, one run, 2026-12-07): median 1146 against 1238 ms, p95 3289 against 3418 ms, the
 // potential's median 84 against 332 ms (its factor's update 118 against 57 ms a removal), the
-// CPU 2741 against 2816 ms a frame, the same 3977 tets removed. So auto takes downdate for a
-// cut up to 100 000 free nodes (the largest measured rounded up, as 47 753 was to 50 000); pcg
-// above (less memory, not measured).
-inline constexpr double kAutoDowndateMaxFreeNodes = 100000;
+// CPU 2741 against 2816 ms a frame, the same 3977 tets removed. 149 940 nodes (145 488 free;
+// the same command at --sizes 150000, one run, 2026-12-07, a later session, pcg's update in
+// place by then): median 2303 against 2392 ms, p95 6048 against 5965 ms, the potential's
+// median 104 against 477 ms (its factor's update 195 against 2.5 ms a removal, p95 778
+// against 4.4), the CPU 5194 against 5373 ms a frame, the same 5824 tets removed, a peak of
+// 8.6 GB. So auto takes downdate for a cut up to 150 000 free nodes (the largest measured
+// rounded up, as 47 753 was to 50 000 and 96 709 to 100 000); pcg above (less memory, not
+// measured).
+inline constexpr double kAutoDowndateMaxFreeNodes = 150000;
 
 struct ElectricSolveStats {
   bool refactored = false;   // refactor: the matrix was factorized in this solve

@@ -8,6 +8,10 @@
 #include "sim/io/scenario_schema.h"
 
 #include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "sim/electric_solver.h"
 
 namespace esim::scenario_detail {
 
@@ -289,10 +293,13 @@ const std::vector<Field>& schema() {
                "a thread; README 'The potential solved around the tool, built'), "
                "downdate (one LDL' factor kept exact through a cut by low-rank "
                "downdates, each contact's path up its elimination tree solved on first "
-               "touch), or auto: the dense inverse up "
-               "to 3000 nodes off the return electrode; above, for a cut in rebuild mode "
-               "update, downdate up to 50000 and pcg beyond, capacitance otherwise (the "
-               "faster, measured: README 'The cut')"));
+               "touch), or auto: the dense inverse up to " +
+                   std::to_string(std::lround(kAutoDenseMaxFreeNodes)) +
+                   " nodes off the return electrode; above, for a cut in rebuild mode "
+                   "update, downdate up to " +
+                   std::to_string(std::lround(kAutoDowndateMaxFreeNodes)) +
+                   " and pcg beyond, capacitance otherwise (the faster, measured: README "
+                   "'The cut')"));
     f.push_back(number("solvers.electric.local_margin_m", ESIM_REF(solvers.electricLocalMarginM),
                        "m", positive(10.0),
                        "local: the nodes within this distance of a contact node are solved each "
