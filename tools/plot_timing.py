@@ -7,7 +7,9 @@ Usage: plot_timing.py RUN_DIR [-o PNG]
    (budget, scenario, the phases the scene has).
 2. Top panel: per frame, the interactive stages stacked (physics stages, snapshot, render),
    the 33.3 ms budget line, frames that waited for a background rebuild marked; frames
-   taller than the axis (rebuilds) are clipped and drawn as triangles with their total.
+   taller than the axis (rebuilds) are clipped and drawn as triangles with their total. The
+   frame period (period_ms: between frames done, what a viewer sees; with the drawing on
+   its own thread it is shorter than the stacked sum) as a line, clipped to the axis.
 3. Lower panels, where the scene has them: Joule power and maximum temperature, and the
    tets removed so far.
 4. Write RUN_DIR/timing.png (or -o).
@@ -148,6 +150,11 @@ def main():
         base = upper
     ax.axhline(budget, color="crimson", linestyle="--", linewidth=1.2,
                label="%.1f ms (30 Hz)" % budget)
+    if "period_ms" in header:
+        periods = [number(r["period_ms"]) for r in rows]
+        over_period = sum(1 for p in periods if p > budget)
+        ax.step(time_s, [min(p, top) for p in periods], where="mid", color="black",
+                linewidth=0.9, label="frame period (%d over)" % over_period)
     over = sum(1 for t in total if t > budget)
     if clip:
         xs = [t for t, v in zip(time_s, total) if v > top]

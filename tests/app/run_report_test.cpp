@@ -74,8 +74,12 @@ std::vector<FrameRecord> structuralFrames() {
 TEST(RunReport, StageSumsMatchTheFrameTotals) {
   const std::vector<FrameRecord> records = structuralFrames();
   const std::vector<double> startUs = {0, 40000, 80000};
-  const std::string csv = timingCsv(records);
-  const nlohmann::json timing = timingJson(records, {{"scenario", "inline"}});
+  const std::vector<double> periods = framePeriodsMs({38000, 70000, 240000});
+  const std::string csv = timingCsv(records, periods);
+  nlohmann::json extra = {{"scenario", "inline"}};
+  extra["frame_period"] = statsJson(seriesStats(periods));
+  extra["frame_period"]["frames_over_budget"] = countOverBudget(periods);
+  const nlohmann::json timing = timingJson(records, extra);
   const nlohmann::json trace = chromeTrace(records, startUs);
   test::checkTimingReports(csv, timing, trace, 1e-9 + 1e-4);
   // the numbers themselves
@@ -90,6 +94,11 @@ TEST(RunReport, StageSumsMatchTheFrameTotals) {
   EXPECT_NEAR(timing["physics_total"]["max_ms"].get<double>(), interactiveMs(records[2]) - 13.0,
               1e-12);
   EXPECT_EQ(timing["scenario"], "inline");
+  const auto rows = test::parseTimingCsv(csv);
+  EXPECT_EQ(rows[0].at("period_ms"), "38.0000");
+  EXPECT_EQ(rows[1].at("period_ms"), "32.0000");
+  EXPECT_EQ(rows[2].at("period_ms"), "170.0000");
+  EXPECT_EQ(timing["frame_period"]["frames_over_budget"], 2);
   // 8 + 2 skipped, 7 + 3 skipped, 10 events; the skipped ones flagged
   EXPECT_EQ(trace["traceEvents"].size(), 30u);
   int skippedEvents = 0;
@@ -109,7 +118,7 @@ TEST(RunReport, AFrameAtTheBudgetIsJudgedAsItIsPrinted) {
   EXPECT_FALSE(overBudget(r[0]));
   EXPECT_TRUE(overBudget(r[1]));
   EXPECT_FALSE(overBudget(r[2]));
-  const std::string csv = timingCsv(r);
+  const std::string csv = timingCsv(r, {40.0, 40.0, 40.0});
   EXPECT_NE(csv.find(",33.3333,0,"), std::string::npos) << csv;
   EXPECT_NE(csv.find(",33.3334,1,"), std::string::npos) << csv;
   EXPECT_EQ(timingJson(r, {})["frames_over_budget"].get<int>(), 1);
@@ -131,13 +140,13 @@ TEST(RunReport, PeriodsOverTheBudgetAreCounted) {
 }
 
 TEST(RunReport, CsvHasTheColumnsThePlotNeeds) {
-  const std::string csv = timingCsv(structuralFrames());
+  const std::string csv = timingCsv(structuralFrames(), {40.0, 30.0, 170.0});
   std::string header;
   const auto rows = test::parseTimingCsv(csv, &header);
   EXPECT_EQ(header,
             "frame,time_s,move_tool_ms,find_contacts_ms,solve_potential_ms,heat_ms,"
             "solve_stress_ms,rupture_ms,rebuild_ms,snapshot_ms,render_ms,encode_wait_ms,"
-            "interactive_ms,over_budget,generator_on,contacts,power_w,max_temperature_c,"
+            "interactive_ms,over_budget,period_ms,generator_on,contacts,power_w,max_temperature_c,"
             "rebuild_wait_ms,max_von_mises_pa,removed_tets");
   ASSERT_EQ(rows.size(), 3u);
   EXPECT_EQ(rows[1].at("solve_potential_ms"), "skipped");
@@ -155,7 +164,7 @@ TEST(RunReport, AbsentStagesHaveNoColumnAndNoEvent) {
       record(0, {{Stage::MoveTool, 0.01}, {Stage::SolvePotential, 1.0}, {Stage::Snapshot, 0.1}}),
       record(1, {{Stage::MoveTool, 0.01}, {Stage::Snapshot, 0.1}},
              {{Stage::SolvePotential, 0.002}})};
-  const std::string csv = timingCsv(records);
+  const std::string csv = timingCsv(records, {20.0, 33.333});
   EXPECT_EQ(csv.find("heat_ms"), std::string::npos);
   EXPECT_EQ(csv.find("removed_tets"), std::string::npos);
   EXPECT_EQ(csv.find("rebuild_wait_ms"), std::string::npos);
@@ -173,16 +182,17 @@ TEST(RunReport, TheStreamedRowsAreTimingCsvs) {
   const std::string path = (dir / "timing.csv.partial").string();
   TimingCsvStream stream(path);
   EXPECT_FALSE(std::filesystem::exists(path));  // nothing before the first frame
-  for (const FrameRecord& r : records) stream.add(r);
+  const std::vector<double> periods = {40.0, 30.0, 170.0};
+  for (size_t f = 0; f < records.size(); ++f) stream.add(records[f], periods[f]);
   std::ifstream in(path, std::ios::binary);
   const std::string streamed{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-  EXPECT_EQ(streamed, timingCsv(records));
+  EXPECT_EQ(streamed, timingCsv(records, periods));
   stream.remove();
   EXPECT_FALSE(std::filesystem::exists(path));
-  stream.add(records[0]);  // removed: the stream has stopped
+  stream.add(records[0], 1.0);  // removed: the stream has stopped
   EXPECT_FALSE(std::filesystem::exists(path));
   TimingCsvStream nowhere((dir / "no such folder" / "timing.csv.partial").string());
-  EXPECT_NO_THROW(nowhere.add(records[0]));
+  EXPECT_NO_THROW(nowhere.add(records[0], 1.0));
   EXPECT_NO_THROW(nowhere.remove());
   std::filesystem::remove_all(dir);
 }

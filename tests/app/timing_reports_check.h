@@ -7,7 +7,9 @@
 //     statistics (p50 <= p95 <= p99 <= max), physics_total and interactive_total over every
 //     frame, frames_over_budget equal to the CSV's over_budget count;
 //   - timing.csv: one row per frame, a column per stage of timing.json's stages, and per
-//     stage the mean and max of its "ran" cells equal timing.json's mean_ms and max_ms;
+//     stage the mean and max of its "ran" cells equal timing.json's mean_ms and max_ms; a
+//     period in every row, whose mean, max and count over the budget are timing.json's
+//     frame_period's where it has one (a run's);
 //   - trace.json: complete ("X") events of known stages, back to back within a frame in
 //     stage order on each track (1: the loop; 2: the drawing thread's render, encode_wait
 //     and write_labels, after the frame's physics), frames not overlapping on a track; per frame
@@ -140,6 +142,26 @@ inline void checkTimingReports(const std::string& csvText, const nlohmann::json&
     over += r.at("over_budget") == "1";
   }
   EXPECT_EQ(timing["frames_over_budget"].get<int>(), over);
+  // ---- the periods: every row has one; where timing.json has frame_period (a run's), its
+  // mean, maximum and count over the budget are the column's ----
+  double periodSum = 0, periodMax = 0;
+  int periodsOver = 0;
+  for (const auto& r : rows) {
+    double ms = -1;
+    ASSERT_TRUE(cellMs(r.at("period_ms"), &ms)) << "frame " << r.at("frame");
+    EXPECT_GE(ms, 0) << "frame " << r.at("frame");
+    periodSum += ms;
+    periodMax = std::max(periodMax, ms);
+    periodsOver += ms > budget;
+  }
+  if (timing.contains("frame_period") && frames > 0) {
+    const nlohmann::json& p = timing["frame_period"];
+    checkStats(p, "frame_period");
+    EXPECT_EQ(p["frames_ran"].get<int>(), frames);
+    EXPECT_NEAR(p["mean_ms"].get<double>(), periodSum / frames, tolMs);
+    EXPECT_NEAR(p["max_ms"].get<double>(), periodMax, tolMs);
+    EXPECT_EQ(p["frames_over_budget"].get<int>(), periodsOver);
+  }
   // ---- trace.json: per frame, back to back, summing to the frame's interactive time ----
   ASSERT_TRUE(trace.contains("traceEvents")) << trace.dump().substr(0, 200);
   std::map<int, std::vector<nlohmann::json>> byFrame;

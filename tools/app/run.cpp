@@ -977,7 +977,7 @@ std::string writeReports(const Setup& s, const FrameOutputs& out, const LoopResu
   const nlohmann::json extra = timingExtra(s, out, loop);
   const nlohmann::json timing = timingJson(loop.records, extra);
   writeFileAtomic(dir / "timing.json", jsonText(timing, 2) + "\n");
-  writeFileAtomic(dir / "timing.csv", timingCsv(loop.records));
+  writeFileAtomic(dir / "timing.csv", timingCsv(loop.records, framePeriodsMs(loop.frameDoneUs)));
   writeFileAtomic(
       dir / "trace.json",
       jsonText(chromeTrace(loop.records, loop.frameStartUs,
@@ -1047,10 +1047,12 @@ LoopResult frameLoop(Setup& s, FrameOutputs& out, TimingCsvStream& csv, bool qui
       loop.energyJ = t.energyJ;
       loop.maxTemperatureSeenC = t.maxSeenC;
       loop.temperatureNowC = t.nowC;
+      const double periodMs =
+          (d.doneUs - (loop.frameDoneUs.empty() ? 0.0 : loop.frameDoneUs.back())) / 1000.0;
       loop.frameDoneUs.push_back(d.doneUs);
       loop.renderStartUs.push_back(d.renderStartUs);
       loop.records.push_back(std::move(d.record));
-      csv.add(loop.records.back());
+      csv.add(loop.records.back(), periodMs);
       progress.update(static_cast<int>(loop.records.size()), loop.records.back().timeS);
     }
   };

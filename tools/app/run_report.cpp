@@ -14,6 +14,7 @@
 #include <sstream>
 #include <thread>
 
+#include "sim/core_error.h"
 #include "tools/app/memory_room.h"
 
 namespace esim::app {
@@ -85,12 +86,12 @@ namespace {
 void timingCsvHeader(std::ostream& os, const std::vector<Stage>& present, bool structural) {
   os << "frame,time_s";
   for (Stage s : present) os << ',' << stageName(s) << "_ms";
-  os << ",interactive_ms,over_budget,generator_on,contacts,power_w,max_temperature_c";
+  os << ",interactive_ms,over_budget,period_ms,generator_on,contacts,power_w,max_temperature_c";
   os << (structural ? ",rebuild_wait_ms,max_von_mises_pa,removed_tets\n" : "\n");
 }
 
-void timingCsvRow(std::ostream& os, const FrameRecord& r, const std::vector<Stage>& present,
-                  bool structural) {
+void timingCsvRow(std::ostream& os, const FrameRecord& r, double periodMs,
+                  const std::vector<Stage>& present, bool structural) {
   os.setf(std::ios::fixed);
   os.precision(kCsvMsDecimals);
   os << r.frame << ',' << r.timeS;
@@ -104,8 +105,8 @@ void timingCsvRow(std::ostream& os, const FrameRecord& r, const std::vector<Stag
       os << ',' << r.ms[i];
   }
   const double im = interactiveMs(r);
-  os << ',' << im << ',' << (overBudget(r) ? 1 : 0) << ',' << (r.generatorOn ? 1 : 0) << ','
-     << r.contactNodes << ',';
+  os << ',' << im << ',' << (overBudget(r) ? 1 : 0) << ',' << periodMs << ','
+     << (r.generatorOn ? 1 : 0) << ',' << r.contactNodes << ',';
   os.precision(6);
   os << r.powerW << ',' << r.maxTemperatureC;
   if (structural) {
@@ -139,16 +140,19 @@ bool writeAll(int fd, const std::string& text) {
 
 }  // namespace
 
-std::string timingCsv(const std::vector<FrameRecord>& records) {
+std::string timingCsv(const std::vector<FrameRecord>& records,
+                      const std::vector<double>& periodsMs) {
+  ESIM_CHECK(periodsMs.size() == records.size());
   const std::vector<Stage> present = presentStages(records);
   const bool structural = stagePresent(records, Stage::SolveStress);
   std::ostringstream os;
   timingCsvHeader(os, present, structural);
-  for (const auto& r : records) timingCsvRow(os, r, present, structural);
+  for (size_t f = 0; f < records.size(); ++f)
+    timingCsvRow(os, records[f], periodsMs[f], present, structural);
   return os.str();
 }
 
-void TimingCsvStream::add(const FrameRecord& record) {
+void TimingCsvStream::add(const FrameRecord& record, double periodMs) {
   if (stopped_) return;
   std::ostringstream os;
   if (fd_ < 0) {
@@ -162,7 +166,7 @@ void TimingCsvStream::add(const FrameRecord& record) {
     }
     timingCsvHeader(os, present_, structural_);
   }
-  timingCsvRow(os, record, present_, structural_);
+  timingCsvRow(os, record, periodMs, present_, structural_);
   if (!writeAll(fd_, os.str())) remove();  // (a cut row is never left)
 }
 

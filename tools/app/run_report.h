@@ -37,10 +37,13 @@ constexpr int kCsvMsDecimals = 4;  // timing.csv's times [ms]
 // it (kCsvMsDecimals), so that a row's over_budget never contradicts its interactive_ms
 bool overBudget(const FrameRecord& record);
 
-// timing.csv: frame,time_s,<stage columns>,interactive_ms,over_budget,generator_on,contacts,
-// power_w,max_temperature_c[,rebuild_wait_ms,max_von_mises_pa,removed_tets (structural)]
-// a stage the scene did not build has no column; "skipped" where it had nothing to do
-std::string timingCsv(const std::vector<FrameRecord>& records);
+// timing.csv: frame,time_s,<stage columns>,interactive_ms,over_budget,period_ms,generator_on,
+// contacts,power_w,max_temperature_c[,rebuild_wait_ms,max_von_mises_pa,removed_tets
+// (structural)]; a stage the scene did not build has no column, "skipped" where it had nothing
+// to do. periodsMs: each frame's period (framePeriodsMs: since the frame before it was done,
+// what a viewer sees; timing.json's frame_period), one per record
+std::string timingCsv(const std::vector<FrameRecord>& records,
+                      const std::vector<double>& periodsMs);
 
 // timing.csv's rows written as the frames are done, so that a run killed mid-way (the
 // kernel's out-of-memory killer, kill -9) leaves the rows of its frames: the header and a
@@ -54,7 +57,7 @@ class TimingCsvStream {
   ~TimingCsvStream();  // closes the file, which stays (a run that ended before its reports)
   TimingCsvStream(const TimingCsvStream&) = delete;
   TimingCsvStream& operator=(const TimingCsvStream&) = delete;
-  void add(const FrameRecord& record);
+  void add(const FrameRecord& record, double periodMs);
   void remove();
 
  private:
