@@ -293,34 +293,41 @@ inline bool contains(const std::string& s, const std::string& what) {
 }
 
 // the ways the model follows a removal, which every removal case runs in: rebuilt
-// (synchronous), edited in place (update), and edited in place with the structural phase's
-// coarse method (update_coarse: K_c and the region updated, the whole factor's update deferred)
+// (synchronous), edited in place (update), edited in place with the structural phase's
+// coarse method (update_coarse: K_c and the region updated, the whole factor's update
+// deferred), and edited in place with the potential by local or by pcg (their updates in
+// place: the inner solvers' and pcg's own, FreeBase)
 struct RemovalWay {
   RebuildMode mode;
   StructuralSolveMethod structural;
-  bool localPotential = false;  // solvers.electric.strategy local (else the case's own)
+  ElectricStrategy electric = ElectricStrategy::Auto;  // Auto: the case's own strategy
 };
 inline void applyWay(const RemovalWay& w, SimulationConfig& c) {
   c.rebuildMode = w.mode;
   c.structural.solveMethod = w.structural;
-  if (w.localPotential) c.electricSolver.strategy = ElectricStrategy::Local;
+  if (w.electric != ElectricStrategy::Auto) c.electricSolver.strategy = w.electric;
 }
 inline auto removalWays() {
-  return ::testing::Values(RemovalWay{RebuildMode::Synchronous, StructuralSolveMethod::full},
-                           RemovalWay{RebuildMode::Update, StructuralSolveMethod::full},
-                           RemovalWay{RebuildMode::Update, StructuralSolveMethod::coarse},
-                           RemovalWay{RebuildMode::Update, StructuralSolveMethod::full, true});
+  return ::testing::Values(
+      RemovalWay{RebuildMode::Synchronous, StructuralSolveMethod::full},
+      RemovalWay{RebuildMode::Update, StructuralSolveMethod::full},
+      RemovalWay{RebuildMode::Update, StructuralSolveMethod::coarse},
+      RemovalWay{RebuildMode::Update, StructuralSolveMethod::full, ElectricStrategy::Local},
+      RemovalWay{RebuildMode::Update, StructuralSolveMethod::full, ElectricStrategy::Pcg});
 }
 // gtest prints the parameter by this (not as raw bytes, which showed the struct's padding)
 inline void PrintTo(const RemovalWay& w, std::ostream* os) {
   *os << rebuildModeName(w.mode)
-      << (w.structural == StructuralSolveMethod::coarse ? ", coarse structural" : "")
-      << (w.localPotential ? ", local potential" : "");
+      << (w.structural == StructuralSolveMethod::coarse ? ", coarse structural" : "");
+  if (w.electric != ElectricStrategy::Auto)
+    *os << ", " << electricStrategyName(w.electric) << " potential";
 }
 inline std::string removalWayName(const ::testing::TestParamInfo<RemovalWay>& info) {
   return std::string(rebuildModeName(info.param.mode)) +
          (info.param.structural == StructuralSolveMethod::coarse ? "_coarse" : "") +
-         (info.param.localPotential ? "_local_potential" : "");
+         (info.param.electric != ElectricStrategy::Auto
+              ? std::string("_") + electricStrategyName(info.param.electric) + "_potential"
+              : "");
 }
 
 }  // namespace esim::hard
