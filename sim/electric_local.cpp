@@ -201,7 +201,7 @@ class LocalSolver final : public ElectricSolver {
       refreshK_ = K_;
       refreshGrounded_ = grounded_;
       refreshChange_ = std::move(fullChange_);
-      fullChange_ = InnerChange{.hasMatrix = true};
+      fullChange_ = InnerChange::taken();
     }
     const bool newMatrix = pending_;
     pending_ = false;
@@ -370,13 +370,19 @@ class LocalSolver final : public ElectricSolver {
                      std::back_inserter(both));
       changedNodes = std::move(both);
     }
+    // nothing pending, a matrix taken
+    static InnerChange taken() {
+      InnerChange c;
+      c.hasMatrix = true;
+      return c;
+    }
     // the matrix to the solver: updateMatrix when it has one, else setMatrix
     void give(ElectricSolver& solver, const SparseMatrix& K, const std::vector<int>& grounded) {
       if (hasMatrix)
         solver.updateMatrix(K, grounded, told ? &changedNodes : nullptr);
       else
         solver.setMatrix(K, grounded);
-      *this = InnerChange{.hasMatrix = true};
+      *this = InnerChange::taken();
     }
   };
 

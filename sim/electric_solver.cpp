@@ -193,7 +193,12 @@ void NodeClasses::build(const SparseMatrix& K, const std::vector<int>& grounded,
   }
 }
 
-std::vector<int> NodeClasses::contactFreeIndices(const std::vector<int>& contact) const {
+namespace {
+
+// checks contact (sorted, in range, not grounded) and returns freeIndex of its free nodes
+std::vector<int> contactIndices(const std::vector<int>& contact, int n,
+                                const std::vector<std::uint8_t>& isGrounded,
+                                const std::vector<int>& freeIndex) {
   std::vector<int> out;
   out.reserve(contact.size());
   for (size_t k = 0; k < contact.size(); ++k) {
@@ -208,6 +213,12 @@ std::vector<int> NodeClasses::contactFreeIndices(const std::vector<int>& contact
     if (freeIndex[c] >= 0) out.push_back(freeIndex[c]);
   }
   return out;
+}
+
+}  // namespace
+
+std::vector<int> NodeClasses::contactFreeIndices(const std::vector<int>& contact) const {
+  return contactIndices(contact, n, isGrounded, freeIndex);
 }
 
 SparseMatrix restrictToFree(const SparseMatrix& K, const NodeClasses& classes) {
@@ -232,7 +243,7 @@ SparseMatrix restrictToFree(const SparseMatrix& K, const NodeClasses& classes) {
 // ---- base index space ----
 
 void FreeBase::set(const SparseMatrix& K, const std::vector<int>& grounded) {
-  current = NodeClasses{};
+  current = CurrentClasses{};
   base.build(K, grounded, &towardGround);
   matrix = restrictToFree(K, base);
   active.assign(base.numFree(), 1);
@@ -240,7 +251,11 @@ void FreeBase::set(const SparseMatrix& K, const std::vector<int>& grounded) {
   walked.assign(base.n, 0);
   position.assign(base.numFree(), -1);
   epoch = walks = 0;
-  current = base;
+  current.n = base.n;
+  current.freeIndex = base.freeIndex;  // the base indices are the free indices now
+  current.isGrounded = base.isGrounded;
+  current.grounded = base.grounded;
+  current.freeCount = base.numFree();
 }
 
 BaseChange FreeBase::diff(const SparseMatrix& K, const std::vector<int>& grounded,
@@ -257,9 +272,10 @@ namespace {
 // the entries of the base matrix's column j whose bits change to `values` (its new values,
 // in its storage order from `first`), into ch (positions, values, the delta's triplets), and
 // the rows staying free that the change touches
+template <class Stays>
 void recordColumn(const SparseMatrix& matrix, int j, const double* values, int first,
-                  const std::vector<std::uint8_t>& stays, BaseChange& ch,
-                  std::vector<Eigen::Triplet<double>>& delta, std::vector<int>& touched) {
+                  const Stays& stays, BaseChange& ch, std::vector<Eigen::Triplet<double>>& delta,
+                  std::vector<int>& touched) {
   const int* outer = matrix.outerIndexPtr();
   const int* inner = matrix.innerIndexPtr();
   const double* old = matrix.valuePtr();
@@ -273,7 +289,7 @@ void recordColumn(const SparseMatrix& matrix, int j, const double* values, int f
     const double d = v - old[p];
     if (d != 0.0) {
       delta.emplace_back(i, j, d);
-      if (stays[i] && stays[j]) {
+      if (stays(i) && stays(j)) {
         touched.push_back(i);
         touched.push_back(j);
       }
@@ -281,29 +297,41 @@ void recordColumn(const SparseMatrix& matrix, int j, const double* values, int f
   }
 }
 
+// the grounded ids, and those joining and leaving the ground against the current ones
+void groundChange(const std::vector<int>& grounded, const std::vector<int>& now, BaseChange& ch) {
+  ch.grounded = grounded;
+  std::set_difference(grounded.begin(), grounded.end(), now.begin(), now.end(),
+                      std::back_inserter(ch.groundJoined));
+  std::set_difference(now.begin(), now.end(), grounded.begin(), grounded.end(),
+                      std::back_inserter(ch.groundLeft));
+}
+
 }  // namespace
 
 BaseChange FreeBase::diffAll(const SparseMatrix& K, const std::vector<int>& grounded) const {
   BaseChange ch;
   std::vector<int> forest;
-  ch.classes.build(K, grounded, &forest);
-  if (ch.classes.n == base.n) towardGround = std::move(forest);  // a fresh guide
-  if (ch.classes.n != base.n) {
+  NodeClasses nc;
+  nc.build(K, grounded, &forest);
+  if (nc.n == base.n) towardGround = std::move(forest);  // a fresh guide
+  if (nc.n != base.n) {
     ch.fallback = "the node count changed";
     return ch;
   }
   for (int i = 0; i < base.n; ++i) {
-    if (ch.classes.freeIndex[i] >= 0 && current.freeIndex[i] < 0) {
+    if (nc.freeIndex[i] >= 0 && current.freeIndex[i] < 0) {
       ch.fallback = "node " + std::to_string(i) + " joined the free set";
       return ch;
     }
   }
+  groundChange(grounded, current.grounded, ch);
   const int m = size();
-  std::vector<std::uint8_t> stays(m, 0);
+  std::vector<std::uint8_t> stayed(m, 0);
   for (int b = 0; b < m; ++b) {
-    stays[b] = ch.classes.freeIndex[base.freeNodes[b]] >= 0;
-    if (active[b] && !stays[b]) ch.dropped.push_back(b);
+    stayed[b] = nc.freeIndex[base.freeNodes[b]] >= 0;
+    if (active[b] && !stayed[b]) ch.dropped.push_back(b);
   }
+  const auto stays = [&stayed](int b) { return stayed[b] != 0; };
   std::vector<Eigen::Triplet<double>> delta;
   std::vector<int> touched;
   std::vector<double> column;
@@ -319,20 +347,21 @@ BaseChange FreeBase::diffAll(const SparseMatrix& K, const std::vector<int>& grou
 // the new values of the base matrix's column j (in its storage order) given which base
 // indices stay free: K's entries between nodes still free, identity rows and columns for the
 // others; a nonzero of K_ff outside the base pattern sets `fallback`
-void FreeBase::newColumn(const SparseMatrix& K, int j, const std::vector<std::uint8_t>& stays,
+template <class Stays>
+void FreeBase::newColumn(const SparseMatrix& K, int j, const Stays& stays,
                          std::vector<double>& column, std::string& fallback) const {
   const int* outer = matrix.outerIndexPtr();
   const int* inner = matrix.innerIndexPtr();
   const int first = outer[j], count = outer[j + 1] - first;
   column.assign(count, 0.0);
   for (int p = 0; p < count; ++p) position[inner[first + p]] = p;
-  if (!stays[j]) {
+  if (!stays(j)) {
     ESIM_CHECK(position[j] >= 0);  // restrictToFree keeps the diagonal of a free node
     column[position[j]] = 1.0;
   } else {
     for (SparseMatrix::InnerIterator it(K, base.freeNodes[j]); it; ++it) {
       const int b = base.freeIndex[it.row()];
-      if (b < 0 || !stays[b]) continue;
+      if (b < 0 || !stays(b)) continue;
       if (position[b] < 0) {
         if (it.value() != 0.0 && fallback.empty())
           fallback = "K_ff gained a nonzero outside the pattern of the last setMatrix";
@@ -390,22 +419,18 @@ bool FreeBase::diffNear(const SparseMatrix& K, const std::vector<int>& grounded,
     return false;
   };
 
-  // the ground's change
-  NodeClasses& nc = ch.classes;
-  nc = current;
-  nc.grounded = grounded;
-  std::vector<int> joined, left;
-  std::set_difference(grounded.begin(), grounded.end(), current.grounded.begin(),
-                      current.grounded.end(), std::back_inserter(joined));
-  std::set_difference(current.grounded.begin(), current.grounded.end(), grounded.begin(),
-                      grounded.end(), std::back_inserter(left));
-  for (int g : joined) nc.isGrounded[g] = 1;
-  for (int g : left) nc.isGrounded[g] = 0;
+  // the ground's change (the classes now are read through it: nothing is copied)
+  groundChange(grounded, current.grounded, ch);
+  const std::vector<int>&joined = ch.groundJoined, &left = ch.groundLeft;
+  const auto groundedNow = [&](int v) {
+    return current.isGrounded[v] ? !std::binary_search(left.begin(), left.end(), v)
+                                 : std::binary_search(joined.begin(), joined.end(), v);
+  };
   for (int g : left)
     if (linked(g)) return false;
   for (int g : joined)
     if (current.freeIndex[g] < 0 && linked(g)) return false;
-  const auto outside = [&](int v) { return current.freeIndex[v] < 0 && !nc.isGrounded[v]; };
+  const auto outside = [&](int v) { return current.freeIndex[v] < 0 && !groundedNow(v); };
   long work = 0;
   for (int c : changed)
     for (SparseMatrix::InnerIterator it(K, c); it; ++it) {
@@ -432,7 +457,7 @@ bool FreeBase::diffNear(const SparseMatrix& K, const std::vector<int>& grounded,
     path.clear();
     bool ok = false;
     for (int x = v;; ++work) {
-      if (nc.isGrounded[x] || mark[x] == connected) {
+      if (groundedNow(x) || mark[x] == connected) {
         ok = true;
         break;
       }
@@ -450,8 +475,8 @@ bool FreeBase::diffNear(const SparseMatrix& K, const std::vector<int>& grounded,
   std::vector<std::pair<int, int>> queue;  // (node, its parent's place in the queue)
   std::vector<int> lost;                   // free nodes now floating
   for (int s : changed) {
-    if (current.freeIndex[s] < 0 || nc.isGrounded[s] || mark[s] == connected ||
-        mark[s] == floating || holds(s))
+    if (current.freeIndex[s] < 0 || groundedNow(s) || mark[s] == connected || mark[s] == floating ||
+        holds(s))
       continue;
     queue.assign(1, {s, -1});
     mark[s] = searched;
@@ -483,27 +508,20 @@ bool FreeBase::diffNear(const SparseMatrix& K, const std::vector<int>& grounded,
     }
   }
 
-  // the new classes: the free nodes less the floating and the newly grounded
-  const auto leaves = [&](int v) { return mark[v] == floating || nc.isGrounded[v]; };
-  bool anyLeft = !lost.empty();
-  for (int g : joined) anyLeft = anyLeft || current.freeIndex[g] >= 0;
-  if (anyLeft) {
-    nc.freeNodes.clear();
-    for (int v : current.freeNodes) {
-      if (leaves(v)) {
-        nc.freeIndex[v] = -1;
-        ch.dropped.push_back(base.freeIndex[v]);
-      } else {
-        nc.freeIndex[v] = static_cast<int>(nc.freeNodes.size());
-        nc.freeNodes.push_back(v);
-      }
-    }
-  }
+  // the free nodes that leave: the floating and the newly grounded
+  for (int v : lost)
+    if (current.freeIndex[v] >= 0) ch.dropped.push_back(current.freeIndex[v]);
+  for (int g : joined)
+    if (current.freeIndex[g] >= 0) ch.dropped.push_back(current.freeIndex[g]);
+  std::sort(ch.dropped.begin(), ch.dropped.end());
+  ch.dropped.erase(std::unique(ch.dropped.begin(), ch.dropped.end()), ch.dropped.end());
+  const auto stays = [&](int b) {
+    const int v = base.freeNodes[b];
+    return current.freeIndex[v] >= 0 && mark[v] != floating && !groundedNow(v);
+  };
 
   // the columns that change: the changed nodes', the dropped ones' and their neighbours'
   const int m = size();
-  std::vector<std::uint8_t> stays(m, 0);
-  for (int b = 0; b < m; ++b) stays[b] = nc.freeIndex[base.freeNodes[b]] >= 0;
   std::vector<int> columns;
   for (int c : changed)
     if (base.freeIndex[c] >= 0) columns.push_back(base.freeIndex[c]);
@@ -532,17 +550,22 @@ double FreeBase::identityResidual(const std::vector<int>& rows, const Eigen::Mat
 
 void FreeBase::apply(const BaseChange& change) {
   ESIM_CHECK(change.fallback.empty() && change.values.size() == change.positions.size());
-  current = change.classes;
+  current.grounded = change.grounded;
+  for (int g : change.groundJoined) current.isGrounded[g] = 1;
+  for (int g : change.groundLeft) current.isGrounded[g] = 0;
+  for (int d : change.dropped) {
+    ESIM_CHECK(active[d]);
+    current.freeIndex[base.freeNodes[d]] = -1;
+    active[d] = 0;
+  }
+  current.freeCount -= static_cast<int>(change.dropped.size());
   double* values = matrix.valuePtr();
   for (size_t k = 0; k < change.positions.size(); ++k)
     values[change.positions[k]] = change.values[k];
-  for (int d : change.dropped) active[d] = 0;
 }
 
 std::vector<int> FreeBase::contactBaseIndices(const std::vector<int>& contact) const {
-  std::vector<int> out = current.contactFreeIndices(contact);
-  for (int& c : out) c = base.freeIndex[current.freeNodes[c]];
-  return out;
+  return contactIndices(contact, current.n, current.isGrounded, current.freeIndex);
 }
 
 std::vector<int> FreeBase::contactsOrZero(const std::vector<int>& contact,

@@ -352,18 +352,20 @@ struct NodeClasses {
   int numFree() const { return static_cast<int>(freeNodes.size()); }
 };
 
-// Forgets the node classes if setMatrix throws, so that a failed setMatrix leaves the
-// solver unusable ("setMatrix must be called before solve") instead of half-built.
+// Forgets the node classes (NodeClasses or CurrentClasses) if setMatrix throws, so that a
+// failed setMatrix leaves the solver unusable ("setMatrix must be called before solve")
+// instead of half-built.
+template <class Classes>
 class ResetOnThrow {
  public:
-  explicit ResetOnThrow(NodeClasses& classes)
+  explicit ResetOnThrow(Classes& classes)
       : classes_(classes), exceptions_(std::uncaught_exceptions()) {}
   ~ResetOnThrow() {
-    if (std::uncaught_exceptions() > exceptions_) classes_ = NodeClasses{};
+    if (std::uncaught_exceptions() > exceptions_) classes_ = Classes{};
   }
 
  private:
-  NodeClasses& classes_;
+  Classes& classes_;
   int exceptions_;
 };
 
@@ -375,12 +377,26 @@ SparseMatrix restrictToFree(const SparseMatrix& K, const NodeClasses& classes);
 // set later keeps its base index with an identity row and column (value 1 on the
 // diagonal, 0 elsewhere), so the base matrix keeps its size and pattern.
 
+// The classes now, in the base index space: edited in place by each update, so that a
+// change costs what it changes (a compact numbering of the free nodes now would be renumbered
+// whole when one leaves)
+struct CurrentClasses {
+  int n = 0;
+  std::vector<int> freeIndex;            // node -> its base index while free, -1 otherwise
+  std::vector<std::uint8_t> isGrounded;  // per node
+  std::vector<int> grounded;             // the grounded ids, sorted
+  int freeCount = 0;                     // free nodes now
+  int numFree() const { return freeCount; }
+};
+
 // the difference between a new (K, grounded) and a FreeBase's current matrix
 struct BaseChange {
-  NodeClasses classes;         // of the new (K, grounded)
+  std::vector<int> grounded;                  // the new grounded ids, sorted
+  std::vector<int> groundJoined, groundLeft;  // nodes joining / leaving the ground, ascending
   std::vector<int> positions;  // the base matrix's entries (storage positions) whose bits change
   std::vector<double> values;  // ... their new values
-  std::vector<int> dropped;    // base indices leaving the free set now, ascending
+  std::vector<int> dropped;    // base indices leaving the free set now (floating or grounded),
+                               // ascending
   std::vector<int> touched;    // base indices staying free whose row changes, ascending
   SparseMatrix delta;          // new - current base matrix (both triangles, changed entries)
   std::string fallback;        // non-empty: cannot be applied in place (why)
@@ -389,7 +405,7 @@ struct BaseChange {
 
 struct FreeBase {
   NodeClasses base;                  // classes at the last setMatrix
-  NodeClasses current;               // classes now (free nodes: a subset of base's)
+  CurrentClasses current;            // classes now (free nodes: a subset of base's)
   SparseMatrix matrix;               // current K_ff in base indices (both triangles)
   std::vector<std::uint8_t> active;  // base index -> still free
   // the spanning forest of the last set (NodeClasses::build's towardGround), its paths mended
@@ -404,22 +420,27 @@ struct FreeBase {
   // the change to (K, grounded); throws Error on bad input. changed == nullptr: O(nnz(K) +
   // nnz(matrix)). Else (sorted, see ElectricSolver::updateMatrix) the same change from the
   // columns of the changed nodes and their neighbours, the ground's change, and the forest
-  // (towardGround) checked from the changed nodes: O(the change x the forest's depth); the
-  // O(nnz) way when a changed column joins a node outside the free set to the rest, a
-  // node leaving the ground keeps an element, or the search grows past a quarter of nnz(K)
+  // (towardGround) checked from the changed nodes: O(the change x the forest's depth), but
+  // for the delta's column index, sized to the base (an O(m) allocation and pass in Eigen's
+  // setFromTriplets); the O(nnz) way when a changed column joins a node outside the free set
+  // to the rest, a node leaving the ground keeps an element, or the search grows past a
+  // quarter of nnz(K). apply: O(the change) (current is edited in place)
   BaseChange diff(const SparseMatrix& K, const std::vector<int>& grounded,
                   const std::vector<int>* changed = nullptr) const;
   BaseChange diffAll(const SparseMatrix& K, const std::vector<int>& grounded) const;
   // diff from the changed nodes; false: the O(nnz) way is needed (ch is then undefined)
   bool diffNear(const SparseMatrix& K, const std::vector<int>& grounded,
                 const std::vector<int>& changed, BaseChange& ch) const;
-  void newColumn(const SparseMatrix& K, int j, const std::vector<std::uint8_t>& stays,
-                 std::vector<double>& column, std::string& fallback) const;
+  // the new values of the base matrix's column j; stays(b): base index b stays free
+  template <class Stays>
+  void newColumn(const SparseMatrix& K, int j, const Stays& stays, std::vector<double>& column,
+                 std::string& fallback) const;
   static void finishChange(int m, std::vector<Eigen::Triplet<double>>& delta,
                            std::vector<int>& touched, BaseChange& ch);
   // adopts a change without a fallback reason
   void apply(const BaseChange& change);
-  // contactFreeIndices of the current classes, as base indices (ascending)
+  // the base indices of contact's free nodes now (ascending; floating ones dropped); checks
+  // contact as NodeClasses::contactFreeIndices does
   std::vector<int> contactBaseIndices(const std::vector<int>& contact) const;
   // ... and, when none of the contact is free (empty, or only floating nodes), the solve's whole
   // answer: potential set to 0 (size n). An internal error before the first set.

@@ -839,16 +839,14 @@ TEST(ElectricSolverUpdate, ANodeJoiningTheFreeSetFallsBackToSetMatrix) {
   }
 }
 
-// two diffs of one change are the same: classes, rows dropped and touched, the delta, the
-// entries written
+// two diffs of one change are the same: the ground's change, rows dropped and touched, the
+// delta, the entries written
 void expectSameChange(const electric_detail::BaseChange& a, const electric_detail::BaseChange& b) {
   EXPECT_EQ(a.fallback, b.fallback);
   if (!a.fallback.empty()) return;
-  EXPECT_EQ(a.classes.n, b.classes.n);
-  EXPECT_EQ(a.classes.freeNodes, b.classes.freeNodes);
-  EXPECT_EQ(a.classes.freeIndex, b.classes.freeIndex);
-  EXPECT_EQ(a.classes.isGrounded, b.classes.isGrounded);
-  EXPECT_EQ(a.classes.grounded, b.classes.grounded);
+  EXPECT_EQ(a.grounded, b.grounded);
+  EXPECT_EQ(a.groundJoined, b.groundJoined);
+  EXPECT_EQ(a.groundLeft, b.groundLeft);
   EXPECT_EQ(a.dropped, b.dropped);
   EXPECT_EQ(a.touched, b.touched);
   EXPECT_EQ(a.positions, b.positions);
@@ -884,6 +882,18 @@ TEST(ElectricSolverUpdate, TheChangedNodesGiveTheChangeThatReadingEveryColumnGiv
     if (!a.fallback.empty()) return a;
     told.apply(a);
     blind.apply(b);
+    // the classes now, edited in place, are those of a fresh build, in base indices
+    electric_detail::NodeClasses fresh;
+    fresh.build(cut.K, grounded);
+    EXPECT_EQ(told.current.isGrounded, fresh.isGrounded);
+    EXPECT_EQ(told.current.grounded, fresh.grounded);
+    EXPECT_EQ(told.current.numFree(), fresh.numFree());
+    int wrong = 0;
+    for (int v = 0; v < fresh.n; ++v)
+      wrong += (told.current.freeIndex[v] >= 0) != (fresh.freeIndex[v] >= 0) ||
+               (fresh.freeIndex[v] >= 0 && told.current.freeIndex[v] != told.base.freeIndex[v]);
+    EXPECT_EQ(wrong, 0);
+    EXPECT_EQ(told.current.freeIndex, blind.current.freeIndex);
     EXPECT_EQ(told.matrix.nonZeros(), blind.matrix.nonZeros());
     EXPECT_TRUE(std::equal(told.matrix.valuePtr(), told.matrix.valuePtr() + told.matrix.nonZeros(),
                            blind.matrix.valuePtr()));
@@ -923,7 +933,7 @@ TEST(ElectricSolverUpdate, TheChangedNodesGiveTheChangeThatReadingEveryColumnGiv
   // the corner island cut off (its nodes float), then told by the forest mended so far
   const std::vector<int> island = cut.cornerIsland();
   const electric_detail::BaseChange a = step(cut.tetsAcross(island), 1);
-  for (int v : island) EXPECT_LT(a.classes.freeIndex[v], 0);
+  for (int v : island) EXPECT_LT(told.current.freeIndex[v], 0);
   // the slab cut through at x = 44 mm, past the return disc (radius 40 mm): the strip
   // beyond floats
   const auto across = [](const TetMesh& mesh, double atX) {
