@@ -374,10 +374,37 @@ void FreeBase::newColumn(const SparseMatrix& K, int j, const Stays& stays,
 }
 
 // the delta from its triplets, the touched rows ascending
+// The entries come column by column, rows ascending (recordColumn over ascending columns):
+// then the compressed delta is written directly, one pass over its column index (Eigen's
+// setFromTriplets makes several over m-sized arrays: 0.91 ms of a told update's 1.07 ms at
+// 150 528 nodes, a temporary timer; esim bench electric --only-update).
 void FreeBase::finishChange(int m, std::vector<Eigen::Triplet<double>>& delta,
                             std::vector<int>& touched, BaseChange& ch) {
   ch.delta.resize(m, m);
-  ch.delta.setFromTriplets(delta.begin(), delta.end());
+  const auto before = [](const Eigen::Triplet<double>& a, const Eigen::Triplet<double>& b) {
+    return a.col() < b.col() || (a.col() == b.col() && a.row() < b.row());
+  };
+  bool ordered = true;
+  for (size_t k = 1; k < delta.size() && ordered; ++k) ordered = before(delta[k - 1], delta[k]);
+  if (ordered) {
+    const int nnz = static_cast<int>(delta.size());
+    ch.delta.resizeNonZeros(nnz);
+    int* outer = ch.delta.outerIndexPtr();
+    int* inner = ch.delta.innerIndexPtr();
+    double* values = ch.delta.valuePtr();
+    int k = 0;
+    for (int j = 0; j < m; ++j) {
+      outer[j] = k;
+      for (; k < nnz && delta[k].col() == j; ++k) {
+        inner[k] = delta[k].row();
+        values[k] = delta[k].value();
+      }
+    }
+    outer[m] = k;
+    ESIM_CHECK(k == nnz);  // every column in [0, m)
+  } else {
+    ch.delta.setFromTriplets(delta.begin(), delta.end());
+  }
   std::sort(touched.begin(), touched.end());
   touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
   ch.touched = std::move(touched);

@@ -861,6 +861,27 @@ void expectSameChange(const electric_detail::BaseChange& a, const electric_detai
 // with nodes newly grounded and nodes leaving the ground without an element; it takes the
 // O(nnz) way only where it must (a node leaving the ground that keeps an element: "joined
 // the free set"), and its forest, mended by each diff, keeps leading to the ground
+// the change's delta from entries column by column (written directly) and from the same
+// entries in another order (Eigen's setFromTriplets) is the same matrix; empty columns first,
+// between and last
+TEST(ElectricSolverUpdate, TheDeltaIsTheSameWrittenDirectlyOrFromUnorderedEntries) {
+  const std::vector<Eigen::Triplet<double>> ordered = {
+      {1, 2, 0.5}, {4, 2, -1.0}, {0, 3, 2.0}, {2, 3, 1e-300}, {5, 5, -3.0}};
+  for (int order = 0; order < 2; ++order) {
+    std::vector<Eigen::Triplet<double>> entries = ordered;
+    if (order == 1) std::reverse(entries.begin(), entries.end());
+    std::vector<int> touched = {3, 1, 3};
+    electric_detail::BaseChange ch;
+    electric_detail::FreeBase::finishChange(7, entries, touched, ch);
+    ASSERT_TRUE(ch.delta.isCompressed());
+    Eigen::MatrixXd expected = Eigen::MatrixXd::Zero(7, 7);
+    for (const auto& t : ordered) expected(t.row(), t.col()) = t.value();
+    EXPECT_EQ(Eigen::MatrixXd(ch.delta), expected) << "order " << order;
+    EXPECT_EQ(ch.delta.nonZeros(), 5);
+    EXPECT_EQ(ch.touched, (std::vector<int>{1, 3}));
+  }
+}
+
 TEST(ElectricSolverUpdate, TheChangedNodesGiveTheChangeThatReadingEveryColumnGives) {
   CutSlab cut(1013);
   electric_detail::FreeBase told, blind;
