@@ -101,20 +101,11 @@ class PcgSolver final : public ElectricSolver {
   // the change in place (the warm start carries over); setMatrix where FreeBase cannot
   ElectricUpdateStats updateMatrix(const SparseMatrix& K, const std::vector<int>& grounded,
                                    const std::vector<int>* changedNodes) override {
-    ESIM_CHECK(free_.current.n > 0);  // setMatrix before updateMatrix
     const ResetOnThrow guard(free_.current);
-    const BaseChange change = free_.diff(K, grounded, changedNodes);
-    ElectricUpdateStats stats;
-    if (!change.fallback.empty()) {
-      setMatrix(K, grounded);
-      stats.fellBack = true;
-      stats.fallbackReason = change.fallback;
-      return stats;
-    }
-    stats.changedNodes = static_cast<int>(change.touched.size());
-    stats.droppedNodes = static_cast<int>(change.dropped.size());
-    if (change.empty()) return stats;
-    free_.apply(change);
+    BaseChange change;
+    const ElectricUpdateStats stats =
+        updateFreeBase(free_, K, grounded, changedNodes, change, [&] { setMatrix(K, grounded); });
+    if (stats.fellBack || change.empty()) return stats;
     dropped_.insert(dropped_.end(), change.dropped.begin(), change.dropped.end());
     prepared_ = false;  // new values: the preconditioner is computed again
     return stats;

@@ -32,21 +32,11 @@ class RefactorSolver final : public ElectricSolver {
 
   ElectricUpdateStats updateMatrix(const SparseMatrix& K, const std::vector<int>& grounded,
                                    const std::vector<int>* changedNodes) override {
-    ESIM_CHECK(free_.current.n > 0);  // setMatrix before updateMatrix
     const ResetOnThrow guard(free_.current);
-    const BaseChange change = free_.diff(K, grounded, changedNodes);
-    ElectricUpdateStats stats;
-    if (!change.fallback.empty()) {
-      setMatrix(K, grounded);
-      stats.fellBack = true;
-      stats.fallbackReason = change.fallback;
-      return stats;
-    }
-    stats.changedNodes = static_cast<int>(change.touched.size());
-    stats.droppedNodes = static_cast<int>(change.dropped.size());
-    if (change.empty()) return stats;
-    free_.apply(change);
-    hasFactor_ = false;
+    BaseChange change;
+    const ElectricUpdateStats stats =
+        updateFreeBase(free_, K, grounded, changedNodes, change, [&] { setMatrix(K, grounded); });
+    if (!stats.fellBack && !change.empty()) hasFactor_ = false;  // the next solve refactors
     return stats;
   }
 

@@ -611,6 +611,25 @@ void FreeBase::scatter(const Eigen::VectorXd& baseValues, const std::vector<int>
   for (int c : contactBase) potential[base.freeNodes[c]] = voltageV;
 }
 
+ElectricUpdateStats updateFreeBase(FreeBase& free, const SparseMatrix& K,
+                                   const std::vector<int>& grounded,
+                                   const std::vector<int>* changedNodes, BaseChange& change,
+                                   const std::function<void()>& setMatrix) {
+  ESIM_CHECK(free.current.n > 0);  // setMatrix before updateMatrix
+  change = free.diff(K, grounded, changedNodes);
+  ElectricUpdateStats stats;
+  if (!change.fallback.empty()) {
+    setMatrix();
+    stats.fellBack = true;
+    stats.fallbackReason = change.fallback;
+    return stats;
+  }
+  stats.changedNodes = static_cast<int>(change.touched.size());
+  stats.droppedNodes = static_cast<int>(change.dropped.size());
+  if (!change.empty()) free.apply(change);
+  return stats;
+}
+
 void combineColumns(const std::vector<const double*>& z, const std::vector<int>& cf,
                     double voltageV, int nf, const char* what, Eigen::VectorXd& u) {
   const int c = static_cast<int>(cf.size());

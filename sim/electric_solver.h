@@ -121,6 +121,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <exception>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -460,6 +461,14 @@ struct FreeBase {
 // Error naming `what` when Z_cc is not positive definite
 void combineColumns(const std::vector<const double*>& z, const std::vector<int>& cf,
                     double voltageV, int nf, const char* what, Eigen::VectorXd& u);
+
+// The update of a strategy whose own part is the matrix's change alone (refactor, pcg): the
+// change to (K, grounded) into `change`; where it cannot be taken in place, setMatrix() and
+// the stats say why (fellBack); else adopted by `free` (when not empty), with its counts
+ElectricUpdateStats updateFreeBase(FreeBase& free, const SparseMatrix& K,
+                                   const std::vector<int>& grounded,
+                                   const std::vector<int>* changedNodes, BaseChange& change,
+                                   const std::function<void()>& setMatrix);
 
 // scatters free values into a full-size potential (fixed and floating nodes: 0,
 // contact: voltage)
