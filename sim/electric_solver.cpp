@@ -373,11 +373,11 @@ void FreeBase::newColumn(const SparseMatrix& K, int j, const Stays& stays,
   for (int p = 0; p < count; ++p) position[inner[first + p]] = -1;
 }
 
-// the delta from its triplets, the touched rows ascending
-// The entries come column by column, rows ascending (recordColumn over ascending columns):
-// then the compressed delta is written directly, one pass over its column index (Eigen's
-// setFromTriplets makes several over m-sized arrays: 0.91 ms of a told update's 1.07 ms at
-// 150 528 nodes, a temporary timer; esim bench electric --only-update).
+// the delta from its triplets, the touched rows ascending. The triplets come column by
+// column, rows ascending (recordColumn over ascending columns): the compressed delta is then
+// written directly, one pass over its column index (Eigen's setFromTriplets makes several
+// over m-sized arrays: 0.91 ms of a told update's 1.07 ms at 150 528 nodes, a temporary
+// timer; esim bench electric --only-update)
 void FreeBase::finishChange(int m, std::vector<Eigen::Triplet<double>>& delta,
                             std::vector<int>& touched, BaseChange& ch) {
   ch.delta.resize(m, m);
@@ -626,7 +626,7 @@ ElectricUpdateStats updateFreeBase(FreeBase& free, const SparseMatrix& K,
   }
   stats.changedNodes = static_cast<int>(change.touched.size());
   stats.droppedNodes = static_cast<int>(change.dropped.size());
-  if (!change.empty()) free.apply(change);
+  free.apply(change);  // (an empty one may still move the ground: a floating node grounded)
   return stats;
 }
 

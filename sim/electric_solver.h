@@ -464,7 +464,7 @@ void combineColumns(const std::vector<const double*>& z, const std::vector<int>&
 
 // The update of a strategy whose own part is the matrix's change alone (refactor, pcg): the
 // change to (K, grounded) into `change`; where it cannot be taken in place, setMatrix() and
-// the stats say why (fellBack); else adopted by `free` (when not empty), with its counts
+// the stats say why (fellBack); else adopted by `free`, with its counts
 ElectricUpdateStats updateFreeBase(FreeBase& free, const SparseMatrix& K,
                                    const std::vector<int>& grounded,
                                    const std::vector<int>* changedNodes, BaseChange& change,
