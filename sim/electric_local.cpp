@@ -95,14 +95,12 @@ class LocalSolver final : public ElectricSolver {
                                    const std::vector<int>* changedNodes) override {
     ESIM_CHECK(classes_.n > 0);  // setMatrix before updateMatrix
     const ResetOnThrow guard(classes_);
-    const int n = classes_.n;
     classes_.build(K, grounded);
-    const bool sameSize = classes_.n == n;
     K_ = K;
     K_.makeCompressed();
     grounded_ = grounded;
-    fullChange_.add(sameSize, changedNodes);
-    nowChange_.add(sameSize, changedNodes);
+    fullChange_.add(changedNodes);
+    nowChange_.add(changedNodes);
     pending_ = nowPending_ = true;
     return {};
   }
@@ -355,12 +353,12 @@ class LocalSolver final : public ElectricSolver {
 
   // what an inner solver has not taken yet of the matrix's changes since it last took one
   struct InnerChange {
-    bool hasMatrix = false;         // it has taken a matrix of this node count before
+    bool hasMatrix = false;         // it has taken a matrix since setMatrix (pcg's update
+                                    // falls back to setMatrix itself where it must)
     bool told = true;               // every cut since came with its changed nodes
     std::vector<int> changedNodes;  // ... their union, ascending
     // one more cut
-    void add(bool sameSize, const std::vector<int>* changed) {
-      if (!sameSize) hasMatrix = false;
+    void add(const std::vector<int>* changed) {
       if (!changed) {
         told = false;
         return;

@@ -94,7 +94,6 @@ class PcgSolver final : public ElectricSolver {
     system_ = free_.matrix;  // a new pattern: the preconditioner is computed again
     if (options_.pcgPreconditioner == PcgPreconditioner::TwoLevel)
       coarse_.setGraph(free_.matrix, kAggregationPasses);
-    dropped_.clear();
     prepared_ = false;
   }
 
@@ -105,9 +104,7 @@ class PcgSolver final : public ElectricSolver {
     BaseChange change;
     const ElectricUpdateStats stats =
         updateFreeBase(free_, K, grounded, changedNodes, change, [&] { setMatrix(K, grounded); });
-    if (stats.fellBack || change.empty()) return stats;
-    dropped_.insert(dropped_.end(), change.dropped.begin(), change.dropped.end());
-    prepared_ = false;  // new values: the preconditioner is computed again
+    if (!stats.fellBack && !change.empty()) prepared_ = false;  // the preconditioner anew
     return stats;
   }
 
@@ -131,7 +128,8 @@ class PcgSolver final : public ElectricSolver {
       if (options_.pcgPreconditioner == PcgPreconditioner::TwoLevel) {
         // the contact rows, and those that left the free set, out of its coarse space
         std::vector<int> excluded = cf;
-        excluded.insert(excluded.end(), dropped_.begin(), dropped_.end());
+        for (int b = 0; b < nf; ++b)
+          if (!free_.active[b]) excluded.push_back(b);
         coarse_.compute(system_, excluded);
       } else if (options_.pcgPreconditioner == PcgPreconditioner::IncompleteCholesky) {
         ic_.compute(system_);
@@ -213,9 +211,8 @@ class PcgSolver final : public ElectricSolver {
                                           Eigen::DiagonalPreconditioner<double>>;
 
   ElectricSolverOptions options_;
-  FreeBase free_;             // K_ff in base indices (the nodes that left: identity rows)
-  std::vector<int> dropped_;  // base indices that left the free set since setMatrix
-  SparseMatrix system_;       // free_.matrix with the contact rows set to the identity
+  FreeBase free_;        // K_ff in base indices (the nodes that left: identity rows)
+  SparseMatrix system_;  // free_.matrix with the contact rows set to the identity
   using TwoLevel =
       Eigen::ConjugateGradient<SparseMatrix, Eigen::Lower | Eigen::Upper, TwoLevelAdapter>;
   Ic ic_;

@@ -422,8 +422,8 @@ struct FreeBase {
   // nnz(matrix)). Else (sorted, see ElectricSolver::updateMatrix) the same change from the
   // columns of the changed nodes and their neighbours, the ground's change, and the forest
   // (towardGround) checked from the changed nodes: O(the change x the forest's depth), but
-  // for the delta's column index, sized to the base (an O(m) allocation and pass in Eigen's
-  // setFromTriplets); the O(nnz) way when a changed column joins a node outside the free set
+  // for the delta's column index, sized to the base (one O(m) pass: finishChange); the
+  // O(nnz) way when a changed column joins a node outside the free set
   // to the rest, a node leaving the ground keeps an element, or the search grows past a
   // quarter of nnz(K). apply: O(the change) (current is edited in place)
   BaseChange diff(const SparseMatrix& K, const std::vector<int>& grounded,
