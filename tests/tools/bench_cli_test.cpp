@@ -134,6 +134,27 @@ TEST_F(BenchCli, CutComparesElectricStrategiesWithTheFirst) {
   EXPECT_NE(r.output.find("electric local"), std::string::npos) << r.output;
 }
 
+// the update table runs every strategy it names: local (its region needs the nodes'
+// positions: it was skipped, "node positions (0) do not match") and downdate, the cut's
+// own, by default
+TEST_F(BenchCli, UpdateTableRunsLocalAndDowndate) {
+  // (without the fixture's --csv: the update table writes none)
+  const auto bare = [](const std::string& args) {
+    return std::string("\"") + ESIM_EXE + "\" " + args;
+  };
+  const auto r =
+      shell(bare("bench electric --only-update --update-sizes 1013 --update-tets 5 "
+                 "--update-strategies local,downdate,pcg"));
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_EQ(r.output.find("skipped"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("K copied, the held far field kept"), std::string::npos) << r.output;
+  for (const char* row : {"\nlocal ", "\ndowndate ", "\npcg "})
+    EXPECT_NE(r.output.find(row), std::string::npos) << row << "\n" << r.output;
+  const auto d = shell(bare("bench electric --only-update --update-sizes 300 --update-tets 3"));
+  EXPECT_EQ(d.exitCode, 0) << d.output;
+  EXPECT_NE(d.output.find("\ndowndate "), std::string::npos) << d.output;
+}
+
 TEST_F(BenchCli, AResultsFolderThatIsAFileIsRefusedBeforeAnythingRuns) {
   std::ofstream(csv_) << "an earlier table\n";
   for (const std::string& args :
