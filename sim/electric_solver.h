@@ -235,10 +235,15 @@ inline constexpr double kAutoDenseMaxFreeNodes = 3000;
 // place by then): median 2303 against 2392 ms, p95 6048 against 5965 ms, the potential's
 // median 104 against 477 ms (its factor's update 195 against 2.5 ms a removal, p95 778
 // against 4.4), the CPU 5194 against 5373 ms a frame, the same 5824 tets removed, a peak of
-// 8.6 GB. So auto takes downdate for a cut up to 150 000 free nodes (the largest measured
-// rounded up, as 47 753 was to 50 000 and 96 709 to 100 000); pcg above (less memory, not
-// measured).
-inline constexpr double kAutoDowndateMaxFreeNodes = 150000;
+// 8.6 GB. 200 376 nodes (194 944 free; --sizes 200000, one run, the session after, 6 min
+// 45 s, a peak of 12.7 GB): median 4809 against 5100 ms, p95 10 994 against 12 015 ms, the
+// potential's median 214 against 922 ms (its factor's update 382 against 1.1 ms a removal),
+// the CPU 10 081 against 10 199 ms a frame (the structural update 4.6 s a removal either
+// way), the same 7646 tets removed. So auto takes downdate for a cut up to 200 000 free
+// nodes (the largest measured rounded up, as 47 753 was to 50 000, 96 709 to 100 000 and
+// 145 488 to 150 000; downdate's margin in CPU 2.7 % at 96 709 free nodes, 3.3 % at 145 488,
+// 1.2 % at 194 944: near where pcg would take over); pcg above (less memory, not measured).
+inline constexpr double kAutoDowndateMaxFreeNodes = 200000;
 
 struct ElectricSolveStats {
   bool refactored = false;   // refactor: the matrix was factorized in this solve

@@ -111,7 +111,9 @@ TEST(ElectricLocal, RegionCoveringTheBodyIsExactThroughRefreshesAndACut) {
     const ElectricSolveStats st = solver->solve(contact, kVolt, u);
     const Eigen::VectorXd ref = referenceSolve(p, contact);
     EXPECT_LT(relError(u, ref), 1e-9) << "frame " << f;
-    if (f > 0) EXPECT_GT(st.regionNodes, p.mesh.numNodes() / 2) << f;
+    if (f > 0) {
+      EXPECT_GT(st.regionNodes, p.mesh.numNodes() / 2) << f;
+    }
   }
 }
 
@@ -150,10 +152,16 @@ TEST(ElectricLocal, PowerExcessIsNonNegativeAndFallsWithTheMargin) {
       EXPECT_GE(excess, -1e-9 * truth) << "frame " << f << " margin " << margins[k];
       EXPECT_LE(excess, last + 1e-9 * truth) << "frame " << f << " margin " << margins[k];
       EXPECT_NEAR(st.powerError, excess / truth, 1e-8) << "frame " << f << " margin " << margins[k];
-      if (k == 2) EXPECT_LT(excess, 0.05 * truth) << "frame " << f;  // 4 mm: one grid cell
+      if (k == 2) {
+        EXPECT_LT(excess, 0.05 * truth) << "frame " << f;  // 4 mm: one grid cell
+      }
       last = excess;
-      if (f > 0) EXPECT_GT(st.regionNodes, 0);
-      if (f > 0) EXPECT_LT(st.regionNodes, p.mesh.numNodes() / 2);  // never a full solve
+      if (f > 0) {
+        EXPECT_GT(st.regionNodes, 0);
+      }
+      if (f > 0) {
+        EXPECT_LT(st.regionNodes, p.mesh.numNodes() / 2);  // never a full solve
+      }
       for (int c : contact) EXPECT_EQ(u[k][c], kVolt);
     }
     approximate += energy(p.K, u[0]) - truth > 1e-6 * truth;
@@ -198,10 +206,16 @@ TEST(ElectricLocal, AJumpIsAFullSolveAndDropsTheRefreshOfTheOldPlace) {
   for (int f = 0; f < 9; ++f) {
     const std::vector<int> contact = p.contactsAt(f < 3 ? -0.02 : 0.02, 0.0, 0.004);
     const ElectricSolveStats st = solver->solve(contact, kVolt, u);
-    if (f == 3) EXPECT_GT(st.regionNodes, p.mesh.numNodes() / 2);  // the full solve
+    if (f == 3) {
+      EXPECT_GT(st.regionNodes, p.mesh.numNodes() / 2);  // the full solve
+    }
     // ... and no other (adopting the old place's refresh would make the next one jump back)
-    if (f > 3) EXPECT_LT(st.regionNodes, p.mesh.numNodes() / 2) << "frame " << f;
-    if (f >= 3) EXPECT_LT(relError(u, referenceSolve(p, contact)), 1e-9) << "frame " << f;
+    if (f > 3) {
+      EXPECT_LT(st.regionNodes, p.mesh.numNodes() / 2) << "frame " << f;
+    }
+    if (f >= 3) {
+      EXPECT_LT(relError(u, referenceSolve(p, contact)), 1e-9) << "frame " << f;
+    }
   }
 }
 
@@ -274,8 +288,10 @@ TEST(ElectricLocal, CutsTakenAsUpdatesGiveThePotentialOfNewMatrices) {
     const ElectricSolveStats sr = renewed->solve(contact, kVolt, ur);
     EXPECT_EQ(su.regionNodes, sr.regionNodes) << "frame " << f;
     EXPECT_LT(relError(uu, ur), 1e-9) << "frame " << f;
-    if (f > 5) EXPECT_EQ(uu[star], 0.0) << "frame " << f;  // floating since frame 5
-    if (f == 10 || f == 11) {                              // the jumps
+    if (f > 5) {
+      EXPECT_EQ(uu[star], 0.0) << "frame " << f;  // floating since frame 5
+    }
+    if (f == 10 || f == 11) {  // the jumps
       EXPECT_GT(su.regionNodes, p.mesh.numNodes() / 2) << "frame " << f;
       EXPECT_LT(relError(uu, referenceSolve(p, contact)), 1e-9) << "frame " << f;
     } else if (f > 0) {

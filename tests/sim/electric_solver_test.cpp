@@ -104,8 +104,9 @@ TEST(ElectricSolver, AutoPicksTheDenseInverseOnSmallMeshesAndCapacitanceAbove) {
   EXPECT_EQ(resolveElectricStrategy(o, kAutoDowndateMaxFreeNodes, true),
             ElectricStrategy::Downdate);
   EXPECT_EQ(resolveElectricStrategy(o, kAutoDowndateMaxFreeNodes + 1, true), ElectricStrategy::Pcg);
-  EXPECT_EQ(resolveElectricStrategy(o, 47753, true), ElectricStrategy::Downdate);  // 50k slab
-  EXPECT_EQ(resolveElectricStrategy(o, 200000, true), ElectricStrategy::Pcg);
+  EXPECT_EQ(resolveElectricStrategy(o, 47753, true), ElectricStrategy::Downdate);   // 50k slab
+  EXPECT_EQ(resolveElectricStrategy(o, 194944, true), ElectricStrategy::Downdate);  // 200k slab
+  EXPECT_EQ(resolveElectricStrategy(o, 250000, true), ElectricStrategy::Pcg);
   o.denseMemoryLimitBytes = 8.0 * 863 * 863 - 1;  // 863 free nodes no longer fit
   EXPECT_EQ(resolveElectricStrategy(o, 863), ElectricStrategy::Capacitance);
   EXPECT_EQ(resolveElectricStrategy(o, 862), ElectricStrategy::DenseInverse);
@@ -896,7 +897,9 @@ TEST(ElectricSolverUpdate, TheChangedNodesGiveTheChangeThatReadingEveryColumnGiv
     const std::vector<int> changed = nodesOfTets(cut.mesh, tets);
     electric_detail::BaseChange a;
     const bool wasNear = told.diffNear(cut.K, grounded, changed, a);
-    if (near >= 0) EXPECT_EQ(wasNear, near == 1);
+    if (near >= 0) {
+      EXPECT_EQ(wasNear, near == 1);
+    }
     a = told.diff(cut.K, grounded, &changed);
     const electric_detail::BaseChange b = blind.diff(cut.K, grounded);
     expectSameChange(a, b);
