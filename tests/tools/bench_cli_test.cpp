@@ -153,6 +153,26 @@ TEST_F(BenchCli, UpdateTableRunsLocalAndDowndate) {
   const auto d = shell(bare("bench electric --only-update --update-sizes 300 --update-tets 3"));
   EXPECT_EQ(d.exitCode, 0) << d.output;
   EXPECT_NE(d.output.find("\ndowndate "), std::string::npos) << d.output;
+  // the solvers' options reach the update table (they were refused with --only-update):
+  // local's region covering the slab gives the full solve's potential
+  const auto localError = [&](const char* margin) {
+    const auto m = shell(bare(std::string("bench electric --only-update --update-sizes 1013 "
+                                          "--update-tets 5 --update-strategies local "
+                                          "--pcg-preconditioner jacobi --local-margin ") +
+                              margin));
+    EXPECT_EQ(m.exitCode, 0) << m.output;
+    const size_t at = m.output.find("\nlocal ");
+    if (at == std::string::npos) return -1.0;
+    std::istringstream row(m.output.substr(at));
+    std::string field;
+    for (int k = 0; k < 11 && row >> field;) ++k;  // strategy .. new_fr, then rel_err
+    row >> field;
+    return std::stod(field);
+  };
+  const double near = localError("0.002"), whole = localError("1");
+  EXPECT_GT(near, 1e-3);
+  EXPECT_GE(whole, 0.0);
+  EXPECT_LT(whole, 1e-6);
 }
 
 TEST_F(BenchCli, AResultsFolderThatIsAFileIsRefusedBeforeAnythingRuns) {

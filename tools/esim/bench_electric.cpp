@@ -649,31 +649,29 @@ const Registrar registrar(
       sweep.push_back(
           app.add_option("--strategies", opt->strategies, "comma-separated strategies to run")
               ->capture_default_str());
-      sweep.push_back(
-          app.add_option("--threads", opt->threads, "BLAS threads")->capture_default_str());
-      sweep.push_back(app.add_option("--pcg-tolerance", opt->pcgTolerance, "pcg relative residual")
-                          ->capture_default_str());
-      sweep.push_back(
-          app.add_option("--pcg-preconditioner", opt->pcgPreconditioner, "two-level, jacobi or ic")
-              ->check(CLI::IsMember({"two-level", "jacobi", "ic"}))
-              ->capture_default_str());
-      sweep.push_back(
-          app.add_option("--dense-limit-gb", opt->denseLimitGb, "dense-inverse memory limit [GB]")
-              ->capture_default_str());
+      // the solvers' options: both tables
+      app.add_option("--threads", opt->threads, "BLAS threads")->capture_default_str();
+      app.add_option("--pcg-tolerance", opt->pcgTolerance, "pcg relative residual")
+          ->capture_default_str();
+      app.add_option("--pcg-preconditioner", opt->pcgPreconditioner, "two-level, jacobi or ic")
+          ->check(CLI::IsMember({"two-level", "jacobi", "ic"}))
+          ->capture_default_str();
+      app.add_option("--dense-limit-gb", opt->denseLimitGb, "dense-inverse memory limit [GB]")
+          ->capture_default_str();
       sweep.push_back(app.add_option("--error-frames", opt->errorFrames,
                                      "frames compared against a fresh direct solve")
                           ->capture_default_str());
       sweep.push_back(
           app.add_option("--fig9-frames", opt->fig9Frames, "frames of the Fig. 9(a) runs")
               ->capture_default_str());
-      sweep.push_back(app.add_option("--local-margin", opt->localMarginM,
-                                     "local: the region's radius around the contacts [m]")
-                          ->check(CLI::PositiveNumber)
-                          ->capture_default_str());
-      sweep.push_back(app.add_option("--local-refresh", opt->localRefreshFrames,
-                                     "local: frames between the far field's full solves")
-                          ->check(CLI::PositiveNumber)
-                          ->capture_default_str());
+      app.add_option("--local-margin", opt->localMarginM,
+                     "local: the region's radius around the contacts [m]")
+          ->check(CLI::PositiveNumber)
+          ->capture_default_str();
+      app.add_option("--local-refresh", opt->localRefreshFrames,
+                     "local: frames between the far field's full solves")
+          ->check(CLI::PositiveNumber)
+          ->capture_default_str();
       sweep.push_back(
           app.add_flag("!--no-fig9", opt->fig9, "skip the paper's Fig. 9(a) comparison"));
       sweep.push_back(
@@ -694,7 +692,8 @@ const Registrar registrar(
           refuseGiven(sweep, "bench electric",
                       "is an option of the blade-sweep table, which --only-update skips (the "
                       "update table's: --update-sizes, --update-tets, --update-strategies, "
-                      "--update-reps)");
+                      "--update-reps, and the solvers' --threads, --pcg-tolerance, "
+                      "--pcg-preconditioner, --dense-limit-gb, --local-margin, --local-refresh)");
         return benchElectric(*opt);
       };
     });
