@@ -82,6 +82,22 @@ TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
       {"bench electric --only-update",
        "bench electric: --csv is an option of the blade-sweep "
        "table, which --only-update skips"},
+      // the update table's lists were read by std::stoi ("internal error: stoi", exit 4)
+      // and a cut larger than the slab read past its tets (a crash); all checked before
+      // the blade sweep runs
+      {"bench electric --sizes 100 --update --update-tets x",
+       "--update-tets: 'x' is not an integer in [1, 100000000] (expected e.g. 5,95)"},
+      {"bench electric --sizes 100 --update --update-tets 5,-5",
+       "--update-tets: '-5' is not an integer in [1, 100000000]"},
+      {"bench electric --sizes 100 --update --update-sizes 1013 --update-tets 1000000",
+       "--update-tets: 1000000 tets is not less than the 1026-node slab's 3672 (--update-sizes "
+       "1013)"},
+      // it named --sizes
+      {"bench electric --sizes 100 --update --update-sizes 10",
+       "bench electric: --update-sizes: '10' is not a node count in [27, 5000000]"},
+      // 0 and negative counts ran once
+      {"bench electric --sizes 100 --update --update-reps 0", "--update-reps must be >= 1, got 0"},
+      {"bench electric --sizes 100 --update --update-strategies ,", "--update-strategies is empty"},
       {"bench render --sizes x", "--sizes: 'x' is not WIDTHxHEIGHT (e.g. 1280x720)"},
       // it ran as 1280x720
       {"bench render --sizes 1280x720x3",
@@ -100,6 +116,19 @@ TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
     EXPECT_EQ(readFile(csv_), "an earlier table\n") << c.args;
     EXPECT_EQ(std::distance(fs::directory_iterator(root_), fs::directory_iterator()), 1)
         << c.args << ": a file was left beside the table";
+  }
+}
+
+// bench structural --local's margins were read by std::stod ("internal error: stod", exit
+// 4); a negative one was refused from inside the phase ("local.marginM must be >= 0")
+TEST_F(BenchCli, StructuralLocalMarginsAreChecked) {
+  for (const char* margins : {"5,x", "-2", "nan", ","}) {
+    const auto r = shell(std::string("\"") + ESIM_EXE +
+                         "\" bench structural --sizes 1013 --local --margins-mm " + margins);
+    EXPECT_EQ(r.exitCode, 2) << margins << "\n" << r.output;
+    EXPECT_NE(r.output.find("error: --margins-mm"), std::string::npos) << margins << "\n"
+                                                                       << r.output;
+    EXPECT_NE(r.output.find("(expected e.g. 5,10,15)"), std::string::npos) << r.output;
   }
 }
 

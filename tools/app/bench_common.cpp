@@ -3,6 +3,8 @@
 
 #include <unistd.h>
 
+#include <cerrno>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -24,17 +26,51 @@ std::vector<std::string> splitList(const std::string& text) {
   return out;
 }
 
-std::vector<int> parseNodeCounts(const std::string& text, const std::string& command) {
+std::vector<int> parseNodeCounts(const std::string& text, const std::string& command,
+                                 const std::string& option) {
   std::vector<int> out;
   for (const std::string& item : splitList(text)) {
     char* end = nullptr;
     const long v = std::strtol(item.c_str(), &end, 10);
     ESIM_VERIFY(end != item.c_str() && *end == '\0' && v >= 27 && v <= 5000000,
-                command + ": --sizes: '" + item +
+                command + ": " + option + ": '" + item +
                     "' is not a node count in [27, 5000000] (expected e.g. 1013,20000,50000)");
     out.push_back(static_cast<int>(v));
   }
-  ESIM_VERIFY(!out.empty(), command + ": --sizes is empty");
+  ESIM_VERIFY(!out.empty(), command + ": " + option + " is empty");
+  return out;
+}
+
+std::vector<int> parseIntegerList(const std::string& text, const std::string& option, long lo,
+                                  long hi, const std::string& example) {
+  std::vector<int> out;
+  for (const std::string& item : splitList(text)) {
+    char* end = nullptr;
+    errno = 0;
+    const long v = std::strtol(item.c_str(), &end, 10);
+    ESIM_VERIFY(end != item.c_str() && *end == '\0' && errno == 0 && v >= lo && v <= hi,
+                option + ": '" + item + "' is not an integer in [" + std::to_string(lo) + ", " +
+                    std::to_string(hi) + "] (expected e.g. " + example + ")");
+    out.push_back(static_cast<int>(v));
+  }
+  ESIM_VERIFY(!out.empty(), option + " is empty (expected e.g. " + example + ")");
+  return out;
+}
+
+std::vector<double> parseNumberList(const std::string& text, const std::string& option, double lo,
+                                    double hi, const std::string& example) {
+  std::vector<double> out;
+  for (const std::string& item : splitList(text)) {
+    char* end = nullptr;
+    const double v = std::strtod(item.c_str(), &end);
+    std::ostringstream range;
+    range << "[" << lo << ", " << hi << "]";
+    ESIM_VERIFY(end != item.c_str() && *end == '\0' && std::isfinite(v) && v >= lo && v <= hi,
+                option + ": '" + item + "' is not a number in " + range.str() + " (expected e.g. " +
+                    example + ")");
+    out.push_back(v);
+  }
+  ESIM_VERIFY(!out.empty(), option + " is empty (expected e.g. " + example + ")");
   return out;
 }
 

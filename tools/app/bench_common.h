@@ -11,9 +11,18 @@ namespace esim::app {
 // "a,b,c" -> {"a", "b", "c"} (empty items dropped)
 std::vector<std::string> splitList(const std::string& text);
 
-// "1013,20000" -> {1013, 20000}: node counts in [8, 5e6]; throws esim::Error naming
-// `command`'s --sizes option and the bad item
-std::vector<int> parseNodeCounts(const std::string& text, const std::string& command);
+// "1013,20000" -> {1013, 20000}: node counts in [27, 5e6]; throws esim::Error naming
+// `command`'s option (--sizes unless given) and the bad item
+std::vector<int> parseNodeCounts(const std::string& text, const std::string& command,
+                                 const std::string& option = "--sizes");
+
+// a comma list of integers in [lo, hi] (e.g. "5,95"); throws esim::Error "OPTION: 'ITEM' is
+// not an integer in [lo, hi] (expected EXAMPLE)", or "OPTION is empty"
+std::vector<int> parseIntegerList(const std::string& text, const std::string& option, long lo,
+                                  long hi, const std::string& example);
+// ... of numbers in [lo, hi]
+std::vector<double> parseNumberList(const std::string& text, const std::string& option, double lo,
+                                    double hi, const std::string& example);
 
 // The scene file of a bench: `path` as given; the bench's default (`defaultPath`, relative
 // to the source folder, e.g. scenarios/slab_cut.yaml) when not in the working folder is

@@ -465,13 +465,41 @@ std::vector<std::pair<ElectricStrategy, bool>> parseUpdateStrategies(const std::
   return strategies;
 }
 
-void runUpdate(const BenchElectricOptions& opt) {
-  const std::vector<int> sizes = app::parseNodeCounts(opt.updateSizes, "bench electric");
-  const std::vector<std::pair<ElectricStrategy, bool>> strategies =
-      parseUpdateStrategies(opt.updateStrategies);
-  std::vector<int> tetCounts;
-  for (const std::string& item : app::splitList(opt.updateTets))
-    tetCounts.push_back(std::stoi(item));
+// the update table's options, checked before any table runs
+struct UpdatePlan {
+  std::vector<int> sizes, tetCounts;
+  std::vector<std::pair<ElectricStrategy, bool>> strategies;
+};
+
+UpdatePlan checkUpdateOptions(const BenchElectricOptions& opt) {
+  UpdatePlan plan;
+  plan.sizes = app::parseNodeCounts(opt.updateSizes, "bench electric", "--update-sizes");
+  plan.strategies = parseUpdateStrategies(opt.updateStrategies);
+  ESIM_VERIFY(!plan.strategies.empty(),
+              "--update-strategies is empty (expected e.g. downdate,pcg,capacitance)");
+  plan.tetCounts = app::parseIntegerList(opt.updateTets, "--update-tets", 1, 100000000, "5,95");
+  ESIM_VERIFY(opt.updateReps >= 1,
+              "--update-reps must be >= 1, got " + std::to_string(opt.updateReps));
+  // each cut must leave tets: the slab of each size (built alone: its mesh is cheap) against
+  // the largest cut
+  const int most = *std::max_element(plan.tetCounts.begin(), plan.tetCounts.end());
+  for (int target : plan.sizes) {
+    SlabSpec spec;
+    spec.targetNodes = target;
+    const TetMesh mesh = makeSlab(spec);
+    ESIM_VERIFY(most < mesh.numTets(), "--update-tets: " + std::to_string(most) +
+                                           " tets is not less than the " +
+                                           std::to_string(mesh.numNodes()) + "-node slab's " +
+                                           std::to_string(mesh.numTets()) + " (--update-sizes " +
+                                           std::to_string(target) + ")");
+  }
+  return plan;
+}
+
+void runUpdate(const BenchElectricOptions& opt, const UpdatePlan& plan) {
+  const std::vector<int>& sizes = plan.sizes;
+  const std::vector<std::pair<ElectricStrategy, bool>>& strategies = plan.strategies;
+  const std::vector<int>& tetCounts = plan.tetCounts;
   std::printf(
       "\nupdateMatrix after a cut (issue #11): tets removed at the top of the blade path, %d "
       "warm frames solved before;\nupdate = updateMatrix told the removed tets' nodes + "
@@ -543,13 +571,14 @@ void runUpdate(const BenchElectricOptions& opt) {
 
 int benchElectric(const BenchElectricOptions& opt) {
   if (opt.onlyUpdate) {
-    runUpdate(opt);
+    runUpdate(opt, checkUpdateOptions(opt));
     return kExitOk;
   }
   // 1. options
   const std::vector<int> sizes = app::parseNodeCounts(opt.sizes, "bench electric");
   const std::vector<ElectricStrategy> strategies = parseStrategies(opt.strategies);
-  if (opt.update) parseUpdateStrategies(opt.updateStrategies);  // checked before the first run
+  UpdatePlan updatePlan;
+  if (opt.update) updatePlan = checkUpdateOptions(opt);  // checked before the first run
   ESIM_VERIFY(opt.frames >= 1, "bench electric: --frames must be >= 1");
   ESIM_VERIFY(opt.threads >= 1, "bench electric: --threads must be >= 1");
   app::CsvOutput csv(opt.csv,
@@ -627,7 +656,7 @@ int benchElectric(const BenchElectricOptions& opt) {
   // 6. the paper's Fig. 9(a)
   if (opt.fig9) runFig9(opt);
   // 7. updateMatrix after a cut
-  if (opt.update) runUpdate(opt);
+  if (opt.update) runUpdate(opt, updatePlan);
   return kExitOk;
 }
 

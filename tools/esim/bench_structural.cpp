@@ -126,8 +126,8 @@ int benchLocal(const BenchStructuralOptions& opt) {
   ESIM_VERIFY(opt.frames >= 2, "--frames must be >= 2");
   ESIM_VERIFY(opt.overload > 0, "--overload must be > 0");
   const std::vector<int> sizes = app::parseNodeCounts(opt.sizes, "bench structural");
-  std::vector<double> margins;
-  for (const std::string& m : app::splitList(opt.marginsMm)) margins.push_back(std::stod(m));
+  const std::vector<double> margins =
+      app::parseNumberList(opt.marginsMm, "--margins-mm", 0, 1000, "5,10,15");
   const double critical = defaultSimulationConfig().criticalStressPa;
   std::printf(
       "esim bench structural --local: paper slab, bottom clamped, Gaussian expansion (radius "
