@@ -132,6 +132,25 @@ TEST_F(BenchCli, StructuralLocalMarginsAreChecked) {
   }
 }
 
+// bench render's surfaces are all made before the first is drawn: an unknown name, or a
+// liver file that cannot be read, stopped the bench after the surfaces before it had run
+TEST_F(BenchCli, RenderChecksItsSurfacesBeforeDrawingAny) {
+  const std::string render = std::string("\"") + ESIM_EXE +
+                             "\" bench render --sizes 160x120 --frames 1 --warmup 0 --msaa 0 ";
+  struct Case {
+    std::string args, message;
+  };
+  for (const Case& c : {Case{"--surfaces slab,foo", "--surfaces: unknown surface 'foo'"},
+                        Case{"--surfaces slab,liver --liver " + (root_ / "none.obj").string(),
+                             "none.obj: file not found"},
+                        Case{"--surfaces ,", "--surfaces is empty"}}) {
+    const auto r = shell(render + c.args);
+    EXPECT_EQ(r.exitCode, 2) << c.args << "\n" << r.output;
+    EXPECT_NE(r.output.find(c.message), std::string::npos) << c.args << "\n" << r.output;
+    EXPECT_EQ(r.output.find("\nslab "), std::string::npos) << c.args << "\n" << r.output;
+  }
+}
+
 // every size --sizes accepts runs: the smallest slab has a node on the return electrode (8
 // to 26 nodes had none), and the electric bench's blade, whose reach is one grid spacing,
 // no longer touches it through a coarse slab (a short circuit from 26 to 400 nodes)

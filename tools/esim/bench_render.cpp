@@ -217,6 +217,16 @@ int benchRender(const BenchRenderOptions& opt) {
         "--sizes: '" + s + "' is out of range, expected 16..8192 pixels each (the renderer's)");
     sizes.push_back({w, h});
   }
+  ESIM_VERIFY(!sizes.empty(), "--sizes is empty (expected e.g. 640x480,1280x720)");
+  // the surfaces' names, before the first is drawn (an unknown one stopped the bench after
+  // the ones before it had run)
+  const std::vector<std::string> surfaces = splitList(opt.surfaces);
+  ESIM_VERIFY(!surfaces.empty(),
+              "--surfaces is empty, expected slab, slab20k, sphere20k or liver (comma list)");
+  for (const std::string& name : surfaces)
+    ESIM_VERIFY(
+        name == "slab" || name == "slab20k" || name == "sphere20k" || name == "liver",
+        "--surfaces: unknown surface '" + name + "', expected slab, slab20k, sphere20k or liver");
   const std::vector<Variant> variants = parseVariants(opt);
   app::CsvOutput csv(opt.csv,
                      std::string("surface,width,height,triangles,render_ms,convert_ms,encode_ms,"
@@ -225,10 +235,16 @@ int benchRender(const BenchRenderOptions& opt) {
   const char* lpThreads = std::getenv("LP_NUM_THREADS");
   bool header = false;
 
-  for (const std::string& name : splitList(opt.surfaces)) {
-    // 1. surface
-    AnalyticCut cut;
-    const SurfaceSnapshot base = makeSurface(name, opt.liver, cut);
+  // 1. the surfaces, all made before the first is drawn (a liver file that cannot be read
+  // stops the bench before anything runs)
+  std::vector<AnalyticCut> cuts(surfaces.size());
+  std::vector<SurfaceSnapshot> bases;
+  for (size_t k = 0; k < surfaces.size(); ++k)
+    bases.push_back(makeSurface(surfaces[k], opt.liver, cuts[k]));
+  for (size_t k = 0; k < surfaces.size(); ++k) {
+    const std::string& name = surfaces[k];
+    const AnalyticCut& cut = cuts[k];
+    const SurfaceSnapshot& base = bases[k];
     for (const auto& [w, h] : sizes) {
       std::vector<std::vector<std::uint8_t>> reference;  // frames of the first variant
       for (size_t vi = 0; vi < variants.size(); ++vi) {
