@@ -36,8 +36,13 @@
 //     in flight then is not waited for (it is dropped when due). Waiting for it made the
 //     liver's solve_potential p95 105 ms against pcg's 61 (README).
 // setMatrix / updateMatrix: the region side takes the new K at once; the full solver gets
-// it when its next refresh starts (a refresh in flight is never waited for here), so a cut
-// costs an O(nnz) copy in the frame. The two inner pcg solvers take a cut as an update in
+// it when its next refresh starts (a refresh in flight is never waited for here). A cut told
+// its changed nodes costs the change: the node classes edited in place (FreeBase, as pcg's),
+// the changed columns copied into the region's K and, at the next refresh's start, into the
+// refresh thread's copy (both when K keeps its pattern, as the frame loop's in-place edit
+// does; else, or untold, the whole of K). At 50k nodes 0.11-0.16 ms against 3.5-4.6 ms for
+// the whole copy and the classes' search (esim bench electric --only-update); in the cut 0.36
+// against 4.0-4.2 ms a removal (README). The two inner pcg solvers take a cut as an update in
 // place (pcg's updateMatrix, told the union of the changed nodes since they last took a
 // matrix; told nothing when one of those cuts came without its list), not as a new matrix:
 // on the refresh thread at 50k nodes 0.4-6.5 ms against 14-15 ms for pcg's setMatrix.
@@ -60,6 +65,27 @@ namespace {
 // a jump: a contact farther than this many margins from the held solve's contacts
 constexpr double kJumpMargins = 0.5;
 
+// to's columns `changed` (sorted) given from's values, in place, when every one of them has
+// the same place and rows in both (then, as their other columns are the same by
+// updateMatrix's contract, both have one pattern): O(the columns' entries). False: nothing
+// copied (not told, another pattern, or not compressed), the caller copies all of it
+bool copyColumns(const SparseMatrix& from, const std::vector<int>* changed, SparseMatrix& to) {
+  if (!changed || !from.isCompressed() || !to.isCompressed() || from.rows() != to.rows() ||
+      from.cols() != to.cols() || from.nonZeros() != to.nonZeros())
+    return false;
+  const int* fo = from.outerIndexPtr();
+  const int* tout = to.outerIndexPtr();
+  for (int j : *changed) {
+    if (j < 0 || j >= from.cols() || fo[j] != tout[j] || fo[j + 1] != tout[j + 1] ||
+        !std::equal(from.innerIndexPtr() + fo[j], from.innerIndexPtr() + fo[j + 1],
+                    to.innerIndexPtr() + tout[j]))
+      return false;
+  }
+  for (int j : *changed)
+    std::copy(from.valuePtr() + fo[j], from.valuePtr() + fo[j + 1], to.valuePtr() + tout[j]);
+  return true;
+}
+
 class LocalSolver final : public ElectricSolver {
  public:
   explicit LocalSolver(const ElectricSolverOptions& options) : options_(options) {
@@ -79,8 +105,8 @@ class LocalSolver final : public ElectricSolver {
   void setNodePositions(const std::vector<Vec3>& positionsM) override { positions_ = positionsM; }
 
   void setMatrix(const SparseMatrix& K, const std::vector<int>& grounded) override {
-    const ResetOnThrow guard(classes_);
-    classes_.build(K, grounded);
+    const ResetOnThrow guard(free_.current);
+    free_.set(K, grounded);
     K_ = K;
     K_.makeCompressed();
     grounded_ = grounded;
@@ -89,34 +115,36 @@ class LocalSolver final : public ElectricSolver {
     fullChange_ = nowChange_ = InnerChange{};  // a new matrix for both
   }
 
-  // a new matrix is all the region side needs (O(nnz)); the held far field stays; the inner
-  // solvers get the change when they next take the matrix
+  // the region side takes the change: its node classes in place (FreeBase, as pcg's) and
+  // the changed columns of K (all of K when not told them, or when their pattern moved);
+  // the held far field stays; the inner solvers get the change when they next take the
+  // matrix
   ElectricUpdateStats updateMatrix(const SparseMatrix& K, const std::vector<int>& grounded,
                                    const std::vector<int>* changedNodes) override {
-    ESIM_CHECK(classes_.n > 0);  // setMatrix before updateMatrix
-    const ResetOnThrow guard(classes_);
-    classes_.build(K, grounded);
-    K_ = K;
-    K_.makeCompressed();
+    ESIM_CHECK(free_.current.n > 0);  // setMatrix before updateMatrix
+    const ResetOnThrow guard(free_.current);
+    BaseChange change;
+    ElectricUpdateStats stats =
+        updateFreeBase(free_, K, grounded, changedNodes, change, [&] { free_.set(K, grounded); });
+    if (!copyColumns(K, changedNodes, K_)) {
+      K_ = K;
+      K_.makeCompressed();
+    }
     grounded_ = grounded;
     fullChange_.add(changedNodes);
     nowChange_.add(changedNodes);
     pending_ = nowPending_ = true;
-    return {};
+    return stats;
   }
 
   ElectricSolveStats solve(const std::vector<int>& contact, double voltageV,
                            Eigen::VectorXd& potential) override {
-    ESIM_CHECK(classes_.n > 0);  // setMatrix before solve
-    ESIM_VERIFY(static_cast<int>(positions_.size()) == classes_.n,
+    ESIM_CHECK(free_.current.n > 0);  // setMatrix before solve
+    ESIM_VERIFY(static_cast<int>(positions_.size()) == free_.current.n,
                 "electric solver local: node positions (" + std::to_string(positions_.size()) +
-                    ") do not match the matrix (" + std::to_string(classes_.n) + " nodes)");
+                    ") do not match the matrix (" + std::to_string(free_.current.n) + " nodes)");
     ElectricSolveStats stats;
-    const std::vector<int> cf = classes_.contactFreeIndices(contact);
-    if (cf.empty()) {
-      potential.setZero(classes_.n);
-      return stats;
-    }
+    if (free_.contactsOrZero(contact, potential).empty()) return stats;
     ++solves_;
     const bool due = solves_ >= nextRefresh_;
     if (due && refresh_.valid()) {  // adopt the refresh started R solves ago
@@ -131,7 +159,7 @@ class LocalSolver final : public ElectricSolver {
     // nothing held yet, or the tool has jumped away from the held solve's contacts: a full
     // solve in the frame by a second solver (a refresh in flight is not waited for: it is of
     // the old place, dropped when it is due), held from now on
-    if (held_.size() != classes_.n || movedAway(contact)) {
+    if (held_.size() != free_.current.n || movedAway(contact)) {
       if (refresh_.valid()) dropRefresh_ = true;
       fullSolve(contact, voltageV, potential, stats);
       held_ = potential;
@@ -152,8 +180,10 @@ class LocalSolver final : public ElectricSolver {
   }
 
   double memoryBytes() const override {
-    return full_->memoryBytes() + now_->memoryBytes() + 12.0 * static_cast<double>(K_.nonZeros()) +
-           8.0 * 3 * static_cast<double>(classes_.n);
+    return full_->memoryBytes() + now_->memoryBytes() +
+           12.0 *
+               static_cast<double>(K_.nonZeros() + refreshK_.nonZeros() + free_.matrix.nonZeros()) +
+           8.0 * 6 * static_cast<double>(free_.current.n);
   }
   const char* name() const override { return "local"; }
 
@@ -166,7 +196,7 @@ class LocalSolver final : public ElectricSolver {
       nowPending_ = false;
     }
     stats = now_->solve(contact, voltageV, potential);
-    stats.regionNodes = classes_.numFree();
+    stats.regionNodes = free_.current.numFree();
   }
 
   // a contact node of this frame farther than kJumpMargins * localMarginM from every contact
@@ -180,7 +210,7 @@ class LocalSolver final : public ElectricSolver {
     const double reach2 =
         kJumpMargins * kJumpMargins * options_.localMarginM * options_.localMarginM;
     for (int c : contact) {
-      if (classes_.freeIndex[c] < 0 ||
+      if (free_.current.freeIndex[c] < 0 ||
           std::binary_search(heldContact_.begin(), heldContact_.end(), c))
         continue;
       bool near = false;
@@ -195,8 +225,10 @@ class LocalSolver final : public ElectricSolver {
   }
 
   void startRefresh(const std::vector<int>& contact, double voltageV) {
-    if (pending_) {  // the thread gets its own copy: K_ may change while it runs
-      refreshK_ = K_;
+    if (pending_) {  // the thread gets its own copy: K_ may change while it runs (the thread
+                     // is joined here: the copy takes the columns changed since the last)
+      const bool told = fullChange_.hasMatrix && fullChange_.told;
+      if (!told || !copyColumns(K_, &fullChange_.changedNodes, refreshK_)) refreshK_ = K_;
       refreshGrounded_ = grounded_;
       refreshChange_ = std::move(fullChange_);
       fullChange_ = InnerChange::taken();
@@ -217,17 +249,18 @@ class LocalSolver final : public ElectricSolver {
   // the region around the contacts solved with the held field outside
   void regionSolve(const std::vector<int>& contact, double voltageV, Eigen::VectorXd& potential,
                    ElectricSolveStats& stats) {
-    const int n = classes_.n;
+    const CurrentClasses& classes = free_.current;
+    const int n = classes.n;
     const double scale = heldVoltageV_ != 0 ? voltageV / heldVoltageV_ : 1.0;
     potential.resize(n);
-    for (int i = 0; i < n; ++i) potential[i] = classes_.freeIndex[i] >= 0 ? scale * held_[i] : 0.0;
+    for (int i = 0; i < n; ++i) potential[i] = classes.freeIndex[i] >= 0 ? scale * held_[i] : 0.0;
     mark_.assign(n, -1);  // -2 contact, -3 seen and outside, >= 0 index in region
     region_.clear();
     std::vector<int>& queue = queue_;
     queue.clear();
     centres_.clear();  // the nodes the margin is measured from
     for (int c : contact)
-      if (classes_.freeIndex[c] >= 0) {
+      if (classes.freeIndex[c] >= 0) {
         potential[c] = voltageV;
         mark_[c] = -2;
         queue.push_back(c);
@@ -235,7 +268,7 @@ class LocalSolver final : public ElectricSolver {
       }
     // the held solve's contacts: u_h is the tool's potential there, no longer touched
     for (int c : heldContact_)
-      if (c < n && classes_.freeIndex[c] >= 0 && mark_[c] == -1) {
+      if (c < n && classes.freeIndex[c] >= 0 && mark_[c] == -1) {
         mark_[c] = static_cast<int>(region_.size());
         region_.push_back(c);
         queue.push_back(c);
@@ -248,7 +281,7 @@ class LocalSolver final : public ElectricSolver {
       for (SparseMatrix::InnerIterator it(K_, queue[head]); it; ++it) {
         const int v = static_cast<int>(it.row());
         if (mark_[v] != -1) continue;
-        bool inside = classes_.freeIndex[v] >= 0;
+        bool inside = classes.freeIndex[v] >= 0;
         if (inside) {
           inside = false;
           for (int c : centres_)
@@ -385,7 +418,7 @@ class LocalSolver final : public ElectricSolver {
   };
 
   ElectricSolverOptions options_;
-  NodeClasses classes_;
+  FreeBase free_;   // the node classes now (free_.current), edited in place by a cut
   SparseMatrix K_;  // the current matrix (the region side)
   std::vector<int> grounded_;
   bool pending_ = false;  // K_ not yet given to the full solver

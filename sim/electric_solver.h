@@ -54,9 +54,11 @@
 //                   frame with the potential elsewhere held from a full pcg solve
 //                   refreshed on a thread every localRefreshFrames solves (see
 //                   electric_local.cpp; its error measured in README "The potential
-//                   solved around the tool, built"). setMatrix / updateMatrix: an O(nnz)
-//                   copy; the full solver takes the matrix at its next refresh (a cut as
-//                   pcg's update in place, told the changed nodes since it last took one).
+//                   solved around the tool, built"). setMatrix: an O(nnz) copy;
+//                   updateMatrix told the changed nodes: its classes in place (FreeBase)
+//                   and their columns copied; the full solver takes the matrix at its next
+//                   refresh (a cut as pcg's update in place, told the changed nodes since
+//                   it last took one).
 //   downdate      - capacitance's algebra on one simplicial LDL' factor of K_ff kept
 //                   exact through a cut: updateMatrix deletes the rows leaving the free
 //                   set and applies the change by low-rank updates and downdates (the
@@ -89,7 +91,7 @@
 //     fresh assembly gives that), otherwise they only count as changed rows. Given
 //     changedNodes (every node whose column of K may differ from the last K: a cut's
 //     removed elements' nodes), the FreeBase strategies (refactor, dense-inverse,
-//     capacitance, downdate, pcg) read only those columns, their neighbours' and a spanning
+//     capacitance, downdate, pcg, local) read only those columns, their neighbours' and a spanning
 //     forest's paths to the ground: O(the change), with the same result bit for bit
 //     (FreeBase::diff; it takes the O(nnz) way where a change is not a removal);
 //   - nodes may leave the free set (no alive element left, an island cut off from the

@@ -383,8 +383,11 @@ UpdateTiming timeUpdate(const Scene& s, ElectricStrategy strategy, const BenchEl
   for (int k = 0; k < tets; ++k) removed.push_back(byDistance[k].second);
   for (int e : removed) cut.alive[e] = 0;
   const std::vector<int> changed = nodesOfTets(cut, removed);  // the columns of K that change
-  const SparseMatrix K =
-      assembleStiffness(cut, tetGeometry(cut), std::vector<double>(cut.numTets(), 0.144));
+  // K after the cut as the frame loop makes it: the removed tets' entries summed again in
+  // place (the pattern kept, explicit zeros: bitwise a fresh assembly's values)
+  SparseMatrix K = s.K;
+  removeFromStiffness(K, cut, tetGeometry(cut), std::vector<double>(cut.numTets(), 0.144),
+                      nodeTets(s.mesh), removed);
   const std::vector<int> surface = boundaryNodes(cut, boundaryFaces(cut));
   const std::vector<int> grounded = returnElectrodeNodes(cut, surface, ReturnElectrode{});
   // a contact set cached before the cut, one far from the warm frames (columns to solve)
@@ -547,8 +550,9 @@ void runUpdate(const BenchElectricOptions& opt, const UpdatePlan& plan) {
           std::snprintf(what, sizeof what, "fell back: %s", u.fallbackReason.c_str());
         else if (st == ElectricStrategy::Local)  // not exact: its region against a full solve
           std::snprintf(what, sizeof what,
-                        "K copied, the held far field kept; rel_err: its region solve against "
-                        "a fresh solver's first (full) solve");
+                        "rows %d, dropped %d, the held far field kept; rel_err: its region "
+                        "solve against a fresh solver's first (full) solve",
+                        u.changedNodes, u.droppedNodes);
         else
           std::snprintf(
               what, sizeof what, "rows %d, dropped %d, rank %d, columns corrected %d dropped %d",
