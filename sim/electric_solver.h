@@ -91,8 +91,8 @@
 //     fresh assembly gives that), otherwise they only count as changed rows. Given
 //     changedNodes (every node whose column of K may differ from the last K: a cut's
 //     removed elements' nodes), the FreeBase strategies (refactor, dense-inverse,
-//     capacitance, downdate, pcg, local) read only those columns, their neighbours' and a spanning
-//     forest's paths to the ground: O(the change), with the same result bit for bit
+//     capacitance, downdate, pcg, local) read only those columns, their neighbours' and a
+//     spanning forest's paths to the ground: O(the change), with the same result bit for bit
 //     (FreeBase::diff; it takes the O(nnz) way where a change is not a removal);
 //   - nodes may leave the free set (no alive element left, an island cut off from the
 //     ground, a node newly grounded): they keep their index with an identity

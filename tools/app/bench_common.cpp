@@ -41,37 +41,50 @@ std::vector<int> parseNodeCounts(const std::string& text, const std::string& com
   return out;
 }
 
-std::vector<int> parseIntegerList(const std::string& text, const std::string& option, long lo,
-                                  long hi, const std::string& example) {
-  std::vector<int> out;
+namespace {
+
+// a comma list, each item read by parse (false: not a valid item); errors name the option,
+// the item and what is expected ("an integer in [1, 9]")
+template <class T, class Parse>
+std::vector<T> parseList(const std::string& text, const std::string& option,
+                         const std::string& expected, const std::string& example,
+                         const Parse& parse) {
+  std::vector<T> out;
   for (const std::string& item : splitList(text)) {
-    char* end = nullptr;
-    errno = 0;
-    const long v = std::strtol(item.c_str(), &end, 10);
-    ESIM_VERIFY(end != item.c_str() && *end == '\0' && errno == 0 && v >= lo && v <= hi,
-                option + ": '" + item + "' is not an integer in [" + std::to_string(lo) + ", " +
-                    std::to_string(hi) + "] (expected e.g. " + example + ")");
-    out.push_back(static_cast<int>(v));
+    T v{};
+    ESIM_VERIFY(parse(item, v), option + ": '" + item + "' is not " + expected +
+                                    " (expected e.g. " + example + ")");
+    out.push_back(v);
   }
   ESIM_VERIFY(!out.empty(), option + " is empty (expected e.g. " + example + ")");
   return out;
 }
 
+}  // namespace
+
+std::vector<int> parseIntegerList(const std::string& text, const std::string& option, long lo,
+                                  long hi, const std::string& example) {
+  const std::string expected =
+      "an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
+  return parseList<int>(text, option, expected, example, [&](const std::string& item, int& v) {
+    char* end = nullptr;
+    errno = 0;
+    const long x = std::strtol(item.c_str(), &end, 10);
+    v = static_cast<int>(x);
+    return end != item.c_str() && *end == '\0' && errno == 0 && x >= lo && x <= hi;
+  });
+}
+
 std::vector<double> parseNumberList(const std::string& text, const std::string& option, double lo,
                                     double hi, const std::string& example) {
-  std::vector<double> out;
-  for (const std::string& item : splitList(text)) {
-    char* end = nullptr;
-    const double v = std::strtod(item.c_str(), &end);
-    std::ostringstream range;
-    range << "[" << lo << ", " << hi << "]";
-    ESIM_VERIFY(end != item.c_str() && *end == '\0' && std::isfinite(v) && v >= lo && v <= hi,
-                option + ": '" + item + "' is not a number in " + range.str() + " (expected e.g. " +
-                    example + ")");
-    out.push_back(v);
-  }
-  ESIM_VERIFY(!out.empty(), option + " is empty (expected e.g. " + example + ")");
-  return out;
+  std::ostringstream expected;
+  expected << "a number in [" << lo << ", " << hi << "]";
+  return parseList<double>(
+      text, option, expected.str(), example, [&](const std::string& item, double& v) {
+        char* end = nullptr;
+        v = std::strtod(item.c_str(), &end);
+        return end != item.c_str() && *end == '\0' && std::isfinite(v) && v >= lo && v <= hi;
+      });
 }
 
 namespace fs = std::filesystem;
