@@ -59,7 +59,18 @@ TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
       {"bench cut --sizes 50 --electric pcg,foo",
        "--electric: electric solver: unknown strategy 'foo'; valid names: refactor, "
        "dense-inverse, capacitance, pcg, local, downdate, auto"},
-      {"bench electric --sizes 100 --local-margin 0", "--local-margin"},
+      {"bench electric --sizes 100 --local-margin 0",
+       "bench electric: --local-margin must be > 0 m, got 0"},
+      // the solvers' options were checked by the solvers: each of the update table's rows was
+      // "skipped" (exit 0) naming the scenario's key, the sweep stopped after its header
+      {"bench electric --sizes 100 --update --threads 0",
+       "bench electric: --threads must be >= 1, got 0"},
+      {"bench electric --sizes 100 --pcg-tolerance -1",
+       "bench electric: --pcg-tolerance must be in (0, 1), got -1"},
+      {"bench electric --sizes 100 --update --dense-limit-gb 0",
+       "bench electric: --dense-limit-gb must be > 0, got 0"},
+      {"bench electric --sizes 100 --update --local-refresh 0",
+       "bench electric: --local-refresh must be >= 1, got 0"},
       {"bench structural --sizes 100 --solves 0", "--solves must be >= 1"},
       {"bench structural --sizes 100 --volumetric element,foo",
        "bench structural: --volumetric: 'foo' is not a form of the volumetric strain; expected "

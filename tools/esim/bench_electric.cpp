@@ -468,6 +468,24 @@ std::vector<std::pair<ElectricStrategy, bool>> parseUpdateStrategies(const std::
   return strategies;
 }
 
+// the solvers' options (both tables), checked before any table runs, by the bench's names
+// (an invalid one made every row "skipped" with the scenario key's message)
+void checkSolverOptions(const BenchElectricOptions& opt) {
+  ESIM_VERIFY(opt.threads >= 1,
+              "bench electric: --threads must be >= 1, got " + std::to_string(opt.threads));
+  ESIM_VERIFY(
+      std::isfinite(opt.pcgTolerance) && opt.pcgTolerance > 0 && opt.pcgTolerance < 1,
+      "bench electric: --pcg-tolerance must be in (0, 1), got " + messageNumber(opt.pcgTolerance));
+  ESIM_VERIFY(
+      std::isfinite(opt.denseLimitGb) && opt.denseLimitGb > 0,
+      "bench electric: --dense-limit-gb must be > 0, got " + messageNumber(opt.denseLimitGb));
+  ESIM_VERIFY(
+      std::isfinite(opt.localMarginM) && opt.localMarginM > 0,
+      "bench electric: --local-margin must be > 0 m, got " + messageNumber(opt.localMarginM));
+  ESIM_VERIFY(opt.localRefreshFrames >= 1, "bench electric: --local-refresh must be >= 1, got " +
+                                               std::to_string(opt.localRefreshFrames));
+}
+
 // the update table's options, checked before any table runs
 struct UpdatePlan {
   std::vector<int> sizes, tetCounts;
@@ -574,6 +592,7 @@ void runUpdate(const BenchElectricOptions& opt, const UpdatePlan& plan) {
 }
 
 int benchElectric(const BenchElectricOptions& opt) {
+  checkSolverOptions(opt);
   if (opt.onlyUpdate) {
     runUpdate(opt, checkUpdateOptions(opt));
     return kExitOk;
@@ -584,7 +603,6 @@ int benchElectric(const BenchElectricOptions& opt) {
   UpdatePlan updatePlan;
   if (opt.update) updatePlan = checkUpdateOptions(opt);  // checked before the first run
   ESIM_VERIFY(opt.frames >= 1, "bench electric: --frames must be >= 1");
-  ESIM_VERIFY(opt.threads >= 1, "bench electric: --threads must be >= 1");
   app::CsvOutput csv(opt.csv,
                      "strategy,nodes,precompute_s,median_ms,p95_ms,memory_mb,max_rel_error,note");
   std::vector<Row> rows;
@@ -699,11 +717,9 @@ const Registrar registrar(
               ->capture_default_str());
       app.add_option("--local-margin", opt->localMarginM,
                      "local: the region's radius around the contacts [m]")
-          ->check(CLI::PositiveNumber)
           ->capture_default_str();
       app.add_option("--local-refresh", opt->localRefreshFrames,
                      "local: frames between the far field's full solves")
-          ->check(CLI::PositiveNumber)
           ->capture_default_str();
       sweep.push_back(
           app.add_flag("!--no-fig9", opt->fig9, "skip the paper's Fig. 9(a) comparison"));
