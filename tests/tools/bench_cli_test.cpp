@@ -109,6 +109,9 @@ TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
       // 0 and negative counts ran once
       {"bench electric --sizes 100 --update --update-reps 0", "--update-reps must be >= 1, got 0"},
       {"bench electric --sizes 100 --update --update-strategies ,", "--update-strategies is empty"},
+      // the encoder refused them after the first surface's rows
+      {"bench render --preset x", "--preset: x not in {ultrafast,superfast,veryfast"},
+      {"bench render --crf -1", "--crf: Value -1 not in range 0 to 51"},
       {"bench render --sizes x", "--sizes: 'x' is not WIDTHxHEIGHT (e.g. 1280x720)"},
       // it ran as 1280x720
       {"bench render --sizes 1280x720x3",

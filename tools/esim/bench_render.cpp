@@ -339,8 +339,14 @@ Registrar registerBenchRender(
           ->capture_default_str();
       app.add_option("--shading", opt->shading, "lighting, comma list of 'pixel', 'vertex'")
           ->capture_default_str();
-      app.add_option("--preset", opt->preset, "x264 preset")->capture_default_str();
-      app.add_option("--crf", opt->crf, "x264 CRF")->capture_default_str();
+      // checked here, not when the encoder opens (after the first surface's rows)
+      app.add_option("--preset", opt->preset, "x264 preset")
+          ->check(CLI::IsMember({"ultrafast", "superfast", "veryfast", "faster", "fast", "medium",
+                                 "slow", "slower", "veryslow"}))
+          ->capture_default_str();
+      app.add_option("--crf", opt->crf, "x264 CRF")
+          ->check(CLI::Range(0, 51))
+          ->capture_default_str();
       const CLI::Option* liver =
           app.add_option("--liver", opt->liver, "surface file of the 'liver' case")
               ->capture_default_str();
