@@ -304,7 +304,11 @@ TEST_F(BenchCli, AccuracyChecksItsSceneAndPointsBeforeMakingItsFolder) {
            {"--only ,", "--only ',': expected point names or knobs, comma separated"},
            // --set reaches the scene the reference runs, checked there too
            {"--set material.critical_stress_radius_m=0.5",
-            "material.critical_stress_radius_m = 0.5 is outside [0, 0.05]"}}) {
+            "material.critical_stress_radius_m = 0.5 is outside [0, 0.05]"},
+           // ... and alone: a value every point overrides was never read ('abc' ran)
+           {"--set mesh.slab.nodes=abc", "mesh.slab.nodes: expected an integer, got 'abc'"},
+           // nan passed CLI11's range and ran the default 2 s
+           {"--seconds nan", "--seconds: expected a number in [0, 4] (0: the default), got nan"}}) {
     const auto r = shell(std::string("\"") + ESIM_EXE + "\" bench accuracy --quick " + args +
                          " --out \"" + out.string() + "\"");
     EXPECT_EQ(r.exitCode, 2) << args << "\n" << r.output;
