@@ -75,6 +75,10 @@ TEST_F(MeshInfoCli, AnOptionTheModeWouldIgnoreIsRefused) {
       {"\"" + vtu + "\" --refine-size 0.001",
        "--refine-size is an option of meshing a surface file, and a .vtu tet mesh is read as it "
        "is"},
+      // the refinement's own options without its segment were ignored (nan meshed)
+      {"assets/liver.obj --refine-size nan",
+       "mesh-info: --refine-size is an option of the refinement around a planned cut, which "
+       "needs --refine-from and --refine-to"},
       // --vtu checked before the meshing (it failed after it: "cannot rename temporary file:
       // Is a directory", "cannot open for writing")
       {"assets/liver.obj --vtu \"" + root_.string() + "/mesh.txt\"",

@@ -181,14 +181,17 @@ Registrar reg(
               ->delimiter(','));
       meshing.push_back(app.add_option("--refine-to", opt->refineTo, "planned cut end x,y,z [m]")
                             ->delimiter(','));
-      meshing.push_back(app.add_option("--refine-size", opt->meshing.refinement.cellSizeM,
-                                       "tet size bound near the planned cut [m]")
-                            ->capture_default_str());
-      meshing.push_back(app.add_option("--refine-width", opt->meshing.refinement.widthM,
-                                       "radius of the fine zone around the planned cut [m]")
-                            ->capture_default_str());
+      // what only the refinement reads (without --refine-from it would be ignored)
+      std::vector<const CLI::Option*> refinement;
+      refinement.push_back(app.add_option("--refine-size", opt->meshing.refinement.cellSizeM,
+                                          "tet size bound near the planned cut [m]")
+                               ->capture_default_str());
+      refinement.push_back(app.add_option("--refine-width", opt->meshing.refinement.widthM,
+                                          "radius of the fine zone around the planned cut [m]")
+                               ->capture_default_str());
+      meshing.insert(meshing.end(), refinement.begin(), refinement.end());
       app.add_option("--vtu", opt->vtuOut, "also write the tet mesh to this .vtu file");
-      return [opt, meshing] {
+      return [opt, meshing, refinement] {
         const bool slab = opt->slabNodes > 0 || opt->file == "slab";
         ESIM_VERIFY(opt->slabNodes == 0 || opt->file.empty() || opt->file == "slab",
                     "mesh-info: --slab-nodes reports the slab; give it without '" + opt->file +
@@ -198,6 +201,10 @@ Registrar reg(
               meshing, "mesh-info",
               std::string("is an option of meshing a surface file, and ") +
                   (slab ? "the slab is built, not meshed" : "a .vtu tet mesh is read as it is"));
+        if (opt->refineFrom.empty())
+          refuseGiven(refinement, "mesh-info",
+                      "is an option of the refinement around a planned cut, which needs "
+                      "--refine-from and --refine-to");
         return runMeshInfo(*opt);
       };
     });
