@@ -244,7 +244,11 @@ inline constexpr double kAutoDenseMaxFreeNodes = 3000;
 // way), the same 7646 tets removed. So auto takes downdate for a cut up to 200 000 free
 // nodes (the largest measured rounded up, as 47 753 was to 50 000, 96 709 to 100 000 and
 // 145 488 to 150 000; downdate's margin in CPU 2.7 % at 96 709 free nodes, 3.3 % at 145 488,
-// 1.2 % at 194 944: near where pcg would take over); pcg above (less memory, not measured).
+// 1.2 % at 194 944); pcg above, with less memory. 250 275 nodes (244 036 free; --sizes
+// 250000, one run, the same session, 9 min 22 s, a peak of 17.4 GB): the CPU 13 273 against
+// 13 334 ms a frame (0.5 %), median 4892 against 5161 ms, p95 16 048 against 15 726 ms, the
+// potential's median 245 against 1107 ms, its factor's update 511 against 1.3 ms a removal,
+// the same 9224 tets: a tie, so the crossing lies between the two sizes and the bound stays.
 inline constexpr double kAutoDowndateMaxFreeNodes = 200000;
 
 struct ElectricSolveStats {
