@@ -214,6 +214,11 @@ TEST(SweepSpec, ErrorsNameTheSweepFileLineAndKey) {
        file + ":3:29: tool.voltage_v: variant v0000"},
       {"base: ../paper_slab_506.yaml\nrandom:\n  tool.voltage_v: {uniform: [90, 50]}\n",
        file + ":3:29: random.tool.voltage_v.uniform: lo 90 is above hi 50"},
+      // a draw over the whole range of doubles was inf: on a path key, yaml-cpp's "bad
+      // conversion" (exit 4)
+      {"base: ../paper_slab_506.yaml\nrandom: {path.angle_deg: {uniform: [-1e308, 1e308]}}\n",
+       file + ":2:36: random.path.angle_deg.uniform: hi - lo must be a finite number, got "
+              "-1e+308 to 1e+308"},
       {"base: ../paper_slab_506.yaml\nrandom:\n  tool.voltage_v: {gauss: [1, 2]}\n",
        file + ":3:20: random.tool.voltage_v: unknown distribution 'gauss'"},
       {"base: ../paper_slab_506.yaml\nset: {path.speed: 0}\n",

@@ -353,6 +353,9 @@ class SpecReader {
       if (k.lo[i] > k.hi[i])
         fail(arg.Mark(),
              sub + ": lo " + numberText(k.lo[i]) + " is above hi " + numberText(k.hi[i]));
+      if (!std::isfinite(k.hi[i] - k.lo[i]))  // a draw would be inf
+        fail(arg.Mark(), sub + ": hi - lo must be a finite number, got " + numberText(k.lo[i]) +
+                             " to " + numberText(k.hi[i]));
       if (k.draw == DrawKind::Integer &&
           (k.lo[i] != std::floor(k.lo[i]) || k.hi[i] != std::floor(k.hi[i]) ||
            std::fabs(k.lo[i]) > 9e15 || std::fabs(k.hi[i]) > 9e15))
@@ -563,11 +566,24 @@ std::vector<std::string> pathOverrides(const Scenario& s, const PathTransform& t
   return out;
 }
 
-// the numbers of a path transform's value (YAML text)
-std::vector<double> pathNumbers(const std::string& yaml) {
-  const YAML::Node n = YAML::Load(yaml);
-  if (n.IsSequence()) return {n[0].as<double>(), n[1].as<double>(), n[2].as<double>()};
-  return {n.as<double>()};
+// the numbers of a path transform's value (YAML text); throws Error naming `where` and the
+// key where they are not finite numbers (a draw over [-1e308, 1e308] gave "inf", which
+// yaml-cpp could not convert: an internal error)
+std::vector<double> pathNumbers(const std::string& yaml, const std::string& where,
+                                const std::string& key) {
+  std::vector<double> v;
+  try {
+    const YAML::Node n = YAML::Load(yaml);
+    if (n.IsSequence())
+      v = {n[0].as<double>(), n[1].as<double>(), n[2].as<double>()};
+    else
+      v = {n.as<double>()};
+  } catch (const YAML::Exception&) {
+    v.clear();
+  }
+  if (v.empty() || !std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); }))
+    throw Error(where + ": " + key + ": expected finite numbers, got " + yaml);
+  return v;
 }
 
 void setPathKnob(PathTransform& t, const std::string& key, const std::vector<double>& v,
@@ -695,7 +711,7 @@ class Expander {
            const std::string& where, bool record) {
     if (record) v.values[k.key] = toJson(YAML::Load(value));
     if (isPathKnob(k.key)) {
-      setPathKnob(path, k.key, pathNumbers(value), where);
+      setPathKnob(path, k.key, pathNumbers(value, where, k.key), where);
       return;
     }
     const std::string o = k.key + "=" + value;
