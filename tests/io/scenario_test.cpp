@@ -835,6 +835,17 @@ TEST(Scenario, LongValuesAreQuotedShortInMessages) {
   EXPECT_EQ(quoteInMessage(std::string(61, 'x')),
             "'" + std::string(60, 'x') + " ...' (61 characters)");
   EXPECT_EQ(quoteInMessage("first line\nsecond"), "'first line ...' (17 characters)");
+  // bytes that are not UTF-8 text, and control characters, escaped: a message stays text
+  // (a sweep file's seed "\N", which yaml-cpp decodes to the byte 0x85, was echoed raw)
+  EXPECT_EQ(quoteInMessage("\x85"), "'\\x85'");
+  EXPECT_EQ(quoteInMessage("a\tb\x7f"), "'a\\x09b\\x7F'");
+  EXPECT_EQ(quoteInMessage("caf\xc3\xa9 \xe2\x82\xac \xf0\x9f\x94\xa5"),
+            "'caf\xc3\xa9 \xe2\x82\xac \xf0\x9f\x94\xa5'");  // whole sequences kept
+  EXPECT_EQ(quoteInMessage("\xc0\x80\xed\xa0\x80"),          // overlong NUL, a surrogate
+            "'\\xC0\\x80\\xED\\xA0\\x80'");
+  // a sequence cut at the 60th byte is not left half
+  EXPECT_EQ(quoteInMessage(std::string(59, 'x') + "\xc3\xa9yz"),
+            "'" + std::string(59, 'x') + "\\xC3 ...' (63 characters)");
 }
 
 TEST(Scenario, ABlankOverrideKeyIsRefused) {
