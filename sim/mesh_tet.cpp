@@ -157,17 +157,17 @@ BoundaryNodeChange updateBoundaryNodes(const TetMesh& mesh,
   return change;
 }
 
+int boundaryFaceIndex(const TetMesh& mesh, const BoundaryFace& face) {
+  const Tet& t = mesh.tets[face.tet];
+  for (int f = 0; f < 4; ++f)
+    if (std::find(face.nodes.begin(), face.nodes.end(), t[f]) == face.nodes.end())
+      return face.tet * 4 + f;
+  return face.tet * 4;
+}
+
 void removeFromBoundary(const TetMesh& mesh, const std::vector<std::array<int, 4>>& neighbours,
                         const std::vector<int>& removed, std::vector<BoundaryFace>& faces) {
-  // faces are ordered by tet * 4 + local face; a face's local index is that of the tet's
-  // vertex it does not hold
-  auto where = [&](const BoundaryFace& bf) {
-    const Tet& t = mesh.tets[bf.tet];
-    for (int f = 0; f < 4; ++f)
-      if (std::find(bf.nodes.begin(), bf.nodes.end(), t[f]) == bf.nodes.end())
-        return bf.tet * 4 + f;
-    return bf.tet * 4;
-  };
+  // faces are ordered by boundaryFaceIndex
   // the faces joining: of alive neighbours, across a face from a removed tet
   std::vector<int> joining;
   for (int e : removed)
@@ -185,7 +185,7 @@ void removeFromBoundary(const TetMesh& mesh, const std::vector<std::array<int, 4
   size_t j = 0;
   for (const BoundaryFace& bf : faces) {
     if (!mesh.isAlive(bf.tet)) continue;
-    const int w = where(bf);
+    const int w = boundaryFaceIndex(mesh, bf);
     for (; j < joining.size() && joining[j] < w; ++j) out.push_back(faceAt(mesh, joining[j]));
     out.push_back(bf);
   }

@@ -69,6 +69,10 @@ double meshVolume(const TetMesh& mesh);
 // boundary faces of the alive tets, sorted by (tet, local face) for determinism
 std::vector<BoundaryFace> boundaryFaces(const TetMesh& mesh);
 
+// face.tet * 4 + the local index of face's tet vertex it does not hold (the order of
+// boundaryFaces; faceAt's argument)
+int boundaryFaceIndex(const TetMesh& mesh, const BoundaryFace& face);
+
 // per tet, the tet across each local face f (the face opposite local vertex f, the faces
 // boundaryFaces gives), -1 where no tet is; every tet, alive or not (the mesh's topology)
 std::vector<std::array<int, 4>> tetFaceNeighbours(const TetMesh& mesh);

@@ -368,13 +368,11 @@ void Simulation::buildInitialModel(TetMesh mesh) {
   m.geo = std::make_shared<const std::vector<TetGeometry>>(tetGeometry(mesh));
   const std::vector<BoundaryFace> surface = boundaryFaces(mesh);
   const std::vector<int> surfaceNodes = boundaryNodes(mesh, surface);
-  auto initialFaces = std::make_shared<std::vector<std::array<int, 3>>>();
-  for (const auto& f : surface) {
-    std::array<int, 3> key{f.nodes[0], f.nodes[1], f.nodes[2]};
-    std::sort(key.begin(), key.end());
-    initialFaces->push_back(key);
-  }
-  std::sort(initialFaces->begin(), initialFaces->end());
+  // a face of the initial surface belongs to one alive tet, and only that tet can hold it
+  // on any later surface (tets never come back): flags by (tet, local face) say the same as
+  // the face's nodes would
+  auto initialFaces = std::make_shared<std::vector<std::uint8_t>>(4 * mesh.tets.size(), 0);
+  for (const auto& f : surface) (*initialFaces)[boundaryFaceIndex(mesh, f)] = 1;
   m.initialFaces = std::move(initialFaces);
   const PhaseSet& ph = config_.phases;
   if (ph.electric) {
@@ -557,9 +555,7 @@ void buildSnapshotTopology(SimModel& m) {
   // cut walls: vertices of faces that were inside the initial tissue
   m.surfaceCutWall.assign(m.surfacePositionsM.size() / 3, 0.0f);
   for (const auto& f : m.surface) {
-    std::array<int, 3> key{f.nodes[0], f.nodes[1], f.nodes[2]};
-    std::sort(key.begin(), key.end());
-    if (std::binary_search(m.initialFaces->begin(), m.initialFaces->end(), key)) continue;
+    if ((*m.initialFaces)[boundaryFaceIndex(m.mesh, f)]) continue;
     for (int v : f.nodes) m.surfaceCutWall[m.surfaceVertexOf[v]] = 1.0f;
   }
 }

@@ -239,7 +239,9 @@ void validateSimulationMesh(const TetMesh& mesh, const SimulationConfig& config)
 struct SimModel {
   TetMesh mesh;  // nodes, tets and the alive set this model is built for
   std::shared_ptr<const std::vector<TetGeometry>> geo;  // per tet (all tets; shared by builds)
-  std::shared_ptr<const std::vector<std::array<int, 3>>> initialFaces;  // sorted node ids
+  // per tet * 4 + local face (boundaryFaceIndex): 1 on the initial surface (a face of the
+  // surface that is not is a cut wall)
+  std::shared_ptr<const std::vector<std::uint8_t>> initialFaces;
   std::vector<BoundaryFace> surface;  // boundary faces of the alive tets
   // per tet, the tet across each face (tetFaceNeighbours; rebuild mode update only)
   std::shared_ptr<const std::vector<std::array<int, 4>>> faceNeighbours;

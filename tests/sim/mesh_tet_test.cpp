@@ -241,6 +241,28 @@ std::vector<int> removeRandomBatch(TetMesh& mesh, unsigned& seed, int tries) {
   return removed;
 }
 
+// boundaryFaceIndex is the index faceAt's faces come from: boundaryFaces' order, the face
+// given back by the tet's face opposite that vertex, whatever the face's first node
+TEST(MeshTet, BoundaryFaceIndexGivesTheFaceBack) {
+  TetMesh mesh = removalSlab();
+  unsigned seed = 7;
+  removeRandomBatch(mesh, seed, 40);
+  const std::vector<BoundaryFace> faces = boundaryFaces(mesh);
+  ASSERT_GT(faces.size(), 0u);
+  int last = -1;
+  for (const BoundaryFace& f : faces) {
+    const int w = boundaryFaceIndex(mesh, f);
+    EXPECT_GT(w, last);  // strictly ascending: boundaryFaces' order
+    last = w;
+    EXPECT_EQ(w / 4, f.tet);
+    const Tet& t = mesh.tets[f.tet];
+    EXPECT_EQ(std::count(f.nodes.begin(), f.nodes.end(), t[w % 4]), 0);
+    // the same face rotated: the same index
+    const BoundaryFace rotated{{f.nodes[1], f.nodes[2], f.nodes[0]}, f.tet};
+    EXPECT_EQ(boundaryFaceIndex(mesh, rotated), w);
+  }
+}
+
 // the surface edited by removeFromBoundary is boundaryFaces of the new alive set: the same
 // faces in the same order, batch after batch (a slab, tets removed in a pseudo-random order)
 TEST(MeshTet, RemoveFromBoundaryIsTheBoundaryOfTheAliveSet) {

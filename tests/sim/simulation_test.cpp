@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <set>
 #include <tuple>
 
 #include "sim/core_error.h"
@@ -362,6 +363,50 @@ TEST(Simulation, RuptureRemovesBoilingTissueAndRebuildsTheSurface) {
   Simulation again(smallSlab(), boilingSpot(true));
   run(again);
   EXPECT_EQ(again.mesh().alive, sim.mesh().alive);
+}
+
+// a cut wall is a face of the surface that was not on the initial one: the snapshot's flags
+// against that definition by the faces' nodes, on a slab whose mesh comes with dead tets (a
+// step in one corner, as a .vtu's alive flags give: its faces are the initial surface, not
+// cut walls), in both ways a removal is taken
+TEST(Simulation, CutWallsAreTheFacesNotOnTheInitialSurface) {
+  for (RebuildMode mode : {RebuildMode::Update, RebuildMode::Synchronous}) {
+    SCOPED_TRACE(rebuildModeName(mode));
+    TetMesh mesh = smallSlab();
+    mesh.alive.assign(mesh.tets.size(), 1);
+    int dead = 0;
+    for (int e = 0; e < mesh.numTets(); ++e) {
+      Vec3 c = Vec3::Zero();
+      for (int v : mesh.tets[e]) c += 0.25 * mesh.nodes[v];
+      if (c.x() > 0.015 && c.z() > 0.005) mesh.alive[e] = 0, ++dead;
+    }
+    ASSERT_GT(dead, 0);
+    auto key = [](const BoundaryFace& f) {
+      std::array<int, 3> k{f.nodes[0], f.nodes[1], f.nodes[2]};
+      std::sort(k.begin(), k.end());
+      return k;
+    };
+    std::set<std::array<int, 3>> initial;
+    for (const BoundaryFace& f : boundaryFaces(mesh)) initial.insert(key(f));
+    SimulationConfig c = boilingSpot(true);
+    c.rebuildMode = mode;
+    Simulation sim(mesh, c);
+    auto expectWalls = [&](const SurfaceSnapshot& snap) -> long {
+      std::vector<float> want(snap.numVertices(), 0.0f);
+      const std::vector<BoundaryFace> faces = boundaryFaces(sim.mesh());
+      EXPECT_EQ(snap.numTriangles(), static_cast<int>(faces.size()));
+      if (snap.numTriangles() != static_cast<int>(faces.size())) return -1;
+      for (size_t i = 0; i < faces.size(); ++i)
+        if (!initial.count(key(faces[i])))
+          for (int k = 0; k < 3; ++k) want[snap.triangles[3 * i + k]] = 1.0f;
+      EXPECT_EQ(snap.cutWall, want);
+      return std::count(want.begin(), want.end(), 1.0f);
+    };
+    EXPECT_EQ(expectWalls(sim.snapshot()), 0);  // the step's faces are no cut walls
+    for (int f = 0; f < 40; ++f) sim.step();
+    ASSERT_GT(sim.removedTets(), 0);
+    EXPECT_GT(expectWalls(sim.snapshot()), 0);
+  }
 }
 
 // nodes whose every tet broke keep the temperature they had then: the frame's maximum is the
