@@ -37,6 +37,7 @@
 
 #include "sim/core_error.h"
 #include "sim/io/mesh_cgal.h"
+#include "sim/io/message_text.h"
 
 namespace esim {
 namespace {
@@ -102,8 +103,8 @@ SurfaceMesh importSurface(const std::string& path, double scaleToMetres) {
   // (tests/fuzz/fuzz_surface/crash-assimp-ply-triangulate-abort)
   Assimp::Importer importer;
   const aiScene* scene = importer.ReadFile(path, aiProcess_ValidateDataStructure);
-  ESIM_VERIFY(scene != nullptr,
-              path + ": cannot read surface mesh: " + std::string(importer.GetErrorString()));
+  ESIM_VERIFY(scene != nullptr, path + ": cannot read surface mesh: " +
+                                    printableInMessage(importer.GetErrorString()));
   ESIM_VERIFY(!(scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) && scene->mNumMeshes > 0,
               path +
                   ": cannot read surface mesh: the file holds no mesh (unsupported or "
@@ -134,8 +135,8 @@ SurfaceMesh importSurface(const std::string& path, double scaleToMetres) {
   }
   scene = importer.ApplyPostProcessing(aiProcess_Triangulate | aiProcess_JoinIdenticalVertices |
                                        aiProcess_PreTransformVertices | aiProcess_SortByPType);
-  ESIM_VERIFY(scene != nullptr,
-              path + ": cannot read surface mesh: " + std::string(importer.GetErrorString()));
+  ESIM_VERIFY(scene != nullptr, path + ": cannot read surface mesh: " +
+                                    printableInMessage(importer.GetErrorString()));
 
   // concatenate all meshes; weld equal positions (STL and split OBJ groups repeat them)
   SurfaceMesh surface;
@@ -208,7 +209,7 @@ bool writeAll(int fd, const void* data, size_t size) {
   } catch (const std::bad_alloc&) {
     reply = "M";
   } catch (const std::exception& e) {
-    reply = std::string("X") + e.what();
+    reply = std::string("X") + printableInMessage(e.what());
   }
   ::_exit(writeAll(fd, reply.data(), reply.size()) ? 0 : 3);
 }

@@ -23,6 +23,7 @@
 #include <sstream>
 
 #include "sim/core_error.h"
+#include "sim/io/message_text.h"
 #include "sim/io/scenario_checks.h"
 #include "sim/io/scenario_format.h"
 #include "sim/io/scenario_reader.h"
@@ -159,9 +160,10 @@ Scenario parseScenario(const std::string& yamlText, const std::string& sourceNam
     root = YAML::Load(yamlText);
   } catch (const YAML::ParserException& e) {
     throw Error(sourceName + ":" + std::to_string(e.mark.line + 1) + ":" +
-                std::to_string(e.mark.column + 1) + ": malformed YAML: " + e.msg);
+                std::to_string(e.mark.column + 1) +
+                ": malformed YAML: " + printableInMessage(e.msg));
   } catch (const YAML::Exception& e) {
-    throw Error(sourceName + ": malformed YAML: " + e.msg);
+    throw Error(sourceName + ": malformed YAML: " + printableInMessage(e.msg));
   }
   // a sweep file given where a scenario was expected (esim run scenarios/sweeps/x.yaml): said
   // so, rather than "base: unknown key"
@@ -182,59 +184,11 @@ Scenario parseScenario(const std::string& yamlText, const std::string& sourceNam
   try {
     reader.readGroup(root, "", s);
   } catch (const YAML::Exception& e) {  // defensive: yaml-cpp errors not caught above
-    throw Error(sourceName + ": " + e.msg);
+    throw Error(sourceName + ": " + printableInMessage(e.msg));
   }
   // 4. cross-field rules
   checkScenario(s, reader);
   return s;
-}
-
-namespace {
-
-// appends text[0, n) to out, each byte that is not part of a whole, valid UTF-8 sequence
-// (overlong forms and surrogates refused) or is an ASCII control character as \xNN: a
-// message stays UTF-8 text (a sweep's seed "\N", yaml-cpp's byte 0x85, was echoed raw)
-void appendPrintable(std::string& out, const std::string& text, size_t n) {
-  const auto at = [&](size_t i) { return static_cast<unsigned char>(text[i]); };
-  for (size_t i = 0; i < n;) {
-    const unsigned char c = at(i);
-    size_t len = c < 0x80                 ? 1
-                 : c >= 0xC2 && c <= 0xDF ? 2
-                 : (c >> 4) == 0xE        ? 3
-                 : c >= 0xF0 && c <= 0xF4 ? 4
-                                          : 0;
-    bool ok = len > 0 && i + len <= n;
-    for (size_t k = 1; ok && k < len; ++k) ok = (at(i + k) & 0xC0) == 0x80;
-    if (ok && len == 1) ok = c >= 0x20 && c != 0x7F;
-    if (ok && len == 3) ok = !(c == 0xE0 && at(i + 1) < 0xA0) && !(c == 0xED && at(i + 1) >= 0xA0);
-    if (ok && len == 4) ok = !(c == 0xF0 && at(i + 1) < 0x90) && !(c == 0xF4 && at(i + 1) >= 0x90);
-    if (!ok) {
-      char hex[8];
-      std::snprintf(hex, sizeof hex, "\\x%02X", c);
-      out += hex;
-      ++i;
-      continue;
-    }
-    out.append(text, i, len);
-    i += len;
-  }
-}
-
-}  // namespace
-
-std::string quoteInMessage(const std::string& text) {
-  constexpr size_t kMax = 60;
-  const size_t line = std::min(text.find('\n'), text.size());
-  std::string out = "'";
-  if (line == text.size() && text.size() <= kMax) {
-    appendPrintable(out, text, text.size());
-    return out.append("'");
-  }
-  appendPrintable(out, text, std::min(line, kMax));
-  out += " ...' (";
-  out += std::to_string(text.size());
-  out += " characters)";
-  return out;
 }
 
 bool readAtMost(std::istream& in, const std::string& name, size_t maxBytes, std::string& text) {

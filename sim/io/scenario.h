@@ -384,11 +384,6 @@ void requireUtf8Text(const std::string& text, const std::string& where, bool lin
 // could not be written back and read again
 std::string decodedTextProblem(const std::string& value);
 
-// a value as quoted in an error message: 'text', or its first line cut at 60 characters with
-// its length ("'v -0.0175 0.0417 ...' (511234 characters)": a whole OBJ file read as a
-// scenario was quoted whole); bytes that are not UTF-8 text, and control characters, as \xNN
-std::string quoteInMessage(const std::string& text);
-
 // same from text; sourceName is used in messages and to resolve relative asset paths
 Scenario parseScenario(const std::string& yamlText, const std::string& sourceName,
                        const std::vector<std::string>& overrides = {});

@@ -17,6 +17,7 @@
 
 #include "sim/core_error.h"
 #include "sim/io/mesh_import.h"
+#include "sim/io/message_text.h"
 #include "sim/io/scenario.h"
 #include "sim/io/scenario_format.h"
 
@@ -64,13 +65,14 @@ std::string resolveAsset(const std::string& path, const std::string& sourceName,
     const fs::path full = fs::absolute(t, ec).lexically_normal();
     if (fs::is_regular_file(full, ec)) return full.string();
     if (fs::exists(full, ec))  // it said "not found" of a folder or a device
-      reader.fail(key, key + ": '" + full.string() + "' is " +
+      reader.fail(key, key + ": '" + printableInMessage(full.string()) + "' is " +
                            (fs::is_directory(full, ec) ? "a folder" : "not a regular file") +
                            "; expected " + expected);
-    const std::string n = full.string();
+    const std::string n = printableInMessage(full.string());
     if (std::find(names.begin(), names.end(), n) == names.end()) names.push_back(n);
   }
-  reader.fail(key, key + ": file '" + path + "' not found; tried " + joinList(names));
+  reader.fail(
+      key, key + ": file '" + printableInMessage(path) + "' not found; tried " + joinList(names));
 }
 
 // tool.path_file read into s.tool.path: each line's numbers checked as tool.path's entries
@@ -93,14 +95,15 @@ void readToolPathFile(Scenario& s, const Reader& r) {
   const std::string file = resolveAsset(s.tool.pathFile, s.sourceName, r, key,
                                         "a CSV file of keyframes (t_s, x_m, y_m, z_m a line)");
   s.tool.pathFileResolved = file;
+  const std::string shown = printableInMessage(file);  // the file as named in messages
   std::ifstream stream(file, std::ios::binary);
-  if (!stream) r.fail(key, key + ": cannot open '" + file + "'");
+  if (!stream) r.fail(key, key + ": cannot open '" + shown + "'");
   // read whole, bounded (a regular file can be endless: /proc/kcore)
   constexpr size_t kMaxBytes = size_t{64} << 20;  // ~3 million keyframes
   std::string text;
   if (!readAtMost(stream, file, kMaxBytes, text))
     r.fail(key,
-           key + ": '" + file +
+           key + ": '" + shown +
                "' is more than 64 MiB; expected a CSV of keyframes (t_s, x_m, y_m, z_m a line)");
   std::istringstream in(text);
   const auto& schema = keyframeSchema();  // t_s, position_m, orientation_deg
@@ -112,7 +115,7 @@ void readToolPathFile(Scenario& s, const Reader& r) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
     const size_t first = line.find_first_not_of(" \t");
     if (first == std::string::npos || line[first] == '#') continue;
-    const std::string at = key + ": " + file + ":" + std::to_string(lineNo) + ": ";
+    const std::string at = key + ": " + shown + ":" + std::to_string(lineNo) + ": ";
     std::vector<std::string> cells;
     std::stringstream ss(line);
     for (std::string c; std::getline(ss, c, ',');) {
@@ -122,8 +125,8 @@ void readToolPathFile(Scenario& s, const Reader& r) {
     if (keys.empty() && !cells.empty() && cells[0] == kColumns[0]) {  // the names' line
       if ((cells.size() != 4 && cells.size() != 7) ||
           !std::equal(cells.begin(), cells.end(), kColumns))
-        r.fail(key, at + "expected the names t_s,x_m,y_m,z_m (and rx_deg,ry_deg,rz_deg), got '" +
-                        line + "'");
+        r.fail(key, at + "expected the names t_s,x_m,y_m,z_m (and rx_deg,ry_deg,rz_deg), got " +
+                        quoteInMessage(line));
       continue;
     }
     if (cells.size() != 4 && cells.size() != 7)
@@ -138,8 +141,8 @@ void readToolPathFile(Scenario& s, const Reader& r) {
       errno = 0;
       v[c] = std::strtod(cells[c].c_str(), &end);
       if (cells[c].empty() || *end != '\0' || errno == ERANGE || !std::isfinite(v[c]))
-        r.fail(key, at + kColumns[c] + " = '" + cells[c] + "': expected a finite number in " +
-                        formatRange(range));
+        r.fail(key, at + kColumns[c] + " = " + quoteInMessage(cells[c]) +
+                        ": expected a finite number in " + formatRange(range));
       if (!range.contains(v[c]))
         r.fail(key,
                at + kColumns[c] + " = " + formatNumber(v[c]) + " is outside " + formatRange(range));
@@ -153,7 +156,7 @@ void readToolPathFile(Scenario& s, const Reader& r) {
                       formatNumber(keys.back().timeS) + "; keyframe times must strictly increase");
     keys.push_back(k);
   }
-  if (keys.empty()) r.fail(key, key + ": '" + file + "' holds no keyframe (t_s, x_m, y_m, z_m)");
+  if (keys.empty()) r.fail(key, key + ": '" + shown + "' holds no keyframe (t_s, x_m, y_m, z_m)");
   s.tool.path = std::move(keys);
 }
 

@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "sim/core_error.h"
+#include "sim/io/message_text.h"
 #include "sim/io/scenario.h"
 #include "sim/io/scenario_format.h"
 
@@ -87,7 +88,7 @@ bool Reader::fromOverride(const std::string& path) const {
 
 std::string Reader::where(const std::string& path, const YAML::Mark& mark) const {
   for (const auto& [key, text] : overrides_)
-    if (underKey(path, key)) return source_ + ": --set " + text;
+    if (underKey(path, key)) return source_ + ": --set " + nameInMessage(text);
   if (mark.is_null()) return source_;
   return source_ + ":" + std::to_string(mark.line + 1) + ":" + std::to_string(mark.column + 1);
 }
@@ -121,7 +122,8 @@ void Reader::readGroup(const YAML::Node& node, const std::string& group, Scenari
            (group.empty() ? std::string("scenario") : group) + ": keys must be plain names");
     const std::string key = keyNode.Scalar();
     const std::string path = joinPath(group, key);
-    if (!seen.insert(key).second) fail(path, keyNode.Mark(), path + ": duplicate key");
+    if (!seen.insert(key).second)
+      fail(path, keyNode.Mark(), nameInMessage(path) + ": duplicate key");
     const YAML::Mark mark = markOf(value, keyNode);
     marks_[path] = mark;
     if (const Field* f = findField(path)) {
@@ -135,14 +137,14 @@ void Reader::readGroup(const YAML::Node& node, const std::string& group, Scenari
 }
 
 std::string Reader::unknownKeyMessage(const std::string& group, const std::string& key) {
-  const std::string path = joinPath(group, key);
+  const std::string full = joinPath(group, key), path = nameInMessage(full);
   const std::vector<std::string> siblings = childKeys(group);
   const std::string near = closestName(key, siblings);
   if (!near.empty()) return path + ": unknown key; did you mean '" + near + "'?";
   // the same key in another section?
   for (const Field& f : schema()) {
     const std::string leaf = f.path.substr(f.path.rfind('.') + 1);
-    if (leaf == key && f.path != path)
+    if (leaf == key && f.path != full)
       return path + ": unknown key; did you mean '" + f.path + "'?";
   }
   return path + ": unknown key; expected one of " + joinList(siblings);
@@ -321,7 +323,8 @@ void Reader::readKeyframes(const YAML::Node& n, const std::string& path, const Y
       const YAML::Node keyNode = it->first, value = it->second;  // copies of the proxy
       const std::string name = keyNode.IsScalar() ? keyNode.Scalar() : "?";
       const std::string sub = item + "." + name;
-      if (!seen.insert(name).second) fail(sub, keyNode.Mark(), sub + ": duplicate key");
+      if (!seen.insert(name).second)
+        fail(sub, keyNode.Mark(), nameInMessage(sub) + ": duplicate key");
       const YAML::Mark vm = markOf(value, keyNode);
       if (name == "t_s") {
         key.timeS = readNumber(value, sub, vm, "s", keyframeSchema()[0].range);
@@ -333,7 +336,7 @@ void Reader::readKeyframes(const YAML::Node& n, const std::string& path, const Y
       } else {
         const std::string near = closestName(name, names);
         fail(sub, keyNode.Mark(),
-             sub + ": unknown key; " +
+             nameInMessage(sub) + ": unknown key; " +
                  (near.empty() ? "expected one of " + joinList(names)
                                : "did you mean '" + near + "'?"));
       }
@@ -400,7 +403,7 @@ void setPath(YAML::Node node, const std::vector<std::string>& keys, size_t i,
 
 void applyOverride(YAML::Node& root, const std::string& text, const std::string& source,
                    Reader& reader) {
-  const std::string where = source + ": --set " + text + ": ";
+  const std::string where = source + ": --set " + nameInMessage(text) + ": ";
   const size_t eq = text.find('=');
   if (eq == std::string::npos || eq == 0)
     throw Error(where + "expected key.path=value, e.g. tool.voltage_v=60");
@@ -417,8 +420,9 @@ void applyOverride(YAML::Node& root, const std::string& text, const std::string&
   for (std::string k; std::getline(ss, k, '.');) {
     const std::string path = joinPath(group, k);
     if (const size_t bracket = k.find('['); bracket != std::string::npos && bracket > 0)
-      throw Error(where + path + ": --set cannot pick one entry of a list; give the whole list (" +
-                  joinPath(group, k.substr(0, bracket)) +
+      throw Error(where + nameInMessage(path) +
+                  ": --set cannot pick one entry of a list; give the whole list (" +
+                  nameInMessage(joinPath(group, k.substr(0, bracket))) +
                   "=[...], in YAML flow style) or edit the scenario file");
     if (k.empty() || (!findField(path) && !isGroup(path)))
       throw Error(where + Reader::unknownKeyMessage(group, k));
@@ -435,7 +439,7 @@ void applyOverride(YAML::Node& root, const std::string& text, const std::string&
     bool tightColon = false;
     for (size_t i = valueText.find(':'); i != std::string::npos; i = valueText.find(':', i + 1))
       tightColon |= i + 1 < valueText.size() && valueText[i + 1] != ' ';
-    throw Error(where + "malformed value: " + e.msg +
+    throw Error(where + "malformed value: " + printableInMessage(e.msg) +
                 (tightColon ? " (in YAML flow style each ':' is followed by a space: "
                               "[{t_s: 0, position_m: [0, 0, 0.01]}])"
                             : ""));

@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "sim/core_error.h"
+#include "sim/io/message_text.h"
 
 namespace esim {
 
@@ -98,9 +99,9 @@ std::size_t parseCount(const std::string& text, std::size_t limit, const std::st
   std::size_t n = 0;
   const char* end = text.data() + text.size();
   const auto [ptr, ec] = std::from_chars(text.data(), end, n);
-  ESIM_VERIFY(ec == std::errc() && ptr == end && n <= limit, path + ": " + what + " '" + text +
-                                                                 "' is not a whole number in [0, " +
-                                                                 std::to_string(limit) + "]");
+  ESIM_VERIFY(ec == std::errc() && ptr == end && n <= limit,
+              path + ": " + what + " " + quoteInMessage(text) + " is not a whole number in [0, " +
+                  std::to_string(limit) + "]");
   return n;
 }
 
@@ -118,8 +119,8 @@ std::vector<double> decodeArray(const std::string& type, const std::string& form
                               " is not a number; expected ascii numbers separated by spaces");
     return out;
   }
-  ESIM_VERIFY(format == "binary",
-              where + ": format '" + format + "' is not supported; expected 'binary' or 'ascii'");
+  ESIM_VERIFY(format == "binary", where + ": format " + quoteInMessage(format) +
+                                      " is not supported; expected 'binary' or 'ascii'");
   const auto raw = base64Decode(body);
   ESIM_VERIFY(raw.size() >= 8, where + " is truncated (no UInt64 byte count)");
   std::uint64_t bytes;
@@ -152,7 +153,7 @@ std::vector<double> decodeArray(const std::string& type, const std::string& form
   else if (type == "UInt64")
     read(std::uint64_t{});
   else
-    throw Error(where + ": type '" + type + "' is not supported");
+    throw Error(where + ": type " + quoteInMessage(type) + " is not supported");
   return out;
 }
 
@@ -180,12 +181,14 @@ void writeVtu(const std::string& path, const TetMesh& mesh, const std::vector<Vt
   // ---- validate field sizes ----
   for (const auto& f : pointData)
     ESIM_VERIFY(f.values.size() == static_cast<size_t>(f.components) * mesh.numNodes(),
-                path + ": point field '" + f.name + "' has " + std::to_string(f.values.size()) +
-                    " values; expected " + std::to_string(f.components * mesh.numNodes()));
+                path + ": point field " + quoteInMessage(f.name) + " has " +
+                    std::to_string(f.values.size()) + " values; expected " +
+                    std::to_string(f.components * mesh.numNodes()));
   for (const auto& f : cellData)
     ESIM_VERIFY(f.values.size() == static_cast<size_t>(f.components) * mesh.numTets(),
-                path + ": cell field '" + f.name + "' has " + std::to_string(f.values.size()) +
-                    " values; expected " + std::to_string(f.components * mesh.numTets()));
+                path + ": cell field " + quoteInMessage(f.name) + " has " +
+                    std::to_string(f.values.size()) + " values; expected " +
+                    std::to_string(f.components * mesh.numTets()));
   std::vector<int> cells;
   for (int e = 0; e < mesh.numTets(); ++e)
     if (mesh.isAlive(e)) cells.push_back(e);
@@ -267,8 +270,9 @@ VtuData readVtu(const std::string& path) {
               path + ": compressed VTU is not supported; write it uncompressed");
   const std::string header_type =
       attribute(text.substr(0, text.find('>', text.find("<VTKFile"))), "header_type");
-  ESIM_VERIFY(header_type.empty() || header_type == "UInt64",
-              path + ": header_type '" + header_type + "' is not supported; expected UInt64");
+  ESIM_VERIFY(
+      header_type.empty() || header_type == "UInt64",
+      path + ": header_type " + quoteInMessage(header_type) + " is not supported; expected UInt64");
 
   VtuData data;
   std::vector<double> conn, offsets, types;
@@ -308,9 +312,10 @@ VtuData readVtu(const std::string& path) {
     const int components =
         comps.empty() ? 1
                       : static_cast<int>(parseCount(comps, 1 << 20, "NumberOfComponents", path));
-    ESIM_VERIFY(components >= 1, path + ": DataArray '" + name + "' has 0 components");
+    ESIM_VERIFY(components >= 1,
+                path + ": DataArray " + quoteInMessage(name) + " has 0 components");
     // (an array without a Name, usually the Points', is named by its block in messages)
-    const std::string label = !name.empty()            ? "DataArray '" + name + "'"
+    const std::string label = !name.empty()            ? "DataArray " + quoteInMessage(name)
                               : block == Block::Points ? std::string("the Points' DataArray")
                                                        : std::string("a DataArray without a Name");
     auto values = decodeArray(attribute(tag, "type"), attribute(tag, "format"),
@@ -391,7 +396,7 @@ VtuData readVtu(const std::string& path) {
   auto checkCounts = [&](const std::vector<VtuField>& fields, size_t count, const char* kind) {
     for (const VtuField& f : fields)
       ESIM_VERIFY(f.values.size() == static_cast<size_t>(f.components) * count,
-                  path + ": " + kind + " data '" + f.name + "' has " +
+                  path + ": " + kind + " data " + quoteInMessage(f.name) + " has " +
                       std::to_string(f.values.size()) + " values; expected " +
                       std::to_string(f.components) + " per " + kind + " for " +
                       std::to_string(count) + " " + kind + "s");

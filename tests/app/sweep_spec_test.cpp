@@ -241,6 +241,18 @@ TEST(SweepSpec, ErrorsNameTheSweepFileLineAndKey) {
        file + ":2:29: grid.look.style[1] = tissue repeats grid.look.style[0]"},
       {"base: ../paper_slab_506.yaml\nrandom: {look.style: {jitter: 1}}\n",
        file + ":2:10: random.look.style: jitter needs a number or a vector"},
+      // the file's text is quoted where it is not short printable text (found by fuzz_sweep's
+      // check that a rejection's message is printable: a CR, a tab, a long name were echoed)
+      {"base: ../paper_slab_506.yaml\n\"gi\\rd\": {tool.voltage_v: [1]}\n",
+       file + ":2:1: 'gi\\x0Dd': unknown key; did you mean 'grid'?"},
+      {"base: ../paper_slab_506.yaml\ngrid: {\"tool.volt\\tage_v\": [1]}\n",
+       file + ":2:8: 'grid.tool.volt\\x09age_v': unknown scenario key"},
+      {"base: ../paper_slab_506.yaml\nrandom:\n  tool.voltage_v: {" + std::string(80, 'g') +
+           ": [1, 2]}\n",
+       file + ":3:20: random.tool.voltage_v: unknown distribution '" + std::string(60, 'g') +
+           " ...' (80 characters)"},
+      {"base: ../paper_slab_506.yaml\nset: {tool.voltage_v: " + std::string(100, '1') + "}\n",
+       file + ":2:23: tool.voltage_v: variant v0000 (no values): "},
   };
   for (const auto& c : cases) {
     const std::string msg = errorOf([&] { expandSweep(spec(c.text), false); });

@@ -1,9 +1,11 @@
 // fuzz_common.h - what every libFuzzer target of tests/fuzz shares.
 //
 // A target hands one input to one reader. The expected rejection is an esim::Error of kind
-// Input (bad input) or Run; everything else is a finding that stops the fuzzer: a crash, a
-// sanitizer report, another exception (std::terminate), an Internal error (a broken
-// invariant: the input got past the checks) or a broken oracle (finding()).
+// Input (bad input) or Run whose message is fit to print (messageProblem); everything else is
+// a finding that stops the fuzzer: a crash, a sanitizer report, another exception
+// (std::terminate), an Internal error (a broken invariant: the input got past the checks), a
+// message that echoes the input raw (megabytes of it, or bytes that are not text) or a broken
+// oracle (finding()).
 #pragma once
 
 #include <unistd.h>
@@ -27,8 +29,33 @@ namespace esim::fuzz {
   std::abort();
 }
 
-// runs body(); an Input or Run error is the expected rejection (returns false), an
-// Internal error is a finding; any other exception escapes (a finding too)
+// what is wrong with a rejection's message, or "" when it is fit to print: UTF-8 text
+// without control characters but newlines (message_text.h: the input's text is quoted, not
+// echoed), of at most kMaxMessageBytes (a message quoting a whole input was megabytes)
+constexpr std::size_t kMaxMessageBytes = 4096;
+inline std::string messageProblem(const std::string& m) {
+  if (m.size() > kMaxMessageBytes)
+    return std::to_string(m.size()) + " bytes (at most " + std::to_string(kMaxMessageBytes) + ")";
+  const auto at = [&](std::size_t i) { return static_cast<unsigned char>(m[i]); };
+  for (std::size_t i = 0; i < m.size();) {
+    const unsigned char c = at(i);
+    const std::size_t len = c < 0x80                 ? 1
+                            : c >= 0xC2 && c <= 0xDF ? 2
+                            : (c >> 4) == 0xE        ? 3
+                            : c >= 0xF0 && c <= 0xF4 ? 4
+                                                     : 0;
+    bool ok = len > 0 && i + len <= m.size();
+    for (std::size_t k = 1; ok && k < len; ++k) ok = (at(i + k) & 0xC0) == 0x80;
+    if (ok && len == 1) ok = c == '\n' || (c >= 0x20 && c != 0x7F);
+    if (!ok) return "byte " + std::to_string(c) + " at " + std::to_string(i);
+    i += len;
+  }
+  return "";
+}
+
+// runs body(); an Input or Run error is the expected rejection (returns false) when its
+// message is fit to print (messageProblem); an Internal error is a finding; any other
+// exception escapes (a finding too)
 template <class Body>
 bool accepts(Body&& body) {
   try {
@@ -36,6 +63,10 @@ bool accepts(Body&& body) {
     return true;
   } catch (const Error& e) {
     if (e.kind() == ErrorKind::Internal) finding(std::string("internal error: ") + e.what());
+    const std::string problem = messageProblem(e.what());
+    if (!problem.empty())
+      finding("a rejection's message is not fit to print (" + problem +
+              "): " + std::string(e.what()).substr(0, 300));
     return false;
   }
 }

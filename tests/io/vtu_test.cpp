@@ -126,6 +126,33 @@ TEST(Vtu, BadInputNamesTheFile) {
                                          "expected ascii numbers separated by spaces");
   }
   std::filesystem::remove(nan);
+  // the file's attributes are quoted, never echoed: a 2 MB count, bytes that are not text
+  const auto messageOf = [](const std::string& name, const std::string& dataArray) {
+    const std::string file = tempPath(name);
+    std::ofstream(file, std::ios::binary)
+        << "<VTKFile type=\"UnstructuredGrid\"><UnstructuredGrid>"
+           "<Piece NumberOfPoints=\"4\" NumberOfCells=\"1\"><Points>"
+        << dataArray
+        << ">0 0 0 1 0 0 0 1 0 0 0 1</DataArray></Points></Piece></UnstructuredGrid></VTKFile>";
+    std::string what = "(no error)";
+    try {
+      readVtu(file);
+    } catch (const Error& e) {
+      what = e.what();
+    }
+    std::filesystem::remove(file);
+    return what.substr(what.find(name) + name.size());
+  };
+  const std::string count =
+      messageOf("count.vtu", "<DataArray type=\"Float64\" NumberOfComponents=\"" +
+                                 std::string(2000000, 'x') + "\" format=\"ascii\"");
+  EXPECT_EQ(count, ": NumberOfComponents '" + std::string(60, 'x') +
+                       " ...' (2000000 characters) is not a whole number in [0, 1048576]");
+  EXPECT_EQ(messageOf("format.vtu",
+                      "<DataArray Name=\"p\x01\" type=\"Float64\" NumberOfComponents=\"3\" "
+                      "format=\"asc\x85\""),
+            ": DataArray 'p\\x01': format 'asc\\x85' is not supported; expected 'binary' or "
+            "'ascii'");
   SlabSpec s;
   s.targetNodes = 50;
   const TetMesh m = makeSlab(s);

@@ -35,6 +35,7 @@
 
 #include "render/image_hash.h"
 #include "sim/core_error.h"
+#include "sim/io/message_text.h"
 #include "sim/io/scenario.h"
 #include "tools/app/dataset.h"
 #include "tools/app/json_text.h"

@@ -22,6 +22,7 @@
 #include <sstream>
 
 #include "sim/core_error.h"
+#include "sim/io/message_text.h"
 #include "tools/app/json_text.h"
 #include "tools/app/run_config.h"
 
@@ -210,7 +211,7 @@ class SpecReader {
     std::vector<std::string> all = scenarioKeys();
     all.insert(all.end(), {kPathOffset, kPathAngle, kPathSpeed});
     const std::string near = closest(key, all);
-    std::string msg = section + "." + key + ": unknown scenario key";
+    std::string msg = nameInMessage(section + "." + key) + ": unknown scenario key";
     if (!near.empty()) {
       msg += "; did you mean '" + near + "'?";
     } else if (key.rfind("tool.path.", 0) == 0 || key.rfind("path.", 0) == 0) {
@@ -286,8 +287,9 @@ class SpecReader {
         const std::string value = flowText(list[i]);
         for (std::size_t j = 0; j < i; ++j)
           if (sameValue(k.values[j], value))
-            fail(list[i].Mark(), "grid." + k.key + "[" + std::to_string(i) + "] = " + value +
-                                     " repeats grid." + k.key + "[" + std::to_string(j) +
+            fail(list[i].Mark(), "grid." + k.key + "[" + std::to_string(i) +
+                                     "] = " + nameInMessage(value) + " repeats grid." + k.key +
+                                     "[" + std::to_string(j) +
                                      "]; give each value once (a repeated value runs the same "
                                      "variants twice)");
         k.values.push_back(value);
@@ -312,7 +314,7 @@ class SpecReader {
     const std::string kind = kindNode.IsScalar() ? kindNode.Scalar() : "";
     if (std::find(kinds.begin(), kinds.end(), kind) == kinds.end()) {
       const std::string near = closest(kind, kinds);
-      fail(kindNode.Mark(), what + ": unknown distribution '" + kind + "'" +
+      fail(kindNode.Mark(), what + ": unknown distribution " + quoteInMessage(kind) +
                                 (near.empty() ? "" : "; did you mean '" + near + "'?") +
                                 " expected one of " + joined(kinds));
     }
@@ -407,7 +409,7 @@ class SpecReader {
     try {
       root = YAML::Load(text);
     } catch (const YAML::ParserException& e) {
-      fail(e.mark, "malformed YAML: " + e.msg);
+      fail(e.mark, "malformed YAML: " + printableInMessage(e.msg));
     }
     if (!root.IsMap())
       throw Error(file_ +
@@ -433,11 +435,11 @@ class SpecReader {
                    "vary in 'grid:' or 'random:' (scenarios/sweeps/README.md); a scenario "
                    "runs with esim run");
         const std::string near = closest(key, keys);
-        fail(kv.first.Mark(), key + ": unknown key" +
+        fail(kv.first.Mark(), nameInMessage(key) + ": unknown key" +
                                   (near.empty() ? "; expected one of " + joined(keys)
                                                 : "; did you mean '" + near + "'?"));
       }
-      if (!seen.insert(key).second) fail(kv.first.Mark(), key + ": duplicate key");
+      if (!seen.insert(key).second) fail(kv.first.Mark(), nameInMessage(key) + ": duplicate key");
       const YAML::Node& v = kv.second;
       if (key == "name" || key == "description") {
         if (!v.IsScalar()) fail(v.Mark(), key + ": expected text, got " + describe(v));
@@ -452,7 +454,7 @@ class SpecReader {
         const fs::path full = p.is_absolute() ? p : fs::path(file_).parent_path() / p;
         std::error_code ec;
         if (!fs::is_regular_file(full, ec))
-          fail(v.Mark(), "base: " + full.string() +
+          fail(v.Mark(), "base: " + printableInMessage(full.string()) +
                              ": no such scenario file (relative paths are from the sweep "
                              "file's folder)");
         spec.base = full.lexically_normal().string();
@@ -599,7 +601,9 @@ class Expander {
  public:
   explicit Expander(const SweepSpec& spec) : spec_(spec) {
     std::ifstream in(spec.base, std::ios::binary);
-    if (!in) throw Error(spec.baseWhere + ": " + spec.base + ": cannot open the scenario file");
+    if (!in)
+      throw Error(spec.baseWhere + ": " + printableInMessage(spec.base) +
+                  ": cannot open the scenario file");
     baseText_ = readYamlText(in, spec.baseWhere + ": " + spec.base, "scenario");
     for (const auto& k : spec.knobs)
       if (k.source == KnobSource::Grid) grid_.push_back(&k);
@@ -732,7 +736,7 @@ class Expander {
     } catch (const Error& e) {
       const std::string msg = e.what();
       for (auto it = wheres_.rbegin(); it != wheres_.rend(); ++it)
-        if (msg.find("--set " + it->override + ":") != std::string::npos)
+        if (msg.find("--set " + nameInMessage(it->override) + ":") != std::string::npos)
           throw Error(
               it->where + ": " + it->key + ": variant " + v.id + " " + valuesText(v) + ": " + msg,
               e.kind());
@@ -754,7 +758,7 @@ SweepSpec parseSweepSpec(const std::string& text, const std::string& sourceName)
   try {
     return SpecReader(sourceName).read(text);
   } catch (const YAML::Exception& e) {  // defensive: yaml-cpp errors not caught above
-    throw Error(where(sourceName, e.mark) + ": " + e.msg);
+    throw Error(where(sourceName, e.mark) + ": " + printableInMessage(e.msg));
   }
 }
 
