@@ -214,7 +214,11 @@ TEST_F(CompareCli, AnEditedHashesFileIsRefusedAtItsField) {
            {[](auto& j) { j["width"] = -5; },
             "width = -5; expected the frame's size in pixels, an integer in [1, 65536]"},
            {[](auto& j) { j.erase("height"); }, "height = (missing); expected"},
-           {[](auto& j) { j = nlohmann::json::array(); }, "expected a JSON object"}}) {
+           {[](auto& j) { j = nlohmann::json::array(); }, "expected a JSON object"},
+           // a value is shown short: a list of 100 000 entries was dumped whole (200 kB)
+           {[](auto& j) { j["frames"][2] = std::vector<int>(100000, 7); },
+            "frames[2]: expected an object {frame, xxh3, dhash}, got '[7,7,7,7,7,7,7,7,7,7,7,7,7,7,"
+            "7,7,7,7,7,7,7,7,7,7,7,7,7,7,7,7 ...' (200001 characters)"}}) {
     nlohmann::json j = original;
     edit(j);
     std::ofstream(edited / "hashes.json") << j.dump(2);
@@ -226,6 +230,14 @@ TEST_F(CompareCli, AnEditedHashesFileIsRefusedAtItsField) {
       EXPECT_NE(r.output.find(message), std::string::npos) << r.output;
     }
   }
+  // bytes that are not text are written \\xNN in the JSON parser's message (it quotes what it
+  // read last)
+  std::ofstream(edited / "hashes.json", std::ios::binary) << "{\"frames\": [\x85\x01]}";
+  const Result r = esim("compare " + b_.string() + " " + edited.string());
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_NE(r.output.find("hashes.json: not valid JSON: "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("last read: '\"frames\": [\\x85'"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find('\x85'), std::string::npos) << r.output;
   fs::remove_all(edited);
 }
 

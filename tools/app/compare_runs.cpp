@@ -12,6 +12,7 @@
 #include "render/image_hash.h"
 #include "render/image_png.h"
 #include "sim/core_error.h"
+#include "sim/io/message_text.h"
 #include "tools/app/json_text.h"
 #include "tools/app/run_output.h"
 
@@ -27,7 +28,7 @@ nlohmann::json readJson(const fs::path& path) {
   try {
     return nlohmann::json::parse(is);
   } catch (const std::exception& e) {
-    throw Error(path.string() + ": not valid JSON: " + e.what());
+    throw Error(path.string() + ": not valid JSON: " + printableInMessage(e.what()));
   }
 }
 
@@ -49,7 +50,7 @@ void checkHashes(const nlohmann::json& j, const fs::path& path) {
     ESIM_VERIFY(it != j.end() && it->is_number_integer() && it->get<long long>() > 0 &&
                     it->get<long long>() <= 65536,
                 file + ": " + key + " = " +
-                    (it == j.end() ? std::string("(missing)") : it->dump()) +
+                    (it == j.end() ? std::string("(missing)") : jsonInMessage(*it)) +
                     "; expected the frame's size in pixels, an integer in [1, 65536]");
   }
   const auto frames = j.find("frames");
@@ -58,17 +59,19 @@ void checkHashes(const nlohmann::json& j, const fs::path& path) {
   for (size_t i = 0; i < frames->size(); ++i) {
     const nlohmann::json& f = (*frames)[i];
     const std::string at = file + ": frames[" + std::to_string(i) + "]";
-    ESIM_VERIFY(f.is_object(), at + ": expected an object {frame, xxh3, dhash}, got " + f.dump());
+    ESIM_VERIFY(f.is_object(),
+                at + ": expected an object {frame, xxh3, dhash}, got " + jsonInMessage(f));
     const auto number = f.find("frame");
-    ESIM_VERIFY(number != f.end() && number->is_number_integer() &&
-                    number->get<long long>() == static_cast<long long>(i),
-                at + ".frame = " + (number == f.end() ? std::string("(missing)") : number->dump()) +
-                    "; expected " + std::to_string(i) + " (every frame, in order from 0)");
+    ESIM_VERIFY(
+        number != f.end() && number->is_number_integer() &&
+            number->get<long long>() == static_cast<long long>(i),
+        at + ".frame = " + (number == f.end() ? std::string("(missing)") : jsonInMessage(*number)) +
+            "; expected " + std::to_string(i) + " (every frame, in order from 0)");
     ESIM_VERIFY(f.contains("xxh3") && isHashText(f["xxh3"]),
                 at + ".xxh3: expected 16 hexadecimal digits, got " +
-                    (f.contains("xxh3") ? f["xxh3"].dump() : std::string("(missing)")));
+                    (f.contains("xxh3") ? jsonInMessage(f["xxh3"]) : std::string("(missing)")));
     ESIM_VERIFY(!f.contains("dhash") || isHashText(f["dhash"]),
-                at + ".dhash: expected 16 hexadecimal digits, got " + f["dhash"].dump());
+                at + ".dhash: expected 16 hexadecimal digits, got " + jsonInMessage(f["dhash"]));
   }
 }
 

@@ -15,6 +15,7 @@
 
 #include "render/image_hash.h"
 #include "sim/core_error.h"
+#include "sim/io/message_text.h"
 #include "tools/app/json_text.h"
 #include "tools/app/run_output.h"
 #include "tools/app/sweep_spec.h"
@@ -37,7 +38,7 @@ nlohmann::json readJson(const fs::path& p) {
   try {
     return nlohmann::json::parse(readText(p));
   } catch (const nlohmann::json::exception& e) {
-    throw Error(p.string() + ": not valid JSON (" + e.what() + ")");
+    throw Error(p.string() + ": not valid JSON (" + printableInMessage(e.what()) + ")");
   }
 }
 
@@ -117,8 +118,9 @@ void checkSweepJson(const nlohmann::json& j, const fs::path& path) {
     const auto id = v.find("id");
     const bool idOk = id != v.end() && id->is_string() &&
                       id->get_ref<const std::string&>() == variantId(i, variants->size());
-    ESIM_VERIFY(idOk, at + ".id = " + (id == v.end() ? std::string("(missing)") : id->dump()) +
-                          "; expected \"" + variantId(i, variants->size()) + "\"" + edited);
+    ESIM_VERIFY(idOk,
+                at + ".id = " + (id == v.end() ? std::string("(missing)") : jsonInMessage(*id)) +
+                    "; expected \"" + variantId(i, variants->size()) + "\"" + edited);
     const auto index = v.find("index");
     ESIM_VERIFY(index != v.end() && index->is_number_integer() &&
                     index->get<long long>() == static_cast<long long>(i),
@@ -217,7 +219,7 @@ VerifyReport verifyDataset(const fs::path& dir) {
     // a line is an object whose status, id and files have the types esim sweep writes: an
     // edited line was an internal error (a JSON type error, exit 4)
     if (!line.is_object()) {
-      rep.problems.push_back(at + "expected a JSON object (a variant), got " + line.dump());
+      rep.problems.push_back(at + "expected a JSON object (a variant), got " + jsonInMessage(line));
       continue;
     }
     ++rep.variants;
@@ -237,8 +239,9 @@ VerifyReport verifyDataset(const fs::path& dir) {
     const std::string id =
         idField != line.end() && idField->is_string() ? idField->get<std::string>() : "";
     if (id.empty() || id.find('/') != std::string::npos || id.find("..") != std::string::npos) {
-      rep.problems.push_back(at + "bad id " +
-                             (idField == line.end() ? std::string("(missing)") : idField->dump()));
+      rep.problems.push_back(
+          at + "bad id " +
+          (idField == line.end() ? std::string("(missing)") : jsonInMessage(*idField)));
       continue;
     }
     if (!ids.insert(id).second) {
@@ -247,7 +250,8 @@ VerifyReport verifyDataset(const fs::path& dir) {
     }
     const nlohmann::json files = line.value("files", nlohmann::json::object());
     if (!files.is_object()) {
-      rep.problems.push_back(at + "files: expected an object {path: xxh3}, got " + files.dump());
+      rep.problems.push_back(at + "files: expected an object {path: xxh3}, got " +
+                             jsonInMessage(files));
       continue;
     }
     // what is on disk now: scenario.yaml, everything under run/, and anything else in the
@@ -271,7 +275,7 @@ VerifyReport verifyDataset(const fs::path& dir) {
       const std::string rel = it.key();
       if (!it.value().is_string()) {
         rep.problems.push_back(at + "files[\"" + rel + "\"]: expected an xxh3 string, got " +
-                               it.value().dump());
+                               jsonInMessage(it.value()));
         onDisk.erase(rel);
         continue;
       }
