@@ -24,6 +24,7 @@
 #include "sim/core_error.h"
 #include "sim/ldl_solve.h"
 #include "sim/ldl_updown.h"
+#include "sim/message_text.h"
 
 namespace esim {
 
@@ -49,8 +50,8 @@ ElectricStrategy parseElectricStrategy(const std::string& name) {
   if (name == "local") return ElectricStrategy::Local;
   if (name == "downdate") return ElectricStrategy::Downdate;
   if (name == "auto") return ElectricStrategy::Auto;
-  throw Error("electric solver: unknown strategy '" + name +
-              "'; valid names: refactor, dense-inverse, capacitance, pcg, local, downdate, auto");
+  throw Error("electric solver: unknown strategy " + quoteInMessage(name) +
+              "; valid names: refactor, dense-inverse, capacitance, pcg, local, downdate, auto");
 }
 
 const char* electricStrategyName(ElectricStrategy strategy) {

@@ -37,7 +37,7 @@
 
 #include "sim/core_error.h"
 #include "sim/io/mesh_cgal.h"
-#include "sim/io/message_text.h"
+#include "sim/message_text.h"
 
 namespace esim {
 namespace {

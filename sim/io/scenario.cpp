@@ -23,10 +23,10 @@
 #include <sstream>
 
 #include "sim/core_error.h"
-#include "sim/io/message_text.h"
 #include "sim/io/scenario_checks.h"
 #include "sim/io/scenario_format.h"
 #include "sim/io/scenario_reader.h"
+#include "sim/message_text.h"
 
 namespace esim {
 

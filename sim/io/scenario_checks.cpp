@@ -17,9 +17,9 @@
 
 #include "sim/core_error.h"
 #include "sim/io/mesh_import.h"
-#include "sim/io/message_text.h"
 #include "sim/io/scenario.h"
 #include "sim/io/scenario_format.h"
+#include "sim/message_text.h"
 
 namespace esim::scenario_detail {
 

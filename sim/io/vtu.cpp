@@ -13,7 +13,7 @@
 #include <sstream>
 
 #include "sim/core_error.h"
-#include "sim/io/message_text.h"
+#include "sim/message_text.h"
 
 namespace esim {
 

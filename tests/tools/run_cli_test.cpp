@@ -1310,6 +1310,33 @@ TEST(RunCli, AnUnknownCommandIsNamed) {
   EXPECT_EQ(own.exitCode, 0) << own.output;
 }
 
+// a value the command line refuses is quoted short and printable: CLI11's range message
+// echoed a 5000-digit --frames whole and a byte 0x85 or a terminal's escape raw, as did the
+// unknown command and the electric strategy's name
+TEST(RunCli, RefusedOptionValuesAreQuotedPrintable) {
+  const std::string exe = std::string(ESIM_EXE);
+  const Result bytes =
+      shell(exe + " run scenarios/paper_slab.yaml --frames \"$(printf '\\205\\001')\"");
+  EXPECT_EQ(bytes.exitCode, 2) << bytes.output;
+  EXPECT_NE(bytes.output.find("--frames: Value \\x85\\x01 not in range"), std::string::npos)
+      << bytes.output;
+  const Result digits =
+      shell(exe + " run scenarios/paper_slab.yaml --frames " + std::string(5000, '9'));
+  EXPECT_EQ(digits.exitCode, 2) << digits.output;
+  EXPECT_LT(digits.output.size(), 600u) << digits.output;
+  EXPECT_NE(digits.output.find(" ... (5044 characters)"), std::string::npos) << digits.output;
+  const Result command = shell(exe + " \"$(printf 'r\\033n')\"");
+  EXPECT_EQ(command.exitCode, 2) << command.output;
+  EXPECT_NE(command.output.find("unknown command 'r\\x1Bn'"), std::string::npos) << command.output;
+  const Result strategy = shell(exe + " bench cut --electric \"$(printf 'pc\\033g')\"");
+  EXPECT_EQ(strategy.exitCode, 2) << strategy.output;
+  EXPECT_NE(strategy.output.find("unknown strategy 'pc\\x1Bg'; valid names"), std::string::npos)
+      << strategy.output;
+  for (const Result* r : {&bytes, &digits, &command, &strategy})
+    EXPECT_EQ(r->output.find_first_of(std::string("\x1b\x85\x01", 3)), std::string::npos)
+        << r->output;
+}
+
 // An option or argument given an empty value, as an unset shell variable gives it (-o "$OUT"):
 // -o "" ran into the default folder out/<name>, --csv "" and --report "" wrote nothing, all
 // with exit 0; validate "" said "error: : cannot open the scenario file"

@@ -15,7 +15,7 @@
 
 #include "render/image_hash.h"
 #include "sim/core_error.h"
-#include "sim/io/message_text.h"
+#include "sim/message_text.h"
 #include "tools/app/json_text.h"
 #include "tools/app/run_output.h"
 #include "tools/app/sweep_spec.h"

@@ -4,7 +4,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "sim/io/message_text.h"
+#include "sim/message_text.h"
 
 namespace esim::app {
 

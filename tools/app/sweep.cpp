@@ -35,8 +35,8 @@
 
 #include "render/image_hash.h"
 #include "sim/core_error.h"
-#include "sim/io/message_text.h"
 #include "sim/io/scenario.h"
+#include "sim/message_text.h"
 #include "tools/app/dataset.h"
 #include "tools/app/json_text.h"
 #include "tools/app/run_output.h"

@@ -22,7 +22,7 @@
 #include <sstream>
 
 #include "sim/core_error.h"
-#include "sim/io/message_text.h"
+#include "sim/message_text.h"
 #include "tools/app/json_text.h"
 #include "tools/app/run_config.h"
 

@@ -15,8 +15,11 @@
 #include <filesystem>
 #include <iostream>
 #include <map>
+#include <sstream>
+#include <string>
 
 #include "sim/core_error.h"
+#include "sim/message_text.h"
 #include "tools/app/memory_room.h"
 #include "tools/esim/command.h"
 
@@ -123,8 +126,8 @@ int main(int argc, char** argv) {
         names += (names.empty() ? "" : ", ") + sub->get_name();
       }
       if (next == nullptr) {
-        std::cerr << "esim: error: " << path << ": unknown command '" << word
-                  << "'; expected one of: " << names << " (" << path << " --help)\n";
+        std::cerr << "esim: error: " << path << ": unknown command " << esim::quoteInMessage(word)
+                  << "; expected one of: " << names << " (" << path << " --help)\n";
         return kExitBadInput;
       }
       path += " " + word;
@@ -134,7 +137,13 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
+    // CLI11's message quotes the value it refused as given: each line escaped and cut
+    // (printableInMessage), a 5000-character --frames or a terminal's escape no longer echoed
+    std::ostringstream err;
+    const int code = app.exit(e, std::cout, err);
+    std::istringstream lines(err.str());
+    for (std::string line; std::getline(lines, line);)
+      std::cerr << esim::printableInMessage(line) << "\n";
     return code == 0 ? kExitOk : kExitBadInput;
   } catch (const esim::Error& e) {
     return reportError(e);

@@ -1,6 +1,6 @@
-// Tests for sim/io/message_text.cpp: a file's or a user's text in an error message stays one
+// Tests for sim/message_text.cpp: a file's or a user's text in an error message stays one
 // short line of UTF-8 text.
-#include "sim/io/message_text.h"
+#include "sim/message_text.h"
 
 #include <gtest/gtest.h>
 

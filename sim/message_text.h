@@ -3,8 +3,8 @@
 // A message names what it refuses, but the text refused can be anything: a whole file read
 // as the wrong kind (an OBJ as a scenario, a 5 MB line of a path CSV), bytes that are not
 // UTF-8 (a binary file, yaml-cpp's decoding of "\N" to the byte 0x85), control characters.
-// Every reader of esim_io and the app quotes such text with quoteInMessage, so a message
-// stays one short line of UTF-8 text whatever the input.
+// The readers (esim_io), the app and the core's own checks of names quote such text here, so a
+// message stays short UTF-8 text whatever the input. Plain text only: no file format.
 #pragma once
 
 #include <string>

@@ -1,5 +1,5 @@
 // The quoting of a file's or a user's text in an error message (message_text.h).
-#include "sim/io/message_text.h"
+#include "sim/message_text.h"
 
 #include <algorithm>
 #include <cstdio>
@@ -53,7 +53,6 @@ std::string quoteInMessage(const std::string& text) {
   out += " characters)";
   return out;
 }
-
 
 std::string printableInMessage(const std::string& text) {
   constexpr size_t kMax = 300;
