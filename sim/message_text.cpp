@@ -54,11 +54,23 @@ std::string quoteInMessage(const std::string& text) {
   return out;
 }
 
-std::string printableInMessage(const std::string& text) {
-  constexpr size_t kMax = 300;
+std::string printableInMessage(const std::string& text, size_t maxCharacters) {
   std::string out;
-  appendPrintable(out, text, std::min(text.size(), kMax));
-  if (text.size() > kMax) out += " ... (" + std::to_string(text.size()) + " characters)";
+  appendPrintable(out, text, std::min(text.size(), maxCharacters));
+  if (text.size() > maxCharacters) out += " ... (" + std::to_string(text.size()) + " characters)";
+  return out;
+}
+
+std::string printableMessage(const std::string& message) {
+  std::string out;
+  size_t start = 0;
+  while (start <= message.size()) {
+    const size_t end = std::min(message.find('\n', start), message.size());
+    if (start > 0) out += '\n';
+    out += printableInMessage(message.substr(start, end - start), 2000);
+    if (end == message.size()) break;
+    start = end + 1;
+  }
   return out;
 }
 

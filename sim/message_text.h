@@ -7,6 +7,7 @@
 // message stays short UTF-8 text whatever the input. Plain text only: no file format.
 #pragma once
 
+#include <cstddef>
 #include <string>
 
 namespace esim {
@@ -23,8 +24,13 @@ std::string nameInMessage(const std::string& text);
 
 // a library's own message (yaml-cpp's, assimp's, an exception's what()), which may hold the
 // input's bytes (assimp names a mesh by the file's text, yaml-cpp an escape by its byte): as
-// it is, bytes that are not UTF-8 text and control characters written \xNN, cut after 300
-// characters with its length
-std::string printableInMessage(const std::string& text);
+// it is, bytes that are not UTF-8 text and control characters written \xNN, cut after
+// maxCharacters with its length
+std::string printableInMessage(const std::string& text, std::size_t maxCharacters = 300);
+
+// a whole message as printed (esim's last word on stderr): each line printableInMessage with
+// a cap of 2000 characters, the net under the quoting above (a file name with a terminal's
+// escape, a path of thousands of characters)
+std::string printableMessage(const std::string& message);
 
 }  // namespace esim

@@ -42,5 +42,15 @@ TEST(MessageText, NamesReadAsTypedUnlessTheyCannot) {
   EXPECT_EQ(nameInMessage(""), "");
 }
 
+// the net under them: a whole message as printed, line by line, each escaped and cut at 2000
+TEST(MessageText, PrintedMessagesAreEscapedLineByLine) {
+  EXPECT_EQ(printableMessage("a.yaml: cannot open\nhint"), "a.yaml: cannot open\nhint");
+  EXPECT_EQ(printableMessage("/tmp/x\x1b[31m.yaml: no\n\x85"), "/tmp/x\\x1B[31m.yaml: no\n\\x85");
+  const std::string cut = printableMessage(std::string(5000, 'q') + "\nnext");
+  EXPECT_EQ(cut, std::string(2000, 'q') + " ... (5000 characters)\nnext");
+  EXPECT_EQ(printableMessage(""), "");
+  EXPECT_EQ(printableMessage("end\n"), "end\n");
+}
+
 }  // namespace
 }  // namespace esim

@@ -108,6 +108,14 @@ TEST_F(BenchCli, BadInputExitsTwoAndKeepsAnEarlierTable) {
        "bench electric: --update-sizes: '10' is not a node count in [27, 5000000]"},
       // 0 and negative counts ran once
       {"bench electric --sizes 100 --update --update-reps 0", "--update-reps must be >= 1, got 0"},
+      // the update table's options without the table were never read: the sweep table ran
+      {"bench electric --sizes 100 --update-sizes qqq",
+       "bench electric: --update-sizes is an option of the update table; add --update (both "
+       "tables) or --only-update"},
+      {"bench electric --sizes 100 --update-reps 3", "--update-reps is an option of the update"},
+      // a value is quoted short and printable (it was echoed whole, 5000 characters)
+      {"bench cut --sizes 50 --strategy " + std::string(5000, 'q'),
+       "--strategy: '" + std::string(60, 'q') + " ...' (5000 characters) is not synchronous"},
       {"bench electric --sizes 100 --update --update-strategies ,", "--update-strategies is empty"},
       // the encoder refused them after the first surface's rows
       {"bench render --preset x", "--preset: x not in {ultrafast,superfast,veryfast"},

@@ -1332,7 +1332,15 @@ TEST(RunCli, RefusedOptionValuesAreQuotedPrintable) {
   EXPECT_EQ(strategy.exitCode, 2) << strategy.output;
   EXPECT_NE(strategy.output.find("unknown strategy 'pc\\x1Bg'; valid names"), std::string::npos)
       << strategy.output;
-  for (const Result* r : {&bytes, &digits, &command, &strategy})
+  // the net under the quoting: a file name with a terminal's escape, where esim prints it
+  const Result file = shell(exe + " run \"$(printf '/nonexistent/x\\033[31m.yaml')\"");
+  EXPECT_EQ(file.exitCode, 2) << file.output;
+  EXPECT_NE(file.output.find("/nonexistent/x\\x1B[31m.yaml"), std::string::npos) << file.output;
+  const Result validate = shell(exe + " validate \"$(printf '/nonexistent/x\\033[31m.yaml')\"");
+  EXPECT_EQ(validate.exitCode, 2) << validate.output;
+  EXPECT_NE(validate.output.find("/nonexistent/x\\x1B[31m.yaml"), std::string::npos)
+      << validate.output;
+  for (const Result* r : {&bytes, &digits, &command, &strategy, &file, &validate})
     EXPECT_EQ(r->output.find_first_of(std::string("\x1b\x85\x01", 3)), std::string::npos)
         << r->output;
 }

@@ -12,6 +12,7 @@
 #include <system_error>
 
 #include "sim/core_error.h"
+#include "sim/message_text.h"
 #include "tools/app/run_output.h"
 #include "tools/app/source_tree.h"
 
@@ -33,8 +34,8 @@ std::vector<int> parseNodeCounts(const std::string& text, const std::string& com
     char* end = nullptr;
     const long v = std::strtol(item.c_str(), &end, 10);
     ESIM_VERIFY(end != item.c_str() && *end == '\0' && v >= 27 && v <= 5000000,
-                command + ": " + option + ": '" + item +
-                    "' is not a node count in [27, 5000000] (expected e.g. 1013,20000,50000)");
+                command + ": " + option + ": " + quoteInMessage(item) +
+                    " is not a node count in [27, 5000000] (expected e.g. 1013,20000,50000)");
     out.push_back(static_cast<int>(v));
   }
   ESIM_VERIFY(!out.empty(), command + ": " + option + " is empty");
@@ -52,7 +53,7 @@ std::vector<T> parseList(const std::string& text, const std::string& option,
   std::vector<T> out;
   for (const std::string& item : splitList(text)) {
     T v{};
-    ESIM_VERIFY(parse(item, v), option + ": '" + item + "' is not " + expected +
+    ESIM_VERIFY(parse(item, v), option + ": " + quoteInMessage(item) + " is not " + expected +
                                     " (expected e.g. " + example + ")");
     out.push_back(v);
   }

@@ -41,6 +41,7 @@
 #include "sim/core_error.h"
 #include "sim/io/scenario.h"
 #include "sim/io/vtu.h"
+#include "sim/message_text.h"
 #include "sim/simulation.h"
 #include "tools/app/dataset.h"
 #include "tools/app/exit_codes.h"
@@ -1228,8 +1229,10 @@ int runScenario(const RunOptions& opt) {
   } catch (const Error& e) {
     // a disk that filled: the run's own failure first (often the same cause), then the reports'
     // (it said only "timing.csv: write failed"); the run stays in DIR.partial
-    if (!loop.failure.empty()) std::cerr << "esim: error: " << loop.failure << "\n";
-    std::cerr << "esim: error: the run's reports could not be written: " << e.what() << "\n";
+    if (!loop.failure.empty())
+      std::cerr << "esim: error: " << printableMessage(loop.failure) << "\n";
+    std::cerr << "esim: error: the run's reports could not be written: "
+              << printableMessage(e.what()) << "\n";
     return e.kind() == ErrorKind::Internal ? kExitInternal : kExitFailure;
   }
   if (loop.complete()) {
@@ -1237,12 +1240,12 @@ int runScenario(const RunOptions& opt) {
       output.commit();
     } catch (const Error& e) {  // a file put into DIR since the checks: the run stays partial
       std::cout << summary;
-      std::cerr << "esim: error: " << e.what() << "\n";
+      std::cerr << "esim: error: " << printableMessage(e.what()) << "\n";
       return kExitFailure;
     }
   }
   std::cout << summary;
-  if (!loop.failure.empty()) std::cerr << "esim: error: " << loop.failure << "\n";
+  if (!loop.failure.empty()) std::cerr << "esim: error: " << printableMessage(loop.failure) << "\n";
   if (loop.complete()) return kExitOk;
   // a run error or an interruption: 1 (the frames are kept); an internal check: 4
   return !loop.failure.empty() && loop.failureKind == ErrorKind::Internal ? kExitInternal

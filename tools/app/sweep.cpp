@@ -1035,13 +1035,14 @@ void checkSbatchArgs(const std::vector<std::string>& args) {
       throw Error("--sbatch-arg " + quoteInMessage(a) +
                   ": a line break or control character would end the #SBATCH line; give one "
                   "option per --sbatch-arg");
-    ESIM_VERIFY(!a.empty() && a[0] == '-',
-                "--sbatch-arg '" + a + "': expected an sbatch option, e.g. --partition=long");
+    ESIM_VERIFY(
+        !a.empty() && a[0] == '-',
+        "--sbatch-arg " + quoteInMessage(a) + ": expected an sbatch option, e.g. --partition=long");
     const std::string name = a.substr(0, a.find_first_of("= "));
     for (const auto& [names, why] : owned)
       for (const std::string& n : names)
         if (name == n || (n.size() == 2 && a.rfind(n, 0) == 0 && a.size() > 2 && a[1] != '-'))
-          throw Error("--sbatch-arg '" + a + "': " + n + " is set by esim: " + why);
+          throw Error("--sbatch-arg " + quoteInMessage(a) + ": " + n + " is set by esim: " + why);
   }
 }
 
@@ -1106,7 +1107,8 @@ int runSweepVariant(const std::string& dirText, const std::string& variant, bool
   for (const auto& v : sweep.at("variants"))
     if (v.at("id") == variant || std::to_string(v.at("index").get<int>()) == variant) found = &v;
   if (!found)
-    throw Error(dir.string() + ": no variant '" + variant + "' (ids v0000.., or their index)");
+    throw Error(dir.string() + ": no variant " + quoteInMessage(variant) +
+                " (ids v0000.., or their index)");
   const std::string id = found->at("id");
   const json old = readResult(dir, id);
   const std::string status = old.is_object() ? old.value("status", "") : "";

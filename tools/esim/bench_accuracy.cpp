@@ -37,6 +37,7 @@
 #include "render/renderer.h"
 #include "sim/core_error.h"
 #include "sim/io/scenario.h"
+#include "sim/message_text.h"
 #include "sim/simulation.h"
 #include "tools/app/accuracy_metrics.h"
 #include "tools/app/analytic_disc.h"
@@ -398,15 +399,15 @@ int benchAccuracy(const AccuracyOptions& opt) {
     for (const Point& p : sw.points) names += " " + p.name;
     std::vector<Point> kept;
     const std::vector<std::string> wanted = app::splitList(opt.only);
-    ESIM_VERIFY(!wanted.empty(), "--only '" + opt.only +
-                                     "': expected point names or knobs, comma separated (e.g. "
+    ESIM_VERIFY(!wanted.empty(), "--only " + quoteInMessage(opt.only) +
+                                     ": expected point names or knobs, comma separated (e.g. "
                                      "mesh_graded,electric:pcg_1e-2)");
     for (const std::string& want : wanted) {
       const size_t before = kept.size();
       for (const Point& p : sw.points)
         if (p.name == want || p.knob == want) kept.push_back(p);
       ESIM_VERIFY(kept.size() > before,
-                  "--only: no point or knob '" + want + "'; the points are:" + names);
+                  "--only: no point or knob " + quoteInMessage(want) + "; the points are:" + names);
     }
     sw.points = kept;
   }

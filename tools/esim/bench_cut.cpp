@@ -46,6 +46,7 @@
 #include "render/renderer.h"
 #include "sim/core_error.h"
 #include "sim/io/scenario.h"
+#include "sim/message_text.h"
 #include "sim/simulation.h"
 #include "tools/app/bench_common.h"
 #include "tools/app/run_config.h"
@@ -164,8 +165,9 @@ int benchCut(const BenchCutOptions& opt) {
               "--strategy is empty; expected synchronous, background, update (comma separated) or "
               "all");
   for (const std::string& s : strategies)
-    ESIM_VERIFY(s == "synchronous" || s == "background" || s == "update",
-                "--strategy: '" + s + "' is not synchronous, background, update or all");
+    ESIM_VERIFY(
+        s == "synchronous" || s == "background" || s == "update",
+        "--strategy: " + quoteInMessage(s) + " is not synchronous, background, update or all");
   ESIM_VERIFY(opt.frames >= 0, "--frames must be >= 0");
   ESIM_VERIFY(opt.paceHz >= 0 && opt.paceHz <= 1e4, "--pace must be in 0..10000 Hz");
   ESIM_VERIFY(
@@ -175,9 +177,9 @@ int benchCut(const BenchCutOptions& opt) {
   ESIM_VERIFY(!methods.empty(),
               "--structural is empty; expected full, local or coarse (comma separated)");
   for (const std::string& m : methods)
-    ESIM_VERIFY(
-        m == "full" || m == "local" || m == "coarse",
-        "--structural: '" + m + "' is not full, local or coarse (solvers.structural.method)");
+    ESIM_VERIFY(m == "full" || m == "local" || m == "coarse",
+                "--structural: " + quoteInMessage(m) +
+                    " is not full, local or coarse (solvers.structural.method)");
   std::vector<std::string> electrics = app::splitList(opt.electric);
   if (electrics.empty()) electrics.push_back("");
   for (const std::string& e : electrics)

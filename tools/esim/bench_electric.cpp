@@ -728,15 +728,25 @@ const Registrar registrar(
                        "skip the capacitance+prefetch row (scripted path prefetched at setup)"));
       app.add_flag("--update", opt->update, "also the updateMatrix-after-a-cut table");
       app.add_flag("--only-update", opt->onlyUpdate, "only the updateMatrix-after-a-cut table");
-      app.add_option("--update-sizes", opt->updateSizes, "node counts of the update table")
-          ->capture_default_str();
-      app.add_option("--update-tets", opt->updateTets, "comma-separated tets removed per cut")
-          ->capture_default_str();
-      app.add_option("--update-strategies", opt->updateStrategies, "strategies of the update table")
-          ->capture_default_str();
-      app.add_option("--update-reps", opt->updateReps, "runs per row (best taken)")
-          ->capture_default_str();
-      return [opt, sweep] {
+      std::vector<const CLI::Option*> update;  // the update table's own
+      update.push_back(
+          app.add_option("--update-sizes", opt->updateSizes, "node counts of the update table")
+              ->capture_default_str());
+      update.push_back(
+          app.add_option("--update-tets", opt->updateTets, "comma-separated tets removed per cut")
+              ->capture_default_str());
+      update.push_back(app.add_option("--update-strategies", opt->updateStrategies,
+                                      "strategies of the update table")
+                           ->capture_default_str());
+      update.push_back(app.add_option("--update-reps", opt->updateReps, "runs per row (best taken)")
+                           ->capture_default_str());
+      return [opt, sweep, update] {
+        // (they were read only with the table: without it, `--update-sizes qqq` ran the whole
+        // sweep table and exited 0)
+        if (!opt->update && !opt->onlyUpdate)
+          refuseGiven(update, "bench electric",
+                      "is an option of the update table; add --update (both tables) or "
+                      "--only-update");
         if (opt->onlyUpdate)
           refuseGiven(sweep, "bench electric",
                       "is an option of the blade-sweep table, which --only-update skips (the "

@@ -33,6 +33,7 @@
 #include "render/renderer.h"
 #include "render/video_encoder.h"
 #include "sim/core_error.h"
+#include "sim/message_text.h"
 #include "tools/app/bench_common.h"
 #include "tools/app/render_scenes.h"
 #include "tools/esim/command.h"
@@ -76,8 +77,8 @@ SurfaceSnapshot makeSurface(const std::string& name, const std::string& liverPat
     cut.topZM = zMax;
     return s;
   }
-  throw Error("--surfaces: unknown surface '" + name +
-              "', expected slab, slab20k, sphere20k or liver");
+  throw Error("--surfaces: unknown surface " + quoteInMessage(name) +
+              ", expected slab, slab20k, sphere20k or liver");
 }
 
 // CPU time of the whole process (all llvmpipe threads) [ms]
@@ -104,15 +105,17 @@ std::vector<Variant> parseVariants(const BenchRenderOptions& opt) {
   std::vector<Variant> variants;
   std::vector<int> msaaList;
   for (const std::string& m : splitList(opt.msaa)) {
-    ESIM_VERIFY(m == "0" || m == "2" || m == "4",
-                "--msaa: '" + m + "' is not a sample count, expected 0, 2 or 4 (comma list)");
+    ESIM_VERIFY(
+        m == "0" || m == "2" || m == "4",
+        "--msaa: " + quoteInMessage(m) + " is not a sample count, expected 0, 2 or 4 (comma list)");
     msaaList.push_back(std::stoi(m));
   }
   std::sort(msaaList.rbegin(), msaaList.rend());
   std::vector<std::string> shadings = splitList(opt.shading);
   for (const std::string& sh : shadings)
-    ESIM_VERIFY(sh == "pixel" || sh == "vertex",
-                "--shading: '" + sh + "' is unknown, expected pixel or vertex (comma list)");
+    ESIM_VERIFY(
+        sh == "pixel" || sh == "vertex",
+        "--shading: " + quoteInMessage(sh) + " is unknown, expected pixel or vertex (comma list)");
   std::sort(shadings.begin(), shadings.end());  // "pixel" before "vertex"
   for (const std::string& sh : shadings)
     for (int m : msaaList) variants.push_back({sh, m});
@@ -211,10 +214,10 @@ int benchRender(const BenchRenderOptions& opt) {
     int w = 0, h = 0, used = 0;  // (all of it: "1280x720x3" was taken as 1280x720)
     ESIM_VERIFY(
         std::sscanf(s.c_str(), "%dx%d%n", &w, &h, &used) == 2 && used == static_cast<int>(s.size()),
-        "--sizes: '" + s + "' is not WIDTHxHEIGHT (e.g. 1280x720)");
-    ESIM_VERIFY(
-        w >= 16 && w <= 8192 && h >= 16 && h <= 8192,
-        "--sizes: '" + s + "' is out of range, expected 16..8192 pixels each (the renderer's)");
+        "--sizes: " + quoteInMessage(s) + " is not WIDTHxHEIGHT (e.g. 1280x720)");
+    ESIM_VERIFY(w >= 16 && w <= 8192 && h >= 16 && h <= 8192,
+                "--sizes: " + quoteInMessage(s) +
+                    " is out of range, expected 16..8192 pixels each (the renderer's)");
     sizes.push_back({w, h});
   }
   ESIM_VERIFY(!sizes.empty(), "--sizes is empty (expected e.g. 640x480,1280x720)");

@@ -47,6 +47,7 @@
 
 #include "sim/core_error.h"
 #include "sim/mesh_slab.h"
+#include "sim/message_text.h"
 #include "sim/simulation.h"
 #include "sim/structural.h"
 #include "tools/app/bench_common.h"
@@ -225,8 +226,8 @@ int benchStructural(const BenchStructuralOptions& opt) {
   std::vector<VolumetricStrain> forms;
   for (const std::string& f : app::splitList(opt.volumetric)) {
     ESIM_VERIFY(f == "element" || f == "nodal",
-                "bench structural: --volumetric: '" + f +
-                    "' is not a form of the volumetric strain; expected element, nodal or both "
+                "bench structural: --volumetric: " + quoteInMessage(f) +
+                    " is not a form of the volumetric strain; expected element, nodal or both "
                     "(element,nodal)");
     forms.push_back(f == "nodal" ? VolumetricStrain::nodal : VolumetricStrain::element);
   }

@@ -24,6 +24,7 @@
 #include "sim/core_error.h"
 #include "sim/fem_p1.h"
 #include "sim/mesh_slab.h"
+#include "sim/message_text.h"
 #include "sim/thermal_step.h"
 #include "tools/app/bench_common.h"
 #include "tools/esim/command.h"
@@ -86,7 +87,8 @@ int benchThermal(const BenchThermalOptions& opt) {
   else if (opt.solver == "cg")
     solver = ThermalLinearSolver::Cg;
   else
-    ESIM_VERIFY(opt.solver == "auto", "--solver '" + opt.solver + "': expected auto, direct or cg");
+    ESIM_VERIFY(opt.solver == "auto",
+                "--solver " + quoteInMessage(opt.solver) + ": expected auto, direct or cg");
   openblas_set_num_threads(1);
   const double dt = 1.0 / opt.fps;
 

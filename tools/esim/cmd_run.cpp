@@ -3,6 +3,7 @@
 #include <string>
 
 #include "sim/core_error.h"
+#include "sim/message_text.h"
 #include "tools/app/run.h"
 #include "tools/esim/command.h"
 
@@ -80,7 +81,8 @@ Registrar reg(
                     "scenario is required: esim run SCENARIO [options] (--help)");
         if (labels->count() > 0) {
           ESIM_VERIFY(labelsMode->empty() || *labelsMode == "preview",
-                      "--labels: '" + *labelsMode + "' is unknown, expected nothing or 'preview'");
+                      "--labels: " + quoteInMessage(*labelsMode) +
+                          " is unknown, expected nothing or 'preview'");
           opt->labels = true;
           opt->labelsPreview = *labelsMode == "preview";
         }

@@ -15,6 +15,7 @@
 
 #include "sim/core_error.h"
 #include "sim/io/scenario.h"
+#include "sim/message_text.h"
 #include "sim/simulation.h"
 #include "tools/app/run_config.h"
 #include "tools/esim/command.h"
@@ -43,7 +44,7 @@ int runValidate(const ValidateOptions& opt) {
       for (const std::string& w : esim::configWarnings(esim::app::makeSimulationConfig(s)))
         std::cerr << "warning: " << s.sourceName << ": " << w << "\n";
     } catch (const esim::Error& e) {
-      std::cerr << "error: " << e.what() << "\n";
+      std::cerr << "error: " << esim::printableMessage(e.what()) << "\n";
       ++invalid;
     }
   }

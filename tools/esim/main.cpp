@@ -37,7 +37,7 @@ namespace {
 // prints an ESim error and returns its exit code (see command.h)
 int reportError(const esim::Error& e) {
   std::cerr << (e.kind() == esim::ErrorKind::Internal ? "esim: internal error: " : "esim: error: ")
-            << e.what() << "\n";
+            << esim::printableMessage(e.what()) << "\n";
   return esim::cli::exitCodeOf(e.kind());
 }
 
@@ -187,10 +187,10 @@ int main(int argc, char** argv) {
     std::cerr << "\n";
     return kExitFailure;
   } catch (const std::filesystem::filesystem_error& e) {
-    std::cerr << "esim: error: " << e.what() << "\n";
+    std::cerr << "esim: error: " << esim::printableMessage(e.what()) << "\n";
     return kExitFailure;
   } catch (const std::exception& e) {
-    std::cerr << "esim: internal error: " << e.what() << "\n";
+    std::cerr << "esim: internal error: " << esim::printableMessage(e.what()) << "\n";
     return kExitInternal;
   }
 }
