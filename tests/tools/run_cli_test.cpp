@@ -1314,35 +1314,29 @@ TEST(RunCli, AnUnknownCommandIsNamed) {
 // echoed a 5000-digit --frames whole and a byte 0x85 or a terminal's escape raw, as did the
 // unknown command and the electric strategy's name
 TEST(RunCli, RefusedOptionValuesAreQuotedPrintable) {
-  const std::string exe = std::string(ESIM_EXE);
-  const Result bytes =
-      shell(exe + " run scenarios/paper_slab.yaml --frames \"$(printf '\\205\\001')\"");
-  EXPECT_EQ(bytes.exitCode, 2) << bytes.output;
-  EXPECT_NE(bytes.output.find("--frames: Value \\x85\\x01 not in range"), std::string::npos)
-      << bytes.output;
-  const Result digits =
-      shell(exe + " run scenarios/paper_slab.yaml --frames " + std::string(5000, '9'));
-  EXPECT_EQ(digits.exitCode, 2) << digits.output;
-  EXPECT_LT(digits.output.size(), 600u) << digits.output;
-  EXPECT_NE(digits.output.find(" ... (5044 characters)"), std::string::npos) << digits.output;
-  const Result command = shell(exe + " \"$(printf 'r\\033n')\"");
-  EXPECT_EQ(command.exitCode, 2) << command.output;
-  EXPECT_NE(command.output.find("unknown command 'r\\x1Bn'"), std::string::npos) << command.output;
-  const Result strategy = shell(exe + " bench cut --electric \"$(printf 'pc\\033g')\"");
-  EXPECT_EQ(strategy.exitCode, 2) << strategy.output;
-  EXPECT_NE(strategy.output.find("unknown strategy 'pc\\x1Bg'; valid names"), std::string::npos)
-      << strategy.output;
-  // the net under the quoting: a file name with a terminal's escape, where esim prints it
-  const Result file = shell(exe + " run \"$(printf '/nonexistent/x\\033[31m.yaml')\"");
-  EXPECT_EQ(file.exitCode, 2) << file.output;
-  EXPECT_NE(file.output.find("/nonexistent/x\\x1B[31m.yaml"), std::string::npos) << file.output;
-  const Result validate = shell(exe + " validate \"$(printf '/nonexistent/x\\033[31m.yaml')\"");
-  EXPECT_EQ(validate.exitCode, 2) << validate.output;
-  EXPECT_NE(validate.output.find("/nonexistent/x\\x1B[31m.yaml"), std::string::npos)
-      << validate.output;
-  for (const Result* r : {&bytes, &digits, &command, &strategy, &file, &validate})
-    EXPECT_EQ(r->output.find_first_of(std::string("\x1b\x85\x01", 3)), std::string::npos)
-        << r->output;
+  struct Case {
+    std::string args, expect;
+  };
+  const std::string escaped = "\"$(printf '/nonexistent/x\\033[31m.yaml')\"";
+  const std::vector<Case> cases = {
+      {"run scenarios/paper_slab.yaml --frames \"$(printf '\\205\\001')\"",
+       "--frames: Value \\x85\\x01 not in range"},
+      {"run scenarios/paper_slab.yaml --frames " + std::string(5000, '9'),
+       "--frames: Value " + std::string(284, '9') + " ... (5044 characters)"},
+      {"\"$(printf 'r\\033n')\"", "unknown command 'r\\x1Bn'"},
+      {"bench cut --electric \"$(printf 'pc\\033g')\"", "unknown strategy 'pc\\x1Bg'; valid names"},
+      // the net under the quoting: a file name with a terminal's escape, where esim prints it
+      {"run " + escaped, "/nonexistent/x\\x1B[31m.yaml"},
+      {"validate " + escaped, "/nonexistent/x\\x1B[31m.yaml"},
+  };
+  for (const Case& c : cases) {
+    const Result r = shell(std::string(ESIM_EXE) + " " + c.args);
+    EXPECT_EQ(r.exitCode, 2) << c.args << "\n" << r.output;
+    EXPECT_NE(r.output.find(c.expect), std::string::npos) << c.expect << "\n" << r.output;
+    EXPECT_LT(r.output.size(), 600u) << r.output;
+    EXPECT_EQ(r.output.find_first_of(std::string("\x1b\x85\x01", 3)), std::string::npos)
+        << r.output;
+  }
 }
 
 // An option or argument given an empty value, as an unset shell variable gives it (-o "$OUT"):
