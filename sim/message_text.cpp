@@ -61,13 +61,13 @@ std::string printableInMessage(const std::string& text, size_t maxCharacters) {
   return out;
 }
 
-std::string printableMessage(const std::string& message) {
+std::string printableMessage(const std::string& message, size_t maxCharactersPerLine) {
   std::string out;
   size_t start = 0;
   while (start <= message.size()) {
     const size_t end = std::min(message.find('\n', start), message.size());
     if (start > 0) out += '\n';
-    out += printableInMessage(message.substr(start, end - start), 2000);
+    out += printableInMessage(message.substr(start, end - start), maxCharactersPerLine);
     if (end == message.size()) break;
     start = end + 1;
   }

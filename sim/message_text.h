@@ -29,8 +29,8 @@ std::string nameInMessage(const std::string& text);
 std::string printableInMessage(const std::string& text, std::size_t maxCharacters = 300);
 
 // a whole message as printed (esim's last word on stderr): each line printableInMessage with
-// a cap of 2000 characters, the net under the quoting above (a file name with a terminal's
-// escape, a path of thousands of characters)
-std::string printableMessage(const std::string& message);
+// a cap of maxCharactersPerLine, the net under the quoting above (a file name with a
+// terminal's escape, a path of thousands of characters)
+std::string printableMessage(const std::string& message, std::size_t maxCharactersPerLine = 2000);
 
 }  // namespace esim

@@ -19,6 +19,7 @@
 #include <string>
 
 #include "sim/core_error.h"
+#include "sim/message_text.h"
 
 namespace esim::fuzz {
 
@@ -36,21 +37,9 @@ constexpr std::size_t kMaxMessageBytes = 4096;
 inline std::string messageProblem(const std::string& m) {
   if (m.size() > kMaxMessageBytes)
     return std::to_string(m.size()) + " bytes (at most " + std::to_string(kMaxMessageBytes) + ")";
-  const auto at = [&](std::size_t i) { return static_cast<unsigned char>(m[i]); };
-  for (std::size_t i = 0; i < m.size();) {
-    const unsigned char c = at(i);
-    const std::size_t len = c < 0x80                 ? 1
-                            : c >= 0xC2 && c <= 0xDF ? 2
-                            : (c >> 4) == 0xE        ? 3
-                            : c >= 0xF0 && c <= 0xF4 ? 4
-                                                     : 0;
-    bool ok = len > 0 && i + len <= m.size();
-    for (std::size_t k = 1; ok && k < len; ++k) ok = (at(i + k) & 0xC0) == 0x80;
-    if (ok && len == 1) ok = c == '\n' || (c >= 0x20 && c != 0x7F);
-    if (!ok) return "byte " + std::to_string(c) + " at " + std::to_string(i);
-    i += len;
-  }
-  return "";
+  // printed as it is: each line unchanged by the escaping message_text.h applies
+  if (printableMessage(m, kMaxMessageBytes) == m) return "";
+  return "bytes that are not text, or control characters, in " + printableMessage(m, 300);
 }
 
 // runs body(); an Input or Run error is the expected rejection (returns false) when its

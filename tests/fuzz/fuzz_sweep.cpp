@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include "tests/fuzz/fuzz_common.h"
 #include "tests/fuzz/scenario_oracle.h"

@@ -137,13 +137,11 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    // CLI11's message quotes the value it refused as given: each line escaped and cut
-    // (printableInMessage), a 5000-character --frames or a terminal's escape no longer echoed
+    // CLI11's message quotes the value it refused as given: each line escaped and cut at 300
+    // characters, a 5000-character --frames or a terminal's escape no longer echoed
     std::ostringstream err;
     const int code = app.exit(e, std::cout, err);
-    std::istringstream lines(err.str());
-    for (std::string line; std::getline(lines, line);)
-      std::cerr << esim::printableInMessage(line) << "\n";
+    std::cerr << esim::printableMessage(err.str(), 300);
     return code == 0 ? kExitOk : kExitBadInput;
   } catch (const esim::Error& e) {
     return reportError(e);
