@@ -33,4 +33,9 @@ std::string printableInMessage(const std::string& text, std::size_t maxCharacter
 // terminal's escape, a path of thousands of characters)
 std::string printableMessage(const std::string& message, std::size_t maxCharactersPerLine = 2000);
 
+// a path the user gave, as a status line shows it ("wrote out/x/timing.csv", the summary's
+// outputs): printableInMessage with the net's cap, so a folder named with a terminal's escape
+// prints as \x1B[31m, not as a colour, and a path of 5000 characters as its first 2000
+inline std::string printablePath(const std::string& path) { return printableInMessage(path, 2000); }
+
 }  // namespace esim

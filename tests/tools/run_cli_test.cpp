@@ -1339,6 +1339,35 @@ TEST(RunCli, RefusedOptionValuesAreQuotedPrintable) {
   }
 }
 
+// A status line that is not an error (the run's summary of its outputs, render-sample's
+// "FILE: 640x360 ...", bench's "wrote FILE") names the user's own folder: it printed the
+// folder's bytes as given, so a name with a terminal's escape coloured the terminal
+TEST(RunCli, StatusLinesShowTheOutputFolderPrintable) {
+  const fs::path parent = tempOut("status_escape");
+  fs::create_directories(parent);
+  const std::string name = "a\x1b[31mb\x85";
+  const std::string shown = "a\\x1B[31mb\\x85";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"run scenarios/paper_slab.yaml --frames 1 --no-video" + std::string(kSmall) + " -o ",
+       "  outputs       " + (parent / "run_").string() + shown + "/ {"},
+      {"render-sample --width 64 --height 36 --out ",
+       (parent / "sample_").string() + shown + "/sample_temperature.png: 64x36"},
+      {"bench thermal --sizes 1013 --frames 4 --csv ",
+       "wrote " + (parent / "csv_").string() + shown}};
+  for (const auto& [args, expect] : cases) {
+    const std::string prefix = expect.find("wrote") == 0 ? "csv_"
+                               : args.find("run ") == 0  ? "run_"
+                                                         : "sample_";
+    const fs::path out = parent / (prefix + name);
+    const Result r = shell(std::string(ESIM_EXE) + " " + args + "'" + out.string() + "'");
+    EXPECT_EQ(r.exitCode, 0) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find(expect), std::string::npos) << expect << "\n" << r.output;
+    EXPECT_EQ(r.output.find_first_of(std::string("\x1b\x85", 2)), std::string::npos) << r.output;
+    EXPECT_TRUE(fs::exists(out)) << "the folder or file is made with the name as given";
+  }
+  fs::remove_all(parent);
+}
+
 // An option or argument given an empty value, as an unset shell variable gives it (-o "$OUT"):
 // -o "" ran into the default folder out/<name>, --csv "" and --report "" wrote nothing, all
 // with exit 0; validate "" said "error: : cannot open the scenario file"

@@ -191,8 +191,8 @@ Setup setUp(const RunOptions& opt, Scenario scenario) {
     // says nothing while it runs: say what it does first
     if (!opt.quiet && sc.mesh.source == MeshSource::File) {
       const ScenarioMeshFile& f = sc.mesh.file;
-      std::fprintf(stderr, "esim: meshing %s (mesh.file.cell_size_m %g m", f.path.c_str(),
-                   f.cellSizeM);
+      std::fprintf(stderr, "esim: meshing %s (mesh.file.cell_size_m %g m",
+                   printablePath(f.path).c_str(), f.cellSizeM);
       if (f.refine.enabled)
         std::fprintf(stderr, ", refine.cell_size_m %g m near the cut", f.refine.cellSizeM);
       std::fprintf(stderr, ")\n");
@@ -211,7 +211,7 @@ Setup setUp(const RunOptions& opt, Scenario scenario) {
     // what the set-up found (a piece off the return electrode, a tool path under the
     // surface), before a run of minutes: even with -q, as the summary will repeat it
     for (const std::string& w : s.sim->warnings())
-      std::fprintf(stderr, "esim: warning: %s\n", w.c_str());
+      std::fprintf(stderr, "esim: warning: %s\n", printableMessage(w).c_str());
   } catch (const Error& e) {
     rethrowNamingScenario(e, sc);
   }
@@ -221,7 +221,7 @@ Setup setUp(const RunOptions& opt, Scenario scenario) {
   if (s.renderer) {
     s.viewWarning = viewWarning(s.renderer->options(), *s.sim, sc, s.frames);
     if (!s.viewWarning.empty())  // (even with -q: it says the video will show nothing)
-      std::fprintf(stderr, "esim: warning: %s\n", s.viewWarning.c_str());
+      std::fprintf(stderr, "esim: warning: %s\n", printableMessage(s.viewWarning).c_str());
   }
   return s;
 }
@@ -991,7 +991,8 @@ std::string writeReports(const Setup& s, const FrameOutputs& out, const LoopResu
   if (plots) {
     const PlotResult p = plotTiming(dir);
     plotted = p.status == PlotStatus::Written;
-    if (!plotted) std::cerr << "esim: warning: no timing.png: " << p.message << "\n";
+    if (!plotted)
+      std::cerr << "esim: warning: no timing.png: " << printableMessage(p.message) << "\n";
   }
   // the video as it is (none after a failure that removed it, the fragmented file when only
   // its rewrite failed)
@@ -1239,12 +1240,12 @@ int runScenario(const RunOptions& opt) {
     try {
       output.commit();
     } catch (const Error& e) {  // a file put into DIR since the checks: the run stays partial
-      std::cout << summary;
+      std::cout << printableMessage(summary);
       std::cerr << "esim: error: " << printableMessage(e.what()) << "\n";
       return kExitFailure;
     }
   }
-  std::cout << summary;
+  std::cout << printableMessage(summary);
   if (!loop.failure.empty()) std::cerr << "esim: error: " << printableMessage(loop.failure) << "\n";
   if (loop.complete()) return kExitOk;
   // a run error or an interruption: 1 (the frames are kept); an internal check: 4

@@ -602,7 +602,7 @@ int finalReport(const fs::path& dir, std::size_t total, bool quiet) {
     if (t.failed)
       std::cout << "  (failed variants run again with --retry-failed; each has its "
                    "runs/<id>/log.txt)\n";
-    std::cout << "manifest: " << (dir / "manifest.jsonl").string() << "\n";
+    std::cout << "manifest: " << printablePath((dir / "manifest.jsonl").string()) << "\n";
   }
   return t.complete == static_cast<int>(total) ? 0 : 1;
 }
@@ -988,12 +988,12 @@ int runSlurm(const fs::path& dir, const SweepSpec& spec, const std::vector<Sweep
   for (const auto* v : jobs) indices.push_back(v->index);
   const fs::path script = writeScript(absDir, "sweep.sbatch", spec, indices, res, exe, opt);
   if (!opt.quiet)
-    std::cout << "sweep: wrote " << script.string() << ": " << jobs.size() << " task"
+    std::cout << "sweep: wrote " << printablePath(script.string()) << ": " << jobs.size() << " task"
               << (jobs.size() == 1 ? "" : "s") << ", --cpus-per-task=" << res.cpus
               << " --mem=" << res.memMb << "M --time=" << res.timeMin << " (" << res.basis << ")\n";
   if (!opt.submit) {
     if (!opt.quiet)
-      std::cout << "submit it with: sbatch " << script.string()
+      std::cout << "submit it with: sbatch " << printablePath(script.string())
                 << "\n(each task writes its result and the manifest as it ends)\n";
     writeManifest(dir);
     return 0;
@@ -1089,8 +1089,9 @@ int runSweep(const SweepOptions& opt, const RunOptionsCheck& checkRunOptions) {
   for (const auto* v : jobs) gSession.ids.insert(v->id);
   const int earlier = tally(dir).complete;
   if (!opt.quiet)
-    std::cout << "sweep " << spec.name << ": " << vs.size() << " variants -> " << dir.string()
-              << " (" << earlier << " complete before, " << jobs.size() << " to run"
+    std::cout << "sweep " << spec.name << ": " << vs.size() << " variants -> "
+              << printablePath(dir.string()) << " (" << earlier << " complete before, "
+              << jobs.size() << " to run"
               << (opt.slurm ? ", on Slurm" : ", " + std::to_string(opt.workers) + " at once") << ")"
               << std::endl;  // before the progress line (stderr)
   catchSignals();
@@ -1118,7 +1119,7 @@ int runSweepVariant(const std::string& dirText, const std::string& variant, bool
     return 0;
   }
   if (status == "failed" && !retryFailed) {
-    std::cout << id << ": failed earlier (" << old.value("message", "")
+    std::cout << id << ": failed earlier (" << printableMessage(old.value("message", ""), 300)
               << "); --retry-failed runs it again\n";
     return 1;
   }
@@ -1131,7 +1132,9 @@ int runSweepVariant(const std::string& dirText, const std::string& variant, bool
     throw Error(dataset::variantDir(dir, id).string() +
                 ": another esim is running this variant; nothing was changed");
   std::cout << id << ": " << r.value("status", "") << " in " << r.value("wall_s", 0.0) << " s"
-            << (r.value("message", "").empty() ? "" : ": " + r.value("message", "")) << "\n";
+            << (r.value("message", "").empty() ? ""
+                                               : ": " + printableMessage(r.value("message", "")))
+            << "\n";
   return r.value("status", "") == "complete" ? 0 : 1;
 }
 

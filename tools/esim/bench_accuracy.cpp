@@ -615,16 +615,18 @@ int benchAccuracy(const AccuracyOptions& opt) {
   md << "\nRerun a row: the `rerun` column of accuracy.csv (`esim bench accuracy --only NAME`); "
         "the `run_command` column is the same physics as an `esim run`.\n";
   app::writeFileAtomic(mdPath, md.str());
-  std::printf("wrote %s, %s\n", csvPath.string().c_str(), mdPath.string().c_str());
+  std::printf("wrote %s, %s\n", printablePath(csvPath.string()).c_str(),
+              printablePath(mdPath.string()).c_str());
   // ---- 7. accuracy_vs_time.png ----
   if (!opt.noPlot) {
     const fs::path png = fs::path(opt.out) / "accuracy_vs_time.png";
     const app::PlotResult pr =
         app::runPlotScript("plot_accuracy.py", {csvPath.string(), "-o", png.string()});
     if (pr.status == app::PlotStatus::Written)
-      std::printf("wrote %s\n", png.string().c_str());
+      std::printf("wrote %s\n", printablePath(png.string()).c_str());
     else
-      std::cerr << "esim: warning: no accuracy_vs_time.png: " << pr.message << "\n";
+      std::cerr << "esim: warning: no accuracy_vs_time.png: " << printableMessage(pr.message)
+                << "\n";
   }
   return kExitOk;
 }

@@ -433,7 +433,7 @@ int benchCut(const BenchCutOptions& opt) {
   if (opt.repeat > 1) printRounds(rounds);
   if (csv) {
     csv.commit();
-    std::printf("wrote %s\n", opt.csv.c_str());
+    std::printf("wrote %s\n", printablePath(opt.csv).c_str());
   }
   return cli::kExitOk;
 }

@@ -43,6 +43,7 @@
 #include "sim/electrode.h"
 #include "sim/fem_p1.h"
 #include "sim/mesh_slab.h"
+#include "sim/message_text.h"
 #include "tools/app/bench_common.h"
 #include "tools/esim/command.h"
 
@@ -673,7 +674,7 @@ int benchElectric(const BenchElectricOptions& opt) {
           << fmt(r.memoryMb, "%.3f") << ',' << fmt(r.maxRelError, "%.3e") << ',' << csvQuote(r.note)
           << '\n';
     csv.commit();
-    std::printf("\nwrote %s\n", opt.csv.c_str());
+    std::printf("\nwrote %s\n", printablePath(opt.csv).c_str());
   }
   // 6. the paper's Fig. 9(a)
   if (opt.fig9) runFig9(opt);

@@ -315,7 +315,7 @@ int benchRender(const BenchRenderOptions& opt) {
   }
   if (csv) {
     csv.commit();
-    std::printf("wrote %s\n", opt.csv.c_str());
+    std::printf("wrote %s\n", printablePath(opt.csv).c_str());
   }
   return kExitOk;
 }

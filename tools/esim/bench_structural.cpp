@@ -333,7 +333,7 @@ int benchStructural(const BenchStructuralOptions& opt) {
     }
   if (csv) {
     csv.commit();
-    std::printf("wrote %s\n", opt.csv.c_str());
+    std::printf("wrote %s\n", printablePath(opt.csv).c_str());
   }
   return cli::kExitOk;
 }

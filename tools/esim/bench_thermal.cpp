@@ -202,7 +202,7 @@ int benchThermal(const BenchThermalOptions& opt) {
   }
   if (csv) {
     csv.commit();
-    std::printf("wrote %s\n", opt.csv.c_str());
+    std::printf("wrote %s\n", printablePath(opt.csv).c_str());
   }
   return cli::kExitOk;
 }

@@ -18,6 +18,7 @@
 
 #include "render/image_hash.h"
 #include "sim/core_error.h"
+#include "sim/message_text.h"
 #include "tools/app/compare_runs.h"
 #include "tools/esim/command.h"
 
@@ -47,7 +48,8 @@ int runCompare(const CompareOptions& o) {
     if (report.empty())
       std::cout << "  report        none (--report DIR writes compare.json and the diff PNGs)\n";
     else
-      std::cout << "  report        " << (fs::path(report) / "compare.json").string() << "\n";
+      std::cout << "  report        " << printablePath((fs::path(report) / "compare.json").string())
+                << "\n";
   };
   if (r.identical()) {
     printReport();

@@ -18,6 +18,7 @@
 #include "sim/io/vtu.h"
 #include "sim/mesh_slab.h"
 #include "sim/mesh_tet.h"
+#include "sim/message_text.h"
 #include "tools/esim/command.h"
 
 namespace esim::cli {
@@ -72,7 +73,7 @@ int runMeshInfo(const MeshInfoOptions& opt) {
     checkSurface(surface, opt.file);
     orientOutward(surface);
     const auto tRead = Clock::now();
-    std::printf("surface          %s\n", opt.file.c_str());
+    std::printf("surface          %s\n", printablePath(opt.file).c_str());
     std::printf("  vertices       %zu\n", surface.vertices.size());
     std::printf("  triangles      %zu\n", surface.triangles.size());
     std::printf("  enclosed vol.  %.6e m^3\n", enclosedVolume(surface));
@@ -98,7 +99,7 @@ int runMeshInfo(const MeshInfoOptions& opt) {
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
   }
-  std::printf("tet mesh         %s\n", source.c_str());
+  std::printf("tet mesh         %s\n", printablePath(source).c_str());
   std::printf("  nodes          %d\n", mesh.numNodes());
   std::printf("  tets           %d\n", mesh.numAlive());
   std::printf("  boundary faces %zu\n", faces.size());
@@ -135,7 +136,7 @@ int runMeshInfo(const MeshInfoOptions& opt) {
   if (meshingS > 0) std::printf("meshing time     %.3f s\n", meshingS);
   if (!opt.vtuOut.empty()) {
     writeVtu(opt.vtuOut, mesh, {}, {});
-    std::printf("written          %s\n", opt.vtuOut.c_str());
+    std::printf("written          %s\n", printablePath(opt.vtuOut).c_str());
   }
   return kExitOk;
 }

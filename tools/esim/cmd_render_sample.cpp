@@ -14,6 +14,7 @@
 #include "render/image_png.h"
 #include "render/renderer.h"
 #include "sim/core_error.h"
+#include "sim/message_text.h"
 #include "tools/app/render_scenes.h"
 #include "tools/app/run_output.h"
 #include "tools/esim/command.h"
@@ -69,8 +70,8 @@ int runRenderSample(const RenderSampleOptions& opt) {
     const auto& rgb = renderer.render(snap);
     const std::string path = opt.out + "/sample_" + look + ".png";
     writePng(path, rgb, ro.width, ro.height);
-    std::printf("%s: %dx%d, %d triangles, xxh3 %s, GL %s | %s\n", path.c_str(), ro.width, ro.height,
-                snap.numTriangles(), hashToHex(hashFrame(rgb)).c_str(),
+    std::printf("%s: %dx%d, %d triangles, xxh3 %s, GL %s | %s\n", printablePath(path).c_str(),
+                ro.width, ro.height, snap.numTriangles(), hashToHex(hashFrame(rgb)).c_str(),
                 renderer.glRenderer().c_str(), renderer.glVersion().c_str());
   }
   return kExitOk;

@@ -42,7 +42,7 @@ int runValidate(const ValidateOptions& opt) {
       esim::app::checkRunnable(s);
       std::cout << "ok " << s.sourceName << ": " << esim::scenarioSummary(s) << "\n";
       for (const std::string& w : esim::configWarnings(esim::app::makeSimulationConfig(s)))
-        std::cerr << "warning: " << s.sourceName << ": " << w << "\n";
+        std::cerr << esim::printableMessage("warning: " + s.sourceName + ": " + w) << "\n";
     } catch (const esim::Error& e) {
       std::cerr << "error: " << esim::printableMessage(e.what()) << "\n";
       ++invalid;
