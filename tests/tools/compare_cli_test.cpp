@@ -23,6 +23,7 @@ namespace fs = std::filesystem;
 using esim::cli_test::readFile;
 using esim::cli_test::Result;
 using esim::cli_test::shell;
+using nlohmann::json;
 
 Result esim(const std::string& args) { return shell(std::string(ESIM_EXE) + " " + args); }
 
@@ -266,6 +267,52 @@ TEST_F(CompareCli, DifferentInputsAreNamed) {
       << edited.output;
   EXPECT_EQ(edited.output.find("the scenario (hash"), std::string::npos) << edited.output;
   fs::remove_all(dir);
+}
+
+// which esim made each run: hashes.json's esim_build, this binary's in both (its commit); a
+// run made by another commit, or by an esim from before builds were recorded, is named
+// DIFFERENT (a regression's first question: which code made the frames). Equal frames
+// still exit 0: the build is information, not a mismatch
+TEST_F(CompareCli, TheEsimBuildOfEachRunIsCompared) {
+  const json build = json::parse(readFile(a_ / "hashes.json"))["esim_build"];
+  ASSERT_TRUE(build.is_object());
+  const json timing = json::parse(readFile(a_ / "timing.json"))["build"];
+  EXPECT_EQ(build["commit"], timing["commit"]);
+  EXPECT_EQ(build["uncommitted_changes"], timing["uncommitted_changes"]);
+  EXPECT_EQ(build["version"], timing["esim"]);
+  const Result same = esim("compare " + a_.string() + " " + b_.string());
+  EXPECT_NE(same.output.find("esim build    same: esim " + build["version"].get<std::string>() +
+                             " (commit "),
+            std::string::npos)
+      << same.output;
+  // esim --version prints the line compare shows (this binary made both runs)
+  const Result version = esim("--version");
+  EXPECT_EQ(version.exitCode, 0) << version.output;
+  const std::string line = version.output.substr(0, version.output.find('\n'));
+  EXPECT_NE(same.output.find("esim build    same: " + line + "\n"), std::string::npos)
+      << version.output << same.output;
+
+  const fs::path other = temp("other_build");
+  fs::copy(b_, other, fs::copy_options::recursive);
+  json hashes = json::parse(readFile(other / "hashes.json"));
+  hashes["esim_build"]["commit"] = std::string(40, '0');
+  std::ofstream(other / "hashes.json") << hashes.dump(2);
+  const Result differ = esim("compare " + a_.string() + " " + other.string());
+  EXPECT_EQ(differ.exitCode, 0) << differ.output;
+  EXPECT_NE(differ.output.find("esim build    DIFFERENT: esim "), std::string::npos)
+      << differ.output;
+  EXPECT_NE(differ.output.find(" vs esim " + build["version"].get<std::string>() +
+                               " (commit 000000000000"),
+            std::string::npos)
+      << differ.output;
+  EXPECT_NE(differ.output.find("identical (every frame hash equal)"), std::string::npos);
+  hashes.erase("esim_build");
+  std::ofstream(other / "hashes.json") << hashes.dump(2);
+  const Result old = esim("compare " + a_.string() + " " + other.string());
+  EXPECT_NE(old.output.find("esim build    DIFFERENT: run B does not say which esim made it"),
+            std::string::npos)
+      << old.output;
+  fs::remove_all(other);
 }
 
 TEST_F(CompareCli, AMissingRunIsNamed) {

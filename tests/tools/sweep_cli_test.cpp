@@ -501,6 +501,39 @@ TEST(SweepCli, CompleteVariantsWithWarningsAreListedAtTheEnd) {
   fs::remove(spec);
 }
 
+// each variant records which esim made it (its run's timing.json "build"); a sweep resumed
+// after the code changed holds variants of two builds, which the final report names (a
+// dataset from one commit is what a training set wants to say it is)
+TEST(SweepCli, VariantsMadeByTwoBuildsOfEsimAreNamedAtTheEnd) {
+  const fs::path dir = tempDir("builds");
+  const fs::path spec = tempDir("builds_spec.yaml");
+  writeTinySpec(spec, "grid:\n  tool.voltage_v: [60, 70]\n");
+  const Result r = esim("sweep " + spec.string() + " -o " + dir.string());
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_EQ(r.output.find("builds of esim"), std::string::npos) << r.output;
+  for (const json& l : manifest(dir)) {
+    const std::string id = l["id"];
+    EXPECT_EQ(l["esim_build"],
+              json::parse(readFile(dir / "runs" / id / "run" / "timing.json"))["build"]);
+    EXPECT_TRUE(l["esim_build"]["commit"].is_string()) << l.dump();
+  }
+  // v0001 as an earlier commit would have recorded it
+  const fs::path result = dir / "runs" / "v0001" / "result.json";
+  json edited = json::parse(readFile(result));
+  edited["esim_build"]["commit"] = std::string(40, 'a');
+  writeFile(result, edited.dump(2));
+  const Result again = esim("sweep " + spec.string() + " -o " + dir.string());
+  EXPECT_EQ(again.exitCode, 0) << again.output;
+  EXPECT_NE(again.output.find("  warning: the complete variants were made by 2 builds of esim "
+                              "(the manifest's \"esim_build\"):\n"),
+            std::string::npos)
+      << again.output;
+  EXPECT_NE(again.output.find("    1 by esim "), std::string::npos) << again.output;
+  EXPECT_NE(again.output.find("(commit aaaaaaaaaaaa"), std::string::npos) << again.output;
+  fs::remove_all(dir);
+  fs::remove(spec);
+}
+
 TEST(SweepCli, AnInterruptedSweepStopsItsRunsAndRunsThemAgain) {
   const fs::path dir = tempDir("interrupted");
   const fs::path spec = tempDir("interrupted_spec.yaml");

@@ -5,6 +5,7 @@
 #include <fstream>
 #include <iomanip>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <vector>
@@ -13,6 +14,7 @@
 #include "render/image_png.h"
 #include "sim/core_error.h"
 #include "sim/message_text.h"
+#include "tools/app/build_info.h"
 #include "tools/app/json_text.h"
 #include "tools/app/run_output.h"
 
@@ -120,6 +122,30 @@ CompareResult compareRuns(const std::string& runA, const std::string& runB,
   r.sameRenderer = a.value("renderer", nlohmann::json()) == b.value("renderer", nlohmann::json()) &&
                    a.value("libraries", "") == b.value("libraries", "");
   {
+    // which esim made each run: a build that says nothing is not taken for the same one
+    const auto build = [](const nlohmann::json& j) -> std::optional<BuildInfo> {
+      const nlohmann::json& b = j.contains("esim_build") ? j["esim_build"] : nlohmann::json();
+      if (!b.is_object()) return std::nullopt;
+      const auto text = [&](const char* k) {
+        return b.contains(k) && b[k].is_string() ? b[k].get<std::string>() : std::string("?");
+      };
+      return BuildInfo{text("version"), text("commit"), text("uncommitted_changes"),
+                       text("compiler")};
+    };
+    const std::optional<BuildInfo> ba = build(a), bb = build(b);
+    if (ba) r.buildA = printableInMessage(buildInfoLine(*ba), 200);
+    if (!ba || !bb) {
+      r.buildDiffers = std::string(!ba && !bb ? "neither run says"
+                                   : !ba      ? "run A does not say"
+                                              : "run B does not say") +
+                       " which esim made it (hashes.json without esim_build: made before esim "
+                       "recorded it)";
+    } else if (buildInfoLine(*ba) != buildInfoLine(*bb) || ba->commit != bb->commit) {
+      r.buildDiffers = printableInMessage(buildInfoLine(*ba), 200) + " vs " +
+                       printableInMessage(buildInfoLine(*bb), 200);
+    }
+  }
+  {
     std::vector<std::string> differ;
     const std::string ha = a.value("scenario_hash", ""), hb = b.value("scenario_hash", "");
     if (ha != hb) differ.push_back("the scenario (hash " + ha + " vs " + hb + ")");
@@ -183,6 +209,7 @@ CompareResult compareRuns(const std::string& runA, const std::string& runB,
                           {"frames_a", r.framesA},
                           {"frames_b", r.framesB},
                           {"same_renderer_and_libraries", r.sameRenderer},
+                          {"esim_build_differs", r.buildDiffers},
                           {"inputs_differ", r.inputsDiffer},
                           {"identical", r.identical()},
                           {"thresholds",

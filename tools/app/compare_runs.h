@@ -22,6 +22,11 @@ struct CompareResult {
   // what differs in the runs' inputs ("" when nothing): the scenario's hash, the content of
   // a file it names (hashes.json's input_files)
   std::string inputsDiffer;
+  // which esim made each run (hashes.json's esim_build: version, commit, uncommitted
+  // changes): "" when the same; else what differs ("commit 4f067ee1c2d3 vs 127f1e2a9b0c"),
+  // or that a run does not say (made before esim recorded it)
+  std::string buildDiffers;
+  std::string buildA;            // buildInfoLine of run A's build, or "" when it does not say
   std::vector<FrameDiff> diffs;  // frames whose exact hash differs
   bool identical() const { return framesA == framesB && diffs.empty(); }
   bool withinTolerance() const;

@@ -43,6 +43,7 @@
 #include "sim/io/vtu.h"
 #include "sim/message_text.h"
 #include "sim/simulation.h"
+#include "tools/app/build_info.h"
 #include "tools/app/dataset.h"
 #include "tools/app/exit_codes.h"
 #include "tools/app/json_text.h"
@@ -767,7 +768,11 @@ nlohmann::json timingExtra(const Setup& s, const FrameOutputs& out, const LoopRe
   extra["threads"] = {{"blas", sc.solvers.electricThreads},
                       {"encoder", sc.output.reproducible ? 1 : 0}};
   extra["electric_solver"] = sim.electricSolverName();
-  extra["build"] = {{"compiler", __VERSION__}, {"esim", "0.1.0"}};
+  const BuildInfo& build = buildInfo();
+  extra["build"] = {{"compiler", build.compiler},
+                    {"esim", build.version},
+                    {"commit", build.commit},
+                    {"uncommitted_changes", build.dirty}};
   extra["electric_memory_mb"] = sim.electricMemoryBytes() / 1048576.0;
   extra["electric_cache_limit_mb"] = sc.solvers.electricCacheMemoryLimitMb;  // before any cut
   nlohmann::json cuts = nlohmann::json::array();
@@ -818,6 +823,12 @@ nlohmann::json hashesJson(const Setup& s, const FrameOutputs& out, const nlohman
   hj["height"] = sc.look.height;
   hj["renderer"] = extra["renderer"];
   hj["libraries"] = VideoEncoder::libraryVersions();
+  // which esim made the frames (esim compare says when two runs' builds differ)
+  const BuildInfo& build = buildInfo();
+  hj["esim_build"] = {{"version", build.version},
+                      {"commit", build.commit},
+                      {"uncommitted_changes", build.dirty},
+                      {"compiler", build.compiler}};
   hj["png_every"] = sc.output.pngEvery;
   hj["scenario_hash"] = extra["scenario_hash"];
   hj["input_files"] = extra["input_files"];

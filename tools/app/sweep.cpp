@@ -27,6 +27,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <mutex>
 #include <set>
 #include <sstream>
@@ -37,6 +38,7 @@
 #include "sim/core_error.h"
 #include "sim/io/scenario.h"
 #include "sim/message_text.h"
+#include "tools/app/build_info.h"
 #include "tools/app/dataset.h"
 #include "tools/app/json_text.h"
 #include "tools/app/run_output.h"
@@ -285,6 +287,8 @@ json variantResult(const fs::path& dir, const std::string& id, int index, int st
       timing.is_object() ? timing.value("peak_rss_mb", json(nullptr)) : json(nullptr);
   // the run's own warnings (e.g. tissue past 300 C): a dataset may want to leave them out
   r["warnings"] = timing.is_object() ? timing.value("warnings", json::array()) : json::array();
+  // which esim made it (a sweep resumed after the code changed holds variants of two builds)
+  r["esim_build"] = timing.is_object() ? timing.value("build", json(nullptr)) : json(nullptr);
   if (complete) {
     r["status"] = "complete";
     r["message"] = "";
@@ -522,7 +526,21 @@ struct Tally {
   int complete = 0, failed = 0, interrupted = 0, pending = 0;
   std::vector<std::string> failures;  // "v0003 failed: ..."
   std::vector<std::string> warned;    // complete with warnings: "v0003: <its first warning>"
+  std::map<std::string, int> builds;  // the esim builds of the complete variants, and how many
 };
+
+// a variant's esim build as one line (buildInfoLine), from its result's esim_build (the run's
+// timing.json "build")
+std::string variantBuild(const json& line) {
+  const json b = line.value("esim_build", json(nullptr));
+  if (!b.is_object()) return "an esim that did not record its build";
+  const auto text = [&](const char* k) {
+    return b.contains(k) && b[k].is_string() ? b[k].get<std::string>() : std::string("?");
+  };
+  return printableInMessage(
+      buildInfoLine({text("esim"), text("commit"), text("uncommitted_changes"), text("compiler")}),
+      200);
+}
 
 Tally tally(const fs::path& dir) {
   Tally t;
@@ -530,6 +548,7 @@ Tally tally(const fs::path& dir) {
     const std::string s = line.value("status", "");
     if (s == "complete") {
       ++t.complete;
+      ++t.builds[variantBuild(line)];
       const json w = line.value("warnings", json::array());
       if (w.is_array() && !w.empty() && w[0].is_string())
         t.warned.push_back(
@@ -588,7 +607,7 @@ int finalReport(const fs::path& dir, std::size_t total, bool quiet) {
     if (t.interrupted) std::cout << ", " << t.interrupted << " interrupted";
     if (t.pending) std::cout << ", " << t.pending << " not run";
     std::cout << "\n";
-    for (const auto& f : t.failures) std::cout << "  " << f << "\n";
+    for (const auto& f : t.failures) std::cout << "  " << printableMessage(f, 300) << "\n";
     // a complete run may still not be what a dataset wants (a camera that sees no tissue,
     // tissue past 300 C): said here, each variant's in the manifest's warnings
     if (!t.warned.empty()) {
@@ -596,8 +615,14 @@ int finalReport(const fs::path& dir, std::size_t total, bool quiet) {
                 << (t.warned.size() == 1 ? " has" : "s have")
                 << " warnings (the manifest's \"warnings\"):\n";
       for (size_t i = 0; i < t.warned.size() && i < 5; ++i)
-        std::cout << "    " << t.warned[i] << "\n";
+        std::cout << "    " << printableMessage(t.warned[i], 300) << "\n";
       if (t.warned.size() > 5) std::cout << "    ...\n";
+    }
+    // a dataset whose variants two builds made (a sweep resumed after the code changed)
+    if (t.builds.size() > 1) {
+      std::cout << "  warning: the complete variants were made by " << t.builds.size()
+                << " builds of esim (the manifest's \"esim_build\"):\n";
+      for (const auto& [build, n] : t.builds) std::cout << "    " << n << " by " << build << "\n";
     }
     if (t.failed)
       std::cout << "  (failed variants run again with --retry-failed; each has its "

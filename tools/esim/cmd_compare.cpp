@@ -37,9 +37,12 @@ struct CompareOptions {
 int runCompare(const CompareOptions& o) {
   const std::string& report = o.report;
   const CompareResult r = compareRuns(o.runA, o.runB, report, true);
-  std::cout << "esim compare " << o.runA << " " << o.runB << "\n";
+  std::cout << "esim compare " << printablePath(o.runA) << " " << printablePath(o.runB) << "\n";
   std::cout << "  frames        " << r.framesA << " vs " << r.framesB << "\n";
   std::cout << "  renderer/libs " << (r.sameRenderer ? "same" : "DIFFERENT") << "\n";
+  std::cout << "  esim build    "
+            << (r.buildDiffers.empty() ? "same: " + r.buildA : "DIFFERENT: " + r.buildDiffers)
+            << "\n";
   std::cout << "  inputs        "
             << (r.inputsDiffer.empty() ? "same (the scenario's hash and the files it names)"
                                        : "DIFFERENT: " + r.inputsDiffer)

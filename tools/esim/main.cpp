@@ -20,6 +20,7 @@
 
 #include "sim/core_error.h"
 #include "sim/message_text.h"
+#include "tools/app/build_info.h"
 #include "tools/app/memory_room.h"
 #include "tools/esim/command.h"
 
@@ -86,6 +87,10 @@ int main(int argc, char** argv) {
       "(scenario, mesh, option), 3 comparison mismatch, 4 internal error (a bug)."};
   app.require_subcommand(1);
   app.set_help_all_flag("--help-all", "Show help for all sub-commands");
+  // the version and the git commit of the tree it was built from (timing.json and
+  // hashes.json record the same)
+  app.set_version_flag("--version", esim::app::buildInfoLine(esim::app::buildInfo()),
+                       "Print esim's version, the git commit it was built from, and exit");
 
   // 1. command tree
   std::map<CLI::App*, Runner> runners;
