@@ -48,9 +48,9 @@ TEST(BuildInfo, TheLineNamesTheShortCommitAndTheTreesState) {
 
 // runs the script on tree `src`, writing `out`; returns out's text
 std::string runScript(const fs::path& src, const fs::path& out) {
-  const auto r = shell(std::string(ESIM_CMAKE) + " -DSRC=" + src.string() + " -DOUT=" +
-                       out.string() + " -DVERSION=9.8.7 -P " + ESIM_SOURCE_DIR +
-                       "/tools/app/build_info.cmake");
+  const auto r =
+      shell(std::string(ESIM_CMAKE) + " -DSRC=" + src.string() + " -DOUT=" + out.string() +
+            " -DVERSION=9.8.7 -P " + ESIM_SOURCE_DIR + "/tools/app/build_info.cmake");
   EXPECT_EQ(r.exitCode, 0) << r.output;
   return readFile(out);
 }

@@ -530,6 +530,13 @@ TEST(SweepCli, VariantsMadeByTwoBuildsOfEsimAreNamedAtTheEnd) {
       << again.output;
   EXPECT_NE(again.output.find("    1 by esim "), std::string::npos) << again.output;
   EXPECT_NE(again.output.find("(commit aaaaaaaaaaaa"), std::string::npos) << again.output;
+  // verify says it too, and still passes: the files match the manifest
+  const Result verify = esim("dataset verify " + dir.string());
+  EXPECT_EQ(verify.exitCode, 0) << verify.output;
+  EXPECT_NE(verify.output.find("all match the manifest\n  note: the complete variants were made "
+                               "by 2 builds of esim"),
+            std::string::npos)
+      << verify.output;
   fs::remove_all(dir);
   fs::remove(spec);
 }

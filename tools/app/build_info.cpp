@@ -7,13 +7,14 @@
 namespace esim::app {
 
 const BuildInfo& buildInfo() {
-  static const BuildInfo info{ESIM_BUILD_VERSION, ESIM_BUILD_COMMIT, ESIM_BUILD_DIRTY,
+  static const BuildInfo info {
+    ESIM_BUILD_VERSION, ESIM_BUILD_COMMIT, ESIM_BUILD_DIRTY,
 #if defined(__clang__)
-                              std::string("clang++ ") + __clang_version__
+        std::string("clang++ ") + __clang_version__
 #elif defined(__GNUC__)
-                              std::string("g++ ") + __VERSION__
+        std::string("g++ ") + __VERSION__
 #else
-                              "unknown"
+        "unknown"
 #endif
   };
   return info;

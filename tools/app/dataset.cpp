@@ -16,6 +16,7 @@
 #include "render/image_hash.h"
 #include "sim/core_error.h"
 #include "sim/message_text.h"
+#include "tools/app/build_info.h"
 #include "tools/app/json_text.h"
 #include "tools/app/run_output.h"
 #include "tools/app/sweep_spec.h"
@@ -170,6 +171,17 @@ void writeResult(const fs::path& dir, const std::string& id, const nlohmann::jso
   writeFileAtomic(dataset::variantDir(dir, id) / "result.json", jsonText(result, 2) + "\n");
 }
 
+std::string variantBuildLine(const nlohmann::json& line) {
+  const nlohmann::json b = line.is_object() ? line.value("esim_build", nlohmann::json()) : nullptr;
+  if (!b.is_object()) return "an esim that did not record its build";
+  const auto text = [&](const char* k) {
+    return b.contains(k) && b[k].is_string() ? b[k].get<std::string>() : std::string("?");
+  };
+  return printableInMessage(
+      buildInfoLine({text("esim"), text("commit"), text("uncommitted_changes"), text("compiler")}),
+      200);
+}
+
 std::vector<nlohmann::json> manifestLines(const fs::path& dir) {
   const nlohmann::json sweep = readSweepJson(dir);
   std::vector<nlohmann::json> lines;
@@ -235,6 +247,7 @@ VerifyReport verifyDataset(const fs::path& dir) {
       continue;
     }
     ++rep.complete;
+    ++rep.builds[variantBuildLine(line)];
     const auto idField = line.find("id");
     const std::string id =
         idField != line.end() && idField->is_string() ? idField->get<std::string>() : "";

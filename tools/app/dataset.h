@@ -24,6 +24,7 @@
 #pragma once
 
 #include <filesystem>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -75,6 +76,11 @@ nlohmann::json readResult(const std::filesystem::path& dir, const std::string& i
 void writeResult(const std::filesystem::path& dir, const std::string& id,
                  const nlohmann::json& result);
 
+// the esim build that made a variant, as one printable line (buildInfoLine of a manifest
+// line's or result's esim_build, the run's timing.json "build"); "an esim that did not
+// record its build" for results from before it did
+std::string variantBuildLine(const nlohmann::json& line);
+
 // the manifest's lines as of now (sweep.json's variants with their results)
 std::vector<nlohmann::json> manifestLines(const std::filesystem::path& dir);
 // rewrites DIR/manifest.jsonl from sweep.json and the results (under DIR/.lock)
@@ -88,6 +94,9 @@ struct VerifyReport {
   int variants = 0, complete = 0, notComplete = 0;
   int filesChecked = 0;
   std::vector<std::string> problems;  // "runs/v0003/run/video.mp4: ..." one per file
+  // the esim builds that made the complete variants, each with how many (not a problem: a
+  // dataset of two builds is said, the files still match)
+  std::map<std::string, int> builds;
 };
 VerifyReport verifyDataset(const std::filesystem::path& dir);
 

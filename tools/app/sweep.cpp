@@ -38,7 +38,6 @@
 #include "sim/core_error.h"
 #include "sim/io/scenario.h"
 #include "sim/message_text.h"
-#include "tools/app/build_info.h"
 #include "tools/app/dataset.h"
 #include "tools/app/json_text.h"
 #include "tools/app/run_output.h"
@@ -529,26 +528,13 @@ struct Tally {
   std::map<std::string, int> builds;  // the esim builds of the complete variants, and how many
 };
 
-// a variant's esim build as one line (buildInfoLine), from its result's esim_build (the run's
-// timing.json "build")
-std::string variantBuild(const json& line) {
-  const json b = line.value("esim_build", json(nullptr));
-  if (!b.is_object()) return "an esim that did not record its build";
-  const auto text = [&](const char* k) {
-    return b.contains(k) && b[k].is_string() ? b[k].get<std::string>() : std::string("?");
-  };
-  return printableInMessage(
-      buildInfoLine({text("esim"), text("commit"), text("uncommitted_changes"), text("compiler")}),
-      200);
-}
-
 Tally tally(const fs::path& dir) {
   Tally t;
   for (const auto& line : manifestLines(dir)) {
     const std::string s = line.value("status", "");
     if (s == "complete") {
       ++t.complete;
-      ++t.builds[variantBuild(line)];
+      ++t.builds[variantBuildLine(line)];
       const json w = line.value("warnings", json::array());
       if (w.is_array() && !w.empty() && w[0].is_string())
         t.warned.push_back(

@@ -3,6 +3,7 @@
 #include <iostream>
 #include <memory>
 
+#include "sim/message_text.h"
 #include "tools/app/dataset.h"
 #include "tools/app/sweep.h"
 #include "tools/esim/command.h"
@@ -17,9 +18,10 @@ struct VerifyOptions {
 
 int verify(const VerifyOptions& opt) {
   const app::VerifyReport r = app::verifyDataset(opt.dir);
-  for (const auto& p : r.problems) std::cout << opt.dir << "/" << p << "\n";
+  const std::string dir = printablePath(opt.dir);
+  for (const auto& p : r.problems) std::cout << dir << "/" << printableMessage(p, 600) << "\n";
   if (!opt.quiet || !r.problems.empty()) {
-    std::cout << "verify " << opt.dir << ": " << r.variants << " variants, " << r.complete
+    std::cout << "verify " << dir << ": " << r.variants << " variants, " << r.complete
               << " complete (" << r.filesChecked << " files re-hashed)";
     if (r.notComplete) std::cout << ", " << r.notComplete << " not complete (not checked)";
     std::cout << ": "
@@ -27,6 +29,13 @@ int verify(const VerifyOptions& opt) {
                                      : std::to_string(r.problems.size()) +
                                            (r.problems.size() == 1 ? " problem" : " problems"))
               << "\n";
+  }
+  // a dataset two builds of esim made (a sweep resumed after the code changed): said, not a
+  // problem (its files still match the manifest)
+  if (r.builds.size() > 1) {
+    std::cout << "  note: the complete variants were made by " << r.builds.size()
+              << " builds of esim (the manifest's \"esim_build\"):\n";
+    for (const auto& [build, n] : r.builds) std::cout << "    " << n << " by " << build << "\n";
   }
   return r.problems.empty() ? kExitOk : kExitMismatch;
 }
