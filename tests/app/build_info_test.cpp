@@ -43,7 +43,7 @@ TEST(BuildInfo, TheLineNamesTheShortCommitAndTheTreesState) {
   EXPECT_EQ(buildInfoLine({"0.1.0", c, "unknown", "g++ 12.2.0"}),
             "esim 0.1.0 (commit 4f067ee1c2d3, changes since it unknown; g++ 12.2.0)");
   EXPECT_EQ(buildInfoLine({"0.2.0", "unknown", "false", "clang++ 14"}),
-            "esim 0.2.0 (commit unknown: not built from a git checkout; clang++ 14)");
+            "esim 0.2.0 (commit unknown: no git checkout, or git could not read it; clang++ 14)");
 }
 
 // runs the script on tree `src`, writing `out`; returns out's text

@@ -7,7 +7,7 @@ execute_process(COMMAND git -C "${SRC}" rev-parse HEAD
                 OUTPUT_STRIP_TRAILING_WHITESPACE)
 set(dirty "false")
 if(NOT rc EQUAL 0 OR commit STREQUAL "")
-  set(commit "unknown")  # not a git checkout (a source archive), or no git
+  set(commit "unknown")  # not a git checkout (a source archive), no git, or git refused it
 else()
   # tracked files only: the build folders and run outputs inside the tree are not the source
   execute_process(COMMAND git -C "${SRC}" status --porcelain --untracked-files=no

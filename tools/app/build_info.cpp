@@ -23,7 +23,7 @@ const BuildInfo& buildInfo() {
 std::string buildInfoLine(const BuildInfo& b) {
   std::string line = "esim " + b.version + " (";
   if (b.commit == "unknown") {
-    line += "commit unknown: not built from a git checkout";
+    line += "commit unknown: no git checkout, or git could not read it";
   } else {
     line += "commit " + b.commit.substr(0, 12);
     if (b.dirty == "true") line += ", with uncommitted changes";

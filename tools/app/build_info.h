@@ -10,7 +10,7 @@ namespace esim::app {
 
 struct BuildInfo {
   std::string version;   // the project's (CMakeLists.txt), e.g. "0.1.0"
-  std::string commit;    // 40 hex digits, or "unknown" (not built from a git checkout)
+  std::string commit;    // 40 hex digits, or "unknown" (no git checkout, or git refused it)
   std::string dirty;     // "false", "true" (tracked files changed since the commit), "unknown"
   std::string compiler;  // e.g. "g++ 12.2.0"
 };
