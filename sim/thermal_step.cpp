@@ -152,8 +152,9 @@ ThermalIntegrator parseThermalIntegrator(const std::string& name) {
   if (name == "explicit") return ThermalIntegrator::Explicit;
   if (name == "backward-euler") return ThermalIntegrator::BackwardEuler;
   if (name == "crank-nicolson") return ThermalIntegrator::CrankNicolson;
+  if (name == "tr-bdf2") return ThermalIntegrator::TrBdf2;
   throw Error("unknown thermal integrator '" + name +
-              "': expected one of explicit, backward-euler, crank-nicolson");
+              "': expected one of explicit, backward-euler, crank-nicolson, tr-bdf2");
 }
 
 std::string thermalIntegratorName(ThermalIntegrator integrator) {
@@ -164,6 +165,8 @@ std::string thermalIntegratorName(ThermalIntegrator integrator) {
       return "backward-euler";
     case ThermalIntegrator::CrankNicolson:
       return "crank-nicolson";
+    case ThermalIntegrator::TrBdf2:
+      return "tr-bdf2";
   }
   return "?";
 }
@@ -883,6 +886,7 @@ void ThermalPhase::Impl::updateExplicitLimit(const std::vector<std::uint8_t>& al
 //   assembleSource       nodal load F from the per-tet source
 //   uniformEnthalpy      skip test: at rest nothing changes but time and damage
 //   explicitSubsteps     theta = 0: H += h M^-1 (F - K T), sub-stepped below the limit
+//   trBdf2Step           two implicitStage()s on one matrix (below)
 //   implicitStep         theta = 1/2, 1:
 //     chooseLinearSolver   cg or cholmod for this (dt, theta)
 //     thetaLoad            G = F - (1 - theta) K T0, fixed over the step
@@ -894,12 +898,14 @@ void ThermalPhase::Impl::updateExplicitLimit(const std::vector<std::uint8_t>& al
 
 namespace {
 
-// theta of the theta scheme: 0 explicit, 1/2 crank-nicolson, 1 backward euler
+// theta of the theta scheme: 0 explicit, 1/2 crank-nicolson, 1 backward euler (and each of
+// tr-bdf2's stages, written as backward euler steps)
 double thetaOf(ThermalIntegrator integrator) {
   switch (integrator) {
     case ThermalIntegrator::Explicit:
       return 0.0;
     case ThermalIntegrator::BackwardEuler:
+    case ThermalIntegrator::TrBdf2:
       return 1.0;
     case ThermalIntegrator::CrankNicolson:
       return 0.5;
@@ -918,8 +924,8 @@ struct ThermalPhase::Impl::Stepper {
   const std::vector<std::uint8_t>& alive;
   const std::vector<double>& volumeM3;
   const int n;
-  const double dtS;
-  const double theta;
+  double dtS;    // the step of the linear system: the frame's, or tr-bdf2's stage step h
+  double theta;  // of the theta scheme (1 in tr-bdf2's stages)
   ThermalState& s;
   StepStats stats{};
   double sourcePowerW = 0;  // set by assembleSource [W]
@@ -934,6 +940,8 @@ struct ThermalPhase::Impl::Stepper {
   void explicitSubsteps(double limitS);
 
   void implicitStep();
+  void trBdf2Step();
+  void implicitStage();
   void chooseLinearSolver();
   void setChernoffDiagonal();
   bool solveCg(const Eigen::VectorXd& b, Eigen::VectorXd& x, Eigen::VectorXd& kx, double errorK);
@@ -1002,6 +1010,8 @@ ThermalPhase::StepStats ThermalPhase::step(double dtS, const std::vector<double>
 
   if (params_.integrator == ThermalIntegrator::Explicit)
     st.explicitSubsteps(stableExplicitDtS());
+  else if (params_.integrator == ThermalIntegrator::TrBdf2)
+    st.trBdf2Step();
   else
     st.implicitStep();
 
@@ -1123,14 +1133,61 @@ void ThermalPhase::Impl::Stepper::explicitSubsteps(double limitS) {
 void ThermalPhase::Impl::Stepper::implicitStep() {
   chooseLinearSolver();
   thetaLoad();
-  if (p.boiling && p.lumpedMass) boilingPredictor();
-  chernoffIteration();
+  implicitStage();
   // convected heat by the same theta rule as the conduction
   if (m.convectionActive)
     s.convectedJ +=
         dtS * (theta * convectedPowerW(m.tempNew) + (1 - theta) * convectedPowerW(m.tempOld));
   accumulateDamage(dtS, m.tempOld, s.temperatureC);
   stats.substeps = 1;
+}
+
+// the nonlinear solve of one implicit step or stage, its load m.g set (thetaLoad, then
+// adjusted by tr-bdf2): the predictor, then the chernoff iteration
+void ThermalPhase::Impl::Stepper::implicitStage() {
+  if (p.boiling && p.lumpedMass) boilingPredictor();
+  chernoffIteration();
+}
+
+// tr-bdf2, gamma = 2 - sqrt 2, F the load (source and ambient), K with the robin terms:
+//   stage 1, crank-nicolson over gamma dt: M (H_g - H_n)/(gamma dt) = F - K (T_n + T_g)/2,
+//     i.e. times 2, a backward euler step of h = gamma dt/2 with the load 2F - K T_n;
+//   stage 2, BDF2 on t_n, t_n + gamma dt, t_n + dt: with a = 1/(gamma (2 - gamma)) and
+//     b = (1 - gamma)^2/(gamma (2 - gamma)) (a - b = 1), H* = a H_g - b H_n and
+//     M (H_n+1 - H*)/h = F - K T_n+1, a backward euler step of the same h
+//     ((1 - gamma)/(2 - gamma) dt = gamma dt/2 for this gamma): one matrix, factored once.
+// Each stage balances energy exactly (flux form); over the step the source enters with
+// weight (a gamma + (1 - gamma)/(2 - gamma)) dt = dt, and so does the convected heat below.
+// Damage by the trapezoid rule over the two stages' real lengths, gamma dt and (1 - gamma) dt
+void ThermalPhase::Impl::Stepper::trBdf2Step() {
+  const double stepS = dtS;
+  const double gamma = 2.0 - std::sqrt(2.0);
+  const double a = 1.0 / (gamma * (2.0 - gamma)), b = (1.0 - gamma) * (1.0 - gamma) * a;
+  dtS = 0.5 * gamma * stepS;
+  theta = 1.0;
+  chooseLinearSolver();
+  // stage 1
+  thetaLoad();  // H_n, T_n, K T_n; g = F
+  const Eigen::VectorXd enthalpyN = m.enthalpy0, tempN = m.tempOld;
+  m.g = 2.0 * m.g - m.kTemp;
+  implicitStage();
+  const bool converged = stats.converged;  // (iterations add up in stats.iterations)
+  const double convectedN = convectedPowerW(tempN);
+  const double convectedG = convectedPowerW(m.tempNew);
+  accumulateDamage(gamma * stepS, tempN, s.temperatureC);
+  const Eigen::VectorXd tempG = s.temperatureC;
+  // stage 2, from H*
+  s.enthalpyJ_m3 = a * s.enthalpyJ_m3 - b * enthalpyN;
+  updateTemperature();
+  thetaLoad();  // H*, T(H*), K T(H*); g = F
+  implicitStage();
+  stats.converged = stats.converged && converged;
+  if (m.convectionActive)
+    s.convectedJ +=
+        a * gamma * stepS * 0.5 * (convectedN + convectedG) + dtS * convectedPowerW(m.tempNew);
+  accumulateDamage((1.0 - gamma) * stepS, tempG, s.temperatureC);
+  stats.substeps = 2;
+  dtS = stepS;
 }
 
 // decided once per (dt, theta). auto: cg when the jacobi-preconditioned A = diag(S) +

@@ -70,9 +70,14 @@
 
 namespace esim {
 
-enum class ThermalIntegrator { Explicit, BackwardEuler, CrankNicolson };
+// TrBdf2: a crank-nicolson stage over gamma dt then a BDF2 stage (gamma = 2 - sqrt 2, both on
+// one matrix c rho M/h + K, h = gamma dt/2): second order and L-stable, so the stiff modes a
+// sharp heat source excites are damped where crank-nicolson carries them with factor -1
+// (README, "Thermal integrators")
+enum class ThermalIntegrator { Explicit, BackwardEuler, CrankNicolson, TrBdf2 };
 
-// "explicit", "backward-euler", "crank-nicolson"; throws Error listing the valid names
+// "explicit", "backward-euler", "crank-nicolson", "tr-bdf2"; throws Error listing the valid
+// names
 ThermalIntegrator parseThermalIntegrator(const std::string& name);
 
 // the name parseThermalIntegrator accepts
@@ -154,7 +159,7 @@ class ThermalPhase {
   void setTemperature(ThermalState& state, const Eigen::VectorXd& temperatureC) const;
 
   struct StepStats {
-    int substeps = 0;       // explicit sub-steps (1 for implicit)
+    int substeps = 0;       // explicit sub-steps (1 for implicit, 2 for tr-bdf2's stages)
     int iterations = 0;     // linear solves (boiling iterations; CG iterations not counted)
     bool skipped = false;   // nothing to do: zero source, uniform field (see header)
     bool converged = true;  // boiling iteration reached nonlinearToleranceK

@@ -231,7 +231,7 @@ struct ScenarioSolvers {
   double electricLocalMarginM = scenario_detail::core().electricSolver.localMarginM;
   int electricLocalRefreshFrames = scenario_detail::core().electricSolver.localRefreshFrames;
   bool electricPrefetchPath = true;  // precompute what the scripted tool path touches
-  // explicit | backward-euler | crank-nicolson
+  // explicit | backward-euler | crank-nicolson | tr-bdf2
   ThermalIntegrator thermalIntegrator = scenario_detail::core().thermal.integrator;
   // lumped | consistent
   ThermalMass thermalMass =

@@ -332,9 +332,10 @@ const std::vector<Field>& schema() {
                         "pre-processing: precompute the solver data (capacitance columns) of every "
                         "node the scripted tool path touches, so frames need none"));
     f.push_back(choice("solvers.thermal.integrator", ESIM_ENUM_REF(solvers.thermalIntegrator),
-                       {"explicit", "backward-euler", "crank-nicolson"},
+                       {"explicit", "backward-euler", "crank-nicolson", "tr-bdf2"},
                        "time integrator of the heat equation (explicit: lumped mass, sub-stepped "
-                       "below its stability limit; see esim bench thermal)"));
+                       "below its stability limit; tr-bdf2: second order, L-stable, two solves a "
+                       "step; see esim bench thermal)"));
     f.push_back(choice("solvers.thermal.mass", ESIM_ENUM_REF(solvers.thermalMass),
                        {"lumped", "consistent"}, "heat capacity matrix"));
     f.push_back(boolean("solvers.thermal.allow_substepping",

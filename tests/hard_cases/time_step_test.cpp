@@ -118,7 +118,8 @@ INSTANTIATE_TEST_SUITE_P(Sweep, HardTimeStep,
                          ::testing::Combine(::testing::Values(1e-6, 1e-3, 1.0 / 30.0, 1.0, 10.0),
                                             ::testing::Values(ThermalIntegrator::Explicit,
                                                               ThermalIntegrator::BackwardEuler,
-                                                              ThermalIntegrator::CrankNicolson),
+                                                              ThermalIntegrator::CrankNicolson,
+                                                              ThermalIntegrator::TrBdf2),
                                             ::testing::Values(true)),
                          comboName);
 

@@ -900,6 +900,8 @@ TEST(Scenario, EveryChoiceRoundTripsThroughItsEnum) {
   EXPECT_EQ(bg.solvers.rebuildMode, RebuildMode::Background);
   const Scenario cn = parseScenario("solvers: {thermal: {integrator: crank-nicolson}}\n", "c.yaml");
   EXPECT_EQ(cn.solvers.thermalIntegrator, ThermalIntegrator::CrankNicolson);
+  const Scenario tr = parseScenario("solvers: {thermal: {integrator: tr-bdf2}}\n", "c.yaml");
+  EXPECT_EQ(tr.solvers.thermalIntegrator, ThermalIntegrator::TrBdf2);
 }
 
 }  // namespace

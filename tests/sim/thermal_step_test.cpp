@@ -39,6 +39,7 @@ const Variant kVariants[] = {
     {ThermalIntegrator::Explicit, true},      {ThermalIntegrator::Explicit, false},
     {ThermalIntegrator::BackwardEuler, true}, {ThermalIntegrator::BackwardEuler, false},
     {ThermalIntegrator::CrankNicolson, true}, {ThermalIntegrator::CrankNicolson, false},
+    {ThermalIntegrator::TrBdf2, true},        {ThermalIntegrator::TrBdf2, false},
 };
 
 std::string name(const Variant& v) {
@@ -121,7 +122,8 @@ TEST(ThermalStep, FourierModeDecaysWithOrderOneAndTwo) {
 
     const double endS = 1.0 / mu;  // one e-folding
     for (ThermalIntegrator integrator :
-         {ThermalIntegrator::BackwardEuler, ThermalIntegrator::CrankNicolson}) {
+         {ThermalIntegrator::BackwardEuler, ThermalIntegrator::CrankNicolson,
+          ThermalIntegrator::TrBdf2}) {
       const Variant v{integrator, lumped};
       std::vector<double> errors;
       const std::vector<int> counts = {8, 16, 32, 64};
@@ -159,6 +161,73 @@ TEST(ThermalStep, FourierModeDecaysWithOrderOneAndTwo) {
       std::printf("\n");
     }
   }
+}
+
+// ---- 2b. each implicit integrator's amplification factor on the discrete eigenmodes ----
+// On a generalized eigenvector phi of K phi = mu (c rho M) phi (insulated, no source, no
+// boiling: linear) one step multiplies the mode by the scheme's R(z), z = mu dt, exactly:
+//   backward euler 1/(1 + z), crank-nicolson (1 - z/2)/(1 + z/2),
+//   tr-bdf2 (a (1 - g z/2)/(1 + g z/2) - b)/(1 + g z/2), g = 2 - sqrt 2,
+//   a = 1/(g (2 - g)), b = (1 - g)^2 a.
+// The stiffest mode at a long step shows why tr-bdf2 is there: crank-nicolson carries it with
+// R -> -1 (the oscillation of the hard cases' max-principle tests), tr-bdf2 damps it (R -> 0,
+// L-stable), while keeping second order on the smooth modes (test 2)
+TEST(ThermalStep, EachImplicitIntegratorMultipliesAnEigenmodeByItsAmplificationFactor) {
+  const TetMesh mesh = slab(Vec3(0.01, 0.006, 0.004), {6, 4, 3});
+  const auto geo = tetGeometry(mesh);
+  ThermalParams base;
+  const std::vector<double> lam(mesh.tets.size(), base.conductivityW_mK),
+      cr(mesh.tets.size(), base.heatCapacityJ_m3K);
+  const Eigen::MatrixXd k(assembleStiffness(mesh, geo, lam));
+  const double g = 2 - std::sqrt(2.0), a = 1 / (g * (2 - g)), b = (1 - g) * (1 - g) * a;
+  const auto amplification = [&](ThermalIntegrator integrator, double z) {
+    switch (integrator) {
+      case ThermalIntegrator::BackwardEuler:
+        return 1 / (1 + z);
+      case ThermalIntegrator::CrankNicolson:
+        return (1 - z / 2) / (1 + z / 2);
+      default:
+        return (a * (1 - g * z / 2) / (1 + g * z / 2) - b) / (1 + g * z / 2);
+    }
+  };
+  for (bool lumped : {true, false}) {
+    const Eigen::MatrixXd m = lumped ? Eigen::MatrixXd(lumpedMass(mesh, geo, cr).asDiagonal())
+                                     : Eigen::MatrixXd(assembleMass(mesh, geo, cr));
+    Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> eig(k, m);
+    const int last = static_cast<int>(eig.eigenvalues().size()) - 1;
+    for (int mode : {1, last / 2, last}) {
+      const double mu = eig.eigenvalues()[mode];
+      Eigen::VectorXd phi = eig.eigenvectors().col(mode);
+      phi /= phi.cwiseAbs().maxCoeff();
+      for (double z : {0.1, 3.0, 10.0, 1000.0}) {
+        const double dt = z / mu;
+        for (ThermalIntegrator integrator :
+             {ThermalIntegrator::BackwardEuler, ThermalIntegrator::CrankNicolson,
+              ThermalIntegrator::TrBdf2}) {
+          ThermalParams p;
+          p.integrator = integrator;
+          p.lumpedMass = lumped;
+          p.linearSolver = ThermalLinearSolver::Direct;
+          ThermalPhase phase(mesh, geo, p);
+          ThermalState s;
+          phase.setTemperature(s, (p.initialTemperatureC + phi.array()).matrix());
+          phase.step(dt, std::vector<double>(mesh.tets.size(), 0.0), s);
+          const double r = amplification(integrator, z);
+          const Eigen::VectorXd expected = (p.initialTemperatureC + r * phi.array()).matrix();
+          EXPECT_LT((s.temperatureC - expected).cwiseAbs().maxCoeff(), 1e-8)
+              << name({integrator, lumped}) << " mode " << mode << " z " << z << " R " << r;
+          EXPECT_NEAR(phase.storedEnergyJ(s), 0.0, 1e-9 * p.heatCapacityJ_m3K * meshVolume(mesh))
+              << "the constant part is kept: the mode carries no net heat";
+        }
+      }
+    }
+  }
+  // the numbers behind the comparison: at z = 10 crank-nicolson keeps 2/3 of the mode with
+  // its sign flipped, tr-bdf2 a fifth, backward euler a tenth with its sign kept
+  EXPECT_NEAR(amplification(ThermalIntegrator::CrankNicolson, 10), -2.0 / 3, 1e-12);
+  EXPECT_NEAR(amplification(ThermalIntegrator::TrBdf2, 10), -0.2036, 1e-4);
+  EXPECT_NEAR(amplification(ThermalIntegrator::TrBdf2, 1e6), 0.0, 1e-5);
+  EXPECT_NEAR(amplification(ThermalIntegrator::CrankNicolson, 1e6), -1.0, 1e-5);
 }
 
 // ---- 3. explicit stability limit ----
@@ -434,7 +503,8 @@ TEST(ThermalStep, CgAndCholeskyAgreeAndRunsAreDeterministic) {
     return s.temperatureC;
   };
   for (ThermalIntegrator integrator :
-       {ThermalIntegrator::BackwardEuler, ThermalIntegrator::CrankNicolson}) {
+       {ThermalIntegrator::BackwardEuler, ThermalIntegrator::CrankNicolson,
+        ThermalIntegrator::TrBdf2}) {
     const Eigen::VectorXd a = run(ThermalLinearSolver::Cg, integrator);
     const Eigen::VectorXd b = run(ThermalLinearSolver::Direct, integrator);
     const Eigen::VectorXd c = run(ThermalLinearSolver::Auto, integrator);
@@ -563,6 +633,7 @@ TEST(ThermalStep, RemoveTetsStepsLikeAFreshBuild) {
   for (const Variant& v : kVariants) cases.push_back({v, ThermalLinearSolver::Auto});
   cases.push_back({{ThermalIntegrator::BackwardEuler, true}, ThermalLinearSolver::Direct});
   cases.push_back({{ThermalIntegrator::CrankNicolson, true}, ThermalLinearSolver::Direct});
+  cases.push_back({{ThermalIntegrator::TrBdf2, true}, ThermalLinearSolver::Direct});
   for (const Case& c : cases) {
     const std::string label =
         name(c.v) + (c.solver == ThermalLinearSolver::Direct ? "/direct" : "");
@@ -996,8 +1067,10 @@ TEST(ThermalStep, BadInputGivesClearMessages) {
   expectError([&] { validateThermalParams(p); },
               {"material.boiling_temperature_c = 30", "above material.initial_temperature_c = 37"});
   expectError([] { parseThermalIntegrator("runge-kutta"); },
-              {"'runge-kutta'", "explicit, backward-euler, crank-nicolson"});
+              {"'runge-kutta'", "explicit, backward-euler, crank-nicolson, tr-bdf2"});
   EXPECT_EQ(parseThermalIntegrator("crank-nicolson"), ThermalIntegrator::CrankNicolson);
+  EXPECT_EQ(parseThermalIntegrator("tr-bdf2"), ThermalIntegrator::TrBdf2);
+  EXPECT_EQ(thermalIntegratorName(ThermalIntegrator::TrBdf2), "tr-bdf2");
 
   // the constructor validates; the step checks its arguments
   const TetMesh mesh = slab(Vec3(0.01, 0.01, 0.005), {3, 3, 2});

@@ -143,7 +143,7 @@ int benchThermal(const BenchThermalOptions& opt) {
     // 4. the integrators, timed per frame (the reference uses the source at mid-step too)
     for (ThermalIntegrator integrator :
          {ThermalIntegrator::Explicit, ThermalIntegrator::BackwardEuler,
-          ThermalIntegrator::CrankNicolson}) {
+          ThermalIntegrator::CrankNicolson, ThermalIntegrator::TrBdf2}) {
       ThermalParams p = base;
       p.integrator = integrator;
       const auto t0 = Clock::now();
