@@ -145,6 +145,7 @@ Sweep makeSweep(const AccuracyOptions& opt) {
   // thermal: integrator (baseline explicit, sub-stepped) and the frame step
   add("thermal", "backward-euler", {"solvers.thermal.integrator=backward-euler"});
   if (!opt.quick) add("thermal", "crank-nicolson", {"solvers.thermal.integrator=crank-nicolson"});
+  if (!opt.quick) add("thermal", "tr-bdf2", {"solvers.thermal.integrator=tr-bdf2"});
   add("time_step", "15fps", {"time.fps=15"});
   if (!opt.quick) add("time_step", "60fps", {"time.fps=60"});
   // rebuild after rupture (baseline: update in place)
