@@ -46,6 +46,25 @@ TEST(BuildInfo, TheLineNamesTheShortCommitAndTheTreesState) {
             "esim 0.2.0 (commit unknown: no git checkout, or git could not read it; clang++ 14)");
 }
 
+// the record timing.json, hashes.json and a sweep's results hold, and read back (an edited
+// or older file: a field that is not text reads "?", a record that is not an object none)
+TEST(BuildInfo, TheRecordReadsBackAndAnEditedOneIsNotTakenForText) {
+  const BuildInfo b{"0.1.0", std::string(40, 'c'), "true", "g++ 12.2.0"};
+  const nlohmann::json j = esim::app::buildInfoJson(b);
+  EXPECT_EQ(
+      j.dump(),
+      "{\"commit\":\"" + std::string(40, 'c') +
+          "\",\"compiler\":\"g++ 12.2.0\",\"esim\":\"0.1.0\",\"uncommitted_changes\":\"true\"}");
+  const auto back = esim::app::buildInfoFromJson(j);
+  ASSERT_TRUE(back.has_value());
+  EXPECT_EQ(buildInfoLine(*back), buildInfoLine(b));
+  nlohmann::json edited = j;
+  edited["commit"] = 42;
+  EXPECT_EQ(esim::app::buildInfoFromJson(edited)->commit, "?");
+  EXPECT_FALSE(esim::app::buildInfoFromJson(nlohmann::json()).has_value());
+  EXPECT_FALSE(esim::app::buildInfoFromJson(nlohmann::json::array()).has_value());
+}
+
 // runs the script on tree `src`, writing `out`; returns out's text
 std::string runScript(const fs::path& src, const fs::path& out) {
   const auto r =

@@ -32,4 +32,19 @@ std::string buildInfoLine(const BuildInfo& b) {
   return line + "; " + b.compiler + ")";
 }
 
+nlohmann::json buildInfoJson(const BuildInfo& b) {
+  return {{"esim", b.version},
+          {"commit", b.commit},
+          {"uncommitted_changes", b.dirty},
+          {"compiler", b.compiler}};
+}
+
+std::optional<BuildInfo> buildInfoFromJson(const nlohmann::json& j) {
+  if (!j.is_object()) return std::nullopt;
+  const auto text = [&](const char* k) {
+    return j.contains(k) && j[k].is_string() ? j[k].get<std::string>() : std::string("?");
+  };
+  return BuildInfo{text("esim"), text("commit"), text("uncommitted_changes"), text("compiler")};
+}
+
 }  // namespace esim::app

@@ -4,6 +4,8 @@
 // `esim --version`: a frame hash that changed is first a question of which code made it.
 #pragma once
 
+#include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 
 namespace esim::app {
@@ -20,5 +22,12 @@ const BuildInfo& buildInfo();
 
 // one line: "esim 0.1.0 (commit 4f067ee1c2d3, with uncommitted changes; g++ 12.2.0)"
 std::string buildInfoLine(const BuildInfo& b);
+
+// as recorded in timing.json's "build", hashes.json's and a sweep result's "esim_build":
+// {"esim", "commit", "uncommitted_changes", "compiler"}
+nlohmann::json buildInfoJson(const BuildInfo& b);
+// read back from such a record (a field that is not text reads "?"); none when j is not an
+// object (a file from before esim recorded its build)
+std::optional<BuildInfo> buildInfoFromJson(const nlohmann::json& j);
 
 }  // namespace esim::app

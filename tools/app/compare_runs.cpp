@@ -123,14 +123,8 @@ CompareResult compareRuns(const std::string& runA, const std::string& runB,
                    a.value("libraries", "") == b.value("libraries", "");
   {
     // which esim made each run: a build that says nothing is not taken for the same one
-    const auto build = [](const nlohmann::json& j) -> std::optional<BuildInfo> {
-      const nlohmann::json& b = j.contains("esim_build") ? j["esim_build"] : nlohmann::json();
-      if (!b.is_object()) return std::nullopt;
-      const auto text = [&](const char* k) {
-        return b.contains(k) && b[k].is_string() ? b[k].get<std::string>() : std::string("?");
-      };
-      return BuildInfo{text("version"), text("commit"), text("uncommitted_changes"),
-                       text("compiler")};
+    const auto build = [](const nlohmann::json& j) {
+      return buildInfoFromJson(j.contains("esim_build") ? j["esim_build"] : nlohmann::json());
     };
     const std::optional<BuildInfo> ba = build(a), bb = build(b);
     if (ba) r.buildA = printableInMessage(buildInfoLine(*ba), 200);

@@ -172,14 +172,9 @@ void writeResult(const fs::path& dir, const std::string& id, const nlohmann::jso
 }
 
 std::string variantBuildLine(const nlohmann::json& line) {
-  const nlohmann::json b = line.is_object() ? line.value("esim_build", nlohmann::json()) : nullptr;
-  if (!b.is_object()) return "an esim that did not record its build";
-  const auto text = [&](const char* k) {
-    return b.contains(k) && b[k].is_string() ? b[k].get<std::string>() : std::string("?");
-  };
-  return printableInMessage(
-      buildInfoLine({text("esim"), text("commit"), text("uncommitted_changes"), text("compiler")}),
-      200);
+  const std::optional<BuildInfo> b =
+      buildInfoFromJson(line.is_object() ? line.value("esim_build", nlohmann::json()) : nullptr);
+  return b ? printableInMessage(buildInfoLine(*b), 200) : "an esim that did not record its build";
 }
 
 std::vector<nlohmann::json> manifestLines(const fs::path& dir) {

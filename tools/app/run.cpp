@@ -768,11 +768,7 @@ nlohmann::json timingExtra(const Setup& s, const FrameOutputs& out, const LoopRe
   extra["threads"] = {{"blas", sc.solvers.electricThreads},
                       {"encoder", sc.output.reproducible ? 1 : 0}};
   extra["electric_solver"] = sim.electricSolverName();
-  const BuildInfo& build = buildInfo();
-  extra["build"] = {{"compiler", build.compiler},
-                    {"esim", build.version},
-                    {"commit", build.commit},
-                    {"uncommitted_changes", build.dirty}};
+  extra["build"] = buildInfoJson(buildInfo());
   extra["electric_memory_mb"] = sim.electricMemoryBytes() / 1048576.0;
   extra["electric_cache_limit_mb"] = sc.solvers.electricCacheMemoryLimitMb;  // before any cut
   nlohmann::json cuts = nlohmann::json::array();
@@ -824,11 +820,7 @@ nlohmann::json hashesJson(const Setup& s, const FrameOutputs& out, const nlohman
   hj["renderer"] = extra["renderer"];
   hj["libraries"] = VideoEncoder::libraryVersions();
   // which esim made the frames (esim compare says when two runs' builds differ)
-  const BuildInfo& build = buildInfo();
-  hj["esim_build"] = {{"version", build.version},
-                      {"commit", build.commit},
-                      {"uncommitted_changes", build.dirty},
-                      {"compiler", build.compiler}};
+  hj["esim_build"] = buildInfoJson(buildInfo());
   hj["png_every"] = sc.output.pngEvery;
   hj["scenario_hash"] = extra["scenario_hash"];
   hj["input_files"] = extra["input_files"];
