@@ -276,6 +276,7 @@ struct ThermalPhase::Impl {
   // workspace
   Eigen::VectorXd load, flux, rhs, g, tempNew, kTemp, tempOld, enthalpy0, work, cgR, cgZ, cgP, cgAp,
       cgKp, diagS, diagPrec;
+  Eigen::VectorXd stageEnthalpyN, stageTempN, stageTempG;  // tr-bdf2's H_n, T_n, T_g
 };
 
 ThermalPhase::ThermalPhase(const TetMesh& mesh, const std::vector<TetGeometry>& geo,
@@ -1167,17 +1168,18 @@ void ThermalPhase::Impl::Stepper::trBdf2Step() {
   theta = 1.0;
   chooseLinearSolver();
   // stage 1
-  thetaLoad();  // H_n, T_n, K T_n; g = F
-  const Eigen::VectorXd enthalpyN = m.enthalpy0, tempN = m.tempOld;
+  thetaLoad();                     // H_n, T_n, K T_n; g = F
+  m.stageEnthalpyN = m.enthalpy0;  // (kept in the phase: no allocation a frame)
+  m.stageTempN = m.tempOld;
   m.g = 2.0 * m.g - m.kTemp;
   implicitStage();
   const bool converged = stats.converged;  // (iterations add up in stats.iterations)
-  const double convectedN = convectedPowerW(tempN);
+  const double convectedN = convectedPowerW(m.stageTempN);
   const double convectedG = convectedPowerW(m.tempNew);
-  accumulateDamage(gamma * stepS, tempN, s.temperatureC);
-  const Eigen::VectorXd tempG = s.temperatureC;
+  accumulateDamage(gamma * stepS, m.stageTempN, s.temperatureC);
+  m.stageTempG = s.temperatureC;
   // stage 2, from H*
-  s.enthalpyJ_m3 = a * s.enthalpyJ_m3 - b * enthalpyN;
+  s.enthalpyJ_m3 = a * s.enthalpyJ_m3 - b * m.stageEnthalpyN;
   updateTemperature();
   thetaLoad();  // H*, T(H*), K T(H*); g = F
   implicitStage();
@@ -1185,7 +1187,7 @@ void ThermalPhase::Impl::Stepper::trBdf2Step() {
   if (m.convectionActive)
     s.convectedJ +=
         a * gamma * stepS * 0.5 * (convectedN + convectedG) + dtS * convectedPowerW(m.tempNew);
-  accumulateDamage((1.0 - gamma) * stepS, tempG, s.temperatureC);
+  accumulateDamage((1.0 - gamma) * stepS, m.stageTempG, s.temperatureC);
   stats.substeps = 2;
   dtS = stepS;
 }

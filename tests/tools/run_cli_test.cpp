@@ -1347,18 +1347,18 @@ TEST(RunCli, StatusLinesShowTheOutputFolderPrintable) {
   fs::create_directories(parent);
   const std::string name = "a\x1b[31mb\x85";
   const std::string shown = "a\\x1B[31mb\\x85";
-  const std::vector<std::pair<std::string, std::string>> cases = {
-      {"run scenarios/paper_slab.yaml --frames 1 --no-video" + std::string(kSmall) + " -o ",
-       "  outputs       " + (parent / "run_").string() + shown + "/ {"},
-      {"render-sample --width 64 --height 36 --out ",
-       (parent / "sample_").string() + shown + "/sample_temperature.png: 64x36"},
-      {"bench thermal --sizes 1013 --frames 4 --csv ",
-       "wrote " + (parent / "csv_").string() + shown}};
-  for (const auto& [args, expect] : cases) {
-    const std::string prefix = expect.find("wrote") == 0 ? "csv_"
-                               : args.find("run ") == 0  ? "run_"
-                                                         : "sample_";
-    const fs::path out = parent / (prefix + name);
+  struct Case {
+    std::string args, folder, before, after;  // expected: before + PARENT/folder<shown> + after
+  };
+  const std::vector<Case> cases = {
+      {"run scenarios/paper_slab.yaml --frames 1 --no-video" + std::string(kSmall) + " -o ", "run_",
+       "  outputs       ", "/ {"},
+      {"render-sample --width 64 --height 36 --out ", "sample_", "",
+       "/sample_temperature.png: 64x36"},
+      {"bench thermal --sizes 1013 --frames 4 --csv ", "csv_", "wrote ", "\n"}};
+  for (const auto& [args, folder, before, after] : cases) {
+    const fs::path out = parent / (folder + name);
+    const std::string expect = before + (parent / folder).string() + shown + after;
     const Result r = shell(std::string(ESIM_EXE) + " " + args + "'" + out.string() + "'");
     EXPECT_EQ(r.exitCode, 0) << args << "\n" << r.output;
     EXPECT_NE(r.output.find(expect), std::string::npos) << expect << "\n" << r.output;

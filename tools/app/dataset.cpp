@@ -177,6 +177,14 @@ std::string variantBuildLine(const nlohmann::json& line) {
   return b ? printableInMessage(buildInfoLine(*b), 200) : "an esim that did not record its build";
 }
 
+std::string datasetBuildsText(const std::map<std::string, int>& builds) {
+  if (builds.size() < 2) return "";
+  std::string text = "the complete variants were made by " + std::to_string(builds.size()) +
+                     " builds of esim (the manifest's \"esim_build\"):\n";
+  for (const auto& [build, n] : builds) text += "    " + std::to_string(n) + " by " + build + "\n";
+  return text;
+}
+
 std::vector<nlohmann::json> manifestLines(const fs::path& dir) {
   const nlohmann::json sweep = readSweepJson(dir);
   std::vector<nlohmann::json> lines;

@@ -80,6 +80,10 @@ void writeResult(const std::filesystem::path& dir, const std::string& id,
 // line's or result's esim_build, the run's timing.json "build"); "an esim that did not
 // record its build" for results from before it did
 std::string variantBuildLine(const nlohmann::json& line);
+// the builds of a dataset's complete variants (variantBuildLine -> how many), as the sweep's
+// end and `esim dataset verify` say them when there is more than one: "the complete variants
+// were made by 2 builds of esim (...):\n    3 by esim ...\n    1 by esim ...\n"; "" for one
+std::string datasetBuildsText(const std::map<std::string, int>& builds);
 
 // the manifest's lines as of now (sweep.json's variants with their results)
 std::vector<nlohmann::json> manifestLines(const std::filesystem::path& dir);

@@ -605,11 +605,7 @@ int finalReport(const fs::path& dir, std::size_t total, bool quiet) {
       if (t.warned.size() > 5) std::cout << "    ...\n";
     }
     // a dataset whose variants two builds made (a sweep resumed after the code changed)
-    if (t.builds.size() > 1) {
-      std::cout << "  warning: the complete variants were made by " << t.builds.size()
-                << " builds of esim (the manifest's \"esim_build\"):\n";
-      for (const auto& [build, n] : t.builds) std::cout << "    " << n << " by " << build << "\n";
-    }
+    if (t.builds.size() > 1) std::cout << "  warning: " << datasetBuildsText(t.builds);
     if (t.failed)
       std::cout << "  (failed variants run again with --retry-failed; each has its "
                    "runs/<id>/log.txt)\n";

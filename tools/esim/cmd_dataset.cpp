@@ -32,11 +32,7 @@ int verify(const VerifyOptions& opt) {
   }
   // a dataset two builds of esim made (a sweep resumed after the code changed): said, not a
   // problem (its files still match the manifest)
-  if (r.builds.size() > 1) {
-    std::cout << "  note: the complete variants were made by " << r.builds.size()
-              << " builds of esim (the manifest's \"esim_build\"):\n";
-    for (const auto& [build, n] : r.builds) std::cout << "    " << n << " by " << build << "\n";
-  }
+  if (r.builds.size() > 1) std::cout << "  note: " << app::datasetBuildsText(r.builds);
   return r.problems.empty() ? kExitOk : kExitMismatch;
 }
 
